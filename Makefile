@@ -1,0 +1,33 @@
+# sieve-mi: the two quick-start commands are `make demo` and `make test`.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+SCENE  ?= scenes/default.toml
+
+.PHONY: setup demo test test-fast bench clean
+
+setup: $(STAMP)
+
+# The virtual environment, the package and its dependencies, and a libLLVM (>= 17) that Dr.Jit accepts.
+$(STAMP): pyproject.toml tools/ensure_llvm.sh
+	bash tools/ensure_llvm.sh
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[test]'
+	touch $(STAMP)
+
+demo: setup
+	$(VENV)/bin/sieve-mi solve $(SCENE)
+
+test: setup
+	$(PY) -m pytest -q tests
+
+test-fast: setup
+	$(PY) -m pytest -q -m "not slow" tests
+
+bench: setup
+	$(PY) -m benchmarks.run
+
+clean:
+	rm -rf out build *.egg-info

@@ -1,0 +1,111 @@
+"""Choosing the Dr.Jit/Mitsuba backend.
+
+Dr.Jit 1.5's LLVM backend needs libLLVM >= 17 (with 14-16 every kernel dies with
+``Cannot select: ... fminimum``). :func:`configure_llvm` finds a suitable library and sets
+``DRJIT_LIBLLVM_PATH`` before Dr.Jit is imported; :func:`use_variant` selects the Mitsuba variant
+and turns a missing backend into a one-line :class:`~sieve_mi.errors.SieveError`.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+import sys
+
+from sieve_mi.errors import SieveError
+
+#: Variants sieve-mi supports: CPU (LLVM) and GPU (CUDA), both monochrome with autodiff.
+VARIANTS = ("llvm_ad_mono", "cuda_ad_mono")
+MIN_LLVM = 17
+
+_PATTERNS = (
+    "/usr/lib/llvm-*/lib/libLLVM*.so*",
+    "/usr/lib/*-linux-gnu/libLLVM-*.so*",
+    "/usr/lib/*-linux-gnu/libLLVM.so.*",
+    "/usr/lib64/libLLVM*.so*",
+    "/usr/local/lib/libLLVM*.so*",
+    "/opt/homebrew/opt/llvm*/lib/libLLVM.dylib",
+    "/usr/local/opt/llvm*/lib/libLLVM.dylib",
+)
+
+
+def _llvm_major(path: str) -> int | None:
+    """Major LLVM version encoded in a library path, or None if it cannot be told."""
+    m = re.search(r"llvm[-@]?(\d+)", path, re.IGNORECASE) or re.search(r"libLLVM[-.]?(?:so\.)?(\d+)", path)
+    return int(m.group(1)) if m else None
+
+
+def find_llvm() -> str | None:
+    """Path of the newest libLLVM with major version >= 17 on this machine, or None.
+
+    Returns
+    -------
+    str or None
+        An existing shared library path.
+    """
+    best: tuple[int, str] | None = None
+    for pattern in _PATTERNS:
+        for path in glob.glob(pattern):
+            major = _llvm_major(path)
+            if major is not None and major >= MIN_LLVM and (best is None or major > best[0]):
+                best = (major, path)
+    return best[1] if best else None
+
+
+def configure_llvm() -> str | None:
+    """Point Dr.Jit at a usable libLLVM unless the user already chose one.
+
+    Must run before ``drjit`` is imported; has no effect afterwards.
+
+    Returns
+    -------
+    str or None
+        The library Dr.Jit will use, or None if none was found.
+    """
+    chosen = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if chosen and os.path.exists(chosen):
+        return chosen
+    found = find_llvm()
+    if found and "drjit" not in sys.modules:
+        os.environ["DRJIT_LIBLLVM_PATH"] = found
+    return found
+
+
+def use_variant(variant: str = "llvm_ad_mono"):
+    """Select a Mitsuba variant and return the ``mitsuba`` module.
+
+    Parameters
+    ----------
+    variant : str
+        ``"llvm_ad_mono"`` (CPU) or ``"cuda_ad_mono"`` (NVIDIA GPU).
+
+    Raises
+    ------
+    SieveError
+        If the variant is unknown or its backend is not available on this machine.
+    """
+    if variant not in VARIANTS:
+        raise SieveError(f"variant '{variant}' is not supported; use one of: {', '.join(VARIANTS)}")
+    if variant.startswith("llvm") and configure_llvm() is None:
+        raise SieveError(
+            "no libLLVM >= 17 found for Dr.Jit's CPU backend: run 'apt-get install libllvm19' "
+            "(or 'make setup'), or set DRJIT_LIBLLVM_PATH to a libLLVM 17+ library"
+        )
+    import drjit as dr
+    import mitsuba as mi
+
+    if variant.startswith("cuda") and not dr.has_backend(dr.JitBackend.CUDA):
+        raise SieveError("variant 'cuda_ad_mono' needs an NVIDIA GPU with a CUDA driver; none was found (use --variant llvm_ad_mono)")
+    if variant.startswith("llvm") and not dr.has_backend(dr.JitBackend.LLVM):
+        raise SieveError("Dr.Jit could not load libLLVM; set DRJIT_LIBLLVM_PATH to a libLLVM 17+ library (e.g. Debian's libllvm19)")
+    if mi.variant() != variant:
+        mi.set_variant(variant)
+    return mi
+
+
+def gpu_available() -> bool:
+    """Whether Dr.Jit can use a CUDA device here."""
+    import drjit as dr
+
+    return bool(dr.has_backend(dr.JitBackend.CUDA))

@@ -1,0 +1,254 @@
+"""Loading meshes and preparing them for the silhouette and clearance computations.
+
+Any triangle mesh that trimesh reads is valid input, including open, non-manifold, disconnected,
+self-intersecting and flat (zero-thickness) meshes: nothing here assumes a solid. Empty meshes,
+point clouds, non-finite coordinates and unreadable files raise a one-line
+:class:`~sieve_mi.errors.SieveError`.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sieve_mi.errors import SieveError
+
+
+@dataclass
+class Shape:
+    """A mesh centred at its bounding-box centre and scaled to scene units.
+
+    Attributes
+    ----------
+    name : str
+        Label used in reports (the file stem unless given).
+    path : str
+        Source file ("" for generated shapes).
+    vertices : (V, 3) ndarray of float64
+        Vertex positions relative to the centre, scene units.
+    faces : (F, 3) ndarray of int64
+        Triangle vertex indices.
+    centre : (3,) ndarray
+        Where the centre lies in the file's coordinates times the scale (scene units).
+    radius : float
+        Largest distance from the centre to a vertex (scene units): every rotation's silhouette
+        lies in the disk of this radius.
+    hull : (H, 3) ndarray
+        Vertices of the convex hull (or all vertices if the hull is degenerate); the extremes of
+        every projection are among them.
+    """
+
+    name: str
+    path: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    centre: np.ndarray
+    radius: float
+    hull: np.ndarray = field(repr=False)
+
+    @property
+    def face_count(self) -> int:
+        return int(len(self.faces))
+
+
+def _fail(path: str, what: str) -> SieveError:
+    return SieveError(f"{path}: {what}")
+
+
+def load_trimesh(path: str):
+    """Read a triangle mesh with trimesh, merging scenes into one mesh.
+
+    Raises
+    ------
+    SieveError
+        If the file is missing, unreadable, or holds no triangles.
+    """
+    import trimesh
+
+    if not os.path.exists(path):
+        raise _fail(path, "mesh file not found; check the 'mesh' path (relative to the scene file)")
+    if os.path.isdir(path):
+        raise _fail(path, "is a directory, not a mesh file")
+    try:
+        loaded = trimesh.load(path, process=False)
+    except Exception as exc:  # trimesh raises many exception types for bad files
+        raise _fail(path, f"could not be read as a mesh ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'no detail'})") from None
+    if isinstance(loaded, trimesh.Scene):
+        geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
+        if not geoms:
+            raise _fail(path, "holds no triangles (a point cloud or empty scene?); give a triangle mesh")
+        loaded = trimesh.util.concatenate(geoms)
+    if not isinstance(loaded, trimesh.Trimesh):
+        raise _fail(path, "holds no triangles (a point cloud or line drawing?); give a triangle mesh")
+    return loaded
+
+
+def shape_from_arrays(vertices: np.ndarray, faces: np.ndarray, *, name: str, path: str = "", scale: float = 1.0) -> Shape:
+    """Validate, scale and centre a triangle mesh.
+
+    Parameters
+    ----------
+    vertices : (V, 3) array_like
+        Vertex positions in file units.
+    faces : (F, 3) array_like of int
+        Triangles.
+    name, path : str
+        Labels for reports and error messages.
+    scale : float
+        Uniform scale applied before centring (file units to scene units).
+
+    Raises
+    ------
+    SieveError
+        On empty meshes, non-finite coordinates, bad indices, or zero total area.
+    """
+    where = path or name
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces)
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or len(vertices) == 0:
+        raise _fail(where, "has no vertices; give a non-empty triangle mesh")
+    if faces.size == 0:
+        raise _fail(where, "has no faces (a point cloud?); give a triangle mesh")
+    if faces.ndim != 2 or faces.shape[1] != 3:
+        raise _fail(where, "faces are not triangles")
+    if not np.all(np.isfinite(vertices)):
+        raise _fail(where, "has NaN or infinite vertex coordinates; repair or re-export the mesh")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise _fail(where, "has face indices outside the vertex list")
+    if not (np.isfinite(scale) and scale > 0):
+        raise _fail(where, f"scale {scale} must be a positive number")
+    faces = faces.astype(np.int64)
+    used = np.unique(faces)
+    vertices = vertices * scale
+    lo, hi = vertices[used].min(0), vertices[used].max(0)
+    centre = 0.5 * (lo + hi)
+    v = vertices - centre
+    tri = v[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    extent = float(np.max(hi - lo))
+    if extent <= 0 or area <= 1e-12 * extent * extent:
+        raise _fail(where, "has zero surface area (all triangles degenerate); give a mesh with real triangles")
+    radius = float(np.linalg.norm(v[used], axis=1).max())
+    return Shape(name=name, path=path, vertices=v, faces=faces, centre=centre, radius=radius, hull=_hull_vertices(v[used]))
+
+
+def _hull_vertices(points: np.ndarray) -> np.ndarray:
+    """Vertices of the convex hull of ``points`` (all points if the hull is degenerate, e.g. flat)."""
+    try:
+        from scipy.spatial import ConvexHull
+
+        return points[ConvexHull(points).vertices]
+    except Exception:  # flat or collinear input: the hull is 2D, keep every point
+        return points
+
+
+def load_shape(path: str, *, scale: float = 1.0, name: str | None = None) -> Shape:
+    """Read, validate, scale and centre a mesh file (STL, OBJ, PLY, OFF, GLB, ... as trimesh reads).
+
+    Parameters
+    ----------
+    path : str
+        Mesh file.
+    scale : float
+        Uniform scale from file units to scene units.
+    name : str, optional
+        Label; defaults to the file stem.
+    """
+    mesh = load_trimesh(path)
+    stem = os.path.splitext(os.path.basename(path))[0]
+    return shape_from_arrays(mesh.vertices, mesh.faces, name=name or stem, path=path, scale=scale)
+
+
+def shape_from_trimesh(mesh, *, name: str, scale: float = 1.0) -> Shape:
+    """A :class:`Shape` from an in-memory ``trimesh.Trimesh`` (generated shapes, tests)."""
+    return shape_from_arrays(mesh.vertices, mesh.faces, name=name, scale=scale)
+
+
+@dataclass
+class Segments:
+    """A mesh's edges cut into short segments, with what is needed to tell silhouette edges.
+
+    An edge lies on the outline of the projection only if it is a *silhouette edge*: a boundary
+    edge (one face), a non-manifold edge (three or more faces), or an edge whose two faces project
+    to the same side of it. For an edge a-b with opposite vertices o1, o2 this is the sign test
+    ``(r3 . m1) (r3 . m2) >= 0`` with ``m_i = (b - a) x (o_i - a)`` and r3 the third row of the
+    rotation; it does not depend on how faces are oriented, so polygon soups work too.
+
+    Attributes
+    ----------
+    a, b : (S, 3) ndarrays
+        Segment end points (centred mesh frame, scene units).
+    m1, m2 : (S, 3) ndarrays
+        The two faces' cross products of the segment's parent edge (zeros where ``always``).
+    always : (S,) ndarray of bool
+        Boundary or non-manifold parent edge: always a silhouette candidate.
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    m1: np.ndarray
+    m2: np.ndarray
+    always: np.ndarray
+
+    def __len__(self) -> int:
+        return int(len(self.a))
+
+
+def edge_topology(vertices: np.ndarray, faces: np.ndarray):
+    """Unique edges and, per edge, the cross products that decide whether it is a silhouette edge.
+
+    Returns
+    -------
+    edges : (E, 2) ndarray of int
+    m1, m2 : (E, 3) ndarrays
+    always : (E,) ndarray of bool
+    """
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    opposite = np.concatenate([faces[:, 2], faces[:, 0], faces[:, 1]])
+    key = np.sort(e, axis=1)
+    keep = key[:, 0] != key[:, 1]
+    key, e, opposite = key[keep], e[keep], opposite[keep]
+    edges, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    a, b = vertices[e[:, 0]], vertices[e[:, 1]]
+    # Use the canonical direction (sorted vertex order) so both faces' cross products are comparable.
+    flip = e[:, 0] != key[:, 0]
+    a, b = np.where(flip[:, None], b, a), np.where(flip[:, None], a, b)
+    m = np.cross(b - a, vertices[opposite] - a)
+    order = np.argsort(inverse, kind="stable")
+    first = np.zeros(len(edges), dtype=np.int64)
+    np.cumsum(counts[:-1], out=first[1:])
+    m1 = m[order[first]]
+    second = np.minimum(first + 1, len(order) - 1)
+    m2 = np.where((counts >= 2)[:, None], m[order[second]], 0.0)
+    always = counts != 2
+    m1 = np.where(always[:, None], 0.0, m1)
+    m2 = np.where(always[:, None], 0.0, m2)
+    return edges, m1, m2, always
+
+
+def segments(shape: Shape, spacing: float, samples_per_segment: int) -> Segments:
+    """Cut every edge of ``shape`` into segments holding ``samples_per_segment`` samples each,
+    so that samples along an edge are at most ``spacing`` apart.
+
+    Parameters
+    ----------
+    shape : Shape
+    spacing : float
+        Largest distance between neighbouring samples, scene units (typically one pixel).
+    samples_per_segment : int
+        Samples per segment; segments are as long as ``samples_per_segment * spacing`` at most.
+    """
+    edges, m1, m2, always = edge_topology(shape.vertices, shape.faces)
+    a, b = shape.vertices[edges[:, 0]], shape.vertices[edges[:, 1]]
+    length = np.linalg.norm(b - a, axis=1)
+    pieces = np.maximum(1, np.ceil(length / (spacing * samples_per_segment))).astype(np.int64)
+    parent = np.repeat(np.arange(len(edges)), pieces)
+    start = np.cumsum(pieces) - pieces
+    k = np.arange(len(parent)) - np.repeat(start, pieces)
+    f0 = (k / pieces[parent])[:, None]
+    f1 = ((k + 1) / pieces[parent])[:, None]
+    d = b[parent] - a[parent]
+    return Segments(a=a[parent] + f0 * d, b=a[parent] + f1 * d, m1=m1[parent], m2=m2[parent], always=always[parent])

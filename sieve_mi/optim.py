@@ -1,0 +1,176 @@
+"""Optimisers: batched Adam in Dr.Jit (player B) and particle swarm / nlopt (player A)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+
+class BatchedAdam:
+    """Adam (Kingma and Ba) over a list of Dr.Jit arrays, every element an independent problem.
+
+    The learning rate and the step count enter the update kernel as opaque values, so the kernel
+    compiled in the first step is reused by every later step and by later runs of the same size.
+
+    Parameters
+    ----------
+    params : list of mi.Float
+        Arrays to optimise; updated in place (the list entries are replaced).
+    lr : float
+        Learning rate (parameter units per step).
+    beta_1, beta_2, epsilon : float
+        Adam's moment decay rates and denominator offset (paper: 0.9, 0.999, 1e-8).
+    """
+
+    def __init__(self, params: list, lr: float, beta_1: float = 0.9, beta_2: float = 0.999, epsilon: float = 1e-8):
+        import drjit as dr
+        import mitsuba as mi
+
+        self.dr, self.mi = dr, mi
+        self.params = params
+        self.lr = lr
+        self.b1, self.b2, self.eps = beta_1, beta_2, epsilon
+        self.m = [dr.zeros(mi.Float, dr.width(p)) for p in params]
+        self.v = [dr.zeros(mi.Float, dr.width(p)) for p in params]
+        self.t = 0
+
+    def step(self) -> None:
+        """Apply one update from the gradients currently stored on ``params``."""
+        dr, mi = self.dr, self.mi
+        self.t += 1
+        lr = dr.opaque(mi.Float, self.lr * np.sqrt(1 - self.b2**self.t) / (1 - self.b1**self.t))
+        for i, p in enumerate(self.params):
+            g = dr.grad(p)
+            self.m[i] = self.b1 * self.m[i] + (1 - self.b1) * g
+            self.v[i] = self.b2 * self.v[i] + (1 - self.b2) * dr.square(g)
+            self.params[i] = dr.detach(p) - lr * self.m[i] / (dr.sqrt(self.v[i]) + self.eps)
+        dr.schedule(self.m, self.v)
+
+
+@dataclass
+class SwarmHistory:
+    """Best value after each iteration of a global search (for convergence plots)."""
+
+    best: list[float] = field(default_factory=list)
+    evaluations: int = 0
+
+
+def particle_swarm(evaluate: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, iterations: int, rng: np.random.Generator,
+                   inertia: float = 0.25, c_personal: float = 0.25, c_global: float = 0.25, v0: np.ndarray | None = None,
+                   project: Callable[[np.ndarray], np.ndarray] | None = None, progress: Callable[[int, float], None] | None = None):
+    """Maximise ``evaluate`` with particle swarm optimisation (Poli 2008), all particles per call.
+
+    Parameters
+    ----------
+    evaluate : callable
+        Maps positions (P, D) to values (P,), larger is better; called once per iteration with
+        every particle, so it can batch their evaluations.
+    x0 : (P, D) ndarray
+        Initial positions.
+    iterations : int
+        Number of velocity updates after the initial evaluation.
+    rng : numpy.random.Generator
+    inertia, c_personal, c_global : float
+        omega, psi_1 and psi_2 (paper: 0.25 each).
+    v0 : (P, D) ndarray, optional
+        Initial velocities (zeros by default).
+    project : callable, optional
+        Maps positions back onto the feasible set after every move (e.g. normalise quaternions).
+    progress : callable, optional
+        Called as ``progress(iteration, best_value)``.
+
+    Returns
+    -------
+    best_x : (D,) ndarray
+    best_value : float
+    history : SwarmHistory
+    """
+    x = np.array(x0, dtype=np.float64)
+    v = np.zeros_like(x) if v0 is None else np.array(v0, dtype=np.float64)
+    f = np.asarray(evaluate(x), dtype=np.float64)
+    history = SwarmHistory(evaluations=len(x))
+    p_best, p_val = x.copy(), f.copy()
+    g = int(np.argmax(p_val))
+    history.best.append(float(p_val[g]))
+    if progress:
+        progress(0, float(p_val[g]))
+    for it in range(1, iterations + 1):
+        r1, r2 = rng.random(x.shape), rng.random(x.shape)
+        v = inertia * v + c_personal * r1 * (p_best - x) + c_global * r2 * (p_best[g] - x)
+        x = x + v
+        if project is not None:
+            x = project(x)
+        f = np.asarray(evaluate(x), dtype=np.float64)
+        history.evaluations += len(x)
+        better = f > p_val
+        p_best[better], p_val[better] = x[better], f[better]
+        g = int(np.argmax(p_val))
+        history.best.append(float(p_val[g]))
+        if progress:
+            progress(it, float(p_val[g]))
+    return p_best[g].copy(), float(p_val[g]), history
+
+
+NLOPT_METHODS = {
+    "crs2": "GN_CRS2_LM",
+    "esch": "GN_ESCH",
+    "direct": "GN_DIRECT_L",
+    "isres": "GN_ISRES",
+    "mlsl": "GN_MLSL_LDS",
+    "ags": "GN_AGS",
+}
+
+
+def nlopt_maximise(evaluate_one: Callable[[np.ndarray], float], lower: np.ndarray, upper: np.ndarray, method: str,
+                   max_evaluations: int, x0: np.ndarray, seed: int, progress: Callable[[int, float], None] | None = None):
+    """Maximise a function of a box-bounded vector with one of nlopt's global methods.
+
+    Parameters
+    ----------
+    evaluate_one : callable
+        Maps one position (D,) to a value.
+    lower, upper : (D,) ndarrays
+        Box bounds.
+    method : str
+        A key of :data:`NLOPT_METHODS`.
+    max_evaluations : int
+        Evaluation budget.
+    x0 : (D,) ndarray
+        Starting point (used by methods that take one).
+    seed : int
+        nlopt's random seed.
+
+    Returns
+    -------
+    best_x, best_value, history
+    """
+    import nlopt
+
+    nlopt.srand(int(seed))
+    opt = nlopt.opt(getattr(nlopt, NLOPT_METHODS[method]), len(lower))
+    history = SwarmHistory()
+    best = {"x": np.array(x0, float), "f": -np.inf}
+
+    def objective(x, grad):
+        f = float(evaluate_one(np.asarray(x)))
+        history.evaluations += 1
+        if f > best["f"]:
+            best["x"], best["f"] = np.array(x, float), f
+        history.best.append(best["f"])
+        if progress:
+            progress(history.evaluations, best["f"])
+        return f
+
+    opt.set_max_objective(objective)
+    opt.set_lower_bounds(list(lower))
+    opt.set_upper_bounds(list(upper))
+    opt.set_maxeval(int(max_evaluations))
+    if method == "mlsl":
+        opt.set_local_optimizer(nlopt.opt(nlopt.LN_BOBYQA, len(lower)))
+    try:
+        opt.optimize(list(np.clip(x0, lower, upper)))
+    except (nlopt.RoundoffLimited, nlopt.ForcedStop, ValueError, RuntimeError):
+        pass  # keep the best point seen so far
+    return best["x"], best["f"], history

@@ -1,0 +1,243 @@
+"""The two players of the sieve game (paper Secs. 5 and 6).
+
+Player B (:class:`PlayerB`) minimises how much of each blocked shape sticks out of a hole, over
+rotations and translations, with Adam from many random starts; every start of every shape against
+every candidate hole runs in one batched Dr.Jit kernel per step. Player A (:class:`PlayerA`)
+chooses the rotation of its shape so that B's best attempt is as bad as possible (eq. 7), with a
+particle swarm whose particles are evaluated together, or with an nlopt global method.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from sieve_mi.hole import Hole, build_hole
+from sieve_mi.meshes import Shape
+from sieve_mi.optim import BatchedAdam, nlopt_maximise, particle_swarm
+from sieve_mi.raster import Frame
+from sieve_mi.rotations import from_rotvec, normalize, random_uniform
+from sieve_mi.scoring import score_poses
+from sieve_mi.silhouettes import SilhouetteRenderer
+
+OBJECTIVES = ("clearance", "overlap")
+
+
+@dataclass
+class Attack:
+    """Player B's best attempts against a list of holes.
+
+    Attributes
+    ----------
+    beta : (H, B) ndarray
+        Lowest binary beta over the starts, per hole and shape.
+    protrusion : (H, B) ndarray
+        Protrusion (scene units) of that best pose.
+    quats : (H, B, 4) ndarray
+    trans : (H, B, 2) ndarray
+        The best pose per hole and shape (translation in scene units).
+    fits : (H, B) ndarray of int
+        How many starts ended in a pose that fits (beta == 0).
+    """
+
+    beta: np.ndarray
+    protrusion: np.ndarray
+    quats: np.ndarray
+    trans: np.ndarray
+    fits: np.ndarray
+
+    def value(self) -> np.ndarray:
+        """The game value per hole: the weakest block, min over shapes of beta (eq. 10)."""
+        return self.beta.min(axis=1)
+
+
+class PlayerB:
+    """Fits B's shapes into holes by batched Adam from random starts.
+
+    Parameters
+    ----------
+    shapes : list of Shape
+        The shapes that must be blocked.
+    frame : Frame
+        The raster frame of the holes it will be tested against.
+    objective : {"clearance", "overlap"}
+        Differentiable loss used by Adam; scores are always binary beta.
+    samples_per_segment : int
+        Edge samples per segment for the clearance objective.
+    """
+
+    def __init__(self, shapes: list[Shape], frame: Frame, objective: str = "clearance", samples_per_segment: int = 4):
+        if objective not in OBJECTIVES:
+            raise ValueError(f"unknown objective {objective!r}")
+        self.shapes = shapes
+        self.frame = frame
+        self.objective = objective
+        self.renderers = [SilhouetteRenderer(s) for s in shapes]
+        self._samples = samples_per_segment
+        self._loss = None
+
+    def _loss_fn(self):
+        if self._loss is None:
+            if self.objective == "clearance":
+                from sieve_mi.clearance import ClearanceObjective
+
+                self._loss = ClearanceObjective(self.shapes, self.frame, self._samples)
+            else:
+                from sieve_mi.overlap import OverlapObjective
+
+                self._loss = OverlapObjective(self.shapes, self.frame)
+        return self._loss
+
+    def attack(self, holes: list[Hole], starts: int, steps: int, learning_rate: float, rng: np.random.Generator,
+               progress: Callable[[int], None] | None = None) -> Attack:
+        """Player B's best attempt on each hole, for each shape.
+
+        Starts are uniform random rotations and translations in +-0.1 of the frame's half extent
+        (paper Sec. 6.1); translations are optimised in units of the half extent.
+
+        Parameters
+        ----------
+        holes : list of Hole
+            Candidate holes, all on ``self.frame``.
+        starts : int
+            Random starts per hole and shape.
+        steps : int
+            Adam steps.
+        learning_rate : float
+            Adam's learning rate for quaternion components and normalised translations.
+        rng : numpy.random.Generator
+        progress : callable, optional
+            Called with the number of steps done after each step.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        from sieve_mi.clearance import HoleStack
+
+        n_h, n_b = len(holes), len(self.shapes)
+        k = n_h * n_b * starts
+        pose_hole = np.repeat(np.arange(n_h), n_b * starts)
+        pose_shape = np.tile(np.repeat(np.arange(n_b), starts), n_h)
+        q0 = random_uniform(k, rng)
+        t0 = rng.uniform(-0.1, 0.1, size=(k, 2))
+        loss = self._loss_fn()
+        stack = HoleStack(holes)
+        loss.bind(pose_shape)
+        scale = self.frame.half_extent
+        params = [mi.Float(q0[:, i].astype(np.float32)) for i in range(4)] + [mi.Float(t0[:, i].astype(np.float32)) for i in range(2)]
+        opt = BatchedAdam(params, lr=learning_rate)
+        hole_idx = mi.UInt32(pose_hole.astype(np.uint32))
+        best = [dr.detach(p) for p in params]
+        best_loss = dr.full(mi.Float, np.inf, k)
+        for step in range(steps):
+            for p in opt.params:
+                dr.enable_grad(p)
+            q = tuple(opt.params[:4])
+            t = (opt.params[4] * scale, opt.params[5] * scale)
+            total, per_pose = loss.loss(q, t, stack, hole_idx)
+            dr.backward(total)
+            # Remember each start's best pose so far (Adam may step past a fit).
+            improved = per_pose < best_loss
+            best = [dr.select(improved, dr.detach(p), b) for p, b in zip(opt.params, best)]
+            best_loss = dr.select(improved, per_pose, best_loss)
+            opt.step()
+            norm = dr.rsqrt(dr.square(opt.params[0]) + dr.square(opt.params[1]) + dr.square(opt.params[2]) + dr.square(opt.params[3]))
+            for i in range(4):
+                opt.params[i] = opt.params[i] * norm
+            dr.eval(opt.params, best, best_loss, opt.m, opt.v)
+            if progress:
+                progress(step + 1)
+        if steps > 0:
+            for p in opt.params:
+                dr.enable_grad(p)
+            _, per_pose = loss.loss(tuple(opt.params[:4]), (opt.params[4] * scale, opt.params[5] * scale), stack, hole_idx)
+            improved = per_pose < best_loss
+            best = [dr.select(improved, dr.detach(p), b) for p, b in zip(opt.params, best)]
+        final = np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
+        quats = normalize(final[:, :4])
+        trans = final[:, 4:] * scale
+        return self._score(holes, quats, trans, pose_hole, pose_shape, starts)
+
+    def _score(self, holes, quats, trans, pose_hole, pose_shape, starts) -> Attack:
+        n_h, n_b = len(holes), len(self.shapes)
+        beta = np.ones(len(quats))
+        prot = np.zeros(len(quats))
+        for h in range(n_h):
+            for b in range(n_b):
+                sel = (pose_hole == h) & (pose_shape == b)
+                s = score_poses(self.renderers[b], holes[h], quats[sel], trans[sel])
+                beta[sel], prot[sel] = s.beta, s.protrusion
+        beta = beta.reshape(n_h, n_b, starts)
+        prot = prot.reshape(n_h, n_b, starts)
+        # Best start: lowest beta, then lowest protrusion.
+        order = np.lexsort((prot, beta), axis=-1) if False else None
+        best = np.argmin(beta + 1e-9 * prot / (1.0 + prot), axis=-1)
+        idx = np.arange(n_h)[:, None], np.arange(n_b)[None, :]
+        qs = quats.reshape(n_h, n_b, starts, 4)
+        ts = trans.reshape(n_h, n_b, starts, 2)
+        return Attack(beta=beta[idx + (best,)], protrusion=prot[idx + (best,)], quats=qs[idx + (best,)],
+                      trans=ts[idx + (best,)], fits=(beta == 0).sum(-1))
+
+
+class PlayerA:
+    """Chooses A's rotation so that B's best attempt fails by as much as possible (eq. 7).
+
+    Parameters
+    ----------
+    shape : Shape
+        The shape that must pass.
+    frame : Frame
+        Raster frame of the hole (covers A's dilated silhouette at every rotation).
+    tolerance : float
+        Dilation of A's silhouette, scene units.
+    fill_holes : bool
+        Whether holes in A's silhouette are filled.
+    """
+
+    def __init__(self, shape: Shape, frame: Frame, tolerance: float, fill_holes: bool = True):
+        self.shape = shape
+        self.frame = frame
+        self.tolerance = tolerance
+        self.fill_holes = fill_holes
+        self.renderer = SilhouetteRenderer(shape)
+
+    def silhouette(self, quat: np.ndarray) -> np.ndarray:
+        """A's silhouette under rotation ``quat`` on the frame, (N, N) bool."""
+        return self.renderer.frame_mask(normalize(quat), np.zeros(2), self.frame)
+
+    def holes(self, quats: np.ndarray) -> list[Hole]:
+        """The hole H for each rotation: silhouette, dilated by the tolerance, holes filled."""
+        quats = np.atleast_2d(normalize(quats))
+        n = self.frame.resolution
+        masks = self.renderer.masks(quats, np.zeros((len(quats), 2)), self.frame, np.zeros(len(quats), int), np.zeros(len(quats), int), n)
+        return [build_hole([m], self.frame, self.tolerance, self.fill_holes) for m in masks]
+
+    def search(self, player_b: PlayerB, *, method: str, particles: int, iterations: int, starts: int, steps: int,
+               learning_rate: float, rng: np.random.Generator, seed: int, inertia: float = 0.25, c_personal: float = 0.25,
+               c_global: float = 0.25, progress: Callable[[int, float], None] | None = None):
+        """Global search over A's rotation.
+
+        Returns
+        -------
+        quat : (4,) ndarray
+            Best rotation found.
+        value : float
+            Its game value (min over B of beta).
+        history : SwarmHistory
+            Best value after each iteration (PSO) or evaluation (nlopt).
+        """
+
+        def evaluate(qs: np.ndarray) -> np.ndarray:
+            attack = player_b.attack(self.holes(qs), starts, steps, learning_rate, rng)
+            return attack.value()
+
+        if method == "pso":
+            x0 = random_uniform(particles, rng)
+            return particle_swarm(evaluate, x0, iterations, rng, inertia, c_personal, c_global, project=normalize, progress=progress)
+        lower, upper = -np.pi * np.ones(3), np.pi * np.ones(3)
+        x0 = rng.uniform(-np.pi, np.pi, 3)
+        x, f, history = nlopt_maximise(lambda v: float(evaluate(from_rotvec(v)[None])[0]), lower, upper, method,
+                                       particles * (iterations + 1), x0, seed, progress)
+        return from_rotvec(x), f, history

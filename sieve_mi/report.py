@@ -1,0 +1,181 @@
+"""Writing a solve's outputs: report.json, hole and mask images, convergence and overlay plots.
+
+Everything is written into a temporary folder beside the destination and moved into place at
+the end, so an interrupted or failed run never leaves half-written outputs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+
+import numpy as np
+
+from sieve_mi.scoring import score_poses
+from sieve_mi.solve import Result
+
+
+def write_exr(path: str, image: np.ndarray) -> None:
+    """Write a single-channel float32 OpenEXR image with Mitsuba's Bitmap."""
+    import mitsuba as mi
+
+    mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32)).write(path)
+
+
+def write_png(path: str, mask: np.ndarray) -> None:
+    """Write a binary mask as an 8-bit grey PNG (white = inside)."""
+    from PIL import Image
+
+    Image.fromarray((np.asarray(mask) > 0).astype(np.uint8) * 255).save(path)
+
+
+def report_dict(result: Result) -> dict:
+    """The content of ``report.json``."""
+    scene = result.scene
+    attack = result.attack
+    passes = []
+    for entry, shape in zip(scene.passes, result.pass_shapes):
+        passes.append({"mesh": entry.mesh, "name": shape.name, "rotation": [float(x) for x in result.pass_quat],
+                       "translation": [0.0, 0.0], "centre": [float(x) for x in shape.centre], "faces": shape.face_count})
+    blocks = []
+    for j, (entry, shape) in enumerate(zip(scene.blocks, result.block_shapes)):
+        beta = float(attack.beta[0, j])
+        blocks.append({"mesh": entry.mesh, "name": shape.name, "loss": beta, "blocked": beta > 0,
+                       "protrusion": float(attack.protrusion[0, j]), "rotation": [float(x) for x in attack.quats[0, j]],
+                       "translation": [float(x) for x in attack.trans[0, j]], "fitting_starts": int(attack.fits[0, j]),
+                       "centre": [float(x) for x in shape.centre], "faces": shape.face_count})
+    hole = result.hole
+    return {
+        "name": scene.name,
+        "winner": result.winner,
+        "pass": passes,
+        "block": blocks,
+        "hole": {"area": hole.area, "resolution": hole.frame.resolution, "half_extent": hole.frame.half_extent},
+        "settings": scene.settings(),
+        "variant": result.variant,
+        "search_value": None if np.isnan(result.search_value) else float(result.search_value),
+        "convergence": [float(x) for x in result.history.best],
+        "timings": {k: round(float(v), 4) for k, v in result.timings.items()},
+        "pixel_size": hole.frame.pixel_size,
+        "units": scene.units,
+        "conventions": "rotation q = (w, x, y, z) acts on the mesh's points about its centre (bounding-box centre, "
+                       "given in file units times scale); the silhouette is the projection onto the xy-plane; "
+                       "translations are in the xy-plane in scene units, relative to the hole's centre",
+    }
+
+
+def _convergence_png(path: str, history: list[float]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5, 3.2), dpi=120)
+    if history:
+        ax.plot(range(len(history)), history, marker="o")
+    else:
+        ax.text(0.5, 0.5, "A's rotation was fixed: no search", ha="center", va="center", transform=ax.transAxes)
+    ax.set_xlabel("search iteration")
+    ax.set_ylabel("best game value (min beta)")
+    ax.set_title("Convergence of player A's search")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def _overlay_png(path: str, result: Result, b_masks: list) -> None:
+    """The hole with A's silhouette and each B's best attempt drawn over it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    frame = result.hole.frame
+    r = frame.half_extent
+    n_b = len(result.block_shapes)
+    cols = max(1, n_b)
+    fig, axes = plt.subplots(1, cols, figsize=(4.2 * cols, 4.4), dpi=120, squeeze=False)
+    colours = plt.cm.tab10(np.arange(10))
+    for j in range(cols):
+        ax = axes[0, j]
+        ax.set_facecolor("#d8d8d8")
+        ax.imshow(np.where(result.hole.mask, 1.0, np.nan), extent=(-r, r, -r, r), cmap="Greys", vmin=0, vmax=1.6, alpha=0.9)
+        ax.contour(*frame.centres(), result.a_mask.astype(float), levels=[0.5], colors="k", linewidths=0.8, linestyles="--")
+        if j < n_b:
+            (x0, x1, y0, y1), m = b_masks[j]
+            colour = colours[j % 10]
+            rgba = np.zeros(m.shape + (4,))
+            rgba[m] = colour
+            rgba[m, 3] = 0.55
+            ax.imshow(rgba, extent=(x0, x1, y0, y1))
+            beta = result.attack.beta[0, j]
+            status = "blocked" if beta > 0 else "PASSES"
+            ax.set_title(f"{result.block_shapes[j].name}: {status}\nbeta={beta:.4f}, protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}", fontsize=9)
+        lim = max(r, *(max(abs(v) for v in b_masks[j][0]) for j in range(n_b))) if n_b else r
+        ax.set_xlim(-lim, lim)
+        ax.set_ylim(-lim, lim)
+        ax.set_aspect("equal")
+        ax.set_xlabel(result.scene.units)
+    fig.suptitle(f"{result.scene.name}: winner {result.winner} (hole grey, A dashed)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def write_outputs(result: Result, out_dir: str) -> dict:
+    """Write every output of a solve into ``out_dir`` (replacing it) and return the report dict.
+
+    Files: report.json, hole.png, hole.exr, masks/a_silhouette.exr, masks/block_<j>_<name>.exr,
+    convergence.png, overlay.png.
+    """
+    report = report_dict(result)
+    parent = os.path.dirname(os.path.abspath(out_dir)) or "."
+    os.makedirs(parent, exist_ok=True)
+    tmp = tempfile.mkdtemp(prefix=".sieve-mi-", dir=parent)
+    try:
+        os.makedirs(os.path.join(tmp, "masks"))
+        hole = result.hole
+        write_png(os.path.join(tmp, "hole.png"), hole.mask)
+        write_exr(os.path.join(tmp, "hole.exr"), hole.mask.astype(np.float32))
+        write_exr(os.path.join(tmp, "masks", "a_silhouette.exr"), result.a_mask.astype(np.float32))
+        b_masks = []
+        for j, shape in enumerate(result.block_shapes):
+            scores, (row0, col0, size, masks) = score_poses(result.renderers[j], hole, result.attack.quats[0, j:j + 1],
+                                                            result.attack.trans[0, j:j + 1], return_masks=True)
+            safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in shape.name)
+            write_exr(os.path.join(tmp, "masks", f"block_{j}_{safe}.exr"), masks[0].astype(np.float32))
+            x, y = hole.frame.window_centres(row0, col0, size)
+            h = hole.frame.pixel_size
+            b_masks.append(((x[0, 0] - h / 2, x[0, -1] + h / 2, y[0, -1] - h / 2, y[0, 0] + h / 2), masks[0]))
+        _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best)
+        _overlay_png(os.path.join(tmp, "overlay.png"), result, b_masks)
+        with open(os.path.join(tmp, "report.json"), "w") as fh:
+            json.dump(report, fh, indent=2)
+        if os.path.isdir(out_dir):
+            shutil.rmtree(out_dir)
+        os.replace(tmp, out_dir)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return report
+
+
+def summary_table(report: dict) -> str:
+    """A short plain-text table of the result, one row per shape."""
+    units = report["units"]
+    rows = [("role", "shape", "beta", f"protrusion ({units})", "result")]
+    for p in report["pass"]:
+        rows.append(("pass", p["name"], "-", "-", "passes (hole = its silhouette)"))
+    for b in report["block"]:
+        rows.append(("block", b["name"], f"{b['loss']:.4f}", f"{b['protrusion']:.3f}", "blocked" if b["blocked"] else "PASSES"))
+    widths = [max(len(r[i]) for r in rows) for i in range(5)]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    t = report["timings"]
+    lines.append("")
+    lines.append(f"winner: {report['winner']}   search {t.get('search_s', 0):.1f} s, verdict {t.get('verdict_s', 0):.1f} s, "
+                 f"pixel size {report['pixel_size']:.4g} {units}")
+    return "\n".join(lines)

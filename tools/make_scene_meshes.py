@@ -1,0 +1,87 @@
+#!/usr/bin/env python
+"""Regenerate the simple scene meshes in ``scenes/meshes/`` (binary STL, millimetres).
+
+Usage::
+
+    python tools/make_scene_meshes.py            # (re)write the STL files
+    python tools/make_scene_meshes.py --check    # exit 1 if any file is missing or differs
+
+The output is deterministic: the same inputs give byte-identical files. The copied test meshes
+(``*.obj``) in the same folder are not touched; see ``scenes/meshes/SOURCES.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import os
+import sys
+from collections.abc import Callable
+
+import trimesh
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if REPO not in sys.path:
+    sys.path.insert(0, REPO)
+
+from sieve_mi import shapes  # noqa: E402
+
+LETTERS = "SIGRAPH"
+LETTER_HEIGHT = 30.0  # mm, y-extent of each glyph
+LETTER_DEPTH = 8.0  # mm, extrusion
+
+# file name -> zero-argument builder; every size is in mm.
+SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
+    "cube.stl": lambda: shapes.cube(side=20.0),
+    "sphere.stl": lambda: shapes.sphere(radius=12.0, subdivisions=3),
+    "small_sphere.stl": lambda: shapes.sphere(radius=9.0, subdivisions=3),
+    "bowtie.stl": lambda: shapes.bowtie(width=30.0, height=20.0, thickness=6.0, waist=6.0),
+    "arch.stl": lambda: shapes.arch(width=30.0, height=20.0, thickness=6.0, depth=10.0, segments=16),
+    "prism.stl": lambda: shapes.box(12.0, 12.0, 30.0),
+    **{
+        f"letter_{c}.stl": (lambda c=c: shapes.letter(c, height=LETTER_HEIGHT, depth=LETTER_DEPTH))
+        for c in LETTERS
+    },
+}
+
+
+def build() -> dict[str, trimesh.Trimesh]:
+    """Build every scene mesh in memory, keyed by file name."""
+    return {name: make() for name, make in SPECS.items()}
+
+
+def stl_bytes(mesh: trimesh.Trimesh) -> bytes:
+    """Binary STL encoding of ``mesh``."""
+    buf = io.BytesIO()
+    mesh.export(buf, file_type="stl")
+    return buf.getvalue()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default=os.path.join(REPO, "scenes", "meshes"), help="output folder")
+    parser.add_argument("--check", action="store_true", help="only compare with the files on disk")
+    args = parser.parse_args(argv)
+
+    os.makedirs(args.out, exist_ok=True)
+    stale = []
+    for name, mesh in build().items():
+        path = os.path.join(args.out, name)
+        data = stl_bytes(mesh)
+        if args.check:
+            with open(path, "rb") if os.path.exists(path) else io.BytesIO(b"") as f:
+                if f.read() != data:
+                    stale.append(name)
+            continue
+        with open(path, "wb") as f:
+            f.write(data)
+        ext = mesh.extents
+        print(f"{name:18s} {len(mesh.faces):5d} faces  extents {ext[0]:7.3f} x {ext[1]:7.3f} x {ext[2]:7.3f} mm")
+    if stale:
+        print("out of date: " + ", ".join(stale) + " (run tools/make_scene_meshes.py)", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
