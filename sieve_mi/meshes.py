@@ -119,7 +119,10 @@ def shape_from_arrays(vertices: np.ndarray, faces: np.ndarray, *, name: str, pat
         raise _fail(where, "has face indices outside the vertex list")
     if not (np.isfinite(scale) and scale > 0):
         raise _fail(where, f"scale {scale} must be a positive number")
-    faces = faces.astype(np.int64)
+    # Weld vertices at identical positions (STL stores every triangle's corners separately), so
+    # that edges shared by two triangles are recognised as such.
+    vertices, inverse = np.unique(vertices, axis=0, return_inverse=True)
+    faces = inverse.ravel()[faces.astype(np.int64)]
     used = np.unique(faces)
     vertices = vertices * scale
     lo, hi = vertices[used].min(0), vertices[used].max(0)

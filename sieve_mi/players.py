@@ -47,6 +47,12 @@ class Attack:
     quats: np.ndarray
     trans: np.ndarray
     fits: np.ndarray
+    margin_beta: np.ndarray | None = None
+    margin_protrusion: np.ndarray | None = None
+
+    def blocked(self) -> np.ndarray:
+        """(H, B) bool: the shape cannot pass (against the margin-grown hole when there is one)."""
+        return (self.beta if self.margin_beta is None else self.margin_beta) > 0
 
     def value(self) -> np.ndarray:
         """The game value per hole: the weakest block, min over shapes of beta (eq. 10)."""
@@ -172,7 +178,6 @@ class PlayerB:
         beta = beta.reshape(n_h, n_b, starts)
         prot = prot.reshape(n_h, n_b, starts)
         # Best start: lowest beta, then lowest protrusion.
-        order = np.lexsort((prot, beta), axis=-1) if False else None
         best = np.argmin(beta + 1e-9 * prot / (1.0 + prot), axis=-1)
         idx = np.arange(n_h)[:, None], np.arange(n_b)[None, :]
         qs = quats.reshape(n_h, n_b, starts, 4)

@@ -42,10 +42,14 @@ def report_dict(result: Result) -> dict:
     blocks = []
     for j, (entry, shape) in enumerate(zip(scene.blocks, result.block_shapes)):
         beta = float(attack.beta[0, j])
-        blocks.append({"mesh": entry.mesh, "name": shape.name, "loss": beta, "blocked": beta > 0,
+        row = {"mesh": entry.mesh, "name": shape.name, "loss": beta, "blocked": bool(attack.blocked()[0, j]),
                        "protrusion": float(attack.protrusion[0, j]), "rotation": [float(x) for x in attack.quats[0, j]],
                        "translation": [float(x) for x in attack.trans[0, j]], "fitting_starts": int(attack.fits[0, j]),
-                       "centre": [float(x) for x in shape.centre], "faces": shape.face_count})
+                       "centre": [float(x) for x in shape.centre], "faces": shape.face_count}
+        if attack.margin_beta is not None:
+            row["margin_loss"] = float(attack.margin_beta[0, j])
+            row["margin_protrusion"] = float(attack.margin_protrusion[0, j])
+        blocks.append(row)
     hole = result.hole
     return {
         "name": scene.name,
@@ -112,7 +116,7 @@ def _overlay_png(path: str, result: Result, b_masks: list) -> None:
             rgba[m, 3] = 0.55
             ax.imshow(rgba, extent=(x0, x1, y0, y1))
             beta = result.attack.beta[0, j]
-            status = "blocked" if beta > 0 else "PASSES"
+            status = "blocked" if result.attack.blocked()[0, j] else "PASSES"
             ax.set_title(f"{result.block_shapes[j].name}: {status}\nbeta={beta:.4f}, protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}", fontsize=9)
         lim = max(r, *(max(abs(v) for v in b_masks[j][0]) for j in range(n_b))) if n_b else r
         ax.set_xlim(-lim, lim)

@@ -34,6 +34,9 @@ class Fabrication:
 
     tolerance: float = 1.0
     fill_holes: bool = True
+    block_margin: float = 0.0
+    thickness: float | None = None
+    border: float = 5.0
 
 
 @dataclass
@@ -203,7 +206,10 @@ def load_scene(path: str) -> Scene:
     fab_t = _table(path, data, "fabrication")
     r = _Reader(path, fab_t, "fabrication.")
     r.check_keys({f.name for f in fields(Fabrication)})
-    fab = Fabrication(tolerance=r.number("tolerance", 1.0, minimum=0), fill_holes=r.boolean("fill_holes", True))
+    fab = Fabrication(tolerance=r.number("tolerance", 1.0, minimum=0), fill_holes=r.boolean("fill_holes", True),
+                      block_margin=r.number("block_margin", 0.0, minimum=0), border=r.number("border", 5.0, minimum=0, exclusive_min=True))
+    if "thickness" in fab_t:
+        fab.thickness = r.number("thickness", None, minimum=0, exclusive_min=True)
 
     sol_t = _table(path, data, "solver")
     r = _Reader(path, sol_t, "solver.")

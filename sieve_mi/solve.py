@@ -14,6 +14,7 @@ from sieve_mi.optim import SwarmHistory
 from sieve_mi.players import Attack, PlayerA, PlayerB
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import normalize
+from sieve_mi.scoring import score_poses
 from sieve_mi.scene import Scene
 
 
@@ -150,12 +151,23 @@ def solve(scene: Scene, *, variant: str = "llvm_ad_mono", seed: int | None = Non
     vplayer_a = PlayerA(a, vframe, fab.tolerance, fab.fill_holes)
     hole = vplayer_a.holes(quat[None])[0]
     a_mask = vplayer_a.silhouette(quat)
+    # With a blocking margin, B must fail against the hole grown by that margin (paper Fig. 14).
+    if fab.block_margin > 0:
+        target = PlayerA(a, vframe, fab.tolerance + fab.block_margin, fab.fill_holes).holes(quat[None])[0]
+    else:
+        target = hole
     vplayer_b = PlayerB(blocks, vframe, "clearance")
     bar = _Bar(progress, v.steps, "verdict")
-    attack = vplayer_b.attack([hole], v.starts, v.steps, s.learning_rate, rng, progress=lambda n: bar.update(1))
+    attack = vplayer_b.attack([target], v.starts, v.steps, s.learning_rate, rng, progress=lambda n: bar.update(1))
     bar.close()
+    if target is not hole:
+        attack.margin_beta = attack.beta.copy()
+        attack.margin_protrusion = attack.protrusion.copy()
+        for j, r in enumerate(vplayer_b.renderers):
+            sc = score_poses(r, hole, attack.quats[0, j:j + 1], attack.trans[0, j:j + 1])
+            attack.beta[0, j], attack.protrusion[0, j] = sc.beta[0], sc.protrusion[0]
     timings["verdict_s"] = time.perf_counter() - t1
-    winner = "A" if bool(np.all(attack.beta[0] > 0)) else "B"
+    winner = "A" if bool(np.all(attack.blocked()[0])) else "B"
     return Result(scene=scene, winner=winner, pass_shapes=passes, block_shapes=blocks, pass_quat=quat, hole=hole, a_mask=a_mask,
                   attack=attack, history=history, search_value=value, variant=variant, timings=timings,
                   renderers=vplayer_b.renderers)

@@ -57,6 +57,14 @@ def stl_bytes(mesh: trimesh.Trimesh) -> bytes:
     return buf.getvalue()
 
 
+def _read(path: str) -> bytes | None:
+    """File contents, or None if there is no such file."""
+    if not os.path.exists(path):
+        return None
+    with open(path, "rb") as f:
+        return f.read()
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=os.path.join(REPO, "scenes", "meshes"), help="output folder")
@@ -69,9 +77,8 @@ def main(argv: list[str] | None = None) -> int:
         path = os.path.join(args.out, name)
         data = stl_bytes(mesh)
         if args.check:
-            with open(path, "rb") if os.path.exists(path) else io.BytesIO(b"") as f:
-                if f.read() != data:
-                    stale.append(name)
+            if _read(path) != data:
+                stale.append(name)
             continue
         with open(path, "wb") as f:
             f.write(data)

@@ -1,0 +1,272 @@
+"""The overlap objective of the paper (eq. 8 / Sec. 6.1), differentiated by Mitsuba's projective sampling.
+
+For a pose (R, t) of a shape B, the loss is the fraction of B's silhouette that lies outside the
+hole H,
+
+    beta(R, t) = sum_pixels img * outside / sum_pixels img,
+
+where ``img`` is B's anti-aliased silhouette on the hole's pixel grid (pixel coverage in [0, 1]) and
+``outside`` is 1 on pixel centres outside H. The image is rendered by Mitsuba 3 with the
+``direct_projective`` integrator, whose edge (projective) sampling of the primary silhouette gives
+unbiased derivatives of ``img`` with respect to the vertex positions; the vertex positions are a
+differentiable Dr.Jit function of the quaternion and the translation, so gradients reach them.
+
+How the image is made (one Mitsuba scene per shape, built once):
+
+* **Silhouette as a complement.** The scene holds a uniform environment emitter of radiance 1 and
+  the mesh with a black diffuse BSDF, so the rendered image is 0 on the shape and 1 elsewhere, and
+  ``img = 1 - render``. (An area emitter on the mesh would also give a silhouette, but Mitsuba's
+  area emitters are one-sided: faces whose winding points away from the camera would render black,
+  so inverted or inconsistently oriented meshes would lose parts of their silhouette. The
+  complement does not depend on face orientation.)
+* **Orthographic projection from a perspective camera.** Mitsuba's projective integrators reject
+  orthographic sensors, so a perspective camera sits on the +z axis at distance ``D`` looking at
+  the origin with +y up; its film is the frame's N x N grid (plus an optional margin) and its field
+  of view covers exactly the frame's square at z = 0. To make the projection *exact* rather than
+  approximately orthographic, every transformed vertex (x, y, z) is moved to
+  (x (D - z) / D, y (D - z) / D, z) before rendering: the camera then projects it exactly onto
+  (x, y). Each rendered triangle projects to the triangle of its vertices' projections, and a
+  triangle faces the camera iff its projection is counter-clockwise, so both the silhouette and
+  the silhouette edges Mitsuba samples are those of the orthographic projection.
+* **Box pixel filter**, so a pixel's value is the (Monte Carlo) fraction of its square covered.
+
+Gradients. Mitsuba's ``mi.render`` records a custom AD operation whose backward pass re-renders
+the scene *as it is when the backward pass runs*. Poses are rendered one after another in the same
+scene, so a lazily recorded graph would differentiate every pose at the last pose's geometry.
+:meth:`OverlapObjective.loss` therefore differentiates each pose right after rendering it (with a
+detached copy of the vertex buffer as the AD leaf) and returns a *surrogate* total:
+
+    total = sum_k beta_k (detached) + sum_k <g_k, V_k(q, t) - detach(V_k(q, t))>,
+
+whose value is the sum of the losses and whose gradient with respect to q and t is exactly
+sum_k g_k . dV_k/d(q, t), with g_k = d beta_k / dV_k from Mitsuba. A later ``dr.backward(total)``
+by the caller therefore propagates to the quaternion and translation arrays as usual, however many
+renders happened in between.
+
+Cost: one primal render plus one projective-derivative render per pose (the continuous-derivative
+pass is switched off, ``sppc = 0``: with a black BSDF under a uniform emitter the radiance does not
+depend on the vertex positions except through visibility, so that pass would only add zeros).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sieve_mi.meshes import Shape
+from sieve_mi.raster import Frame
+
+
+def _quat_rows(dr, qw, qx, qy, qz):
+    """Rotation matrix entries (row-major, 9 arrays) of the normalised quaternion (qw, qx, qy, qz)."""
+    n = dr.rsqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    w, x, y, z = qw * n, qx * n, qy * n, qz * n
+    return (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+
+
+class OverlapObjective:
+    """Overlap loss (fraction of the silhouette outside H) of several shapes, pose by pose.
+
+    Same interface as :class:`sieve_mi.clearance.ClearanceObjective`: :meth:`bind` then
+    :meth:`loss`.
+
+    Parameters
+    ----------
+    shapes : list of Shape
+        Player B's shapes.
+    frame : Frame
+        The hole's raster frame; the silhouettes are rendered on its pixel grid.
+    spp : int
+        Samples per pixel of the anti-aliased silhouette (primal image).
+    spp_grad : int, optional
+        Samples per pixel for the silhouette-edge derivative pass (``spp_grad * M^2`` edge samples
+        per render, M the film side); defaults to ``spp``.
+    margin : int
+        Extra pixels of the frame's lattice rendered on each side of the frame (film side
+        N + 2 margin). They count as outside H, so the part of a silhouette that leaves the frame
+        still counts against the pose; with 0 (the paper's setting) it is simply not seen.
+    seed : int
+        Base seed; each call of :meth:`loss` uses fresh seeds derived from it unless one is given.
+    """
+
+    def __init__(self, shapes: list[Shape], frame: Frame, spp: int = 4, spp_grad: int | None = None, margin: int = 0,
+                 seed: int = 0):
+        import drjit as dr
+        import mitsuba as mi
+
+        if not shapes:
+            raise ValueError("OverlapObjective needs at least one shape")
+        if spp < 1 or (spp_grad is not None and spp_grad < 1):
+            raise ValueError("spp and spp_grad must be at least 1")
+        if margin < 0:
+            raise ValueError("margin must be >= 0")
+        self.dr, self.mi = dr, mi
+        self.frame = frame
+        self.spp = int(spp)
+        self.spp_grad = int(spp_grad if spp_grad is not None else spp)
+        self.margin = int(margin)
+        self.size = frame.resolution + 2 * self.margin
+        self._seed = int(seed)
+        self._calls = 0
+        n, m, h = frame.resolution, self.margin, frame.pixel_size
+        extent = frame.half_extent + m * h
+        radius = max(s.radius for s in shapes)
+        # Camera distance: far enough that (D - z) / D stays well away from 0 for every vertex.
+        self.distance = 20.0 * (radius + extent)
+        d = self.distance
+        fov = math.degrees(2.0 * math.atan(extent / d))
+        self._verts = [mi.Vector3f(*(s.vertices.astype(np.float32).T)) for s in shapes]
+        self._scenes, self._params = [], []
+        for s in shapes:
+            mesh = mi.Mesh(s.name or "shape", len(s.vertices), len(s.faces), has_vertex_normals=False)
+            mp = mi.traverse(mesh)
+            mp["vertex_positions"] = mi.Float(s.vertices.astype(np.float32).ravel())
+            mp["faces"] = mi.UInt32(s.faces.astype(np.uint32).ravel())
+            mp.update()
+            scene = mi.load_dict({
+                "type": "scene",
+                "integrator": {"type": "direct_projective", "guiding": "none", "sppi": 0, "sppc": 0},
+                "sensor": {
+                    "type": "perspective",
+                    "fov": fov,
+                    "fov_axis": "x",
+                    "near_clip": 0.5 * d,
+                    "far_clip": 2.0 * d,
+                    "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, d], target=[0, 0, 0], up=[0, 1, 0]),
+                    "film": {"type": "hdrfilm", "width": self.size, "height": self.size, "rfilter": {"type": "box"},
+                             "pixel_format": "luminance", "sample_border": True},
+                    "sampler": {"type": "independent", "sample_count": self.spp},
+                },
+                "background": {"type": "constant", "radiance": {"type": "uniform", "value": 1.0}},
+                "shape": mesh,
+            })
+            params = mi.traverse(scene)
+            params["shape.bsdf.reflectance.value"] = 0.0
+            params.update()
+            params.keep(["shape.vertex_positions"])
+            self._scenes.append(scene)
+            self._params.append(params)
+        # Film pixel (r, c) is frame lattice pixel (r - m, c - m); outside the frame it counts as outside H.
+        rr, cc = np.divmod(np.arange(self.size * self.size), self.size)
+        fr, fc = rr - m, cc - m
+        inside = (fr >= 0) & (fr < n) & (fc >= 0) & (fc < n)
+        self._pix = mi.UInt32(np.where(inside, fr * n + fc, 0).astype(np.uint32))
+        self._in_frame = mi.Bool(inside)
+        self._pose_shape = None
+        self.pose_count = 0
+
+    def bind(self, pose_shape: np.ndarray) -> None:
+        """Fix which shape each pose belongs to.
+
+        Parameters
+        ----------
+        pose_shape : (K,) ndarray of int
+            Index into ``shapes`` for every pose.
+        """
+        pose_shape = np.asarray(pose_shape, dtype=np.int64)
+        if pose_shape.size and (pose_shape.min() < 0 or pose_shape.max() >= len(self._scenes)):
+            raise ValueError("pose_shape holds an index outside the shape list")
+        self._pose_shape = [int(s) for s in pose_shape]
+        self.pose_count = len(self._pose_shape)
+
+    def _vertices(self, rows, t, k: int, shape: int):
+        """Flat vertex buffer of pose ``k`` (differentiable in rows and t), pre-warped for the camera."""
+        dr, mi = self.dr, self.mi
+        idx = mi.UInt32(k)
+        g = [dr.gather(mi.Float, r, idx) for r in rows]
+        tx, ty = dr.gather(mi.Float, t[0], idx), dr.gather(mi.Float, t[1], idx)
+        p = self._verts[shape]
+        x = g[0] * p.x + g[1] * p.y + g[2] * p.z + tx
+        y = g[3] * p.x + g[4] * p.y + g[5] * p.z + ty
+        z = g[6] * p.x + g[7] * p.y + g[8] * p.z
+        w = (self.distance - z) / self.distance  # the camera at z = D then projects (x', y', z) onto (x, y)
+        return dr.ravel(mi.Point3f(x * w, y * w, z))
+
+    def _outside(self, holes, pose_hole, k: int):
+        """1 on film pixels outside pose ``k``'s hole (or outside the frame), else 0."""
+        dr, mi = self.dr, self.mi
+        n = self.frame.resolution
+        base = dr.gather(mi.UInt32, pose_hole, mi.UInt32(k)) * (n * n)
+        dist = dr.gather(mi.Float, holes.texture, base + self._pix, self._in_frame)
+        return dr.select(self._in_frame & (dist <= 0), mi.Float(0), mi.Float(1))
+
+    def silhouette(self, q, t, k: int = 0, seed: int = 0):
+        """Pose ``k``'s rendered silhouette as an (M, M) mi.TensorXf (M = N + 2 margin), detached.
+
+        For inspection and tests; rows run from +y (top) to -y, columns from -x to +x.
+        """
+        dr, mi = self.dr, self.mi
+        shape = self._pose_shape[k] if self._pose_shape is not None else 0
+        with dr.suspend_grad():
+            rows = _quat_rows(dr, *q)
+            params = self._params[shape]
+            params["shape.vertex_positions"] = dr.detach(self._vertices(rows, t, k, shape))
+            params.update()
+            img = mi.render(self._scenes[shape], spp=self.spp, seed=seed)
+            return mi.TensorXf(1.0 - img.array, (self.size, self.size))
+
+    def loss(self, q, t, holes, pose_hole, seed: int | None = None):
+        """Total and per-pose overlap loss (fraction of each silhouette outside its hole).
+
+        Parameters
+        ----------
+        q : tuple of 4 mi.Float
+            Quaternions (w, x, y, z), one entry per pose, possibly with gradients enabled.
+        t : tuple of 2 mi.Float
+            Translations in scene units.
+        holes : HoleStack
+        pose_hole : mi.UInt32
+            Which hole of the stack each pose is tested against.
+        seed : int, optional
+            Seed of the Monte Carlo estimates (fixed seeds give common random numbers, e.g. for
+            finite differences); by default every call uses new seeds.
+
+        Returns
+        -------
+        total : mi.Float
+            Sum over all poses; its gradient with respect to q and t is Mitsuba's (see the module
+            docstring: the derivatives are computed here, pose by pose, and attached to ``total``).
+        per_pose : mi.Float
+            Loss of each pose (detached), in [0, 1].
+        """
+        dr, mi = self.dr, self.mi
+        if self._pose_shape is None:
+            raise RuntimeError("call bind(pose_shape) before loss()")
+        if holes.frame != self.frame:
+            raise ValueError("the hole stack's frame differs from the objective's frame")
+        if seed is None:
+            seed = self._seed + 2 * self._calls
+            self._calls += 1
+        seed = int(seed) & 0x3FFFFFFF
+        need_grad = any(dr.grad_enabled(a) for a in (*q, *t))
+        rows = _quat_rows(dr, *q)
+        per_pose = dr.zeros(mi.Float, self.pose_count)
+        surrogate = mi.Float(0.0)
+        for k, shape in enumerate(self._pose_shape):
+            params = self._params[shape]
+            flat = self._vertices(rows, t, k, shape)
+            leaf = dr.detach(flat)
+            if need_grad:
+                dr.enable_grad(leaf)
+            params["shape.vertex_positions"] = leaf
+            params.update()
+            rendered = mi.render(self._scenes[shape], params, spp=self.spp, spp_grad=self.spp_grad,
+                                 seed=seed, seed_grad=seed + 1)
+            img = 1.0 - rendered.array
+            outside = self._outside(holes, pose_hole, k)
+            covered = dr.sum(img)
+            # A silhouette entirely off the film counts as entirely outside (no gradient there).
+            value = dr.select(covered > 1e-6, dr.sum(img * outside) / dr.maximum(covered, 1e-6), mi.Float(1.0))
+            if need_grad:
+                dr.backward(value)
+                g = dr.grad(leaf)
+                surrogate = surrogate + dr.sum(g * (flat - dr.detach(flat)))
+                dr.disable_grad(leaf)
+            dr.scatter(per_pose, dr.detach(value), mi.UInt32(k))
+            # Evaluate now: the next pose overwrites the scene's vertex buffer.
+            dr.eval(per_pose, surrogate)
+        total = dr.sum(per_pose) + surrogate
+        return total, per_pose

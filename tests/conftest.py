@@ -1,0 +1,47 @@
+"""Shared fixtures: the CPU variant, simple shapes, and a scene writer."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+import trimesh
+
+import sieve_mi  # noqa: F401  (points Dr.Jit at a usable libLLVM before drjit is imported)
+from sieve_mi.backend import use_variant
+from sieve_mi.meshes import shape_from_trimesh
+
+
+@pytest.fixture(scope="session", autouse=True)
+def mi():
+    """Mitsuba on the CPU variant for every test (GPU tests switch and switch back)."""
+    return use_variant("llvm_ad_mono")
+
+
+@pytest.fixture
+def cube20():
+    return shape_from_trimesh(trimesh.creation.box((20.0, 20.0, 20.0)), name="cube")
+
+
+def sphere(radius: float, subdivisions: int = 3):
+    return shape_from_trimesh(trimesh.creation.icosphere(subdivisions, radius), name="sphere")
+
+
+@pytest.fixture
+def write_scene(tmp_path):
+    """Write meshes and a scene TOML into tmp_path; returns the scene path."""
+
+    def write(text: str, meshes: dict[str, trimesh.Trimesh] | None = None) -> str:
+        os.makedirs(tmp_path / "meshes", exist_ok=True)
+        for name, mesh in (meshes or {}).items():
+            mesh.export(str(tmp_path / "meshes" / name))
+        path = tmp_path / "scene.toml"
+        path.write_text(text)
+        return str(path)
+
+    return write
+
+
+def rng(seed: int = 0) -> np.random.Generator:
+    return np.random.default_rng(seed)

@@ -1,0 +1,157 @@
+"""Rotations, raster frames, mesh preparation, silhouettes and holes: known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial import ConvexHull
+
+from conftest import sphere
+from sieve_mi.hole import build_hole
+from sieve_mi.meshes import edge_topology, load_shape, segments, shape_from_trimesh
+from sieve_mi.raster import Frame
+from sieve_mi.rotations import align, from_axis_angle, from_matrix, from_rotvec, random_uniform, to_matrix
+from sieve_mi.silhouettes import SilhouetteRenderer
+
+
+def test_quaternion_matrix_round_trip():
+    q = random_uniform(50, np.random.default_rng(1))
+    m = to_matrix(q)
+    assert np.allclose(np.einsum("kij,kil->kjl", m, m), np.eye(3), atol=1e-12)
+    assert np.allclose(np.linalg.det(m), 1.0)
+    back = np.array([from_matrix(x) for x in m])
+    assert np.allclose(np.abs(np.einsum("ki,ki->k", back, q)), 1.0)
+
+
+def test_quaternion_conventions():
+    # 90 degrees about z takes x to y (rotation acts on points, right-handed).
+    assert np.allclose(to_matrix(from_axis_angle([0, 0, 1], np.pi / 2)) @ [1, 0, 0], [0, 1, 0], atol=1e-12)
+    assert np.allclose(to_matrix(align([1, 1, 1], [0, 0, 1])) @ (np.ones(3) / np.sqrt(3)), [0, 0, 1], atol=1e-12)
+    assert np.allclose(to_matrix(from_rotvec([0, np.pi / 2, 0])), to_matrix(from_axis_angle([0, 1, 0], np.pi / 2)))
+
+
+def test_frame_pixel_centres_and_lookup():
+    f = Frame(8, 4.0)
+    x, y = f.centres()
+    assert f.pixel_size == 1.0
+    assert np.allclose(x, np.arange(8) - 3.5) and np.allclose(y, 3.5 - np.arange(8))
+    assert np.allclose(f.to_pixel(np.array([x[2], y[5]])), [2, 5])
+    big = Frame.covering(10.0, 100, margin_px=5)
+    assert big.half_extent * (1 - 10 / 100) == pytest.approx(10.0)
+
+
+def test_stl_vertices_are_welded(tmp_path):
+    path = tmp_path / "s.stl"
+    trimesh.creation.icosphere(2, 5.0).export(str(path))
+    s = load_shape(str(path))
+    _, _, _, always = edge_topology(s.vertices, s.faces)
+    assert not always.any(), "a closed sphere read from STL must have no boundary edges"
+
+
+def _projected_silhouette_length(shape, q):
+    edges, m1, m2, always = edge_topology(shape.vertices, shape.faces)
+    r = to_matrix(q)
+    sil = always | ((m1 @ r[2]) * (m2 @ r[2]) >= 0)
+    p = shape.vertices @ r[:2].T
+    return np.linalg.norm(p[edges[sil, 0]] - p[edges[sil, 1]], axis=1).sum(), p
+
+
+@pytest.mark.parametrize("mesh", [trimesh.creation.box((20, 10, 6)), trimesh.creation.icosphere(2, 7.0)])
+def test_silhouette_edges_trace_the_outline_of_convex_shapes(mesh):
+    # For a convex polyhedron in general position the silhouette edges project onto the boundary
+    # of the convex hull of the projection: their projected lengths add up to its perimeter.
+    shape = shape_from_trimesh(mesh, name="convex")
+    for q in random_uniform(5, np.random.default_rng(3)):
+        total, p = _projected_silhouette_length(shape, q)
+        hull = ConvexHull(p)
+        assert total == pytest.approx(hull.area, rel=1e-6)  # in 2D, ConvexHull.area is the perimeter
+
+
+def test_silhouette_test_ignores_face_orientation():
+    mesh = trimesh.creation.icosphere(2, 7.0)
+    flipped = mesh.faces.copy()
+    flipped[::2] = flipped[::2, ::-1]  # a polygon soup with inconsistent orientation
+    a = shape_from_trimesh(mesh, name="a")
+    b = shape_from_trimesh(trimesh.Trimesh(mesh.vertices, flipped, process=False), name="b")
+    q = random_uniform(1, np.random.default_rng(5))[0]
+    assert _projected_silhouette_length(a, q)[0] == pytest.approx(_projected_silhouette_length(b, q)[0])
+
+
+def test_segments_respect_spacing():
+    s = shape_from_trimesh(trimesh.creation.box((20, 20, 20)), name="cube")
+    seg = segments(s, spacing=0.5, samples_per_segment=4)
+    lengths = np.linalg.norm(seg.b - seg.a, axis=1)
+    assert lengths.max() <= 4 * 0.5 + 1e-9
+    # 12 edges of 20 mm and 6 face diagonals of 20*sqrt(2) mm, cut into pieces of at most 2 mm.
+    assert len(seg) == 12 * 10 + 6 * int(np.ceil(20 * np.sqrt(2) / 2))
+
+
+def test_cube_silhouette_area_and_position(cube20):
+    f = Frame.covering(cube20.radius, 256)
+    r = SilhouetteRenderer(cube20)
+    h = f.pixel_size
+    m = r.frame_mask([1, 0, 0, 0], [5.0, -3.0], f)
+    x, y = f.centres()
+    xx, yy = np.meshgrid(x, y)
+    area = m.sum() * h * h
+    assert abs(area - 400.0) <= 80.0 * h  # pixel-centre sampling: at most a pixel along the perimeter
+    assert xx[m].mean() == pytest.approx(5.0, abs=h) and yy[m].mean() == pytest.approx(-3.0, abs=h)
+
+
+def test_rotation_convention_of_silhouettes():
+    # A 30 x 10 x 10 bar along x, rotated 90 degrees about z, must lie along y.
+    bar = shape_from_trimesh(trimesh.creation.box((30, 10, 10)), name="bar")
+    f = Frame.covering(bar.radius, 128)
+    r = SilhouetteRenderer(bar)
+    x, y = f.centres()
+    xx, yy = np.meshgrid(x, y)
+    m0 = r.frame_mask([1, 0, 0, 0], [0, 0], f)
+    m1 = r.frame_mask(from_axis_angle([0, 0, 1], np.pi / 2), [0, 0], f)
+    assert np.ptp(xx[m0]) > 2.5 * np.ptp(yy[m0])
+    assert np.ptp(yy[m1]) > 2.5 * np.ptp(xx[m1])
+
+
+def test_sphere_silhouette_is_a_disk_in_every_orientation():
+    s = sphere(10.0, 4)
+    f = Frame.covering(s.radius, 200)
+    r = SilhouetteRenderer(s)
+    q = random_uniform(8, np.random.default_rng(2))
+    masks = r.masks(q, np.zeros((8, 2)), f, np.zeros(8, int), np.zeros(8, int), 200)
+    areas = masks.sum((1, 2)) * f.pixel_size**2
+    # An icosphere is inscribed in its sphere: area a little below pi r^2, the same in every orientation.
+    assert np.all(areas < np.pi * 100 * 1.01) and np.all(areas > np.pi * 100 * 0.97)
+    assert np.ptp(areas) < 0.01 * areas.mean()
+
+
+def test_flat_and_open_meshes_have_silhouettes():
+    # A single flat square (zero thickness, open): its silhouette face-on is the square, edge-on nothing.
+    v = np.array([[-5, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]], float)
+    s = shape_from_trimesh(trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False), name="flat")
+    f = Frame.covering(s.radius, 128)
+    r = SilhouetteRenderer(s)
+    area = r.frame_mask([1, 0, 0, 0], [0, 0], f).sum() * f.pixel_size**2
+    assert area == pytest.approx(100.0, abs=40 * f.pixel_size)
+    edge_on = r.frame_mask(from_axis_angle([1, 0, 0], np.pi / 2), [0, 0], f).sum()
+    assert edge_on <= 128
+
+
+def test_hole_dilation_and_filling(cube20):
+    f = Frame.covering(cube20.radius + 2.0, 400)
+    h = f.pixel_size
+    a = SilhouetteRenderer(cube20).frame_mask([1, 0, 0, 0], [0, 0], f)
+    hole = build_hole([a], f, tolerance=2.0)
+    # Minkowski sum of a square and a disk: (s + 2t)^2 - (4 - pi) t^2.
+    assert hole.area == pytest.approx((20 + 4) ** 2 - (4 - np.pi) * 4, abs=2 * 96 * h)
+    # A ring's silhouette has a hole; filling makes it a disk.
+    ring = trimesh.creation.annulus(r_min=4.0, r_max=8.0, height=2.0)
+    rs = shape_from_trimesh(ring, name="ring")
+    fr = Frame.covering(rs.radius, 200)
+    m = SilhouetteRenderer(rs).frame_mask([1, 0, 0, 0], [0, 0], fr)
+    filled = build_hole([m], fr, 0.0, fill_holes=True)
+    open_ = build_hole([m], fr, 0.0, fill_holes=False)
+    assert filled.area == pytest.approx(np.pi * 64, rel=0.03)
+    assert open_.area == pytest.approx(np.pi * (64 - 16), rel=0.04)
+    # Outside distance: zero inside, about the gap outside.
+    assert hole.outside_distance(np.array([[0.0, 0.0]]))[0] == 0.0
+    assert hole.outside_distance(np.array([[15.0, 0.0]]))[0] == pytest.approx(3.0, abs=1.5 * h)
