@@ -154,6 +154,8 @@ def nlopt_maximise(evaluate_one: Callable[[np.ndarray], float], lower: np.ndarra
     best = {"x": np.array(x0, float), "f": -np.inf}
 
     def objective(x, grad):
+        if history.evaluations >= max_evaluations:  # some methods overshoot maxeval slightly
+            raise nlopt.ForcedStop
         f = float(evaluate_one(np.asarray(x)))
         history.evaluations += 1
         if f > best["f"]:

@@ -58,6 +58,46 @@ from sieve_mi.meshes import Shape
 from sieve_mi.raster import Frame
 
 
+#: Ways of rendering the silhouette: a minimal subclass of Mitsuba's ``direct_projective`` whose
+#: shading is "1 if the camera ray hits the mesh, else 0" (one ray per sample), or the stock
+#: ``direct_projective`` integrator with a black mesh in front of a uniform white emitter.
+INTEGRATORS = ("silhouette", "direct_projective")
+
+_PLUGIN = "sieve_silhouette_projective"
+_registered: set[str] = set()
+
+
+def _silhouette_plugin(mi) -> str:
+    """Register (once per variant) the silhouette integrator and return its plugin name.
+
+    It inherits everything projective from Mitsuba's ``DirectProjectiveIntegrator`` (primary
+    silhouette sampling, the boundary Jacobian, splatting of the derivative samples) and only
+    replaces the shading model, ``sample()``: a camera ray or a boundary "background" ray carries
+    1 if it hits the mesh and 0 otherwise (an any-hit ``ray_test``, no emitter or BSDF sampling);
+    a boundary "foreground" sample (given as ``si_shade``, a point on the mesh) carries 1. The
+    radiance difference across a silhouette edge is then 1 where the edge is on the outline of the
+    projection and 0 where another part of the mesh lies behind it, as it should be.
+    """
+    import drjit as dr
+
+    variant = mi.variant()
+    if variant in _registered:
+        return _PLUGIN
+    from mitsuba.ad.integrators.direct_projective import DirectProjectiveIntegrator
+
+    class SilhouetteProjectiveIntegrator(DirectProjectiveIntegrator):
+        def sample(self, mode, scene, sampler, ray, depth, δL, state_in, active, project=False, si_shade=None, **kwargs):
+            if project:
+                raise RuntimeError("the silhouette integrator does not sample indirect discontinuities (use sppi=0)")
+            active = mi.Bool(active)
+            hit = active if si_shade is not None else scene.ray_test(ray, active)
+            return mi.Spectrum(dr.select(hit, 1.0, 0.0)), hit, [], None
+
+    mi.register_integrator(_PLUGIN, lambda props: SilhouetteProjectiveIntegrator(props))
+    _registered.add(variant)
+    return _PLUGIN
+
+
 def _quat_rows(dr, qw, qx, qy, qz):
     """Rotation matrix entries (row-major, 9 arrays) of the normalised quaternion (qw, qx, qy, qz)."""
     n = dr.rsqrt(qw * qw + qx * qx + qy * qy + qz * qz)
@@ -93,7 +133,7 @@ class OverlapObjective:
     """
 
     def __init__(self, shapes: list[Shape], frame: Frame, spp: int = 4, spp_grad: int | None = None, margin: int = 0,
-                 seed: int = 0):
+                 seed: int = 0, integrator: str = "silhouette"):
         import drjit as dr
         import mitsuba as mi
 
@@ -119,6 +159,12 @@ class OverlapObjective:
         d = self.distance
         fov = math.degrees(2.0 * math.atan(extent / d))
         self._verts = [mi.Vector3f(*(s.vertices.astype(np.float32).T)) for s in shapes]
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"unknown integrator {integrator!r}; use one of {INTEGRATORS}")
+        self.integrator = integrator
+        # The stock integrator renders 1 - silhouette (black mesh in front of a white background).
+        self._complement = integrator == "direct_projective"
+        plugin = _silhouette_plugin(mi) if integrator == "silhouette" else "direct_projective"
         self._scenes, self._params = [], []
         for s in shapes:
             mesh = mi.Mesh(s.name or "shape", len(s.vertices), len(s.faces), has_vertex_normals=False)
@@ -126,9 +172,12 @@ class OverlapObjective:
             mp["vertex_positions"] = mi.Float(s.vertices.astype(np.float32).ravel())
             mp["faces"] = mi.UInt32(s.faces.astype(np.uint32).ravel())
             mp.update()
-            scene = mi.load_dict({
+            desc = {
                 "type": "scene",
-                "integrator": {"type": "direct_projective", "guiding": "none", "sppi": 0, "sppc": 0},
+                # sppc = 0: the radiance never depends on the vertices except through visibility, so the
+                # continuous-derivative pass would add zeros; sppi = 0 and no guiding: there are no
+                # indirectly observed discontinuities to sample.
+                "integrator": {"type": plugin, "guiding": "none", "sppi": 0, "sppc": 0},
                 "sensor": {
                     "type": "perspective",
                     "fov": fov,
@@ -140,12 +189,15 @@ class OverlapObjective:
                              "pixel_format": "luminance", "sample_border": True},
                     "sampler": {"type": "independent", "sample_count": self.spp},
                 },
-                "background": {"type": "constant", "radiance": {"type": "uniform", "value": 1.0}},
                 "shape": mesh,
-            })
+            }
+            if self._complement:
+                desc["background"] = {"type": "constant", "radiance": {"type": "uniform", "value": 1.0}}
+            scene = mi.load_dict(desc)
             params = mi.traverse(scene)
-            params["shape.bsdf.reflectance.value"] = 0.0
-            params.update()
+            if self._complement:
+                params["shape.bsdf.reflectance.value"] = 0.0
+                params.update()
             params.keep(["shape.vertex_positions"])
             self._scenes.append(scene)
             self._params.append(params)
@@ -193,6 +245,10 @@ class OverlapObjective:
         dist = dr.gather(mi.Float, holes.texture, base + self._pix, self._in_frame)
         return dr.select(self._in_frame & (dist <= 0), mi.Float(0), mi.Float(1))
 
+    def _coverage(self, rendered):
+        """Flat per-pixel silhouette coverage from a rendered (M, M, 1) tensor."""
+        return 1.0 - rendered.array if self._complement else rendered.array
+
     def silhouette(self, q, t, k: int = 0, seed: int = 0):
         """Pose ``k``'s rendered silhouette as an (M, M) mi.TensorXf (M = N + 2 margin), detached.
 
@@ -206,7 +262,7 @@ class OverlapObjective:
             params["shape.vertex_positions"] = dr.detach(self._vertices(rows, t, k, shape))
             params.update()
             img = mi.render(self._scenes[shape], spp=self.spp, seed=seed)
-            return mi.TensorXf(1.0 - img.array, (self.size, self.size))
+            return mi.TensorXf(self._coverage(img), (self.size, self.size))
 
     def loss(self, q, t, holes, pose_hole, seed: int | None = None):
         """Total and per-pose overlap loss (fraction of each silhouette outside its hole).
@@ -255,7 +311,7 @@ class OverlapObjective:
             params.update()
             rendered = mi.render(self._scenes[shape], params, spp=self.spp, spp_grad=self.spp_grad,
                                  seed=seed, seed_grad=seed + 1)
-            img = 1.0 - rendered.array
+            img = self._coverage(rendered)
             outside = self._outside(holes, pose_hole, k)
             covered = dr.sum(img)
             # A silhouette entirely off the film counts as entirely outside (no gradient there).

@@ -1,0 +1,130 @@
+"""The command line: outputs of a run, and one-line errors with exit code 2 on bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
+TINY = """
+[solver]
+resolution = 64
+particles = 3
+iterations = 1
+starts = 4
+steps = 20
+[verdict]
+starts = 8
+steps = 40
+resolution = 96
+"""
+
+
+def run_cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "sieve_mi", *args], capture_output=True, text=True, cwd=cwd, timeout=600)
+
+
+def _good_scene(write_scene, extra=""):
+    mesh = os.path.abspath(os.path.join(SCENES, "meshes"))
+    return write_scene(f'name = "tiny"\n[[pass]]\nmesh = "{mesh}/cube.stl"\n[[block]]\nmesh = "{mesh}/sphere.stl"\n' + extra + TINY)
+
+
+@pytest.mark.slow
+def test_solve_writes_every_output(write_scene, tmp_path):
+    import mitsuba as mi
+
+    scene = _good_scene(write_scene)
+    out = tmp_path / "result"
+    p = run_cli("solve", scene, "--out", str(out), "--quiet")
+    assert p.returncode == 0, p.stderr
+    assert "winner" in p.stdout
+    report = json.loads((out / "report.json").read_text())
+    for key in ("winner", "pass", "block", "settings", "timings", "pixel_size"):
+        assert key in report
+    assert report["winner"] in ("A", "B")
+    b = report["block"][0]
+    for key in ("mesh", "loss", "blocked", "protrusion", "rotation", "translation"):
+        assert key in b
+    assert len(report["pass"][0]["rotation"]) == 4 and len(b["translation"]) == 2
+    assert set(report["timings"]) >= {"search_s", "verdict_s"}
+    for f in ("hole.png", "hole.exr", "convergence.png", "overlay.png", "masks/a_silhouette.exr", "masks/block_0_sphere.exr"):
+        assert (out / f).is_file(), f
+    hole = np.array(mi.Bitmap(str(out / "hole.exr")))
+    area = float(hole.sum()) * report["pixel_size"] ** 2
+    assert area == pytest.approx(report["hole"]["area"])
+    assert not [f for f in os.listdir(tmp_path) if f.startswith(".sieve-mi-")]  # no temporary leftovers
+
+
+def _assert_clean_error(p, *needles, out=None):
+    assert p.returncode == 2, (p.stdout, p.stderr)
+    lines = [l for l in p.stderr.strip().splitlines() if l.strip()]
+    assert len(lines) == 1, p.stderr
+    assert "Traceback" not in p.stderr
+    for n in needles:
+        assert n in lines[0], lines[0]
+    if out is not None:
+        assert not os.path.exists(out)
+
+
+def test_missing_scene_file(tmp_path):
+    _assert_clean_error(run_cli("solve", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "o")), "nope.toml", "not found",
+                        out=tmp_path / "o")
+
+
+@pytest.mark.parametrize("text, needles", [
+    ("name = \n", ["not valid TOML"]),
+    ('name = "x"\n[[block]]\nmesh = "a.stl"\n', ["pass", "missing"]),
+    ('name = "x"\n[[pass]]\nmesh = "MESH"\n[[block]]\nmesh = "MESH"\n[solver]\npartciles = 3\n', ["solver.partciles", "unknown key"]),
+    ('name = "x"\n[[pass]]\nmesh = "MESH"\n[[block]]\nmesh = "MESH"\n[solver]\nparticles = -3\n', ["solver.particles", ">= 1"]),
+    ('name = "x"\n[[pass]]\nmesh = "MESH"\n[[block]]\nmesh = "MESH"\n[solver]\nobjective = "area"\n', ["solver.objective", "clearance"]),
+    ('name = "x"\n[[pass]]\nmesh = "MESH"\nrotation = [1, 1, 0, 0]\n[[block]]\nmesh = "MESH"\n', ["pass[0].rotation", "unit quaternion"]),
+    ('name = "x"\n[[pass]]\nmesh = "MESH"\nscale = 0\n[[block]]\nmesh = "MESH"\n', ["pass[0].scale", "> 0"]),
+    ('name = "x"\n[[pass]]\nmesh = "missing.stl"\n[[block]]\nmesh = "MESH"\n', ["missing.stl", "not found"]),
+    ('name = "x"\n[[pass]]\nmesh = "MESH"\n[[block]]\nmesh = "MESH"\n[fabrication]\ntolerance = "1mm"\n', ["fabrication.tolerance", "number"]),
+])
+def test_bad_scenes_fail_with_one_line(write_scene, tmp_path, text, needles):
+    mesh = os.path.abspath(os.path.join(SCENES, "meshes", "cube.stl"))
+    scene = write_scene(text.replace("MESH", mesh))
+    _assert_clean_error(run_cli("solve", scene, "--out", str(tmp_path / "o")), *needles, out=tmp_path / "o")
+
+
+def _bad_meshes(tmp_path):
+    (tmp_path / "nan.obj").write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n")
+    (tmp_path / "cloud.ply").write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                        "property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n")
+    (tmp_path / "empty.stl").write_bytes(b"")
+    (tmp_path / "garbage.obj").write_bytes(b"\x00\x01\x02 not a mesh \xff" * 10)
+    (tmp_path / "flat0.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")  # zero-area triangle only
+    return ["nan.obj", "cloud.ply", "empty.stl", "garbage.obj", "flat0.obj"]
+
+
+@pytest.mark.parametrize("name", ["nan.obj", "cloud.ply", "empty.stl", "garbage.obj", "flat0.obj"])
+def test_bad_meshes_fail_with_one_line(write_scene, tmp_path, name):
+    _bad_meshes(tmp_path)
+    cube = os.path.abspath(os.path.join(SCENES, "meshes", "cube.stl"))
+    scene = write_scene(f'name = "x"\n[[pass]]\nmesh = "{cube}"\n[[block]]\nmesh = "{tmp_path / name}"\n')
+    _assert_clean_error(run_cli("solve", scene, "--out", str(tmp_path / "o")), name, out=tmp_path / "o")
+
+
+def test_unknown_variant_and_bad_out(write_scene, tmp_path):
+    scene = _good_scene(write_scene)
+    _assert_clean_error(run_cli("solve", scene, "--variant", "scalar_rgb", "--out", str(tmp_path / "o")), "scalar_rgb",
+                        out=tmp_path / "o")
+    f = tmp_path / "file"
+    f.write_text("x")
+    _assert_clean_error(run_cli("solve", scene, "--out", str(f)), "--out")
+
+
+@pytest.mark.parametrize("name", ["suzanne.obj", "alligator.obj", "spot.obj"])
+def test_awkward_but_valid_meshes_are_accepted(name):
+    # Open, non-manifold and flat (zero-thickness) meshes are valid input.
+    from sieve_mi.meshes import load_shape
+
+    s = load_shape(os.path.join(SCENES, "meshes", name))
+    assert s.face_count > 0 and s.radius > 0
