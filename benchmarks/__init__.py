@@ -1,0 +1,1 @@
+"""Benchmarks for sieve-mi: ``python -m benchmarks.run``."""
