@@ -81,7 +81,18 @@ class Hole:
         return mask, dist
 
 
-def build_hole(silhouettes: list[np.ndarray], frame: Frame, tolerance: float, fill_holes: bool = True) -> Hole:
+def dilate(mask: np.ndarray, frame: Frame, tolerance: float) -> np.ndarray:
+    """Pixel centres within ``tolerance`` of the mask, rounded to the nearest half pixel.
+
+    On average the raster dilation then equals the tolerance instead of falling short of it.
+    """
+    if tolerance <= 0 or not mask.any():
+        return np.asarray(mask, dtype=bool)
+    return ndimage.distance_transform_edt(~mask) * frame.pixel_size <= tolerance + 0.5 * frame.pixel_size
+
+
+def build_hole(silhouettes: list[np.ndarray], frame: Frame, tolerance: float, fill_holes: bool = True,
+               extra: list[np.ndarray] | None = None) -> Hole:
     """H from player A's silhouettes: their union, dilated by ``tolerance``, holes filled.
 
     Parameters
@@ -93,14 +104,15 @@ def build_hole(silhouettes: list[np.ndarray], frame: Frame, tolerance: float, fi
         Dilation radius in scene units (printer clearance); 0 for none.
     fill_holes : bool
         Fill enclosed gaps so H is simply connected (paper Fig. 4).
+    extra : list of (N, N) bool ndarrays, optional
+        Already dilated parts (other shapes' holes) to join before filling.
     """
     union = np.zeros((frame.resolution, frame.resolution), dtype=bool)
     for s in silhouettes:
         union |= s
-    if tolerance > 0 and union.any():
-        # Pixel centres within the tolerance of A's pixel centres, rounded to the nearest half pixel:
-        # on average the raster dilation then equals the tolerance instead of falling short of it.
-        union = ndimage.distance_transform_edt(~union) * frame.pixel_size <= tolerance + 0.5 * frame.pixel_size
+    union = dilate(union, frame, tolerance)
+    for e in extra or []:
+        union |= e
     if fill_holes:
         union = ndimage.binary_fill_holes(union)
     return Hole.from_mask(union, frame)

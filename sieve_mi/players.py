@@ -117,24 +117,53 @@ class PlayerB:
         progress : callable, optional
             Called with the number of steps done after each step.
         """
-        import drjit as dr
-        import mitsuba as mi
-
-        from sieve_mi.clearance import HoleStack
-
         n_h, n_b = len(holes), len(self.shapes)
         k = n_h * n_b * starts
         pose_hole = np.repeat(np.arange(n_h), n_b * starts)
         pose_shape = np.tile(np.repeat(np.arange(n_b), starts), n_h)
         q0 = random_uniform(k, rng)
-        t0 = rng.uniform(-0.1, 0.1, size=(k, 2))
+        t0 = rng.uniform(-0.1, 0.1, size=(k, 2)) * self.frame.half_extent
+        quats, trans = self.descend(holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress)
+        return self._score(holes, quats, trans, pose_hole, pose_shape, starts)
+
+    def descend(self, holes: list[Hole], pose_hole: np.ndarray, pose_shape: np.ndarray, q0: np.ndarray, t0: np.ndarray,
+                steps: int, learning_rate: float, progress: Callable[[int], None] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Batched Adam from given starting poses; returns each start's best pose.
+
+        Parameters
+        ----------
+        holes : list of Hole
+            On ``self.frame``.
+        pose_hole, pose_shape : (K,) ndarrays of int
+            Which hole and which shape each pose belongs to.
+        q0 : (K, 4) ndarray
+            Starting rotations.
+        t0 : (K, 2) ndarray
+            Starting translations, scene units.
+        steps : int
+        learning_rate : float
+        progress : callable, optional
+
+        Returns
+        -------
+        quats : (K, 4) ndarray
+        trans : (K, 2) ndarray
+            Scene units.
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        from sieve_mi.clearance import HoleStack
+
+        k = len(q0)
         loss = self._loss_fn()
         stack = HoleStack(holes)
         loss.bind(pose_shape)
         scale = self.frame.half_extent
+        t0 = np.asarray(t0) / scale
         params = [mi.Float(q0[:, i].astype(np.float32)) for i in range(4)] + [mi.Float(t0[:, i].astype(np.float32)) for i in range(2)]
         opt = BatchedAdam(params, lr=learning_rate)
-        hole_idx = mi.UInt32(pose_hole.astype(np.uint32))
+        hole_idx = mi.UInt32(np.asarray(pose_hole).astype(np.uint32))
         best = [dr.detach(p) for p in params]
         best_loss = dr.full(mi.Float, np.inf, k)
         for step in range(steps):
@@ -156,25 +185,20 @@ class PlayerB:
             if progress:
                 progress(step + 1)
         if steps > 0:
-            for p in opt.params:
-                dr.enable_grad(p)
             _, per_pose = loss.loss(tuple(opt.params[:4]), (opt.params[4] * scale, opt.params[5] * scale), stack, hole_idx)
             improved = per_pose < best_loss
             best = [dr.select(improved, dr.detach(p), b) for p, b in zip(opt.params, best)]
         final = np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
-        quats = normalize(final[:, :4])
-        trans = final[:, 4:] * scale
-        return self._score(holes, quats, trans, pose_hole, pose_shape, starts)
+        return normalize(final[:, :4]), final[:, 4:] * scale
 
     def _score(self, holes, quats, trans, pose_hole, pose_shape, starts) -> Attack:
         n_h, n_b = len(holes), len(self.shapes)
         beta = np.ones(len(quats))
         prot = np.zeros(len(quats))
-        for h in range(n_h):
-            for b in range(n_b):
-                sel = (pose_hole == h) & (pose_shape == b)
-                s = score_poses(self.renderers[b], holes[h], quats[sel], trans[sel])
-                beta[sel], prot[sel] = s.beta, s.protrusion
+        for b in range(n_b):
+            sel = pose_shape == b
+            s = score_poses(self.renderers[b], holes, quats[sel], trans[sel], pose_hole=pose_hole[sel])
+            beta[sel], prot[sel] = s.beta, s.protrusion
         beta = beta.reshape(n_h, n_b, starts)
         prot = prot.reshape(n_h, n_b, starts)
         # Best start: lowest beta, then lowest protrusion.
@@ -212,12 +236,27 @@ class PlayerA:
         """A's silhouette under rotation ``quat`` on the frame, (N, N) bool."""
         return self.renderer.frame_mask(normalize(quat), np.zeros(2), self.frame)
 
-    def holes(self, quats: np.ndarray) -> list[Hole]:
-        """The hole H for each rotation: silhouette, dilated by the tolerance, holes filled."""
+    def silhouettes(self, quats: np.ndarray, trans: np.ndarray | None = None) -> np.ndarray:
+        """A's silhouettes on the frame for K poses, (K, N, N) bool (translations default to zero)."""
         quats = np.atleast_2d(normalize(quats))
-        n = self.frame.resolution
-        masks = self.renderer.masks(quats, np.zeros((len(quats), 2)), self.frame, np.zeros(len(quats), int), np.zeros(len(quats), int), n)
-        return [build_hole([m], self.frame, self.tolerance, self.fill_holes) for m in masks]
+        trans = np.zeros((len(quats), 2)) if trans is None else np.atleast_2d(trans)
+        zero = np.zeros(len(quats), int)
+        return self.renderer.masks(quats, trans, self.frame, zero, zero, self.frame.resolution)
+
+    def holes(self, quats: np.ndarray, trans: np.ndarray | None = None, base: np.ndarray | None = None) -> list[Hole]:
+        """The hole H for each pose: silhouette, dilated by the tolerance, holes filled.
+
+        Parameters
+        ----------
+        quats : (K, 4) ndarray
+        trans : (K, 2) ndarray, optional
+            Translations in scene units (default zero).
+        base : (N, N) bool ndarray, optional
+            Part of the hole made by other shapes (already dilated); each hole is its union with
+            this shape's dilated silhouette, then filled.
+        """
+        extra = [] if base is None else [base]
+        return [build_hole([m], self.frame, self.tolerance, self.fill_holes, extra=extra) for m in self.silhouettes(quats, trans)]
 
     def search(self, player_b: PlayerB, *, method: str, particles: int, iterations: int, starts: int, steps: int,
                learning_rate: float, rng: np.random.Generator, seed: int, inertia: float = 0.25, c_personal: float = 0.25,

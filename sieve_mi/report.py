@@ -17,6 +17,11 @@ from sieve_mi.scoring import score_poses
 from sieve_mi.solve import Result
 
 
+def _safe(name: str) -> str:
+    """A file-name-safe version of a shape name."""
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+
+
 def write_exr(path: str, image: np.ndarray) -> None:
     """Write a single-channel float32 OpenEXR image with Mitsuba's Bitmap."""
     import mitsuba as mi
@@ -36,9 +41,10 @@ def report_dict(result: Result) -> dict:
     scene = result.scene
     attack = result.attack
     passes = []
-    for entry, shape in zip(scene.passes, result.pass_shapes):
-        passes.append({"mesh": entry.mesh, "name": shape.name, "rotation": [float(x) for x in result.pass_quat],
-                       "translation": [0.0, 0.0], "centre": [float(x) for x in shape.centre], "faces": shape.face_count})
+    for i, (entry, shape) in enumerate(zip(scene.passes, result.pass_shapes)):
+        passes.append({"mesh": entry.mesh, "name": shape.name, "rotation": [float(x) for x in result.pass_quats[i]],
+                       "translation": [float(x) for x in result.pass_trans[i]], "centre": [float(x) for x in shape.centre],
+                       "faces": shape.face_count})
     blocks = []
     for j, (entry, shape) in enumerate(zip(scene.blocks, result.block_shapes)):
         beta = float(attack.beta[0, j])
@@ -61,6 +67,7 @@ def report_dict(result: Result) -> dict:
         "variant": result.variant,
         "search_value": None if np.isnan(result.search_value) else float(result.search_value),
         "convergence": [float(x) for x in result.history.best],
+        "stages": [{"stage": label, "iterations": n} for label, n in result.stages],
         "timings": {k: round(float(v), 4) for k, v in result.timings.items()},
         "pixel_size": hole.frame.pixel_size,
         "units": scene.units,
@@ -107,7 +114,8 @@ def _overlay_png(path: str, result: Result, b_masks: list) -> None:
         ax = axes[0, j]
         ax.set_facecolor("#d8d8d8")
         ax.imshow(np.where(result.hole.mask, 1.0, np.nan), extent=(-r, r, -r, r), cmap="Greys", vmin=0, vmax=1.6, alpha=0.9)
-        ax.contour(*frame.centres(), result.a_mask.astype(float), levels=[0.5], colors="k", linewidths=0.8, linestyles="--")
+        for a_mask in result.a_masks:
+            ax.contour(*frame.centres(), a_mask.astype(float), levels=[0.5], colors="k", linewidths=0.8, linestyles="--")
         if j < n_b:
             (x0, x1, y0, y1), m = b_masks[j]
             colour = colours[j % 10]
@@ -145,12 +153,14 @@ def write_outputs(result: Result, out_dir: str) -> dict:
         write_png(os.path.join(tmp, "hole.png"), hole.mask)
         write_exr(os.path.join(tmp, "hole.exr"), hole.mask.astype(np.float32))
         write_exr(os.path.join(tmp, "masks", "a_silhouette.exr"), result.a_mask.astype(np.float32))
+        if len(result.a_masks) > 1:
+            for i, (m, shape) in enumerate(zip(result.a_masks, result.pass_shapes)):
+                write_exr(os.path.join(tmp, "masks", f"pass_{i}_{_safe(shape.name)}.exr"), m.astype(np.float32))
         b_masks = []
         for j, shape in enumerate(result.block_shapes):
             scores, (row0, col0, size, masks) = score_poses(result.renderers[j], hole, result.attack.quats[0, j:j + 1],
                                                             result.attack.trans[0, j:j + 1], return_masks=True)
-            safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in shape.name)
-            write_exr(os.path.join(tmp, "masks", f"block_{j}_{safe}.exr"), masks[0].astype(np.float32))
+            write_exr(os.path.join(tmp, "masks", f"block_{j}_{_safe(shape.name)}.exr"), masks[0].astype(np.float32))
             x, y = hole.frame.window_centres(row0, col0, size)
             h = hole.frame.pixel_size
             b_masks.append(((x[0, 0] - h / 2, x[0, -1] + h / 2, y[0, -1] - h / 2, y[0, 0] + h / 2), masks[0]))
@@ -172,7 +182,7 @@ def summary_table(report: dict) -> str:
     units = report["units"]
     rows = [("role", "shape", "beta", f"protrusion ({units})", "result")]
     for p in report["pass"]:
-        rows.append(("pass", p["name"], "-", "-", "passes (hole = its silhouette)"))
+        rows.append(("pass", p["name"], "-", "-", "passes (part of the hole)"))
     for b in report["block"]:
         rows.append(("block", b["name"], f"{b['loss']:.4f}", f"{b['protrusion']:.3f}", "blocked" if b["blocked"] else "PASSES"))
     widths = [max(len(r[i]) for r in rows) for i in range(5)]

@@ -67,6 +67,19 @@ class Verdict:
 
 
 @dataclass
+class Layout:
+    """``[layout]``: how several pass shapes make one hole (paper Sec. 5.3, eq. 14)."""
+
+    mode: str = "merged"
+    tau: float = 10.0
+    rho: float = 200.0
+    eta: float = 0.02
+    alpha: float = 5.0
+    c_personal: float = 0.05
+    c_global: float = 0.05
+
+
+@dataclass
 class Scene:
     """A parsed, validated scene."""
 
@@ -78,6 +91,7 @@ class Scene:
     fabrication: Fabrication = field(default_factory=Fabrication)
     solver: Solver = field(default_factory=Solver)
     verdict: Verdict = field(default_factory=Verdict)
+    layout: Layout = field(default_factory=Layout)
 
     @property
     def directory(self) -> str:
@@ -89,10 +103,11 @@ class Scene:
 
     def settings(self) -> dict:
         """The search and fabrication settings, as stored in ``report.json``."""
-        return {"units": self.units, "fabrication": asdict(self.fabrication), "solver": asdict(self.solver), "verdict": asdict(self.verdict)}
+        return {"units": self.units, "fabrication": asdict(self.fabrication), "solver": asdict(self.solver),
+                "verdict": asdict(self.verdict), "layout": asdict(self.layout)}
 
 
-_TOP_KEYS = {"name", "units", "pass", "block", "fabrication", "solver", "verdict"}
+_TOP_KEYS = {"name", "units", "pass", "block", "fabrication", "solver", "verdict", "layout"}
 _UNITS = {"mm", "cm", "m", "in", "um"}
 
 
@@ -236,7 +251,20 @@ def load_scene(path: str) -> Scene:
         steps=r.number("steps", 500, integer=True, minimum=0),
         resolution=r.number("resolution", 256, integer=True, minimum=16, maximum=4096),
     )
-    return Scene(path=path, name=name, units=units, passes=passes, blocks=blocks, fabrication=fab, solver=solver, verdict=verdict)
+    lay_t = _table(path, data, "layout")
+    r = _Reader(path, lay_t, "layout.")
+    r.check_keys({f.name for f in fields(Layout)})
+    layout = Layout(
+        mode=r.string("mode", "merged", choices=["merged", "separate"]),
+        tau=r.number("tau", 10.0, minimum=0, exclusive_min=True),
+        rho=r.number("rho", 200.0, minimum=0, exclusive_min=True),
+        eta=r.number("eta", 0.02, minimum=0),
+        alpha=r.number("alpha", 5.0, minimum=0),
+        c_personal=r.number("c_personal", 0.05, minimum=0),
+        c_global=r.number("c_global", 0.05, minimum=0),
+    )
+    return Scene(path=path, name=name, units=units, passes=passes, blocks=blocks, fabrication=fab, solver=solver,
+                 verdict=verdict, layout=layout)
 
 
 def _table(path: str, data: dict, key: str) -> dict:

@@ -1,5 +1,10 @@
 """Scoring poses with binary masks: the normalised outside area beta (paper eq. 12) and the
-protrusion, the largest distance by which a pose's silhouette sticks out of the hole."""
+protrusion, the largest distance by which a pose's silhouette sticks out of the hole.
+
+Every pose is rasterised in a window of the hole's pixel lattice that covers its bounding disk, so
+parts of the shape outside the hole's frame are counted too. Rays, hole lookups and the per-pose
+reductions run in one Dr.Jit kernel for all poses.
+"""
 
 from __future__ import annotations
 
@@ -8,12 +13,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from sieve_mi.hole import Hole
+from sieve_mi.raster import Frame
 from sieve_mi.silhouettes import SilhouetteRenderer
 
 
 @dataclass
 class PoseScores:
-    """Binary scores of K poses of one shape against one hole.
+    """Binary scores of K poses of one shape.
 
     Attributes
     ----------
@@ -27,35 +33,35 @@ class PoseScores:
     protrusion: np.ndarray
 
 
-def window_for(renderer: SilhouetteRenderer, hole: Hole, trans: np.ndarray, cap: int | None = None):
+def window_for(renderer: SilhouetteRenderer, frame: Frame, trans: np.ndarray, cap: int | None = None):
     """Lattice windows covering each pose's bounding disk: (row0, col0, size)."""
-    f = hole.frame
-    h = f.pixel_size
+    h = frame.pixel_size
     r = renderer.shape.radius
-    size = int(np.ceil(2 * r / h)) + 3
-    cap = cap or 2 * f.resolution + 3
-    size = min(size, cap)
-    corner = f.to_pixel(np.asarray(trans) + np.array([-r, r]))
-    centre = f.to_pixel(np.asarray(trans))
+    full = int(np.ceil(2 * r / h)) + 3
+    size = min(full, cap or 2 * frame.resolution + 3)
+    trans = np.atleast_2d(trans)
     # Centre the window on the pose when it is capped, else put its corner at the disk's corner.
-    start = np.where(size < int(np.ceil(2 * r / h)) + 3, centre - size / 2, corner)
+    start = frame.to_pixel(trans) - size / 2 if size < full else frame.to_pixel(trans + np.array([-r, r]))
     start = np.floor(start).astype(np.int64) - 1
     return start[:, 1], start[:, 0], size
 
 
-def score_poses(renderer: SilhouetteRenderer, hole: Hole, quats: np.ndarray, trans: np.ndarray,
-                return_masks: bool = False):
-    """Beta and protrusion of poses of one shape against one hole.
+def score_poses(renderer: SilhouetteRenderer, holes, quats: np.ndarray, trans: np.ndarray, pose_hole: np.ndarray | None = None,
+                return_masks: bool = False, chunk_rays: int = 1 << 24):
+    """Beta and protrusion of poses of one shape against one or several holes.
 
     Parameters
     ----------
     renderer : SilhouetteRenderer
         The shape's renderer.
-    hole : Hole
+    holes : Hole or list of Hole
+        On one frame.
     quats : (K, 4) ndarray
         Rotations (w, x, y, z).
     trans : (K, 2) ndarray
         Translations, scene units.
+    pose_hole : (K,) ndarray of int, optional
+        Which hole each pose is scored against (default: the first).
     return_masks : bool
         Also return the windows and masks (for figures).
 
@@ -63,27 +69,49 @@ def score_poses(renderer: SilhouetteRenderer, hole: Hole, quats: np.ndarray, tra
     -------
     PoseScores, and if asked (row0, col0, size, masks)
     """
+    import drjit as dr
+    import mitsuba as mi
+
+    from sieve_mi.clearance import HoleStack
+
+    holes = [holes] if isinstance(holes, Hole) else list(holes)
+    frame = holes[0].frame
     quats, trans = np.atleast_2d(quats), np.atleast_2d(trans)
-    row0, col0, size = window_for(renderer, hole, trans)
-    masks = renderer.masks(quats, trans, hole.frame, row0, col0, size)
-    beta = np.zeros(len(quats))
-    prot = np.zeros(len(quats))
+    k_total = len(quats)
+    pose_hole = np.zeros(k_total, int) if pose_hole is None else np.asarray(pose_hole)
+    stack = HoleStack(holes)
+    row0, col0, size = window_for(renderer, frame, trans)
+    n, npix = frame.resolution, size * size
+    beta, prot = np.ones(k_total), np.zeros(k_total)
+    masks = np.zeros((k_total, size, size), dtype=bool) if return_masks else None
+    per = max(1, chunk_rays // npix)
+    for s in range(0, k_total, per):
+        sl = slice(s, min(k_total, s + per))
+        hit, pose, row, col = renderer.trace(quats[sl], trans[sl], frame, row0[sl], col0[sl], size)
+        rc, cc = dr.clip(row, 0, n - 1), dr.clip(col, 0, n - 1)
+        hole_of = dr.gather(mi.UInt32, mi.UInt32(pose_hole[sl].astype(np.uint32)), pose)
+        d = dr.gather(mi.Float, stack.texture, hole_of * (n * n) + mi.UInt32(rc) * n + mi.UInt32(cc))
+        inside = (row == rc) & (col == cc) & (d == 0)
+        dist = (d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))) * frame.pixel_size
+        out = hit & ~inside
+        area = dr.block_sum(dr.select(hit, 1.0, 0.0), npix)
+        outside = dr.block_sum(dr.select(out, 1.0, 0.0), npix)
+        worst = dr.block_reduce(dr.ReduceOp.Max, dr.select(out, dist, 0.0), npix)
+        area, outside, worst = (np.asarray(a, dtype=np.float64) for a in (area, outside, worst))
+        beta[sl] = np.where(area > 0, outside / np.maximum(area, 1), 1.0)
+        prot[sl] = worst
+        if return_masks:
+            masks[sl] = np.asarray(hit, dtype=bool).reshape(-1, size, size)
+    # A projection larger than a capped window cannot fit: never call it a fit.
     lo, hi = renderer.projected_extent(quats, trans)
-    h = hole.frame.pixel_size
-    for k in range(len(quats)):
-        inside, dist = hole.window(int(row0[k]), int(col0[k]), size)
-        m = masks[k]
-        area = m.sum()
-        out = m & ~inside
-        beta[k] = out.sum() / area if area else 1.0
-        prot[k] = float(dist[out].max()) if out.any() else 0.0
-        # A projection larger than the (capped) window cannot fit; never call it a fit.
-        x, y = hole.frame.window_centres(row0[k : k + 1], col0[k : k + 1], size)
-        clipped = lo[k, 0] < x[0, 0] - h or hi[k, 0] > x[0, -1] + h or hi[k, 1] > y[0, 0] + h or lo[k, 1] < y[0, -1] - h
-        if clipped:
-            corners = np.array([[lo[k, 0], lo[k, 1]], [lo[k, 0], hi[k, 1]], [hi[k, 0], lo[k, 1]], [hi[k, 0], hi[k, 1]]])
-            prot[k] = max(prot[k], float(hole.outside_distance(corners).max()))
-            beta[k] = max(beta[k], 1.0 / max(area, 1))
+    h = frame.pixel_size
+    x0 = -frame.half_extent + (col0 + 0.5) * h
+    y0 = frame.half_extent - (row0 + 0.5) * h
+    clipped = (lo[:, 0] < x0 - h) | (hi[:, 0] > x0 + (size - 1) * h + h) | (hi[:, 1] > y0 + h) | (lo[:, 1] < y0 - (size - 1) * h - h)
+    for k in np.flatnonzero(clipped):
+        corners = np.array([[lo[k, 0], lo[k, 1]], [lo[k, 0], hi[k, 1]], [hi[k, 0], lo[k, 1]], [hi[k, 0], hi[k, 1]]])
+        prot[k] = max(prot[k], float(holes[pose_hole[k]].outside_distance(corners).max()))
+        beta[k] = max(beta[k], 1.0 / npix)
     scores = PoseScores(beta=beta, protrusion=prot)
     if return_masks:
         return scores, (row0, col0, size, masks)

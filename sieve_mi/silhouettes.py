@@ -4,7 +4,8 @@ A silhouette is sampled by one ray per pixel centre along +z, exactly what an or
 looking down the z-axis with pixel-centre sampling produces. Instead of moving the mesh for every
 pose (a new BVH each time), the rays are moved into the mesh's frame: for a pose (R, t) the ray
 through world point P starts at R^T (P - t) and runs along R^T e_z. One scene (one BVH) per shape
-then serves any number of poses in a single batched ``ray_test`` call.
+then serves any number of poses in a single batched ``ray_test`` call; the rays are generated in
+Dr.Jit, in the same kernel as the intersection test.
 """
 
 from __future__ import annotations
@@ -38,9 +39,8 @@ class SilhouetteRenderer:
         self._scene = mi.load_dict({"type": "scene", "shape": mesh})
         self._mi, self._dr = mi, dr
 
-    def masks(self, quats: np.ndarray, trans: np.ndarray, frame: Frame, row0: np.ndarray, col0: np.ndarray, size: int,
-              chunk_rays: int = 1 << 24) -> np.ndarray:
-        """Binary silhouettes of K poses, each in a size x size window of the frame's pixel lattice.
+    def trace(self, quats: np.ndarray, trans: np.ndarray, frame: Frame, row0: np.ndarray, col0: np.ndarray, size: int):
+        """Trace one ray per pixel centre of K windows of the frame's pixel lattice (Dr.Jit arrays).
 
         Parameters
         ----------
@@ -54,39 +54,56 @@ class SilhouetteRenderer:
             Lattice index of each window's top-left pixel (0, 0 is the frame's top-left pixel).
         size : int
             Window side in pixels.
-        chunk_rays : int
-            Largest number of rays traced in one call (bounds memory).
+
+        Returns
+        -------
+        hit : mi.Bool
+            K * size * size entries, pose-major, then row, then column.
+        pose, row, col : mi.UInt32, mi.Int32, mi.Int32
+            Pose index and lattice row and column of every entry.
+        """
+        mi, dr = self._mi, self._dr
+        quats, trans = np.atleast_2d(quats), np.atleast_2d(trans)
+        rt = np.transpose(to_matrix(quats), (0, 2, 1)).reshape(len(quats), 9)  # R^T, row-major
+        cols = [mi.Float(rt[:, i].astype(np.float32)) for i in range(9)]
+        tx, ty = mi.Float(trans[:, 0].astype(np.float32)), mi.Float(trans[:, 1].astype(np.float32))
+        r0 = mi.Int32(np.asarray(row0, dtype=np.int32))
+        c0 = mi.Int32(np.asarray(col0, dtype=np.int32))
+        n_pix = size * size
+        idx = dr.arange(mi.UInt32, len(quats) * n_pix)
+        pose = idx // n_pix
+        p = idx % n_pix
+        row = dr.gather(mi.Int32, r0, pose) + mi.Int32(p // size)
+        col = dr.gather(mi.Int32, c0, pose) + mi.Int32(p % size)
+        h, half = frame.pixel_size, frame.half_extent
+        x = (mi.Float(col) + 0.5) * h - half - dr.gather(mi.Float, tx, pose)
+        y = half - (mi.Float(row) + 0.5) * h - dr.gather(mi.Float, ty, pose)
+        reach = self.shape.radius * 1.01 + h
+        g = [dr.gather(mi.Float, c, pose) for c in cols]
+        origin = mi.Point3f(g[0] * x + g[1] * y - g[2] * reach, g[3] * x + g[4] * y - g[5] * reach, g[6] * x + g[7] * y - g[8] * reach)
+        ray = mi.Ray3f(origin, mi.Vector3f(g[2], g[5], g[8]))
+        ray.maxt = mi.Float(2.0 * reach)
+        return self._scene.ray_test(ray), pose, row, col
+
+    def masks(self, quats: np.ndarray, trans: np.ndarray, frame: Frame, row0: np.ndarray, col0: np.ndarray, size: int,
+              chunk_rays: int = 1 << 24) -> np.ndarray:
+        """Binary silhouettes of K poses, each in a size x size window of the frame's pixel lattice.
+
+        Parameters are those of :meth:`trace`; ``chunk_rays`` bounds the rays traced in one call.
 
         Returns
         -------
         (K, size, size) ndarray of bool
             True where the pixel-centre ray hits the mesh.
         """
-        mi, dr = self._mi, self._dr
-        quats = np.atleast_2d(quats)
-        trans = np.atleast_2d(trans)
-        k_total = len(quats)
-        x, y = frame.window_centres(np.asarray(row0), np.asarray(col0), size)
-        rot = to_matrix(quats)  # (K, 3, 3)
-        out = np.zeros((k_total, size, size), dtype=bool)
+        quats, trans = np.atleast_2d(quats), np.atleast_2d(trans)
+        row0, col0 = np.broadcast_to(row0, len(quats)), np.broadcast_to(col0, len(quats))
+        out = np.zeros((len(quats), size, size), dtype=bool)
         per = max(1, chunk_rays // (size * size))
-        reach = self.shape.radius * 1.01 + frame.pixel_size
-        for s in range(0, k_total, per):
-            sl = slice(s, min(k_total, s + per))
-            k = sl.stop - sl.start
-            rt = np.transpose(rot[sl], (0, 2, 1))  # R^T
-            # World points relative to the pose's centre, at z = -reach.
-            px = np.broadcast_to((x[sl] - trans[sl, 0:1])[:, None, :], (k, size, size))
-            py = np.broadcast_to((y[sl] - trans[sl, 1:2])[:, :, None], (k, size, size))
-            origin = (rt[:, None, None, :, 0] * px[..., None] + rt[:, None, None, :, 1] * py[..., None]
-                      + rt[:, None, None, :, 2] * (-reach))
-            direction = np.broadcast_to(rt[:, None, None, :, 2], (k, size, size, 3))
-            o = origin.reshape(-1, 3).astype(np.float32)
-            d = np.ascontiguousarray(direction.reshape(-1, 3), dtype=np.float32)
-            ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
-            ray.maxt = mi.Float(2.0 * reach)
-            hit = self._scene.ray_test(ray)
-            out[sl] = np.asarray(hit, dtype=bool).reshape(k, size, size)
+        for s in range(0, len(quats), per):
+            sl = slice(s, min(len(quats), s + per))
+            hit = self.trace(quats[sl], trans[sl], frame, row0[sl], col0[sl], size)[0]
+            out[sl] = np.asarray(hit, dtype=bool).reshape(-1, size, size)
         return out
 
     def frame_mask(self, quat: np.ndarray, trans: np.ndarray, frame: Frame) -> np.ndarray:

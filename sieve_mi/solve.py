@@ -6,16 +6,18 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import ndimage
 
 from sieve_mi.errors import SieveError
 from sieve_mi.hole import Hole
+from sieve_mi.layout import LayoutSettings, compose, place, sort_by_area, union_frame
 from sieve_mi.meshes import Shape, load_shape
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.players import Attack, PlayerA, PlayerB
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import normalize
-from sieve_mi.scoring import score_poses
 from sieve_mi.scene import Scene
+from sieve_mi.scoring import score_poses
 
 
 @dataclass
@@ -25,20 +27,24 @@ class Result:
     Attributes
     ----------
     winner : {"A", "B"}
-        "A" iff every shape to block has beta > 0 after the verdict.
+        "A" iff every shape to block is blocked after the verdict.
     pass_shapes, block_shapes : list of Shape
-    pass_quat : (4,) ndarray
-        A's rotation (w, x, y, z).
+    pass_quats : (m, 4) ndarray
+        Each A's rotation (w, x, y, z).
+    pass_trans : (m, 2) ndarray
+        Each A's translation in the hole's frame, scene units (the first is at the origin).
     hole : Hole
         The verdict's hole (at the verdict resolution).
-    a_mask : (N, N) bool ndarray
-        A's undilated silhouette on the hole's frame.
+    a_masks : list of (N, N) bool ndarrays
+        Each A's undilated silhouette at its placement, on the hole's frame.
     attack : Attack
         Player B's best attempts in the verdict (one hole).
     history : SwarmHistory
-        Best game value per search iteration.
+        Best search value per iteration (all stages of a many-A search, one after another).
+    stages : list of (str, int)
+        Label and number of iterations of each search stage.
     search_value : float
-        The game value of the chosen rotation during the search.
+        The game value of the chosen placement during the search (NaN when A was fixed).
     timings : dict
         Seconds per stage.
     """
@@ -47,37 +53,53 @@ class Result:
     winner: str
     pass_shapes: list[Shape]
     block_shapes: list[Shape]
-    pass_quat: np.ndarray
+    pass_quats: np.ndarray
+    pass_trans: np.ndarray
     hole: Hole
-    a_mask: np.ndarray
+    a_masks: list
     attack: Attack
     history: SwarmHistory
     search_value: float
     variant: str
+    stages: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
     renderers: list = field(default_factory=list, repr=False)
+
+    @property
+    def pass_quat(self) -> np.ndarray:
+        """The first A's rotation."""
+        return self.pass_quats[0]
+
+    @property
+    def a_mask(self) -> np.ndarray:
+        """All A silhouettes together."""
+        out = np.zeros_like(self.a_masks[0])
+        for m in self.a_masks:
+            out |= m
+        return out
 
 
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
     """Read every mesh of the scene (raises SieveError on the first bad one)."""
-
-    def read(entries, role):
-        shapes = []
-        for i, e in enumerate(entries):
-            s = load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name)
-            shapes.append(s)
-        return shapes
-
-    return read(scene.passes, "pass"), read(scene.blocks, "block")
+    passes = [load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name) for e in scene.passes]
+    blocks = [load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name) for e in scene.blocks]
+    return passes, blocks
 
 
 def hole_frame(shape: Shape, tolerance: float, resolution: int) -> Frame:
-    """The raster frame for A's hole: covers A's dilated silhouette at every rotation."""
+    """The raster frame for one A's hole: covers A's dilated silhouette at every rotation."""
     return Frame.covering(shape.radius + tolerance, resolution)
 
 
+def frame_for(passes: list[Shape], tolerance: float, resolution: int) -> Frame:
+    """The frame of the final hole: one shape's own frame, or the union frame for several."""
+    if len(passes) == 1:
+        return hole_frame(passes[0], tolerance, resolution)
+    return union_frame([p.radius for p in passes], tolerance, resolution)
+
+
 class _Bar:
-    """A tqdm progress bar, or nothing when quiet."""
+    """A tqdm progress bar on stderr, or nothing when quiet."""
 
     def __init__(self, enabled: bool, total: int, desc: str):
         self.bar = None
@@ -97,8 +119,80 @@ class _Bar:
             self.bar.close()
 
 
+def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Bar, label: str):
+    """Player A's rotation for one shape alone against all of B (Secs. 5.1, 5.2)."""
+    s, fab = scene.solver, scene.fabrication
+    frame = hole_frame(a, fab.tolerance, s.resolution)
+    player_a = PlayerA(a, frame, fab.tolerance, fab.fill_holes)
+    player_b = PlayerB(blocks, frame, s.objective)
+
+    def report(it, best):
+        bar.update(s.particles if s.outer == "pso" else 1, best=f"{best:.4f}", stage=label)
+
+    return player_a.search(player_b, method=s.outer, particles=s.particles, iterations=s.iterations, starts=s.starts,
+                           steps=s.steps, learning_rate=s.learning_rate, rng=rng, seed=seed, inertia=s.inertia,
+                           c_personal=s.c_personal, c_global=s.c_global, progress=report)
+
+
+def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: int, progress: bool):
+    """Player A's placements: rotations (and translations for several shapes) of every A.
+
+    Returns
+    -------
+    quats : (m, 4) ndarray
+    trans : (m, 2) ndarray
+    value : float
+    history : SwarmHistory
+    stages : list of (str, int)
+    """
+    s, fab, lay = scene.solver, scene.fabrication, scene.layout
+    m = len(passes)
+    quats = np.zeros((m, 4))
+    trans = np.zeros((m, 2))
+    fixed = [e.rotation for e in scene.passes]
+    history, stages = SwarmHistory(), []
+    free = [i for i in range(m) if fixed[i] is None]
+    placements = m - 1 if (m > 1 and lay.mode == "merged") else 0
+    per_stage = s.particles * (s.iterations + 1)
+    bar = _Bar(progress, per_stage * (len(free) + placements), "search")
+    value = float("nan")
+    for i in range(m):
+        if fixed[i] is not None:
+            quats[i] = normalize(np.asarray(fixed[i]))
+            continue
+        quats[i], value, h = _search_one(passes[i], blocks, scene, rng, seed, bar, passes[i].name)
+        history.best += h.best
+        history.evaluations += h.evaluations
+        stages.append((f"rotate {passes[i].name}", len(h.best)))
+    if m > 1 and lay.mode == "merged":
+        frame = union_frame([p.radius for p in passes], fab.tolerance, s.resolution)
+        players = [PlayerA(p, frame, fab.tolerance, fab.fill_holes) for p in passes]
+        player_b = PlayerB(blocks, frame, s.objective)
+        settings = LayoutSettings(lay.tau, lay.rho, lay.eta, lay.alpha, lay.c_personal, lay.c_global)
+        order = sort_by_area(players, quats)
+        placed = [order[0]]
+        for i in order[1:]:
+            base = compose([players[j] for j in placed], quats[placed], trans[placed], fab.fill_holes).mask
+
+            def report(it, best, _n=passes[i].name):
+                bar.update(s.particles, best=f"{best:.3f}", stage=f"place {_n}")
+
+            quats[i], trans[i], value, h = place(
+                players[i], PlayerB([passes[i]], frame, "clearance"), player_b, base, quats[i], particles=s.particles,
+                iterations=s.iterations, starts=s.starts, steps=s.steps, learning_rate=s.learning_rate, settings=settings,
+                rng=rng, progress=report)
+            history.best += h.best
+            history.evaluations += h.evaluations
+            stages.append((f"place {passes[i].name}", len(h.best)))
+            placed.append(i)
+        # The first (largest) shape sits at the origin: shift everything so.
+        trans -= trans[order[0]]
+    bar.close()
+    return quats, trans, value, history, stages
+
+
 def solve(scene: Scene, *, variant: str = "llvm_ad_mono", seed: int | None = None, progress: bool = True) -> Result:
-    """Play the sieve game for a scene with one shape to pass and any number to block.
+    """Play the sieve game for a scene.
 
     Parameters
     ----------
@@ -115,45 +209,31 @@ def solve(scene: Scene, *, variant: str = "llvm_ad_mono", seed: int | None = Non
     use_variant(variant)
     t_load = time.perf_counter()
     passes, blocks = load_shapes(scene)
-    if len(passes) != 1:
-        raise SieveError(f"{scene.path}: pass: this version designs a hole for exactly one [[pass]] shape, got {len(passes)}")
-    a = passes[0]
+    if len(passes) > 1 and scene.layout.mode == "separate":
+        raise SieveError(f"{scene.path}: layout.mode: 'separate' is not available yet; use 'merged'")
     s, v, fab = scene.solver, scene.verdict, scene.fabrication
-    rng = np.random.default_rng(s.seed if seed is None else seed)
+    seed = s.seed if seed is None else seed
+    rng = np.random.default_rng(seed)
     timings = {"load_s": time.perf_counter() - t_load}
 
-    # Search: player A's rotation against player B (skipped when the scene fixes A's rotation).
     t0 = time.perf_counter()
-    fixed = scene.passes[0].rotation
-    if fixed is not None:
-        quat = normalize(np.asarray(fixed))
-        history, value = SwarmHistory(), float("nan")
-    else:
-        frame = hole_frame(a, fab.tolerance, s.resolution)
-        player_a = PlayerA(a, frame, fab.tolerance, fab.fill_holes)
-        player_b = PlayerB(blocks, frame, s.objective)
-        total = s.particles * (s.iterations + 1)
-        bar = _Bar(progress, total, "search")
-
-        def report(it, best):
-            bar.update(s.particles if s.outer == "pso" else 1, best=f"{best:.4f}")
-
-        quat, value, history = player_a.search(
-            player_b, method=s.outer, particles=s.particles, iterations=s.iterations, starts=s.starts, steps=s.steps,
-            learning_rate=s.learning_rate, rng=rng, seed=s.seed if seed is None else seed, inertia=s.inertia,
-            c_personal=s.c_personal, c_global=s.c_global, progress=report)
-        bar.close()
+    quats, trans, value, history, stages = search(scene, passes, blocks, rng, seed, progress)
     timings["search_s"] = time.perf_counter() - t0
 
     # Verdict: a long re-run of player B against the chosen hole.
     t1 = time.perf_counter()
-    vframe = hole_frame(a, fab.tolerance, v.resolution)
-    vplayer_a = PlayerA(a, vframe, fab.tolerance, fab.fill_holes)
-    hole = vplayer_a.holes(quat[None])[0]
-    a_mask = vplayer_a.silhouette(quat)
+    vframe = frame_for(passes, fab.tolerance, v.resolution)
+    vplayers = [PlayerA(p, vframe, fab.tolerance, fab.fill_holes) for p in passes]
+    if len(passes) == 1:
+        trans[0] = 0.0
+    hole = compose(vplayers, quats, trans, fab.fill_holes)
+    a_masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(vplayers, quats, trans)]
+    if len(passes) > 1 and int(ndimage.label(hole.mask, structure=np.ones((3, 3)))[1]) > 1:
+        stages.append(("warning: the merged hole is not connected", 0))
     # With a blocking margin, B must fail against the hole grown by that margin (paper Fig. 14).
     if fab.block_margin > 0:
-        target = PlayerA(a, vframe, fab.tolerance + fab.block_margin, fab.fill_holes).holes(quat[None])[0]
+        grown = [PlayerA(p, vframe, fab.tolerance + fab.block_margin, fab.fill_holes) for p in passes]
+        target = compose(grown, quats, trans, fab.fill_holes)
     else:
         target = hole
     vplayer_b = PlayerB(blocks, vframe, "clearance")
@@ -168,6 +248,6 @@ def solve(scene: Scene, *, variant: str = "llvm_ad_mono", seed: int | None = Non
             attack.beta[0, j], attack.protrusion[0, j] = sc.beta[0], sc.protrusion[0]
     timings["verdict_s"] = time.perf_counter() - t1
     winner = "A" if bool(np.all(attack.blocked()[0])) else "B"
-    return Result(scene=scene, winner=winner, pass_shapes=passes, block_shapes=blocks, pass_quat=quat, hole=hole, a_mask=a_mask,
-                  attack=attack, history=history, search_value=value, variant=variant, timings=timings,
-                  renderers=vplayer_b.renderers)
+    return Result(scene=scene, winner=winner, pass_shapes=passes, block_shapes=blocks, pass_quats=quats, pass_trans=trans,
+                  hole=hole, a_masks=a_masks, attack=attack, history=history, search_value=value, variant=variant,
+                  stages=stages, timings=timings, renderers=vplayer_b.renderers)

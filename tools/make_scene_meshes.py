@@ -28,7 +28,7 @@ from sieve_mi import shapes  # noqa: E402
 
 LETTERS = "SIGRAPH"
 LETTER_HEIGHT = 30.0  # mm, y-extent of each glyph
-LETTER_DEPTH = 8.0  # mm, extrusion
+LETTER_DEPTH = 12.0
 
 # file name -> zero-argument builder; every size is in mm.
 SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
