@@ -104,17 +104,16 @@ def best_overlaps(player: PlayerA, base: np.ndarray, quat: np.ndarray, count: in
     return quats[order], trans
 
 
-def place(player: PlayerA, fitter: PlayerB, player_b: PlayerB, base: np.ndarray, quat: np.ndarray, *, particles: int,
+def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray, *, particles: int,
           iterations: int, starts: int, steps: int, learning_rate: float, settings: LayoutSettings,
-          rng: np.random.Generator, progress: Callable[[int, float], None] | None = None):
+          rng: np.random.Generator, progress: Callable[[int, float], None] | None = None, recheck: int = 3,
+          finalists: int = 5):
     """Place one more A shape into a hole (one step of the sequential scheme).
 
     Parameters
     ----------
     player : PlayerA
         The shape to add, on the union frame.
-    fitter : PlayerB
-        The same shape as a player that fits into holes (used to pull the starts into H).
     player_b : PlayerB
         The shapes to block, on the union frame.
     base : (N, N) bool ndarray
@@ -127,6 +126,10 @@ def place(player: PlayerA, fitter: PlayerB, player_b: PlayerB, base: np.ndarray,
         Player B's attack settings for every candidate hole.
     settings : LayoutSettings
     rng : numpy.random.Generator
+    recheck : int
+        The swarm's ``finalists`` best placements are re-ranked with an attack ``recheck`` times
+        longer in both starts and steps (1: no re-ranking).
+    finalists : int
 
     Returns
     -------
@@ -161,6 +164,17 @@ def place(player: PlayerA, fitter: PlayerB, player_b: PlayerB, base: np.ndarray,
 
     best, value, history = particle_swarm(evaluate, project(x0), iterations, rng, c_personal=settings.c_personal,
                                           c_global=settings.c_global, project=project, progress=progress)
+    # The swarm ranks placements with a short attack, which can miss a narrow passage. Re-rank its
+    # best few placements with an attack `recheck` times longer and keep the best of those.
+    if recheck > 1 and len(history.finalists) > 1:
+        xs = np.stack([x for x, _ in history.finalists[:finalists]])
+        holes = player.holes(xs[:, :4], xs[:, 4:] * reach, base=base)
+        attack = player_b.attack(holes, starts * recheck, steps * recheck, learning_rate, rng)
+        area = np.array([h.mask.mean() for h in holes])
+        n = np.array([pieces(h.mask) for h in holes])
+        energy = eq14(attack.value(), area, n, settings)
+        i = int(np.argmax(energy))
+        best, value = xs[i], float(energy[i])
     return normalize(best[:4]), best[4:] * reach, value, history
 
 

@@ -55,6 +55,8 @@ class SwarmHistory:
 
     best: list[float] = field(default_factory=list)
     evaluations: int = 0
+    #: Final personal bests of a swarm (positions and values), best first; empty for nlopt.
+    finalists: list = field(default_factory=list)
 
 
 def particle_swarm(evaluate: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, iterations: int, rng: np.random.Generator,
@@ -110,6 +112,8 @@ def particle_swarm(evaluate: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
         history.best.append(float(p_val[g]))
         if progress:
             progress(it, float(p_val[g]))
+    order = np.argsort(p_val)[::-1]
+    history.finalists = [(p_best[i].copy(), float(p_val[i])) for i in order]
     return p_best[g].copy(), float(p_val[g]), history
 
 

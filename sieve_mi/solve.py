@@ -178,7 +178,7 @@ def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: in
                 bar.update(s.particles, best=f"{best:.3f}", stage=f"place {_n}")
 
             quats[i], trans[i], value, h = place(
-                players[i], PlayerB([passes[i]], frame, "clearance"), player_b, base, quats[i], particles=s.particles,
+                players[i], player_b, base, quats[i], particles=s.particles,
                 iterations=s.iterations, starts=s.starts, steps=s.steps, learning_rate=s.learning_rate, settings=settings,
                 rng=rng, progress=report)
             history.best += h.best

@@ -83,10 +83,10 @@ def test_face_on_box_has_the_exact_area_and_lands_on_the_right_pixels(mi, box_ob
     # 0.8 x 0.6 face covers 0.48 (about 492 pixels) up to Monte Carlo noise at the edge pixels.
     assert abs(img.sum() * h * h - 0.48) < h * h
 
-    shape = box_obj  # offset in +x and +y: +x is to the right (columns), +y is up (smaller rows)
+    # Offset in +x and +y: +x is to the right (larger columns), +y is up (smaller rows).
     t = np.array([0.3, 0.2])
     qa, ta = _arrays(mi, dr, [1, 0, 0, 0], t)
-    img = shape.silhouette(tuple(qa), tuple(ta)).numpy()
+    img = box_obj.silhouette(tuple(qa), tuple(ta)).numpy()
     ref = SilhouetteRenderer(_box(0.8, 0.6, 0.4)).frame_mask(np.array([1.0, 0, 0, 0]), t, FRAME)
     assert _iou(img, ref) > 0.95
     rows, cols = np.indices(img.shape)
