@@ -80,3 +80,36 @@ def test_nlopt_outer_method(write_scene):
     r = solve(_scene(write_scene, body, settings), progress=False)
     assert r.winner == "A"
     assert len(r.history.best) == 6 * 4  # particles x (iterations + 1) evaluations
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("objective", ["clearance", "overlap"])
+def test_both_objectives_find_the_face_on_cube(write_scene, objective):
+    # Only near-face-on views of the cube block the 24 mm sphere: tilted views are hexagons whose
+    # inscribed disk is up to 2 * 14.1 mm wide. Both objectives must lead player A there.
+    body = (f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\n[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n')
+    settings = (f'[solver]\nobjective = "{objective}"\nresolution = 64\nparticles = 6\niterations = 3\nstarts = 4\nsteps = 40\n'
+                "[verdict]\nstarts = 40\nsteps = 250\nresolution = 160\n")
+    r = solve(_scene(write_scene, body, settings), progress=False)
+    assert r.winner == "A"
+    assert r.attack.protrusion[0, 0] == pytest.approx(1.0, abs=2 * r.hole.frame.pixel_size)
+
+
+@pytest.mark.slow
+def test_two_pass_shapes_share_one_connected_hole(write_scene):
+    # A cube and a long bar: the merged hole must admit both at their placements (each dilated
+    # silhouette inside H) and stay one piece; the 24 mm sphere is still blocked if the bar's
+    # silhouette does not widen the hole beyond 24 mm anywhere.
+    from scipy import ndimage
+
+    from sieve_mi.scoring import score_poses
+    from sieve_mi.silhouettes import SilhouetteRenderer
+
+    body = (f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\n[[pass]]\nmesh = "{_mesh_path("prism.stl")}"\n'
+            f'[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n')
+    r = solve(_scene(write_scene, body), progress=False)
+    assert ndimage.label(r.hole.mask, structure=np.ones((3, 3)))[1] == 1
+    for shape, q, t in zip(r.pass_shapes, r.pass_quats, r.pass_trans):
+        s = score_poses(SilhouetteRenderer(shape), r.hole, q[None], t[None])
+        assert s.beta[0] == 0.0, shape.name
+    assert np.allclose(r.pass_trans[np.argmax([m.sum() for m in r.a_masks])], 0.0)  # the largest sits at the origin
