@@ -91,7 +91,8 @@ def run_one(name: str, variant: str, objective: str, quick: bool) -> dict:
     from sieve_mi.clearance import ClearanceObjective
 
     frame = result.hole.frame
-    samples = ClearanceObjective(result.block_shapes, frame).segment_count * 4
+    clear = ClearanceObjective(result.block_shapes, frame)
+    samples = clear.segment_count * clear.samples
     return {
         "scene": name,
         "objective": objective,

@@ -33,6 +33,18 @@ def _quat_rows(dr, mi, qw, qx, qy, qz):
             2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
 
 
+def auto_samples(shapes: list[Shape], spacing: float, most: int = 4) -> int:
+    """Samples per segment from the median edge length (in units of ``spacing``), in [1, most]."""
+    from sieve_mi.meshes import edge_topology
+
+    lengths = []
+    for s in shapes:
+        edges = edge_topology(s.vertices, s.faces)[0]
+        lengths.append(np.linalg.norm(s.vertices[edges[:, 0]] - s.vertices[edges[:, 1]], axis=1))
+    median = float(np.median(np.concatenate(lengths))) / spacing
+    return int(np.clip(np.ceil(median), 1, most))
+
+
 class HoleStack:
     """Several holes on one frame, as one flat Dr.Jit array of outside distances in pixels.
 
@@ -63,16 +75,20 @@ class ClearanceObjective:
         Player B's shapes.
     frame : Frame
         The hole's raster frame; its pixel size sets the sample spacing.
-    samples_per_segment : int
-        Samples per edge segment (segments are at most this many pixels long).
+    samples_per_segment : int, optional
+        Samples per edge segment (segments are at most this many pixels long). By default it is
+        chosen from the edge lengths: the median edge length in pixels, between 1 and 4, so that
+        meshes whose edges are shorter than a pixel get one sample per edge instead of four.
     """
 
-    def __init__(self, shapes: list[Shape], frame: Frame, samples_per_segment: int = 4):
+    def __init__(self, shapes: list[Shape], frame: Frame, samples_per_segment: int | None = None):
         import drjit as dr
         import mitsuba as mi
 
         self.dr, self.mi = dr, mi
         self.frame = frame
+        if samples_per_segment is None:
+            samples_per_segment = auto_samples(shapes, frame.pixel_size)
         self.samples = int(samples_per_segment)
         segs = [segments(s, frame.pixel_size, self.samples) for s in shapes]
         self.counts = np.array([len(s) for s in segs], dtype=np.int64)

@@ -70,11 +70,11 @@ class PlayerB:
         The raster frame of the holes it will be tested against.
     objective : {"clearance", "overlap"}
         Differentiable loss used by Adam; scores are always binary beta.
-    samples_per_segment : int
-        Edge samples per segment for the clearance objective.
+    samples_per_segment : int, optional
+        Edge samples per segment for the clearance objective (default: from the edge lengths).
     """
 
-    def __init__(self, shapes: list[Shape], frame: Frame, objective: str = "clearance", samples_per_segment: int = 4):
+    def __init__(self, shapes: list[Shape], frame: Frame, objective: str = "clearance", samples_per_segment: int | None = None):
         if objective not in OBJECTIVES:
             raise ValueError(f"unknown objective {objective!r}")
         self.shapes = shapes

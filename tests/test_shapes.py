@@ -28,6 +28,22 @@ def shoelace(points: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
+def contains(mesh: trimesh.Trimesh, points) -> np.ndarray:
+    """Inside test by the generalised winding number (sum of signed solid angles / 4 pi).
+
+    Written out here so the test needs no spatial index (trimesh's ``contains`` wants rtree).
+    """
+    p = np.asarray(points, dtype=float)
+    tri = mesh.triangles[None, :, :, :] - p[:, None, None, :]  # (P, F, 3, 3)
+    a, b, c = tri[:, :, 0], tri[:, :, 1], tri[:, :, 2]
+    la, lb, lc = (np.linalg.norm(v, axis=-1) for v in (a, b, c))
+    det = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
+    den = (la * lb * lc + np.einsum("pfi,pfi->pf", a, b) * lc
+           + np.einsum("pfi,pfi->pf", b, c) * la + np.einsum("pfi,pfi->pf", c, a) * lb)
+    winding = 2.0 * np.arctan2(det, den).sum(axis=1) / (4.0 * np.pi)
+    return np.abs(winding) > 0.5
+
+
 def assert_solid(mesh: trimesh.Trimesh) -> None:
     """Closed, consistently wound, positive volume, one connected body, centred."""
     assert mesh.is_watertight
@@ -191,8 +207,8 @@ def test_bowtie_volume_is_two_trapezoids_times_thickness():
 def test_bowtie_is_narrow_at_the_waist():
     w, h, t, s = 30.0, 20.0, 6.0, 6.0
     mesh = shapes.bowtie(width=w, height=h, thickness=t, waist=s)
-    inside = mesh.contains([[0, s / 2 - 0.5, 0], [w / 2 - 0.5, h / 2 - 0.5, 0], [-w / 2 + 0.5, -h / 2 + 0.5, 0]])
-    outside = mesh.contains([[0, s / 2 + 0.5, 0], [0, -s / 2 - 0.5, 0], [0, 0, t / 2 + 0.5]])
+    inside = contains(mesh, [[0, s / 2 - 0.5, 0], [w / 2 - 0.5, h / 2 - 0.5, 0], [-w / 2 + 0.5, -h / 2 + 0.5, 0]])
+    outside = contains(mesh, [[0, s / 2 + 0.5, 0], [0, -s / 2 - 0.5, 0], [0, 0, t / 2 + 0.5]])
     assert inside.all()
     assert not outside.any()
 
@@ -237,9 +253,9 @@ def test_arch_has_the_semicircle_removed():
     assert mesh.volume < w * h * d - 0.99 * true_half_disk * d
     # point in the opening vs points in the crown and legs (bottom edge at y = -h/2)
     y0 = -h / 2
-    assert not mesh.contains([[0, y0 + r / 2, 0]]).any()
-    assert not mesh.contains([[0, y0 + r - 0.5, 0]]).any()
-    assert mesh.contains([[0, y0 + r + 0.5, 0], [w / 2 - t / 2, y0 + 0.5, 0], [-(w / 2 - t / 2), y0 + 0.5, 0]]).all()
+    assert not contains(mesh, [[0, y0 + r / 2, 0]]).any()
+    assert not contains(mesh, [[0, y0 + r - 0.5, 0]]).any()
+    assert contains(mesh, [[0, y0 + r + 0.5, 0], [w / 2 - t / 2, y0 + 0.5, 0], [-(w / 2 - t / 2), y0 + 0.5, 0]]).all()
 
 
 def test_arch_rejects_impossible_proportions():
