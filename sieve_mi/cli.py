@@ -1,4 +1,4 @@
-"""Command line: ``sieve-mi solve SCENE``."""
+"""Command line: ``sieve-mi solve SCENE`` and ``sieve-mi check SHAPE (--sieve PLATE | --hole IMAGE --pixel-size MM)``."""
 
 from __future__ import annotations
 
@@ -18,6 +18,25 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--variant", default="llvm_ad_mono", help="Mitsuba variant: llvm_ad_mono (CPU, default) or cuda_ad_mono (GPU)")
     s.add_argument("--seed", type=int, help="random seed (overrides [solver] seed)")
     s.add_argument("--quiet", action="store_true", help="no progress bars")
+    s.add_argument("--no-figure", action="store_true", help="skip the Mitsuba rendering figure.png")
+    c = sub.add_parser("check", help="test a shape against a sieve (plate mesh or hole image): passes or blocked, and the fit scale")
+    c.add_argument("shape", help="mesh of the shape to test (STL, OBJ, PLY, ...)")
+    src = c.add_mutually_exclusive_group(required=True)
+    src.add_argument("--sieve", help="sieve plate mesh; its through-holes along --axis are used")
+    src.add_argument("--hole", help="hole image (white = hole, black = material); needs --pixel-size")
+    c.add_argument("--pixel-size", type=float, help="size of one pixel of --hole, in scene units (mm)")
+    c.add_argument("--axis", choices=("x", "y", "z"), default="z", help="direction the shape moves through the plate (default z)")
+    c.add_argument("--scale", type=float, default=1.0, help="uniform scale of the shape (file units to mm)")
+    c.add_argument("--starts", type=int, default=100, help="random starts of the fitting search (default 100)")
+    c.add_argument("--steps", type=int, default=500, help="Adam steps per start (default 500)")
+    c.add_argument("--learning-rate", type=float, default=0.05)
+    c.add_argument("--resolution", type=int, default=256, help="raster side in pixels for --sieve (default 256)")
+    c.add_argument("--seed", type=int, default=0)
+    c.add_argument("--no-fit", action="store_true", help="skip the fit-scale search")
+    c.add_argument("--fit-tolerance", type=float, default=0.01, help="relative precision of the fit scale (default 0.01)")
+    c.add_argument("--units", default="mm", help="unit name for the report (default mm)")
+    c.add_argument("--variant", default="llvm_ad_mono", help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU)")
+    c.add_argument("--json", action="store_true", help="print the result as JSON")
     return p
 
 
@@ -33,9 +52,42 @@ def cmd_solve(args) -> int:
     if args.seed is not None and args.seed < 0:
         raise SieveError(f"--seed {args.seed}: must be >= 0")
     result = solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
-    report = write_outputs(result, out_dir)
+    report = write_outputs(result, out_dir, figure=not args.no_figure)
     print(summary_table(report))
+    for w in report.get("fabrication", {}).get("warnings", []):
+        print(f"sieve-mi: warning: {w}", file=sys.stderr)
     print(f"outputs: {out_dir}/")
+    return 0
+
+
+def cmd_check(args) -> int:
+    import json
+
+    from sieve_mi.backend import use_variant
+    from sieve_mi.check import CheckSettings, check, summary
+    from sieve_mi.meshes import load_shape
+
+    if args.hole is not None and args.pixel_size is None:
+        raise SieveError(f"--hole {args.hole}: also give --pixel-size (the image's pixel size in scene units)")
+    for name, value, minimum in (("--starts", args.starts, 1), ("--steps", args.steps, 1), ("--resolution", args.resolution, 16)):
+        if value < minimum:
+            raise SieveError(f"{name} {value}: must be at least {minimum}")
+    if not (args.scale > 0 and args.scale < float("inf")):
+        raise SieveError(f"--scale {args.scale}: must be a positive number")
+    if not (0 < args.fit_tolerance < 1):
+        raise SieveError(f"--fit-tolerance {args.fit_tolerance}: must be between 0 and 1")
+    if args.seed < 0:
+        raise SieveError(f"--seed {args.seed}: must be >= 0")
+    use_variant(args.variant)
+    shape = load_shape(args.shape, scale=args.scale)
+    settings = CheckSettings(starts=args.starts, steps=args.steps, learning_rate=args.learning_rate, resolution=args.resolution,
+                             seed=args.seed, fit=not args.no_fit, fit_tolerance=args.fit_tolerance)
+    rep = check(shape, sieve=args.sieve, axis=args.axis, image=args.hole, pixel_size=args.pixel_size, units=args.units,
+                settings=settings)
+    if args.json:
+        print(json.dumps(rep.to_dict(), indent=2, default=lambda x: None if x != x else str(x)))
+    else:
+        print(summary(rep))
     return 0
 
 
@@ -44,6 +96,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "solve":
             return cmd_solve(args)
+        if args.command == "check":
+            return cmd_check(args)
     except SieveError as exc:
         print(f"sieve-mi: error: {exc}", file=sys.stderr)
         return 2

@@ -55,6 +55,38 @@ def union_frame(radii: list[float], tolerance: float, resolution: int) -> Frame:
     return Frame.covering(2.0 * r + tolerance, resolution)
 
 
+def separate_layout(radii: list[float], tolerance: float, gap: float, resolution: int) -> tuple[np.ndarray, Frame]:
+    """Holes side by side for ``layout.mode = "separate"``: the trivially valid answer (paper Sec. 5.3).
+
+    Each shape's hole lies within its bounding circle grown by the tolerance; the circles are put in
+    a row along x with ``gap`` of material between neighbours, centred on the origin. The frame has
+    the pixel size a single hole of the largest shape would get at ``resolution``.
+
+    Parameters
+    ----------
+    radii : list of float
+        Bounding radii of the shapes, scene units.
+    tolerance, gap : float
+        Dilation and material between holes, scene units.
+    resolution : int
+        Pixels per side of the largest single shape's frame.
+
+    Returns
+    -------
+    trans : (m, 2) ndarray
+        Each shape's translation, scene units.
+    frame : Frame
+    """
+    r = np.asarray(radii, dtype=np.float64) + tolerance
+    x = np.concatenate([[0.0], np.cumsum(r[:-1] + r[1:] + gap)])
+    x -= 0.5 * (x[0] - r[0] + x[-1] + r[-1])
+    trans = np.column_stack([x, np.zeros_like(x)])
+    h = Frame.covering(float(r.max()), resolution).pixel_size
+    half = float(np.max(np.abs(x) + r)) + 3.0 * h
+    n = int(np.ceil(2.0 * half / h))
+    return trans, Frame(n, 0.5 * n * h)
+
+
 def eq14(beta: np.ndarray, area_fraction: np.ndarray, pieces: np.ndarray, s: LayoutSettings) -> np.ndarray:
     """The energy of eq. 14, minus tau for every hole that falls apart into several pieces."""
     return s.tau / 2 * np.tanh(s.rho * (beta - s.eta)) - s.alpha * area_fraction - s.tau * (pieces > 1)

@@ -97,7 +97,7 @@ class PlayerB:
         return self._loss
 
     def attack(self, holes: list[Hole], starts: int, steps: int, learning_rate: float, rng: np.random.Generator,
-               progress: Callable[[int], None] | None = None) -> Attack:
+               progress: Callable[[int], None] | None = None, centres: np.ndarray | None = None) -> Attack:
         """Player B's best attempt on each hole, for each shape.
 
         Starts are uniform random rotations and translations in +-0.1 of the frame's half extent
@@ -116,6 +116,8 @@ class PlayerB:
         rng : numpy.random.Generator
         progress : callable, optional
             Called with the number of steps done after each step.
+        centres : (H, 2) ndarray, optional
+            Where each hole's starts are centred (scene units); default the origin.
         """
         n_h, n_b = len(holes), len(self.shapes)
         k = n_h * n_b * starts
@@ -123,6 +125,8 @@ class PlayerB:
         pose_shape = np.tile(np.repeat(np.arange(n_b), starts), n_h)
         q0 = random_uniform(k, rng)
         t0 = rng.uniform(-0.1, 0.1, size=(k, 2)) * self.frame.half_extent
+        if centres is not None:
+            t0 += np.asarray(centres, dtype=np.float64)[pose_hole]
         quats, trans = self.descend(holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress)
         return self._score(holes, quats, trans, pose_hole, pose_shape, starts)
 

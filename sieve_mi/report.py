@@ -137,11 +137,14 @@ def _overlay_png(path: str, result: Result, b_masks: list) -> None:
     plt.close(fig)
 
 
-def write_outputs(result: Result, out_dir: str) -> dict:
+def write_outputs(result: Result, out_dir: str, *, fabricate: bool = True, figure: bool = True) -> dict:
     """Write every output of a solve into ``out_dir`` (replacing it) and return the report dict.
 
     Files: report.json, hole.png, hole.exr, masks/a_silhouette.exr, masks/block_<j>_<name>.exr,
-    convergence.png, overlay.png.
+    convergence.png, overlay.png; with ``fabricate`` also the printable sieve (sieve.stl, sieve.3mf,
+    hole.svg), pass_<i>.stl, block_<j>.stl and, with ``figure``, figure.png (see
+    :func:`sieve_mi.fabrication.fabricate`). Everything is written into a temporary folder first, so
+    a failure leaves no half-written output.
     """
     report = report_dict(result)
     parent = os.path.dirname(os.path.abspath(out_dir)) or "."
@@ -166,6 +169,10 @@ def write_outputs(result: Result, out_dir: str) -> dict:
             b_masks.append(((x[0, 0] - h / 2, x[0, -1] + h / 2, y[0, -1] - h / 2, y[0, 0] + h / 2), masks[0]))
         _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best)
         _overlay_png(os.path.join(tmp, "overlay.png"), result, b_masks)
+        if fabricate:
+            from sieve_mi.fabrication import fabricate as make_sieve
+
+            report["fabrication"] = make_sieve(result, tmp, figure=figure)
         with open(os.path.join(tmp, "report.json"), "w") as fh:
             json.dump(report, fh, indent=2)
         if os.path.isdir(out_dir):

@@ -8,9 +8,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from sieve_mi.errors import SieveError
 from sieve_mi.hole import Hole
-from sieve_mi.layout import LayoutSettings, compose, place, sort_by_area, union_frame
+from sieve_mi.layout import LayoutSettings, compose, place, separate_layout, sort_by_area, union_frame
 from sieve_mi.meshes import Shape, load_shape
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.players import Attack, PlayerA, PlayerB
@@ -191,6 +190,21 @@ def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: in
     return quats, trans, value, history, stages
 
 
+def weakest_hole(attack: Attack) -> Attack:
+    """Collapse an attack on several separate holes to one row: per shape, its best hole.
+
+    A shape passes a sieve with several holes if it passes any of them, so per shape the hole with
+    the lowest beta (then protrusion) is kept.
+    """
+    if attack.beta.shape[0] == 1:
+        return attack
+    order = np.lexsort((attack.protrusion, attack.beta), axis=0)[0]
+    cols = np.arange(attack.beta.shape[1])
+    return Attack(beta=attack.beta[order, cols][None], protrusion=attack.protrusion[order, cols][None],
+                  quats=attack.quats[order, cols][None], trans=attack.trans[order, cols][None],
+                  fits=attack.fits.sum(axis=0)[None])
+
+
 def solve(scene: Scene, *, variant: str = "llvm_ad_mono", seed: int | None = None, progress: bool = True) -> Result:
     """Play the sieve game for a scene.
 
@@ -209,8 +223,6 @@ def solve(scene: Scene, *, variant: str = "llvm_ad_mono", seed: int | None = Non
     use_variant(variant)
     t_load = time.perf_counter()
     passes, blocks = load_shapes(scene)
-    if len(passes) > 1 and scene.layout.mode == "separate":
-        raise SieveError(f"{scene.path}: layout.mode: 'separate' is not available yet; use 'merged'")
     s, v, fab = scene.solver, scene.verdict, scene.fabrication
     seed = s.seed if seed is None else seed
     rng = np.random.default_rng(seed)
@@ -222,25 +234,35 @@ def solve(scene: Scene, *, variant: str = "llvm_ad_mono", seed: int | None = Non
 
     # Verdict: a long re-run of player B against the chosen hole.
     t1 = time.perf_counter()
-    vframe = frame_for(passes, fab.tolerance, v.resolution)
+    separate = len(passes) > 1 and scene.layout.mode == "separate"
+    if separate:
+        trans, vframe = separate_layout([p.radius for p in passes], fab.tolerance, fab.border, v.resolution)
+    else:
+        vframe = frame_for(passes, fab.tolerance, v.resolution)
     vplayers = [PlayerA(p, vframe, fab.tolerance, fab.fill_holes) for p in passes]
     if len(passes) == 1:
         trans[0] = 0.0
     hole = compose(vplayers, quats, trans, fab.fill_holes)
     a_masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(vplayers, quats, trans)]
-    if len(passes) > 1 and int(ndimage.label(hole.mask, structure=np.ones((3, 3)))[1]) > 1:
+    if len(passes) > 1 and not separate and int(ndimage.label(hole.mask, structure=np.ones((3, 3)))[1]) > 1:
         stages.append(("warning: the merged hole is not connected", 0))
+    # Separate holes: B passes if it passes any one of them, so it is attacked on each.
+    groups = [[i] for i in range(len(passes))] if separate else [list(range(len(passes)))]
+    holes = [compose([vplayers[i] for i in g], quats[g], trans[g], fab.fill_holes) for g in groups]
     # With a blocking margin, B must fail against the hole grown by that margin (paper Fig. 14).
     if fab.block_margin > 0:
         grown = [PlayerA(p, vframe, fab.tolerance + fab.block_margin, fab.fill_holes) for p in passes]
-        target = compose(grown, quats, trans, fab.fill_holes)
+        targets = [compose([grown[i] for i in g], quats[g], trans[g], fab.fill_holes) for g in groups]
     else:
-        target = hole
+        targets = holes
     vplayer_b = PlayerB(blocks, vframe, "clearance")
     bar = _Bar(progress, v.steps, "verdict")
-    attack = vplayer_b.attack([target], v.starts, v.steps, s.learning_rate, rng, progress=lambda n: bar.update(1))
+    centres = np.array([trans[g].mean(axis=0) for g in groups]) if separate else None
+    attack = vplayer_b.attack(targets, v.starts, v.steps, s.learning_rate, rng, progress=lambda n: bar.update(1),
+                              centres=centres)
     bar.close()
-    if target is not hole:
+    attack = weakest_hole(attack)
+    if fab.block_margin > 0:
         attack.margin_beta = attack.beta.copy()
         attack.margin_protrusion = attack.protrusion.copy()
         for j, r in enumerate(vplayer_b.renderers):

@@ -59,6 +59,30 @@ def test_solve_writes_every_output(write_scene, tmp_path):
     area = float(hole.sum()) * report["pixel_size"] ** 2
     assert area == pytest.approx(report["hole"]["area"])
     assert not [f for f in os.listdir(tmp_path) if f.startswith(".sieve-mi-")]  # no temporary leftovers
+    # the printable sieve and the placed shapes
+    for f in ("sieve.stl", "sieve.3mf", "hole.svg", "pass_0.stl", "block_0.stl", "figure.png"):
+        assert (out / f).is_file(), f
+    fab = report["fabrication"]
+    plate = trimesh.load(str(out / "sieve.stl"))
+    assert plate.is_watertight and plate.is_volume and len(plate.split(only_watertight=False)) == 1
+    # cube of side 20 (scenes/meshes/cube.stl): circumsphere diameter 20 sqrt(3) = 34.64
+    assert fab["required_thickness"] == pytest.approx(34.7) and fab["thickness"] == fab["required_thickness"]
+    assert plate.extents[2] == pytest.approx(fab["thickness"], rel=1e-6)
+    assert abs(fab["outline"]["area_difference"]) < 0.05  # exact outline vs the coarse 96 px raster
+    assert fab["warnings"] == [] and "warning" not in p.stderr
+    cube = trimesh.load(str(out / "pass_0.stl"))
+    assert cube.volume == pytest.approx(8000.0, rel=1e-6) and cube.bounds[0, 2] > 0  # above the plate
+
+
+@pytest.mark.slow
+def test_thin_plate_gets_a_warning(write_scene, tmp_path):
+    scene = _good_scene(write_scene, "[fabrication]\nthickness = 5.0\n")
+    out = tmp_path / "thin"
+    p = run_cli("solve", scene, "--out", str(out), "--quiet", "--no-figure")
+    assert p.returncode == 0, p.stderr
+    assert "warning" in p.stderr and "34.7" in p.stderr and "B.1" in p.stderr
+    assert trimesh.load(str(out / "sieve.stl")).extents[2] == pytest.approx(5.0)
+    assert not (out / "figure.png").exists()
 
 
 def _assert_clean_error(p, *needles, out=None):

@@ -113,3 +113,39 @@ def test_two_pass_shapes_share_one_connected_hole(write_scene):
         s = score_poses(SilhouetteRenderer(shape), r.hole, q[None], t[None])
         assert s.beta[0] == 0.0, shape.name
     assert np.allclose(r.pass_trans[np.argmax([m.sum() for m in r.a_masks])], 0.0)  # the largest sits at the origin
+
+
+@pytest.mark.slow
+def test_separate_layout_blocks_only_if_every_hole_blocks(write_scene):
+    # Two separate holes side by side. Two 20 mm cubes (tolerance 1): each hole is at best a
+    # 22 mm square, too small for the 24 mm sphere, so A wins. Scale the second cube to 30 mm and
+    # its hole admits the sphere: B wins, through that hole.
+    from scipy import ndimage
+
+    from sieve_mi.scoring import score_poses
+    from sieve_mi.silhouettes import SilhouetteRenderer
+
+    cube, sphere = _mesh_path("cube.stl"), _mesh_path("sphere.stl")
+    sep = '[layout]\nmode = "separate"\n[fabrication]\nborder = 4.0\n'
+    body = f'name = "t"\n[[pass]]\nmesh = "{cube}"\n[[pass]]\nmesh = "{cube}"\n[[block]]\nmesh = "{sphere}"\n' + sep
+    r = solve(_scene(write_scene, body), progress=False)
+    labels, n = ndimage.label(r.hole.mask, structure=np.ones((3, 3)))
+    assert n == 2
+    # each hole admits its cube (a cube's projection is at least its 20 x 20 face, grown by 1 mm),
+    # with at least the border of material between them
+    h2 = r.hole.frame.pixel_size ** 2
+    assert (np.bincount(labels.ravel())[1:] * h2 >= 400 + 4 * 20 * 1.0 - 40 * r.hole.frame.pixel_size).all()
+    for shape, q, t in zip(r.pass_shapes, r.pass_quats, r.pass_trans):
+        assert score_poses(SilhouetteRenderer(shape), r.hole, q[None], t[None]).beta[0] == 0.0
+    cols = np.flatnonzero(r.hole.mask.any(axis=0))
+    gap = np.diff(cols).max() - 1
+    assert gap * r.hole.frame.pixel_size >= 4.0 - r.hole.frame.pixel_size
+    assert r.winner == "A"
+
+    body = (f'name = "t"\n[[pass]]\nmesh = "{cube}"\n[[pass]]\nmesh = "{cube}"\nscale = 1.5\n'
+            f'[[block]]\nmesh = "{sphere}"\n' + sep)
+    r = solve(_scene(write_scene, body), progress=False)
+    assert r.winner == "B"
+    # the sphere went through the big cube's hole
+    big = int(np.argmax([s.radius for s in r.pass_shapes]))
+    assert np.linalg.norm(r.attack.trans[0, 0] - r.pass_trans[big]) < 6.0

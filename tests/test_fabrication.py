@@ -1,0 +1,185 @@
+"""Known-answer tests for the exact hole outline and the printable plate (sieve_mi.fabrication).
+
+Areas are argued on paper: a cube of side a projects to an a x a square face-on and to a regular
+hexagon of area sqrt(3) a^2 along its body diagonal; a square of side s grown by r has area
+s^2 + 4 s r + pi r^2; a plate of W x D x T with a hole of area A has volume (W D - A) T.
+"""
+
+from __future__ import annotations
+
+import math
+
+import manifold3d
+import numpy as np
+import pytest
+import trimesh
+
+from sieve_mi import fabrication as fab
+from sieve_mi.meshes import shape_from_trimesh
+from sieve_mi.raster import Frame
+from sieve_mi.rotations import align, from_axis_angle
+from sieve_mi.shapes import to_manifold
+
+
+def sym_diff(a: manifold3d.CrossSection, b: manifold3d.CrossSection) -> float:
+    """Area of the symmetric difference (manifold3d's ``^`` is the intersection)."""
+    return (a - b).area() + (b - a).area()
+
+
+def cube_shape(a: float = 10.0):
+    return shape_from_trimesh(trimesh.creation.box((a, a, a)), name="cube")
+
+
+def test_projection_of_a_cube_face_on_and_along_its_diagonal():
+    a = 10.0
+    cube = cube_shape(a)
+    face = fab.projection(fab.placed_vertices(cube, [1, 0, 0, 0], [0, 0]), cube.faces)
+    assert face.area() == pytest.approx(a * a, rel=1e-9)
+    # body diagonal (1, 1, 1) turned onto z: a regular hexagon of area sqrt(3) a^2
+    q = align(np.array([1.0, 1.0, 1.0]) / math.sqrt(3), np.array([0.0, 0.0, 1.0]))
+    hexagon = fab.projection(fab.placed_vertices(cube, q, [0, 0]), cube.faces)
+    assert hexagon.area() == pytest.approx(math.sqrt(3) * a * a, rel=1e-9)
+    assert hexagon.num_vert() == 6
+    # the front-facing shortcut for closed meshes gives the same region
+    closed = fab.projection(fab.placed_vertices(cube, q, [0, 0]), cube.faces, closed=True)
+    assert sym_diff(closed, hexagon) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_projection_of_a_triangle_soup_with_mixed_winding_is_the_union():
+    # two unit right triangles forming the unit square, wound opposite ways, plus an edge-on one
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1]], dtype=float)
+    f = np.array([[0, 1, 2], [0, 3, 2], [0, 1, 5]])
+    sec = fab.projection(v, f)
+    assert sec.area() == pytest.approx(1.0, rel=1e-12)
+    # overlapping triangles: union, not sum (two copies of the same triangle)
+    f2 = np.array([[0, 1, 2], [2, 1, 0]])
+    assert fab.projection(v, f2).area() == pytest.approx(0.5, rel=1e-12)
+    # everything edge-on: empty
+    assert fab.projection(v, np.array([[0, 1, 5]])).is_empty()
+
+
+def test_dilation_contains_the_exact_offset_and_stays_close():
+    s, r = 10.0, 1.0
+    square = manifold3d.CrossSection.square([s, s], center=True)
+    grown = fab.dilated(square, r)
+    exact = s * s + 4 * s * r + math.pi * r * r
+    assert exact <= grown.area() <= exact * 1.0 + (fab.ARC_ERROR * 1.1 + 2 * fab.SIMPLIFY) * r * (4 * s + 2 * math.pi * r)
+    pts = np.vstack(grown.to_polygons())
+    # every vertex lies at distance >= r from the square (never inward of the exact dilation) ...
+    dx = np.maximum(np.abs(pts[:, 0]) - s / 2, 0)
+    dy = np.maximum(np.abs(pts[:, 1]) - s / 2, 0)
+    dist = np.hypot(dx, dy)
+    assert dist.min() >= r - 1e-9
+    # ... and within a few per cent of the tolerance from it
+    assert dist.max() <= r * (1 + fab.ARC_ERROR * 1.1 + 2 * fab.SIMPLIFY)
+    assert fab.dilated(square, 0.0).area() == pytest.approx(s * s)
+
+
+def test_filled_removes_enclosed_gaps():
+    ring = manifold3d.CrossSection.circle(10.0, 128) - manifold3d.CrossSection.circle(5.0, 128)
+    disk = fab.filled(ring)
+    assert disk.area() == pytest.approx(manifold3d.CrossSection.circle(10.0, 128).area(), rel=1e-9)
+    assert len(disk.to_polygons()) == 1
+
+
+def test_hole_outline_of_two_cubes_is_their_dilated_union():
+    a, r = 10.0, 0.5
+    cube = cube_shape(a)
+    quats = np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]])
+    trans = np.array([[0.0, 0.0], [a, 0.0]])  # side by side: a 2a x a rectangle
+    out = fab.hole_outline([cube, cube], quats, trans, r)
+    exact = 2 * a * a + 2 * (3 * a) * r + math.pi * r * r
+    assert out.area() == pytest.approx(exact, rel=0.01)
+    assert out.area() >= exact
+    assert len(out.to_polygons()) == 1
+
+
+def test_outline_agrees_with_a_raster_of_it():
+    cube = cube_shape(10.0)
+    q = from_axis_angle(np.array([0.3, 1.0, 0.2]), 0.7)
+    out = fab.hole_outline([cube], q[None], np.zeros((1, 2)), 1.0)
+    frame = Frame.covering(12.0, 256)
+    mask = fab.rasterize(out, frame)
+    agree = fab.raster_agreement(out, mask, frame)
+    # same region sampled at pixel centres: areas agree to within the boundary's pixels
+    perimeter = 60.0
+    assert abs(agree["polygon_area"] - agree["raster_area"]) < perimeter * frame.pixel_size
+    assert agree["pixels_only_raster"] == 0 and agree["pixels_only_polygon"] == 0
+
+
+def test_default_thickness_is_the_circumsphere_diameter():
+    a = 10.0
+    assert fab.default_thickness([cube_shape(a)]) == pytest.approx(math.ceil(a * math.sqrt(3) * 10) / 10)
+    ball = shape_from_trimesh(trimesh.creation.icosphere(3, 7.0), name="ball")
+    assert fab.circumsphere_diameter(ball) == pytest.approx(14.0, rel=1e-6)
+    # an off-centre point set: the bounding-box centre is not the ball's centre
+    # (a right triangle's circumcircle has the hypotenuse as diameter)
+    tri = trimesh.Trimesh([[0, 0, 0], [10, 0, 0], [0, 10, 0], [0, 0, 0.001]], [[0, 1, 2], [0, 1, 3]], process=False)
+    d = fab.circumsphere_diameter(shape_from_trimesh(tri, name="tri"))
+    assert 10 * math.sqrt(2) - 1e-6 <= d <= 10 * math.sqrt(2) * 1.01
+
+
+def _holes_of(mesh: trimesh.Trimesh, z: float) -> manifold3d.CrossSection:
+    """Holes of the plate's cross-section at height z: filled outline minus material."""
+    body = to_manifold(mesh)
+    section = body.slice(z)
+    return fab.filled(section) - section
+
+
+def test_plate_is_one_watertight_body_with_the_hole_through_it():
+    a, r, t, border = 10.0, 1.0, 18.0, 6.0
+    cube = cube_shape(a)
+    q = from_axis_angle(np.array([1.0, 2.0, 0.5]), 0.9)
+    outline = fab.hole_outline([cube], q[None], np.zeros((1, 2)), r)
+    plate = fab.plate(outline, t, border)
+    m = plate.mesh
+    assert m.is_watertight and m.is_winding_consistent and m.is_volume
+    assert len(m.split(only_watertight=False)) == 1
+    (x0, y0, z0), (x1, y1, z1) = m.bounds
+    assert z0 == pytest.approx(-t) and z1 == pytest.approx(0.0, abs=1e-9)
+    (ox0, oy0), (ox1, oy1) = fab._bounds(outline)
+    assert x1 - x0 == pytest.approx(ox1 - ox0 + 2 * border, rel=1e-6)
+    assert m.volume == pytest.approx(((x1 - x0) * (y1 - y0) - outline.area()) * t, rel=1e-6)
+    # the hole at several depths is H itself
+    for z in (-0.1, -t / 2, -t + 0.1):
+        holes = _holes_of(m, z)
+        assert holes.area() == pytest.approx(outline.area(), rel=1e-6)
+        assert sym_diff(holes, outline) < 1e-6 * outline.area()
+    assert plate.warnings == []
+
+
+def test_thin_plate_warns_about_wriggling():
+    outline = manifold3d.CrossSection.square([10, 10], center=True)
+    plate = fab.plate(outline, 5.0, 3.0, required_thickness=17.4)
+    assert len(plate.warnings) == 1
+    assert "17.4" in plate.warnings[0] and "B.1" in plate.warnings[0]
+
+
+def test_3mf_round_trip(tmp_path):
+    outline = manifold3d.CrossSection.circle(5.0, 32)
+    mesh = fab.plate(outline, 4.0, 2.0).mesh
+    path = str(tmp_path / "p.3mf")
+    fab.write_3mf(path, mesh)
+    back = fab.read_3mf(path)
+    np.testing.assert_allclose(back.vertices, mesh.vertices, rtol=1e-8, atol=1e-8)
+    np.testing.assert_array_equal(back.faces, mesh.faces)
+    assert back.is_watertight
+
+
+def test_svg_outline_is_written(tmp_path):
+    outline = manifold3d.CrossSection.square([10, 4], center=True)
+    path = tmp_path / "h.svg"
+    fab.write_svg(str(path), outline, "mm")
+    text = path.read_text()
+    assert 'width="11mm"' in text and "fill-rule=\"evenodd\"" in text
+    assert text.count("M ") == 1
+
+
+def test_shape_mesh_is_lifted_above_the_plate():
+    cube = cube_shape(10.0)
+    q = from_axis_angle(np.array([1.0, 1.0, 0.0]), 0.5)
+    m = fab.shape_mesh(cube, q, np.array([3.0, -2.0]), 2.5)
+    assert m.bounds[0, 2] == pytest.approx(2.5)
+    assert m.volume == pytest.approx(1000.0)
+    c = 0.5 * (m.bounds[0] + m.bounds[1])
+    assert c[:2] == pytest.approx([3.0, -2.0])
