@@ -10,6 +10,7 @@ import json
 import os
 import shutil
 import tempfile
+import time
 
 import numpy as np
 
@@ -172,7 +173,9 @@ def write_outputs(result: Result, out_dir: str, *, fabricate: bool = True, figur
         if fabricate:
             from sieve_mi.fabrication import fabricate as make_sieve
 
+            t0 = time.perf_counter()
             report["fabrication"] = make_sieve(result, tmp, figure=figure)
+            report["timings"]["fabrication_s"] = round(time.perf_counter() - t0, 4)
         with open(os.path.join(tmp, "report.json"), "w") as fh:
             json.dump(report, fh, indent=2)
         if os.path.isdir(out_dir):
