@@ -28,7 +28,7 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.errors import SieveError
-from sieve_mi.fabrication import placed_vertices, projection, rasterize
+from sieve_mi.fabrication import filled, placed_vertices, projection, rasterize
 from sieve_mi.hole import Hole
 from sieve_mi.meshes import Shape, load_trimesh
 from sieve_mi.raster import Frame
@@ -122,22 +122,12 @@ def holes_from_mesh(path: str, axis: str = "z") -> list[manifold3d.CrossSection]
     if a == 1:  # keep a right-handed frame: (z, x, y)
         v = v[:, [1, 0, 2]]
     solid = projection(v, mesh.faces)
-    free = _outer(solid) - solid
+    free = filled(solid) - solid
     holes = [h for h in free.decompose() if h.area() > 1e-9 * max(solid.area(), 1e-300)]
     if not holes:
         raise SieveError(f"{path}: no through-hole along {axis} (every line along {axis} inside the plate hits it); "
                          "check --axis or the file")
     return sorted(holes, key=lambda h: -h.area())
-
-
-def _outer(section: manifold3d.CrossSection) -> manifold3d.CrossSection:
-    outer = [c for c in section.to_polygons() if _area(c) > 0]
-    return manifold3d.CrossSection(outer, manifold3d.FillRule.Positive) if outer else manifold3d.CrossSection()
-
-
-def _area(c) -> float:
-    x, y = np.asarray(c, dtype=np.float64).T
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
 def mask_from_image(path: str) -> np.ndarray:
