@@ -425,14 +425,29 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
 
 
 def beside_plate(plate_mesh: trimesh.Trimesh, meshes: list[trimesh.Trimesh], gap: float | None = None) -> list[trimesh.Trimesh]:
-    """Copies of ``meshes`` moved in x to stand in a row beside the plate (for the figure)."""
-    (x0, y0, _), (x1, y1, _) = plate_mesh.bounds
+    """Copies of ``meshes`` standing in a row on the ground beside the plate (for the figure).
+
+    Parameters
+    ----------
+    plate_mesh : trimesh.Trimesh
+        The sieve plate; its bounding box fixes the row's start and the ground height (its bottom).
+    meshes : list of trimesh.Trimesh
+        Shapes in their poses; only translated.
+    gap : float, optional
+        Spacing between neighbours, scene units (default: 10 % of the plate's larger side).
+
+    Returns
+    -------
+    list of trimesh.Trimesh
+        The moved copies, in the order given.
+    """
+    (x0, y0, z0), (x1, y1, _) = plate_mesh.bounds
     gap = 0.1 * max(x1 - x0, y1 - y0) if gap is None else gap
     x = x1 + gap
     out = []
     for m in meshes:
-        (a0, b0, _), (a1, b1, _) = m.bounds
-        shift = np.array([x - a0, 0.5 * (y0 + y1) - 0.5 * (b0 + b1), 0.0])
+        (a0, b0, c0), (a1, b1, _) = m.bounds
+        shift = np.array([x - a0, 0.5 * (y0 + y1) - 0.5 * (b0 + b1), z0 - c0])
         out.append(trimesh.Trimesh(np.asarray(m.vertices) + shift, m.faces, process=False))
         x += (a1 - a0) + gap
     return out

@@ -183,3 +183,18 @@ def test_shape_mesh_is_lifted_above_the_plate():
     assert m.volume == pytest.approx(1000.0)
     c = 0.5 * (m.bounds[0] + m.bounds[1])
     assert c[:2] == pytest.approx([3.0, -2.0])
+
+
+def test_shapes_beside_the_plate_stand_on_its_ground_without_touching_it():
+    from sieve_mi.fabrication import beside_plate
+
+    plate = trimesh.creation.box(extents=(40.0, 30.0, 10.0))
+    plate.apply_translation((0.0, 0.0, -5.0))            # top at z = 0, bottom at z = -10
+    a = trimesh.creation.icosphere(radius=3.0)
+    a.apply_translation((0.0, 0.0, 50.0))
+    b = trimesh.creation.box(extents=(4.0, 4.0, 4.0))
+    moved = beside_plate(plate, [a, b], gap=2.0)
+    assert [m.bounds[0, 2] for m in moved] == pytest.approx([-10.0, -10.0])
+    assert moved[0].bounds[0, 0] == pytest.approx(22.0)  # plate ends at x = 20, then the gap
+    assert moved[1].bounds[0, 0] == pytest.approx(moved[0].bounds[1, 0] + 2.0)
+    assert moved[0].bounds[:, 1].mean() == pytest.approx(0.0, abs=1e-9)
