@@ -18,6 +18,8 @@ from sieve_mi.errors import SieveError
 #: Variants sieve-mi supports: CPU (LLVM) and GPU (CUDA), both monochrome with autodiff.
 VARIANTS = ("llvm_ad_mono", "cuda_ad_mono")
 MIN_LLVM = 17
+#: Environment variable that changes the default variant (e.g. ``SIEVE_MI_VARIANT=cuda_ad_mono``).
+VARIANT_ENV = "SIEVE_MI_VARIANT"
 
 _PATTERNS = (
     "/usr/lib/llvm-*/lib/libLLVM*.so*",
@@ -72,19 +74,28 @@ def configure_llvm() -> str | None:
     return found
 
 
-def use_variant(variant: str = "llvm_ad_mono"):
+def default_variant() -> str:
+    """The variant used when none is named: ``$SIEVE_MI_VARIANT`` if set, else ``"llvm_ad_mono"`` (CPU)."""
+    return os.environ.get(VARIANT_ENV) or "llvm_ad_mono"
+
+
+def use_variant(variant: str | None = None):
     """Select a Mitsuba variant and return the ``mitsuba`` module.
 
     Parameters
     ----------
-    variant : str
-        ``"llvm_ad_mono"`` (CPU) or ``"cuda_ad_mono"`` (NVIDIA GPU).
+    variant : str, optional
+        ``"llvm_ad_mono"`` (CPU) or ``"cuda_ad_mono"`` (NVIDIA GPU); default :func:`default_variant`.
 
     Raises
     ------
     SieveError
         If the variant is unknown or its backend is not available on this machine.
     """
+    if variant is None:
+        variant = default_variant()
+        if variant not in VARIANTS:
+            raise SieveError(f"{VARIANT_ENV}={variant}: not a supported variant; use one of: {', '.join(VARIANTS)}")
     if variant not in VARIANTS:
         raise SieveError(f"variant '{variant}' is not supported; use one of: {', '.join(VARIANTS)}")
     if variant.startswith("llvm") and configure_llvm() is None:

@@ -15,7 +15,7 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("solve", help="design a hole that passes the [[pass]] shapes and blocks the [[block]] shapes")
     s.add_argument("scene", help="scene file (TOML)")
     s.add_argument("--out", help="output folder (default: out/<name>/ beside the current directory)")
-    s.add_argument("--variant", default="llvm_ad_mono", help="Mitsuba variant: llvm_ad_mono (CPU, default) or cuda_ad_mono (GPU)")
+    s.add_argument("--variant", help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono")
     s.add_argument("--seed", type=int, help="random seed (overrides [solver] seed)")
     s.add_argument("--quiet", action="store_true", help="no progress bars")
     s.add_argument("--no-figure", action="store_true", help="skip the Mitsuba rendering figure.png")
@@ -35,7 +35,7 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--no-fit", action="store_true", help="skip the fit-scale search")
     c.add_argument("--fit-tolerance", type=float, default=0.01, help="relative precision of the fit scale (default 0.01)")
     c.add_argument("--units", default="mm", help="unit name for the report (default mm)")
-    c.add_argument("--variant", default="llvm_ad_mono", help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU)")
+    c.add_argument("--variant", help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono")
     c.add_argument("--json", action="store_true", help="print the result as JSON")
     return p
 

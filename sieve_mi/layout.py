@@ -23,7 +23,7 @@ from scipy import ndimage
 
 from sieve_mi.hole import Hole, dilate
 from sieve_mi.optim import SwarmHistory, particle_swarm
-from sieve_mi.players import PlayerA, PlayerB
+from sieve_mi.players import AttackMemory, PlayerA, PlayerB
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import from_axis_angle, normalize
 
@@ -97,49 +97,118 @@ def pieces(mask: np.ndarray) -> int:
     return int(ndimage.label(mask, structure=np.ones((3, 3)))[1])
 
 
-def best_overlaps(player: PlayerA, base: np.ndarray, quat: np.ndarray, count: int, reach: float, angles: int = 72):
-    """In-plane placements of a shape that overlap a hole most.
+def _rotated_silhouettes(player: PlayerA, quat: np.ndarray, angles: int) -> tuple[np.ndarray, np.ndarray]:
+    """The shape's dilated silhouettes under ``angles`` rotations about z applied after ``quat``."""
+    theta = np.arange(angles) * (2 * np.pi / angles)
+    quats = normalize(quat_multiply(np.stack([from_axis_angle([0, 0, 1], t) for t in theta]), np.asarray(quat)[None]))
+    sils = np.stack([dilate(m, player.frame, player.tolerance) for m in player.silhouettes(quats)])
+    return quats, sils
+
+
+def _shifted(mask: np.ndarray, dr: int, dc: int) -> np.ndarray:
+    """``mask`` moved by (dr, dc) pixels, zero-filled (no wrap-around)."""
+    n0, n1 = mask.shape
+    out = np.zeros_like(mask)
+    out[max(dr, 0):n0 + min(dr, 0), max(dc, 0):n1 + min(dc, 0)] = mask[max(-dr, 0):n0 - max(dr, 0),
+                                                                      max(-dc, 0):n1 - max(dc, 0)]
+    return out
+
+
+def candidate_placements(player: PlayerA, base: np.ndarray, quat: np.ndarray, reach: float, *, angles: int = 72,
+                         per_angle: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """In-plane placements of a shape that touch a hole, ranked by the area of the hole they make.
 
     For each of ``angles`` rotations about z (applied after ``quat``), the overlap of the shape's
-    dilated silhouette with ``base`` is computed for every translation at once as an FFT
-    cross-correlation; the best translation per angle (within ``reach`` of the origin) is kept, and
-    the ``count`` best angles are returned.
+    dilated silhouette with ``base`` is computed for every pixel translation at once (FFT
+    cross-correlation), and its ``per_angle`` strongest local maxima within ``reach`` of the origin
+    become candidates. Each candidate's hole, ``fill(base | silhouette)``, is then built and
+    measured. Ranking by that *filled* area rather than by the overlap alone matters: the placement
+    that overlaps most often closes a cavity of the hole (a letter laid across the mouth of a G),
+    and filling the closed cavity adds exactly the room a blocked shape needs to pass.
+
+    Parameters
+    ----------
+    player : PlayerA
+        The shape to add, on the union frame.
+    base : (N, N) bool ndarray
+        The current hole (dilated, filled).
+    quat : (4,) ndarray
+        The shape's best rotation when solved alone.
+    reach : float
+        Largest distance of the shape's centre from the origin, scene units.
+    angles, per_angle : int
+        In-plane rotations tried, and candidates kept per rotation.
 
     Returns
     -------
-    quats : (count, 4) ndarray
-    trans : (count, 2) ndarray
+    quats : (K, 4) ndarray
+    trans : (K, 2) ndarray
         Scene units.
+    area : (K,) ndarray
+        Filled hole area in pixels; candidates that leave the hole in several pieces are dropped.
+        Sorted ascending (most compact first).
     """
     frame = player.frame
     n, h = frame.resolution, frame.pixel_size
-    theta = np.arange(angles) * (2 * np.pi / angles)
-    quats = normalize(quat_multiply(np.stack([from_axis_angle([0, 0, 1], t) for t in theta]), np.asarray(quat)[None]))
-    sils = np.stack([dilate(m, frame, player.tolerance) for m in player.silhouettes(quats)]).astype(np.float32)
+    quats, sils = _rotated_silhouettes(player, quat, angles)
     size = 2 * n
     fb = np.fft.rfft2(base.astype(np.float32), s=(size, size))
-    corr = np.fft.irfft2(fb[None] * np.conj(np.fft.rfft2(sils, s=(size, size))), s=(size, size))
-    shift = np.fft.fftfreq(size, 1.0 / size)  # wrapped shift index -> signed pixel shift
+    corr = np.fft.irfft2(fb[None] * np.conj(np.fft.rfft2(sils.astype(np.float32), s=(size, size))), s=(size, size))
+    shift = np.rint(np.fft.fftfreq(size, 1.0 / size)).astype(int)  # wrapped index -> signed pixel shift
     sr, sc = np.meshgrid(shift, shift, indexing="ij")
     allowed = np.hypot(sr, sc) * h <= reach
-    corr = np.where(allowed[None], corr, -np.inf)
-    flat = corr.reshape(angles, -1).argmax(1)
-    score = corr.reshape(angles, -1)[np.arange(angles), flat]
-    order = np.argsort(score)[::-1][:count]
-    r, c = np.unravel_index(flat[order], (size, size))
-    trans = np.stack([shift[c] * h, -shift[r] * h], axis=1)
-    if len(order) < count:  # fewer angles than particles: repeat with small jitter
-        extra = count - len(order)
-        quats_o = np.concatenate([quats[order], quats[order][np.arange(extra) % len(order)]])
-        trans = np.concatenate([trans, trans[np.arange(extra) % len(order)] + h])
-        return quats_o, trans
-    return quats[order], trans
+    spacing = max(3, int(round(0.05 * reach / h)))  # local maxima at least ~5 % of the reach apart
+    qs, ts, areas = [], [], []
+    for k in range(angles):
+        c = np.where(allowed, corr[k], -np.inf)
+        peaks = (c >= ndimage.maximum_filter(c, size=spacing, mode="wrap")) & (c > 0.5)
+        idx = np.flatnonzero(peaks)
+        idx = idx[np.argsort(c.ravel()[idx])[::-1][:per_angle]]
+        for i in idx:
+            dr_, dc_ = int(sr.flat[i]), int(sc.flat[i])
+            union = base | _shifted(sils[k], dr_, dc_)
+            filled = ndimage.binary_fill_holes(union)
+            if pieces(filled) != 1:
+                continue
+            qs.append(quats[k])
+            ts.append((dc_ * h, -dr_ * h))
+            areas.append(int(filled.sum()))
+    if not qs:  # nothing touches the hole: fall back to the shape at the origin
+        return np.asarray(quats[:1]), np.zeros((1, 2)), np.array([np.inf])
+    order = np.argsort(areas, kind="stable")
+    return np.asarray(qs)[order], np.asarray(ts, dtype=np.float64)[order], np.asarray(areas, dtype=np.float64)[order]
+
+
+def _diverse(quats: np.ndarray, trans: np.ndarray, count: int, min_angle: float, min_distance: float) -> np.ndarray:
+    """Indices of up to ``count`` entries, in order, skipping any that is within ``min_angle``
+    radians *and* ``min_distance`` of one already taken (so the starts are not one placement many
+    times over)."""
+    taken: list[int] = []
+    for i, (q, t) in enumerate(zip(quats, trans)):
+        near = [2 * np.arccos(min(1.0, abs(float(np.dot(q, quats[j]))))) < min_angle
+                and np.linalg.norm(t - trans[j]) < min_distance for j in taken]
+        if not any(near):
+            taken.append(i)
+            if len(taken) == count:
+                break
+    return np.asarray(taken, dtype=int)
+
+
+def _stratified(total: int, count: int) -> np.ndarray:
+    """``count`` of ``range(total)``: the first half in order, the rest evenly spread over the
+    remainder (so a screen sees the most compact candidates and a sample of all the others)."""
+    if total <= count:
+        return np.arange(total)
+    head = count // 2
+    tail = np.linspace(head, total - 1, count - head).round().astype(int)
+    return np.concatenate([np.arange(head), tail])
 
 
 def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray, *, particles: int,
           iterations: int, starts: int, steps: int, learning_rate: float, settings: LayoutSettings,
-          rng: np.random.Generator, progress: Callable[[int, float], None] | None = None, recheck: int = 3,
-          finalists: int = 5):
+          rng: np.random.Generator, progress: Callable[[int, float], None] | None = None,
+          recheck: tuple[int, int] | None = None,
+          finalists: int = 5, screen: int = 5, memory: AttackMemory | None = None, rounds: int = 3):
     """Place one more A shape into a hole (one step of the sequential scheme).
 
     Parameters
@@ -158,10 +227,21 @@ def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray
         Player B's attack settings for every candidate hole.
     settings : LayoutSettings
     rng : numpy.random.Generator
-    recheck : int
-        The swarm's ``finalists`` best placements are re-ranked with an attack ``recheck`` times
-        longer in both starts and steps (1: no re-ranking).
+    recheck : (int, int), optional
+        Starts and Adam steps of the attack that re-ranks the swarm's ``finalists`` best placements
+        (the solver passes the verdict's settings, so the placement kept is the one that survives
+        the attack the winner is decided by); default three times ``starts`` and ``steps``.
     finalists : int
+    screen : int
+        ``screen * particles`` distinct candidate placements (half the most compact, half spread
+        over the others, see :func:`candidate_placements`) are scored with one short attack each;
+        the best ``particles`` of them start the swarm.
+    memory : AttackMemory, optional
+        B's best poses so far (shared across placements); every attack starts from them too.
+    rounds : int
+        Screening + swarm + re-ranking is repeated (at most this many times) while every
+        re-ranked placement still lets some B through; each round's attacks start from the
+        passing poses the previous rounds found.
 
     Returns
     -------
@@ -174,11 +254,14 @@ def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray
     """
     frame = player.frame
     reach = frame.half_extent / 2.0  # centres stay within the largest radius of the origin
-    # Starts: the in-plane rotations and translations of the shape's own best rotation that overlap
-    # the current hole most (an exhaustive search by FFT cross-correlation, in place of the paper's
-    # gradient steps from random in-plane transforms).
-    q0, t0 = best_overlaps(player, base, quat, particles, reach)
-    x0 = np.concatenate([q0, t0 / reach], axis=1)
+    # Candidate starts: in-plane rotations and translations of the shape's own best rotation that
+    # touch the current hole, most compact filled hole first (an exhaustive search by FFT
+    # cross-correlation, in place of the paper's gradient steps from random in-plane transforms).
+    qc, tc, _ = candidate_placements(player, base, quat, reach)
+    distinct = _diverse(qc, tc, len(qc), min_angle=0.2, min_distance=0.1 * reach)
+    pick = _stratified(len(distinct), screen * particles)
+    qc, tc = qc[distinct[pick]], tc[distinct[pick]]
+    x0 = np.concatenate([qc, tc / reach], axis=1)
 
     def project(x):
         x = x.copy()
@@ -187,26 +270,47 @@ def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray
         x[:, 4:] = x[:, 4:] / np.maximum(norm, 1.0)
         return x
 
+    if memory is None:
+        memory = AttackMemory(len(player_b.shapes), size=max(1, starts // 3))
+
     def evaluate(x):
         holes = player.holes(x[:, :4], x[:, 4:] * reach, base=base)
-        attack = player_b.attack(holes, starts, steps, learning_rate, rng)
+        attack = player_b.attack(holes, starts, steps, learning_rate, rng, memory=memory)
         area = np.array([h.mask.mean() for h in holes])
         n = np.array([pieces(h.mask) for h in holes])
         return eq14(attack.value(), area, n, settings)
 
-    best, value, history = particle_swarm(evaluate, project(x0), iterations, rng, c_personal=settings.c_personal,
-                                          c_global=settings.c_global, project=project, progress=progress)
-    # The swarm ranks placements with a short attack, which can miss a narrow passage. Re-rank its
-    # best few placements with an attack `recheck` times longer and keep the best of those.
-    if recheck > 1 and len(history.finalists) > 1:
-        xs = np.stack([x for x, _ in history.finalists[:finalists]])
+    r_starts, r_steps = recheck if recheck is not None else (3 * starts, 3 * steps)
+    pool = x0
+    history = SwarmHistory()
+    best, value, best_beta = pool[0], -np.inf, -np.inf
+    for _ in range(rounds):
+        # Screen the candidates with one short attack each (one batch); the best start the swarm.
+        if len(pool) > particles:
+            x0 = pool[np.argsort(evaluate(pool), kind="stable")[::-1][:particles]]
+        else:  # few candidates: repeat them, nudged by a pixel
+            extra = particles - len(pool)
+            x0 = np.concatenate([pool, pool[np.arange(extra) % len(pool)] + np.r_[0, 0, 0, 0, frame.pixel_size / reach, 0]])
+        x, v, h = particle_swarm(evaluate, project(x0), iterations, rng, c_personal=settings.c_personal,
+                                 c_global=settings.c_global, project=project, progress=progress)
+        history.best += h.best
+        history.evaluations += h.evaluations
+        history.finalists = h.finalists
+        # The swarm ranks placements with a short attack, which can miss a narrow passage. Re-rank
+        # its best few placements with a long attack and keep the best of those.
+        xs = np.stack([f for f, _ in h.finalists[:finalists]]) if h.finalists else x[None]
         holes = player.holes(xs[:, :4], xs[:, 4:] * reach, base=base)
-        attack = player_b.attack(holes, starts * recheck, steps * recheck, learning_rate, rng)
-        area = np.array([h.mask.mean() for h in holes])
-        n = np.array([pieces(h.mask) for h in holes])
+        attack = player_b.attack(holes, r_starts, r_steps, learning_rate, rng, memory=memory)
+        area = np.array([hh.mask.mean() for hh in holes])
+        n = np.array([pieces(hh.mask) for hh in holes])
         energy = eq14(attack.value(), area, n, settings)
         i = int(np.argmax(energy))
-        best, value = xs[i], float(energy[i])
+        if energy[i] > value:
+            best, value, best_beta = xs[i], float(energy[i]), float(attack.value()[i])
+        if best_beta > 0:
+            break
+        # Every finalist lets some B through. The memory now holds the passing poses, so another
+        # round of screening and swarming sees through the placements that looked safe before.
     return normalize(best[:4]), best[4:] * reach, value, history
 
 

@@ -59,6 +59,41 @@ class Attack:
         return self.beta.min(axis=1)
 
 
+class AttackMemory:
+    """Player B's best poses seen so far, per shape, to reuse as warm starts.
+
+    While player A compares many similar holes (the placement swarm of Sec. 5.3), a pose with
+    which B passed one hole is a good first guess for the next. Random starts find a narrow
+    passage only now and then; remembering it makes every later hole face it again, so a hole
+    that lets B through is not ranked high just because its attack was unlucky.
+
+    Parameters
+    ----------
+    shapes : int
+        Number of B shapes.
+    size : int
+        Poses kept per shape (lowest beta first, then lowest protrusion).
+    """
+
+    def __init__(self, shapes: int, size: int = 3):
+        self.size = int(size)
+        self._poses: list[list[tuple[float, float, np.ndarray, np.ndarray]]] = [[] for _ in range(shapes)]
+
+    def update(self, attack: Attack) -> None:
+        """Add each hole's best pose per shape from ``attack``, keep the ``size`` best per shape."""
+        for b, kept in enumerate(self._poses):
+            for h in range(attack.beta.shape[0]):
+                kept.append((float(attack.beta[h, b]), float(attack.protrusion[h, b]),
+                             np.array(attack.quats[h, b]), np.array(attack.trans[h, b])))
+            kept.sort(key=lambda e: (e[0], e[1]))
+            del kept[self.size:]
+
+    def poses(self, shape: int) -> tuple[np.ndarray, np.ndarray]:
+        """The remembered rotations (W, 4) and translations (W, 2, scene units) of one shape."""
+        kept = self._poses[shape]
+        return np.array([e[2] for e in kept]).reshape(-1, 4), np.array([e[3] for e in kept]).reshape(-1, 2)
+
+
 class PlayerB:
     """Fits B's shapes into holes by batched Adam from random starts.
 
@@ -97,7 +132,8 @@ class PlayerB:
         return self._loss
 
     def attack(self, holes: list[Hole], starts: int, steps: int, learning_rate: float, rng: np.random.Generator,
-               progress: Callable[[int], None] | None = None, centres: np.ndarray | None = None) -> Attack:
+               progress: Callable[[int], None] | None = None, centres: np.ndarray | None = None,
+               memory: AttackMemory | None = None) -> Attack:
         """Player B's best attempt on each hole, for each shape.
 
         Starts are uniform random rotations and translations in +-0.1 of the frame's half extent
@@ -118,6 +154,10 @@ class PlayerB:
             Called with the number of steps done after each step.
         centres : (H, 2) ndarray, optional
             Where each hole's starts are centred (scene units); default the origin.
+        memory : AttackMemory, optional
+            B's remembered best poses replace the first random starts of every hole (at most
+            ``starts - 1`` per shape, so at least one start stays random); the memory is then
+            updated with this attack's results.
         """
         n_h, n_b = len(holes), len(self.shapes)
         k = n_h * n_b * starts
@@ -127,8 +167,18 @@ class PlayerB:
         t0 = rng.uniform(-0.1, 0.1, size=(k, 2)) * self.frame.half_extent
         if centres is not None:
             t0 += np.asarray(centres, dtype=np.float64)[pose_hole]
+        if memory is not None:
+            q0, t0 = q0.reshape(n_h, n_b, starts, 4), t0.reshape(n_h, n_b, starts, 2)
+            for b in range(n_b):
+                mq, mt = memory.poses(b)
+                w = min(len(mq), starts - 1)
+                q0[:, b, :w], t0[:, b, :w] = mq[:w], mt[:w]
+            q0, t0 = q0.reshape(k, 4), t0.reshape(k, 2)
         quats, trans = self.descend(holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress)
-        return self._score(holes, quats, trans, pose_hole, pose_shape, starts)
+        attack = self._score(holes, quats, trans, pose_hole, pose_shape, starts)
+        if memory is not None:
+            memory.update(attack)
+        return attack
 
     def descend(self, holes: list[Hole], pose_hole: np.ndarray, pose_shape: np.ndarray, q0: np.ndarray, t0: np.ndarray,
                 steps: int, learning_rate: float, progress: Callable[[int], None] | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -12,7 +12,7 @@ from sieve_mi.hole import Hole
 from sieve_mi.layout import LayoutSettings, compose, place, separate_layout, sort_by_area, union_frame
 from sieve_mi.meshes import Shape, load_shape
 from sieve_mi.optim import SwarmHistory
-from sieve_mi.players import Attack, PlayerA, PlayerB
+from sieve_mi.players import Attack, AttackMemory, PlayerA, PlayerB
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import normalize
 from sieve_mi.scene import Scene
@@ -90,11 +90,20 @@ def hole_frame(shape: Shape, tolerance: float, resolution: int) -> Frame:
     return Frame.covering(shape.radius + tolerance, resolution)
 
 
-def frame_for(passes: list[Shape], tolerance: float, resolution: int) -> Frame:
-    """The frame of the final hole: one shape's own frame, or the union frame for several."""
+def frame_for(passes: list[Shape], tolerance: float, resolution: int, trans: np.ndarray | None = None) -> Frame:
+    """The frame of the final hole.
+
+    One shape: its own frame. Several shapes at known in-plane translations ``trans`` (scene
+    units): the smallest centred frame that holds every shape's bounding disk at its place, so the
+    verdict's pixels are as fine as the placed hole allows. Without ``trans``: the union frame,
+    which holds any placement the search may choose.
+    """
     if len(passes) == 1:
         return hole_frame(passes[0], tolerance, resolution)
-    return union_frame([p.radius for p in passes], tolerance, resolution)
+    if trans is None:
+        return union_frame([p.radius for p in passes], tolerance, resolution)
+    reach = max(float(np.hypot(*t)) + p.radius for p, t in zip(passes, trans))
+    return Frame.covering(reach + tolerance, resolution)
 
 
 class _Bar:
@@ -170,6 +179,7 @@ def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: in
         settings = LayoutSettings(lay.tau, lay.rho, lay.eta, lay.alpha, lay.c_personal, lay.c_global)
         order = sort_by_area(players, quats)
         placed = [order[0]]
+        memory = AttackMemory(len(blocks), size=max(1, s.starts // 3))
         for i in order[1:]:
             base = compose([players[j] for j in placed], quats[placed], trans[placed], fab.fill_holes).mask
 
@@ -179,7 +189,7 @@ def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: in
             quats[i], trans[i], value, h = place(
                 players[i], player_b, base, quats[i], particles=s.particles,
                 iterations=s.iterations, starts=s.starts, steps=s.steps, learning_rate=s.learning_rate, settings=settings,
-                rng=rng, progress=report)
+                rng=rng, progress=report, memory=memory, recheck=(scene.verdict.starts, scene.verdict.steps))
             history.best += h.best
             history.evaluations += h.evaluations
             stages.append((f"place {passes[i].name}", len(h.best)))
@@ -205,14 +215,14 @@ def weakest_hole(attack: Attack) -> Attack:
                   fits=attack.fits.sum(axis=0)[None])
 
 
-def solve(scene: Scene, *, variant: str = "llvm_ad_mono", seed: int | None = None, progress: bool = True) -> Result:
+def solve(scene: Scene, *, variant: str | None = None, seed: int | None = None, progress: bool = True) -> Result:
     """Play the sieve game for a scene.
 
     Parameters
     ----------
     scene : Scene
-    variant : str
-        Mitsuba variant ("llvm_ad_mono" or "cuda_ad_mono").
+    variant : str, optional
+        Mitsuba variant ("llvm_ad_mono" or "cuda_ad_mono"); default ``$SIEVE_MI_VARIANT`` or "llvm_ad_mono".
     seed : int, optional
         Overrides ``[solver] seed``.
     progress : bool
@@ -220,7 +230,7 @@ def solve(scene: Scene, *, variant: str = "llvm_ad_mono", seed: int | None = Non
     """
     from sieve_mi.backend import use_variant
 
-    use_variant(variant)
+    variant = use_variant(variant).variant()
     t_load = time.perf_counter()
     passes, blocks = load_shapes(scene)
     s, v, fab = scene.solver, scene.verdict, scene.fabrication
@@ -238,7 +248,7 @@ def solve(scene: Scene, *, variant: str = "llvm_ad_mono", seed: int | None = Non
     if separate:
         trans, vframe = separate_layout([p.radius for p in passes], fab.tolerance, fab.border, v.resolution)
     else:
-        vframe = frame_for(passes, fab.tolerance, v.resolution)
+        vframe = frame_for(passes, fab.tolerance, v.resolution, trans)
     vplayers = [PlayerA(p, vframe, fab.tolerance, fab.fill_holes) for p in passes]
     if len(passes) == 1:
         trans[0] = 0.0

@@ -9,14 +9,17 @@ import pytest
 import trimesh
 
 import sieve_mi  # noqa: F401  (points Dr.Jit at a usable libLLVM before drjit is imported)
-from sieve_mi.backend import use_variant
+from sieve_mi.backend import default_variant, use_variant
 from sieve_mi.meshes import shape_from_trimesh
 
 
 @pytest.fixture(scope="session", autouse=True)
 def mi():
-    """Mitsuba on the CPU variant for every test (GPU tests switch and switch back)."""
-    return use_variant("llvm_ad_mono")
+    """Mitsuba on the default variant for every test: CPU unless ``SIEVE_MI_VARIANT=cuda_ad_mono``.
+
+    Tests that switch variants switch back to this one.
+    """
+    return use_variant(default_variant())
 
 
 @pytest.fixture

@@ -73,3 +73,33 @@ def test_player_a_search_prefers_the_face_on_cube(cube20):
                                  rng=rng(3), seed=3)
     assert value > 0
     assert len(history.best) == 5
+
+
+def test_attack_memory_replays_a_remembered_passage(cube20):
+    # The face-on cube hole is a 22 mm square (rounded by the 1 mm dilation). A 21 x 21 x 40 mm
+    # block passes it only standing upright and square to the hole (about 1 degree of slack in
+    # plane): a random pose never fits, the remembered upright pose always does.
+    import trimesh
+
+    from sieve_mi.meshes import shape_from_trimesh
+    from sieve_mi.players import Attack, AttackMemory
+
+    f, a, hole = _cube_hole(cube20)
+    block = shape_from_trimesh(trimesh.creation.box(extents=(21.0, 21.0, 40.0)), name="block")
+    b = PlayerB([block], f)
+    cold = b.attack([hole], starts=2, steps=0, learning_rate=0.05, rng=rng(5))
+    assert cold.beta[0, 0] > 0
+
+    memory = AttackMemory(1, size=2)
+    upright = np.array([[[1.0, 0.0, 0.0, 0.0]]])
+    worse = np.array([[[0.0, 1.0, 0.0, 0.0]]])     # lying down: 21 x 40 does not fit
+    memory.update(Attack(beta=np.array([[0.3]]), protrusion=np.array([[9.0]]), quats=worse,
+                         trans=np.zeros((1, 1, 2)), fits=np.zeros((1, 1), int)))
+    memory.update(Attack(beta=np.array([[0.0]]), protrusion=np.array([[0.0]]), quats=upright,
+                         trans=np.zeros((1, 1, 2)), fits=np.ones((1, 1), int)))
+    q, _ = memory.poses(0)
+    assert q.tolist() == [[1.0, 0, 0, 0], [0.0, 1.0, 0, 0]]   # best first
+
+    warm = b.attack([hole], starts=2, steps=0, learning_rate=0.05, rng=rng(5), memory=memory)
+    assert warm.beta[0, 0] == 0.0 and warm.fits[0, 0] == 1
+    assert len(memory.poses(0)[0]) == 2 and memory.poses(0)[0][0].tolist() == [1.0, 0, 0, 0]

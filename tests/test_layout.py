@@ -1,0 +1,58 @@
+"""Placement of further A shapes into a hole (paper Sec. 5.3): the candidate ranking, known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from scipy import ndimage
+
+from sieve_mi.layout import _shifted, _stratified, candidate_placements, pieces
+from sieve_mi.meshes import shape_from_trimesh
+from sieve_mi.players import PlayerA
+from sieve_mi.raster import Frame
+
+
+def _c_ring(frame: Frame, outer: float, inner: float, mouth: float) -> np.ndarray:
+    """An annulus (radii in mm) with a gap of width ``mouth`` cut out of it on the +x side: a 'C'."""
+    xc, yc = frame.centres()
+    x, y = np.meshgrid(xc, yc)            # rows run along y, columns along x
+    r = np.hypot(x, y)
+    return (r <= outer) & (r >= inner) & ~((x > 0) & (np.abs(y) < mouth / 2))
+
+
+def test_shifted_moves_without_wrapping():
+    m = np.zeros((5, 5), dtype=bool)
+    m[0, 0] = m[4, 4] = m[2, 3] = True
+    assert np.argwhere(_shifted(m, 1, 1)).tolist() == [[1, 1], [3, 4]]    # (4, 4) leaves the grid
+    assert np.argwhere(_shifted(m, -2, 0)).tolist() == [[0, 3], [2, 4]]   # (0, 0) leaves the grid
+    assert _shifted(m, 0, 0).tolist() == m.tolist()
+
+
+def test_stratified_takes_the_head_then_spreads():
+    assert _stratified(5, 10).tolist() == [0, 1, 2, 3, 4]
+    pick = _stratified(100, 10)
+    assert pick[:5].tolist() == [0, 1, 2, 3, 4] and pick[-1] == 99 and len(set(pick.tolist())) == 10
+
+
+def test_most_compact_placement_does_not_close_the_c():
+    # Base: a 'C' (annulus 10..14 mm, mouth 6 mm wide). New shape: a 3 x 12 x 3 mm bar. Laid
+    # across the mouth it closes the C, and filling the closed ring turns the hole into a disk of
+    # radius 14 (616 mm^2): the bar's best overlap is *not* the best placement. Every placement
+    # that leaves the mouth open has a filled area of at most ring + bar (~ 327 + 36 + dilation).
+    frame = Frame.covering(30.0, 192)
+    base = _c_ring(frame, 14.0, 10.0, 6.0)
+    bar = shape_from_trimesh(trimesh.creation.box(extents=(12.0, 3.0, 3.0)), name="bar")
+    player = PlayerA(bar, frame, tolerance=0.5)
+    quats, trans, area = candidate_placements(player, base, np.array([1.0, 0, 0, 0]), reach=15.0)
+    px = frame.pixel_size ** 2
+    disk = np.pi * 14.0 ** 2
+    assert len(quats) > 10
+    assert np.all(np.diff(area) >= 0)                    # sorted, most compact first
+    assert area[0] * px < 0.75 * disk                    # the best leaves the mouth open
+    assert area[-1] * px > 0.9 * disk                    # ... while closing placements exist among the candidates
+    # The first candidate really is what it claims: rebuild its hole from the returned pose.
+    hole = player.holes(quats[:1], trans[:1], base=base)[0].mask
+    assert pieces(hole) == 1
+    assert abs(hole.sum() - area[0]) <= 0.03 * area[0]
+    assert ndimage.binary_fill_holes(hole).sum() == hole.sum()
