@@ -104,6 +104,8 @@ def run_one(name: str, variant: str, objective: str, quick: bool) -> dict:
         "faces_block": [s.face_count for s in result.block_shapes],
         "pixels": frame.resolution**2,
         "edge_samples": int(samples),
+        "init_s": result.timings.get("init_s", 0.0),
+        "load_s": result.timings.get("load_s", 0.0),
         "search_s": result.timings.get("search_s", 0.0),
         "verdict_s": result.timings.get("verdict_s", 0.0),
         "total_s": total,
@@ -130,15 +132,15 @@ def machine() -> str:
 
 
 def markdown(rows: list[dict], header: str) -> str:
-    out = [header, "", "| scene | objective | faces A / B | pixels | edge samples | search s | verdict s | total s | winner | B loss | B protrusion | peak MB |",
-           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    out = [header, "", "| scene | objective | faces A / B | pixels | edge samples | init + load s | search s | verdict s | total s | winner | B loss | B protrusion | peak MB |",
+           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         if "error" in r:
             out.append(f"| {r['scene']} | {r['objective']} | error: {r['error']} |  |  |  |  |  |  |  |  |  |")
             continue
-        out.append("| {scene} | {objective} | {fa} / {fb} | {pixels} | {edge_samples} | {search_s:.1f} | {verdict_s:.1f} | {total_s:.1f} | {winner} | {losses} | {prot} | {peak_rss_mb:.0f} |".format(
+        out.append("| {scene} | {objective} | {fa} / {fb} | {pixels} | {edge_samples} | {il:.1f} | {search_s:.1f} | {verdict_s:.1f} | {total_s:.1f} | {winner} | {losses} | {prot} | {peak_rss_mb:.0f} |".format(
             fa="+".join(map(str, r["faces_pass"])), fb="+".join(map(str, r["faces_block"])),
-            losses=", ".join(f"{x:.3f}" for x in r["loss"]), prot=", ".join(f"{x:.2f}" for x in r["protrusion"]), **r))
+            il=r.get("init_s", 0.0) + r.get("load_s", 0.0), losses=", ".join(f"{x:.3f}" for x in r["loss"]), prot=", ".join(f"{x:.2f}" for x in r["protrusion"]), **r))
     return "\n".join(out) + "\n"
 
 
@@ -176,7 +178,7 @@ def main(argv=None) -> int:
                 continue
             r = json.loads(line[0][4:])
             rows.append(r)
-            print(f"{n:16s} {obj:9s} faces {sum(r['faces_pass'])}/{sum(r['faces_block'])}  search {r['search_s']:7.1f} s  verdict {r['verdict_s']:6.1f} s  "
+            print(f"{n:16s} {obj:9s} faces {sum(r['faces_pass'])}/{sum(r['faces_block'])}  init+load {r.get('init_s', 0) + r.get('load_s', 0):5.1f} s  search {r['search_s']:7.1f} s  verdict {r['verdict_s']:6.1f} s  "
                   f"winner {r['winner']}  loss {', '.join(f'{x:.3f}' for x in r['loss'])}  protrusion {', '.join(f'{x:.2f}' for x in r['protrusion'])}  "
                   f"peak {r['peak_rss_mb']:.0f} MB", flush=True)
     os.makedirs(args.out, exist_ok=True)

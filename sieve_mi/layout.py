@@ -250,6 +250,9 @@ def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray
         Scene units.
     value : float
         Best eq. 14 energy.
+    beta : float
+        The weakest B's loss against the kept placement in the long re-ranking attack (> 0: every B
+        was blocked there).
     history : SwarmHistory
     """
     frame = player.frame
@@ -311,7 +314,39 @@ def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray
             break
         # Every finalist lets some B through. The memory now holds the passing poses, so another
         # round of screening and swarming sees through the placements that looked safe before.
-    return normalize(best[:4]), best[4:] * reach, value, history
+    return normalize(best[:4]), best[4:] * reach, value, best_beta, history
+
+
+def alternative_rotations(finalists: list, best: np.ndarray, count: int, min_angle: float = 0.35) -> list[np.ndarray]:
+    """Other good rotations of one A from its own search, for a placement that fails with the best.
+
+    Parameters
+    ----------
+    finalists : list of (quat, value)
+        The swarm's final personal bests, best first (:attr:`SwarmHistory.finalists`).
+    best : (4,) ndarray
+        The rotation already chosen.
+    count : int
+        At most this many are returned.
+    min_angle : float
+        Radians; every rotation returned differs from ``best`` and from each other by at least
+        this much (q and -q are the same rotation).
+
+    Returns
+    -------
+    list of (4,) ndarray
+        Rotations whose value was > 0 (alone, that A blocked every B), best first.
+    """
+    chosen = [normalize(np.asarray(best, float))]
+    out = []
+    for q, v in finalists:
+        if len(out) >= count or not v > 0:
+            break
+        q = normalize(np.asarray(q, float)[:4])
+        if all(2 * np.arccos(min(1.0, abs(float(q @ c)))) >= min_angle for c in chosen):
+            chosen.append(q)
+            out.append(q)
+    return out
 
 
 def sort_by_area(players: list[PlayerA], quats: np.ndarray) -> list[int]:

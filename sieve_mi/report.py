@@ -46,6 +46,8 @@ def report_dict(result: Result) -> dict:
         passes.append({"mesh": entry.mesh, "name": shape.name, "rotation": [float(x) for x in result.pass_quats[i]],
                        "translation": [float(x) for x in result.pass_trans[i]], "centre": [float(x) for x in shape.centre],
                        "faces": shape.face_count})
+        if i < len(result.alone) and result.alone[i] is not None:
+            passes[-1]["alone_loss"] = float(result.alone[i])
     blocks = []
     for j, (entry, shape) in enumerate(zip(scene.blocks, result.block_shapes)):
         beta = float(attack.beta[0, j])
@@ -202,4 +204,22 @@ def summary_table(report: dict) -> str:
     lines.append("")
     lines.append(f"winner: {report['winner']}   search {t.get('search_s', 0):.1f} s, verdict {t.get('verdict_s', 0):.1f} s, "
                  f"pixel size {report['pixel_size']:.4g} {units}")
+    hint = merge_hint(report)
+    if hint:
+        lines.append(hint)
     return "\n".join(lines)
+
+
+def merge_hint(report: dict) -> str | None:
+    """Advice when a merged hole of several pass shapes lets some B through but each shape alone did not."""
+    passes = report["pass"]
+    mode = report.get("settings", {}).get("layout", {}).get("mode", "merged")
+    if report["winner"] != "B" or len(passes) < 2 or mode != "merged":
+        return None
+    alone = [p.get("alone_loss") for p in passes]
+    if any(a is None or not a > 0 for a in alone):
+        return None
+    through = ", ".join(b["name"] for b in report["block"] if not b["blocked"])
+    each = ", ".join(f"{p['name']} {a:.3f}" for p, a in zip(passes, alone))
+    return (f"hint: the merged hole lets {through} through, but each pass shape alone blocked every block shape "
+            f"(weakest loss: {each}); set [layout] mode = \"separate\" for a valid sieve, or try another --seed")

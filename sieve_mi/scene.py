@@ -77,6 +77,8 @@ class Layout:
     alpha: float = 5.0
     c_personal: float = 0.05
     c_global: float = 0.05
+    rounds: int = 3
+    alternatives: int = 2
 
 
 @dataclass
@@ -262,6 +264,8 @@ def load_scene(path: str) -> Scene:
         alpha=r.number("alpha", 5.0, minimum=0),
         c_personal=r.number("c_personal", 0.05, minimum=0),
         c_global=r.number("c_global", 0.05, minimum=0),
+        rounds=r.number("rounds", 3, integer=True, minimum=1, maximum=100),
+        alternatives=r.number("alternatives", 2, integer=True, minimum=0, maximum=100),
     )
     return Scene(path=path, name=name, units=units, passes=passes, blocks=blocks, fabrication=fab, solver=solver,
                  verdict=verdict, layout=layout)

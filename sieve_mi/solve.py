@@ -9,7 +9,7 @@ import numpy as np
 from scipy import ndimage
 
 from sieve_mi.hole import Hole
-from sieve_mi.layout import LayoutSettings, compose, place, separate_layout, sort_by_area, union_frame
+from sieve_mi.layout import LayoutSettings, alternative_rotations, compose, place, separate_layout, sort_by_area, union_frame
 from sieve_mi.meshes import Shape, load_shape
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.players import Attack, AttackMemory, PlayerA, PlayerB
@@ -63,6 +63,9 @@ class Result:
     stages: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
     renderers: list = field(default_factory=list, repr=False)
+    #: Per pass shape: its own search's value (the weakest B's loss against that shape's hole
+    #: alone, short attack), or None where its rotation was fixed in the scene.
+    alone: list = field(default_factory=list)
 
     @property
     def pass_quat(self) -> np.ndarray:
@@ -109,8 +112,9 @@ def frame_for(passes: list[Shape], tolerance: float, resolution: int, trans: np.
 class _Bar:
     """A tqdm progress bar on stderr, or nothing when quiet."""
 
-    def __init__(self, enabled: bool, total: int, desc: str):
+    def __init__(self, enabled: bool, total: int, desc: str, grow_by: int = 0):
         self.bar = None
+        self.grow_by = grow_by
         if enabled:
             from tqdm import tqdm
 
@@ -118,6 +122,8 @@ class _Bar:
 
     def update(self, n: int = 1, **postfix):
         if self.bar is not None:
+            if self.bar.total is not None and self.grow_by and self.bar.n + n > self.bar.total:
+                self.bar.total += self.grow_by  # an extra round of work nobody could foresee
             if postfix:
                 self.bar.set_postfix(postfix, refresh=False)
             self.bar.update(n)
@@ -162,13 +168,17 @@ def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: in
     free = [i for i in range(m) if fixed[i] is None]
     placements = m - 1 if (m > 1 and lay.mode == "merged") else 0
     per_stage = s.particles * (s.iterations + 1)
-    bar = _Bar(progress, per_stage * (len(free) + placements), "search")
+    bar = _Bar(progress, per_stage * (len(free) + placements), "search", grow_by=per_stage)
+    alternatives: dict[int, list[np.ndarray]] = {}
+    alone: list[float | None] = [None] * m
     value = float("nan")
     for i in range(m):
         if fixed[i] is not None:
             quats[i] = normalize(np.asarray(fixed[i]))
             continue
         quats[i], value, h = _search_one(passes[i], blocks, scene, rng, seed, bar, passes[i].name)
+        alone[i] = float(value)
+        alternatives[i] = alternative_rotations(h.finalists, quats[i], lay.alternatives)
         history.best += h.best
         history.evaluations += h.evaluations
         stages.append((f"rotate {passes[i].name}", len(h.best)))
@@ -180,24 +190,47 @@ def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: in
         order = sort_by_area(players, quats)
         placed = [order[0]]
         memory = AttackMemory(len(blocks), size=max(1, s.starts // 3))
+        lost = False  # a placement already lets some B through: later ones cannot mend that
         for i in order[1:]:
-            base = compose([players[j] for j in placed], quats[placed], trans[placed], fab.fill_holes).mask
 
             def report(it, best, _n=passes[i].name):
                 bar.update(s.particles, best=f"{best:.3f}", stage=f"place {_n}")
 
-            quats[i], trans[i], value, h = place(
-                players[i], player_b, base, quats[i], particles=s.particles,
-                iterations=s.iterations, starts=s.starts, steps=s.steps, learning_rate=s.learning_rate, settings=settings,
-                rng=rng, progress=report, memory=memory, recheck=(scene.verdict.starts, scene.verdict.steps))
-            history.best += h.best
-            history.evaluations += h.evaluations
-            stages.append((f"place {passes[i].name}", len(h.best)))
+            # The shape's own best rotation first (several rounds); if every placement still lets
+            # some B through, its next-best distinct rotations from its own search, and for the
+            # first pair the base shape's too (Sec. 5.3 is greedy: a hole that lets B through
+            # cannot be mended by adding more shapes to it). One round each.
+            tries = [(None, quats[i], lay.rounds)]
+            if not lost:
+                tries += [(None, q, 1) for q in alternatives.get(i, [])]
+                if len(placed) == 1:
+                    tries += [(q, quats[i], 1) for q in alternatives.get(placed[0], [])]
+            kept, kept_base = None, quats[placed[0]].copy()
+            for attempt, (base_q, q, rounds) in enumerate(tries):
+                base_quats = quats[placed].copy()
+                if base_q is not None:
+                    base_quats[0] = base_q
+                base = compose([players[j] for j in placed], base_quats, trans[placed], fab.fill_holes).mask
+                got = place(players[i], player_b, base, q, particles=s.particles, iterations=s.iterations,
+                            starts=s.starts, steps=s.steps, learning_rate=s.learning_rate, settings=settings, rng=rng,
+                            progress=report, memory=memory, recheck=(scene.verdict.starts, scene.verdict.steps),
+                            rounds=rounds)
+                history.best += got[4].best
+                history.evaluations += got[4].evaluations
+                label = f"place {passes[i].name}" + (f" (try {attempt + 1})" if attempt else "")
+                stages.append((label, len(got[4].best)))
+                if kept is None or (got[3] > 0, got[2]) > (kept[3] > 0, kept[2]):
+                    kept, kept_base = got, base_quats[0].copy()
+                if kept[3] > 0:
+                    break
+            quats[i], trans[i], value = kept[0], kept[1], kept[2]
+            quats[placed[0]] = kept_base
+            lost = lost or not kept[3] > 0
             placed.append(i)
         # The first (largest) shape sits at the origin: shift everything so.
         trans -= trans[order[0]]
     bar.close()
-    return quats, trans, value, history, stages
+    return quats, trans, value, history, stages, alone
 
 
 def weakest_hole(attack: Attack) -> Attack:
@@ -230,16 +263,17 @@ def solve(scene: Scene, *, variant: str | None = None, seed: int | None = None, 
     """
     from sieve_mi.backend import use_variant
 
+    t_init = time.perf_counter()
     variant = use_variant(variant).variant()
     t_load = time.perf_counter()
     passes, blocks = load_shapes(scene)
     s, v, fab = scene.solver, scene.verdict, scene.fabrication
     seed = s.seed if seed is None else seed
     rng = np.random.default_rng(seed)
-    timings = {"load_s": time.perf_counter() - t_load}
+    timings = {"init_s": t_load - t_init, "load_s": time.perf_counter() - t_load}
 
     t0 = time.perf_counter()
-    quats, trans, value, history, stages = search(scene, passes, blocks, rng, seed, progress)
+    quats, trans, value, history, stages, alone = search(scene, passes, blocks, rng, seed, progress)
     timings["search_s"] = time.perf_counter() - t0
 
     # Verdict: a long re-run of player B against the chosen hole.
@@ -282,4 +316,4 @@ def solve(scene: Scene, *, variant: str | None = None, seed: int | None = None, 
     winner = "A" if bool(np.all(attack.blocked()[0])) else "B"
     return Result(scene=scene, winner=winner, pass_shapes=passes, block_shapes=blocks, pass_quats=quats, pass_trans=trans,
                   hole=hole, a_masks=a_masks, attack=attack, history=history, search_value=value, variant=variant,
-                  stages=stages, timings=timings, renderers=vplayer_b.renderers)
+                  stages=stages, timings=timings, renderers=vplayer_b.renderers, alone=alone)

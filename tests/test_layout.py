@@ -56,3 +56,43 @@ def test_most_compact_placement_does_not_close_the_c():
     assert pieces(hole) == 1
     assert abs(hole.sum() - area[0]) <= 0.03 * area[0]
     assert ndimage.binary_fill_holes(hole).sum() == hole.sum()
+
+
+def test_alternative_rotations_are_distinct_and_good():
+    from sieve_mi.layout import alternative_rotations
+    from sieve_mi.rotations import from_axis_angle
+
+    best = np.array([1.0, 0, 0, 0])
+    about_z = lambda a: from_axis_angle(np.array([0.0, 0, 1]), a)  # noqa: E731
+    finalists = [
+        (best, 0.5),
+        (-best, 0.45),             # the same rotation as best (q and -q)
+        (about_z(0.1), 0.4),       # within 0.35 rad of best
+        (about_z(1.0), 0.3),       # distinct: kept
+        (about_z(1.2), 0.25),      # within 0.35 rad of the one just kept
+        (about_z(2.0), 0.2),       # distinct: kept
+        (about_z(3.0), 0.1),       # distinct, but the count is reached
+    ]
+    alt = alternative_rotations(finalists, best, 2)
+    assert len(alt) == 2
+    assert np.allclose(np.abs(alt[0]), np.abs(about_z(1.0))) and np.allclose(np.abs(alt[1]), np.abs(about_z(2.0)))
+    # Rotations that did not block every B alone (value <= 0) are never offered.
+    assert alternative_rotations([(best, 0.5), (about_z(1.0), 0.0), (about_z(2.0), 0.3)], best, 3) == []
+
+
+def test_merge_hint_only_when_each_shape_alone_blocked():
+    from sieve_mi.report import merge_hint, summary_table
+
+    report = {"winner": "B", "units": "mm", "pixel_size": 0.2, "timings": {"search_s": 1.0, "verdict_s": 0.5},
+              "settings": {"layout": {"mode": "merged"}},
+              "pass": [{"name": "S", "alone_loss": 0.18}, {"name": "G", "alone_loss": 0.1}],
+              "block": [{"name": "R", "loss": 0.0, "protrusion": 0.0, "blocked": False},
+                        {"name": "A", "loss": 0.01, "protrusion": 0.4, "blocked": True}]}
+    hint = merge_hint(report)
+    assert "lets R through" in hint and 'mode = "separate"' in hint and "S 0.180" in hint
+    assert hint in summary_table(report)
+    # No hint when A wins, when one shape alone already let B through, or for a separate layout.
+    assert merge_hint({**report, "winner": "A"}) is None
+    assert merge_hint({**report, "pass": [{"name": "S", "alone_loss": 0.18}, {"name": "G", "alone_loss": 0.0}]}) is None
+    assert merge_hint({**report, "settings": {"layout": {"mode": "separate"}}}) is None
+    assert merge_hint({**report, "pass": report["pass"][:1]}) is None
