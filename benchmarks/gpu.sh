@@ -2,7 +2,7 @@
 # The GPU benchmark session (cuda_ad_mono), as run on a lent H100 for docs/performance.md.
 # Needs Mitsuba, Dr.Jit, trimesh, manifold3d and nlopt importable (on the offline device machine:
 # PYTHONPATH from ../shared/tools/gpu-site.sh's .gpu/site.tar.xz). Writes into ${OUT:-benchmarks/results}.
-#   usage: benchmarks/gpu.sh [letters-seeds...]
+#   usage: [TAG=h100] benchmarks/gpu.sh [letters-seeds...]
 set -u
 out=${OUT:-benchmarks/results}
 mkdir -p "$out"
@@ -12,6 +12,6 @@ for seed in "${@:-0}"; do
   echo "== letters seed $seed"
   python3 -m sieve_mi solve scenes/letters.toml --seed "$seed" --out "/tmp/letters_$seed" --quiet --no-figure 2>&1 | grep -E "letter_|winner"
 done
-python3 -m benchmarks.run --variant cuda_ad_mono --out "$out" 2>&1 | grep -v '^|'
+python3 -m benchmarks.run --variant cuda_ad_mono --out "$out" --tag "${TAG:-gpu}" 2>&1 | grep -v '^|'
 python3 -m benchmarks.scaling --variant cuda_ad_mono --out "$out/scaling_b_cuda.png"
 for k in 10 100; do python3 -m benchmarks.objectives --variant cuda_ad_mono --poses $k; done

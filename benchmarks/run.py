@@ -3,11 +3,12 @@
 Usage::
 
     python -m benchmarks.run [--variant llvm_ad_mono|cuda_ad_mono] [--only NAME[,NAME]] [--objective clearance|overlap]
-                             [--quick] [--out benchmarks/results]
+                             [--quick] [--out benchmarks/results] [--tag MACHINE]
 
 Every scene runs in its own process (so its peak memory is its own) and prints one table row:
 faces, raster pixels, edge samples, search and verdict time, winner, and per-B loss and
-protrusion. Results go to ``<out>/<machine>-<variant>.json`` and ``.md``.
+protrusion. Results go to ``<out>/<machine>-<variant>.json`` and ``.md`` (machine: ``--tag`` or the
+host name).
 """
 
 from __future__ import annotations
@@ -151,6 +152,7 @@ def main(argv=None) -> int:
     p.add_argument("--objective", default="clearance", help="clearance, overlap, or both (comma-separated)")
     p.add_argument("--quick", action="store_true", help="reduced settings (smoke test, not comparable to the paper)")
     p.add_argument("--out", default=os.path.join(HERE, "results"))
+    p.add_argument("--tag", help="machine name in the result file names (default: the host name)")
     p.add_argument("--one", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     objectives = args.objective.split(",")
@@ -182,7 +184,7 @@ def main(argv=None) -> int:
                   f"winner {r['winner']}  loss {', '.join(f'{x:.3f}' for x in r['loss'])}  protrusion {', '.join(f'{x:.2f}' for x in r['protrusion'])}  "
                   f"peak {r['peak_rss_mb']:.0f} MB", flush=True)
     os.makedirs(args.out, exist_ok=True)
-    tag = f"{platform.node() or 'machine'}-{args.variant}{'-quick' if args.quick else ''}"
+    tag = f"{args.tag or platform.node() or 'machine'}-{args.variant}{'-quick' if args.quick else ''}"
     with open(os.path.join(args.out, f"{tag}.json"), "w") as fh:
         json.dump({"machine": machine(), "variant": args.variant, "rows": rows}, fh, indent=2)
     with open(os.path.join(args.out, f"{tag}.md"), "w") as fh:
