@@ -9,6 +9,8 @@ particle swarm whose particles are evaluated together, or with an nlopt global m
 
 from __future__ import annotations
 
+import os
+
 from dataclasses import dataclass
 from typing import Callable
 
@@ -264,6 +266,19 @@ class PlayerB:
                       trans=ts[idx + (best,)], fits=(beta == 0).sum(-1))
 
 
+_POOL = None
+
+
+def _pool():
+    """A shared thread pool for per-pose raster work (distance transforms, hole filling)."""
+    global _POOL
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL = ThreadPoolExecutor(max_workers=max(1, min(8, os.cpu_count() or 1)), thread_name_prefix="sieve-mi-raster")
+    return _POOL
+
+
 class PlayerA:
     """Chooses A's rotation so that B's best attempt fails by as much as possible (eq. 7).
 
@@ -310,7 +325,15 @@ class PlayerA:
             this shape's dilated silhouette, then filled.
         """
         extra = [] if base is None else [base]
-        return [build_hole([m], self.frame, self.tolerance, self.fill_holes, extra=extra) for m in self.silhouettes(quats, trans)]
+        masks = self.silhouettes(quats, trans)
+
+        def one(m):
+            return build_hole([m], self.frame, self.tolerance, self.fill_holes, extra=extra)
+
+        if len(masks) < 2:
+            return [one(m) for m in masks]
+        # SciPy's distance transforms release the GIL: build the particles' holes in parallel.
+        return list(_pool().map(one, masks))
 
     def search(self, player_b: PlayerB, *, method: str, particles: int, iterations: int, starts: int, steps: int,
                learning_rate: float, rng: np.random.Generator, seed: int, inertia: float = 0.25, c_personal: float = 0.25,
