@@ -25,7 +25,7 @@ from sieve_mi.hole import Hole, dilate
 from sieve_mi.optim import SwarmHistory, particle_swarm
 from sieve_mi.players import AttackMemory, PlayerA, PlayerB
 from sieve_mi.raster import Frame
-from sieve_mi.rotations import from_axis_angle, normalize
+from sieve_mi.rotations import angle_between, from_axis_angle, normalize
 
 
 @dataclass
@@ -185,8 +185,7 @@ def _diverse(quats: np.ndarray, trans: np.ndarray, count: int, min_angle: float,
     times over)."""
     taken: list[int] = []
     for i, (q, t) in enumerate(zip(quats, trans)):
-        near = [2 * np.arccos(min(1.0, abs(float(np.dot(q, quats[j]))))) < min_angle
-                and np.linalg.norm(t - trans[j]) < min_distance for j in taken]
+        near = [angle_between(q, quats[j]) < min_angle and np.linalg.norm(t - trans[j]) < min_distance for j in taken]
         if not any(near):
             taken.append(i)
             if len(taken) == count:
@@ -343,7 +342,7 @@ def alternative_rotations(finalists: list, best: np.ndarray, count: int, min_ang
         if len(out) >= count or not v > 0:
             break
         q = normalize(np.asarray(q, float)[:4])
-        if all(2 * np.arccos(min(1.0, abs(float(q @ c)))) >= min_angle for c in chosen):
+        if all(angle_between(q, c) >= min_angle for c in chosen):
             chosen.append(q)
             out.append(q)
     return out
