@@ -16,7 +16,7 @@ so the final hole stays one simply connected region.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 from scipy import ndimage
@@ -38,6 +38,26 @@ class LayoutSettings:
     alpha: float = 5.0
     c_personal: float = 0.05
     c_global: float = 0.05
+
+
+class Placement(NamedTuple):
+    """One shape's place in a merged hole, as :func:`place` found it."""
+
+    #: (4,) rotation (w, x, y, z).
+    quat: np.ndarray
+    #: (2,) translation, scene units.
+    trans: np.ndarray
+    #: Best eq. 14 energy.
+    value: float
+    #: The weakest B's loss against this placement in the long re-ranking attack (> 0: every B
+    #: was blocked there).
+    beta: float
+    history: SwarmHistory
+
+    @property
+    def blocks(self) -> bool:
+        """Whether every B was blocked by the hole with this placement."""
+        return self.beta > 0
 
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -244,15 +264,7 @@ def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray
 
     Returns
     -------
-    quat : (4,) ndarray
-    trans : (2,) ndarray
-        Scene units.
-    value : float
-        Best eq. 14 energy.
-    beta : float
-        The weakest B's loss against the kept placement in the long re-ranking attack (> 0: every B
-        was blocked there).
-    history : SwarmHistory
+    Placement
     """
     frame = player.frame
     reach = frame.half_extent / 2.0  # centres stay within the largest radius of the origin
@@ -313,7 +325,7 @@ def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray
             break
         # Every finalist lets some B through. The memory now holds the passing poses, so another
         # round of screening and swarming sees through the placements that looked safe before.
-    return normalize(best[:4]), best[4:] * reach, value, best_beta, history
+    return Placement(normalize(best[:4]), best[4:] * reach, value, best_beta, history)
 
 
 def alternative_rotations(finalists: list, best: np.ndarray, count: int, min_angle: float = 0.35) -> list[np.ndarray]:

@@ -205,27 +205,27 @@ def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: in
                 tries += [(None, q, 1) for q in alternatives.get(i, [])]
                 if len(placed) == 1:
                     tries += [(q, quats[i], 1) for q in alternatives.get(placed[0], [])]
-            kept, kept_base = None, quats[placed[0]].copy()
+            current = compose([players[j] for j in placed], quats[placed], trans[placed], fab.fill_holes).mask
+            kept, kept_base = None, quats[placed[0]]
             for attempt, (base_q, q, rounds) in enumerate(tries):
-                base_quats = quats[placed].copy()
-                if base_q is not None:
-                    base_quats[0] = base_q
-                base = compose([players[j] for j in placed], base_quats, trans[placed], fab.fill_holes).mask
+                base = current
+                if base_q is not None:  # the first pair, with another rotation of the base shape
+                    base = compose([players[placed[0]]], base_q[None], trans[placed], fab.fill_holes).mask
                 got = place(players[i], player_b, base, q, particles=s.particles, iterations=s.iterations,
                             starts=s.starts, steps=s.steps, learning_rate=s.learning_rate, settings=settings, rng=rng,
                             progress=report, memory=memory, recheck=(scene.verdict.starts, scene.verdict.steps),
                             rounds=rounds)
-                history.best += got[4].best
-                history.evaluations += got[4].evaluations
+                history.best += got.history.best
+                history.evaluations += got.history.evaluations
                 label = f"place {passes[i].name}" + (f" (try {attempt + 1})" if attempt else "")
-                stages.append((label, len(got[4].best)))
-                if kept is None or (got[3] > 0, got[2]) > (kept[3] > 0, kept[2]):
-                    kept, kept_base = got, base_quats[0].copy()
-                if kept[3] > 0:
+                stages.append((label, len(got.history.best)))
+                if kept is None or (got.blocks, got.value) > (kept.blocks, kept.value):
+                    kept, kept_base = got, (quats[placed[0]] if base_q is None else base_q).copy()
+                if kept.blocks:
                     break
-            quats[i], trans[i], value = kept[0], kept[1], kept[2]
+            quats[i], trans[i], value = kept.quat, kept.trans, kept.value
             quats[placed[0]] = kept_base
-            lost = lost or not kept[3] > 0
+            lost = lost or not kept.blocks
             placed.append(i)
         # The first (largest) shape sits at the origin: shift everything so.
         trans -= trans[order[0]]
