@@ -137,7 +137,7 @@ def markdown(rows: list[dict], header: str) -> str:
            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         if "error" in r:
-            out.append(f"| {r['scene']} | {r['objective']} | error: {r['error']} |  |  |  |  |  |  |  |  |  |")
+            out.append(f"| {r['scene']} | {r['objective']} | error: {r['error']} |  |  |  |  |  |  |  |  |  |  |")
             continue
         out.append("| {scene} | {objective} | {fa} / {fb} | {pixels} | {edge_samples} | {il:.1f} | {search_s:.1f} | {verdict_s:.1f} | {total_s:.1f} | {winner} | {losses} | {prot} | {peak_rss_mb:.0f} |".format(
             fa="+".join(map(str, r["faces_pass"])), fb="+".join(map(str, r["faces_block"])),
