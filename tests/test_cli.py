@@ -111,6 +111,8 @@ def test_missing_scene_file(tmp_path):
     ('name = "x"\n[[pass]]\nmesh = "MESH"\nscale = 0\n[[block]]\nmesh = "MESH"\n', ["pass[0].scale", "> 0"]),
     ('name = "x"\n[[pass]]\nmesh = "missing.stl"\n[[block]]\nmesh = "MESH"\n', ["missing.stl", "not found"]),
     ('name = "x"\n[[pass]]\nmesh = "MESH"\n[[block]]\nmesh = "MESH"\n[fabrication]\ntolerance = "1mm"\n', ["fabrication.tolerance", "number"]),
+    ('name = "x"\n[[pass]]\nmesh = "MESH"\n[[block]]\nmesh = "MESH"\n[layout]\nrounds = 0\n', ["layout.rounds", ">= 1"]),
+    ('name = "x"\n[[pass]]\nmesh = "MESH"\n[[block]]\nmesh = "MESH"\n[layout]\nalternatives = 1.5\n', ["layout.alternatives", "whole number"]),
 ])
 def test_bad_scenes_fail_with_one_line(write_scene, tmp_path, text, needles):
     mesh = os.path.abspath(os.path.join(SCENES, "meshes", "cube.stl"))
@@ -134,6 +136,14 @@ def test_bad_meshes_fail_with_one_line(write_scene, tmp_path, name):
     cube = os.path.abspath(os.path.join(SCENES, "meshes", "cube.stl"))
     scene = write_scene(f'name = "x"\n[[pass]]\nmesh = "{cube}"\n[[block]]\nmesh = "{tmp_path / name}"\n')
     _assert_clean_error(run_cli("solve", scene, "--out", str(tmp_path / "o")), name, out=tmp_path / "o")
+
+
+def test_bad_variant_in_environment(write_scene, tmp_path):
+    scene = _good_scene(write_scene)
+    env = {**os.environ, "SIEVE_MI_VARIANT": "scalar_rgb"}
+    p = subprocess.run([sys.executable, "-m", "sieve_mi", "solve", scene, "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, env=env, timeout=600)
+    _assert_clean_error(p, "SIEVE_MI_VARIANT=scalar_rgb", out=tmp_path / "o")
 
 
 def test_unknown_variant_and_bad_out(write_scene, tmp_path):
