@@ -37,12 +37,22 @@ SCENES = {
     "spot-cow": ([("spot.obj", 23.0)], [("cow.obj", 4.2)], None),
     "cow-bunny": ([("cow.obj", 4.2)], [("bunny", 250.0)], None),
     "cow-beetle500k": ([("cow.obj", 4.2)], [("beetle500k", 12.0)], None),
-    "letters": ([("letter_S.stl", 1.0), ("letter_I.stl", 1.0), ("letter_G.stl", 1.0)],
-                [("letter_R.stl", 1.0), ("letter_A.stl", 1.0), ("letter_P.stl", 1.0), ("letter_H.stl", 1.0)], 2099.7),
+    "letters": (
+        [("letter_S.stl", 1.0), ("letter_I.stl", 1.0), ("letter_G.stl", 1.0)],
+        [
+            ("letter_R.stl", 1.0),
+            ("letter_A.stl", 1.0),
+            ("letter_P.stl", 1.0),
+            ("letter_H.stl", 1.0),
+        ],
+        2099.7,
+    ),
 }
 #: Scene keys beyond the defaults, per benchmark scene (kept equal to the bundled scene files).
 EXTRA = {"letters": ["[fabrication]", "tolerance = 0.5"]}
-PAPER = "search 10x10 PSO, 10 starts x 100 Adam steps; verdict 100 starts x 500 steps; 256^2 rasters"
+PAPER = (
+    "search 10x10 PSO, 10 starts x 100 Adam steps; verdict 100 starts x 500 steps; 256^2 rasters"
+)
 
 
 def mesh_path(name: str) -> str:
@@ -74,7 +84,15 @@ def scene_text(name: str, objective: str, quick: bool) -> str:
     lines += EXTRA.get(name, [])
     lines += ["[solver]", f'objective = "{objective}"']
     if quick:
-        lines += ["particles = 4", "iterations = 2", "starts = 4", "steps = 30", "[verdict]", "starts = 20", "steps = 100"]
+        lines += [
+            "particles = 4",
+            "iterations = 2",
+            "starts = 4",
+            "steps = 30",
+            "[verdict]",
+            "starts = 20",
+            "steps = 100",
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -133,15 +151,28 @@ def machine() -> str:
 
 
 def markdown(rows: list[dict], header: str) -> str:
-    out = [header, "", "| scene | objective | faces A / B | pixels | edge samples | init + load s | search s | verdict s | total s | winner | B loss | B protrusion | peak MB |",
-           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    out = [
+        header,
+        "",
+        "| scene | objective | faces A / B | pixels | edge samples | init + load s | search s | verdict s | total s | winner | B loss | B protrusion | peak MB |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     for r in rows:
         if "error" in r:
-            out.append(f"| {r['scene']} | {r['objective']} | error: {r['error']} |  |  |  |  |  |  |  |  |  |  |")
+            out.append(
+                f"| {r['scene']} | {r['objective']} | error: {r['error']} |  |  |  |  |  |  |  |  |  |  |"
+            )
             continue
-        out.append("| {scene} | {objective} | {fa} / {fb} | {pixels} | {edge_samples} | {il:.1f} | {search_s:.1f} | {verdict_s:.1f} | {total_s:.1f} | {winner} | {losses} | {prot} | {peak_rss_mb:.0f} |".format(
-            fa="+".join(map(str, r["faces_pass"])), fb="+".join(map(str, r["faces_block"])),
-            il=r.get("init_s", 0.0) + r.get("load_s", 0.0), losses=", ".join(f"{x:.3f}" for x in r["loss"]), prot=", ".join(f"{x:.2f}" for x in r["protrusion"]), **r))
+        out.append(
+            "| {scene} | {objective} | {fa} / {fb} | {pixels} | {edge_samples} | {il:.1f} | {search_s:.1f} | {verdict_s:.1f} | {total_s:.1f} | {winner} | {losses} | {prot} | {peak_rss_mb:.0f} |".format(
+                fa="+".join(map(str, r["faces_pass"])),
+                fb="+".join(map(str, r["faces_block"])),
+                il=r.get("init_s", 0.0) + r.get("load_s", 0.0),
+                losses=", ".join(f"{x:.3f}" for x in r["loss"]),
+                prot=", ".join(f"{x:.2f}" for x in r["protrusion"]),
+                **r,
+            )
+        )
     return "\n".join(out) + "\n"
 
 
@@ -149,8 +180,14 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--variant", default="llvm_ad_mono")
     p.add_argument("--only", help="comma-separated scene names: " + ", ".join(SCENES))
-    p.add_argument("--objective", default="clearance", help="clearance, overlap, or both (comma-separated)")
-    p.add_argument("--quick", action="store_true", help="reduced settings (smoke test, not comparable to the paper)")
+    p.add_argument(
+        "--objective", default="clearance", help="clearance, overlap, or both (comma-separated)"
+    )
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="reduced settings (smoke test, not comparable to the paper)",
+    )
     p.add_argument("--out", default=os.path.join(HERE, "results"))
     p.add_argument("--tag", help="machine name in the result file names (default: the host name)")
     p.add_argument("--one", help=argparse.SUPPRESS)
@@ -170,9 +207,19 @@ def main(argv=None) -> int:
     print(header)
     for n in names:
         for obj in objectives:
-            cmd = [sys.executable, "-m", "benchmarks.run", "--one", n, "--variant", args.variant, "--objective", obj] + (["--quick"] if args.quick else [])
+            cmd = [
+                sys.executable,
+                "-m",
+                "benchmarks.run",
+                "--one",
+                n,
+                "--variant",
+                args.variant,
+                "--objective",
+                obj,
+            ] + (["--quick"] if args.quick else [])
             proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
-            line = [l for l in proc.stdout.splitlines() if l.startswith("ROW ")]
+            line = [ln for ln in proc.stdout.splitlines() if ln.startswith("ROW ")]
             if proc.returncode != 0 or not line:
                 err = (proc.stderr.strip().splitlines() or ["failed"])[-1]
                 rows.append({"scene": n, "objective": obj, "error": err})
@@ -180,11 +227,16 @@ def main(argv=None) -> int:
                 continue
             r = json.loads(line[0][4:])
             rows.append(r)
-            print(f"{n:16s} {obj:9s} faces {sum(r['faces_pass'])}/{sum(r['faces_block'])}  init+load {r.get('init_s', 0) + r.get('load_s', 0):5.1f} s  search {r['search_s']:7.1f} s  verdict {r['verdict_s']:6.1f} s  "
-                  f"winner {r['winner']}  loss {', '.join(f'{x:.3f}' for x in r['loss'])}  protrusion {', '.join(f'{x:.2f}' for x in r['protrusion'])}  "
-                  f"peak {r['peak_rss_mb']:.0f} MB", flush=True)
+            print(
+                f"{n:16s} {obj:9s} faces {sum(r['faces_pass'])}/{sum(r['faces_block'])}  init+load {r.get('init_s', 0) + r.get('load_s', 0):5.1f} s  search {r['search_s']:7.1f} s  verdict {r['verdict_s']:6.1f} s  "
+                f"winner {r['winner']}  loss {', '.join(f'{x:.3f}' for x in r['loss'])}  protrusion {', '.join(f'{x:.2f}' for x in r['protrusion'])}  "
+                f"peak {r['peak_rss_mb']:.0f} MB",
+                flush=True,
+            )
     os.makedirs(args.out, exist_ok=True)
-    tag = f"{args.tag or platform.node() or 'machine'}-{args.variant}{'-quick' if args.quick else ''}"
+    tag = (
+        f"{args.tag or platform.node() or 'machine'}-{args.variant}{'-quick' if args.quick else ''}"
+    )
     with open(os.path.join(args.out, f"{tag}.json"), "w") as fh:
         json.dump({"machine": machine(), "variant": args.variant, "rows": rows}, fh, indent=2)
     with open(os.path.join(args.out, f"{tag}.md"), "w") as fh:

@@ -16,7 +16,16 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 MESHES = os.path.join(os.path.dirname(HERE), "scenes", "meshes")
-POOL = ["sphere.stl", "prism.stl", "letter_R.stl", "arch.stl", "bowtie.stl", "letter_A.stl", "small_sphere.stl", "letter_H.stl"]
+POOL = [
+    "sphere.stl",
+    "prism.stl",
+    "letter_R.stl",
+    "arch.stl",
+    "bowtie.stl",
+    "letter_A.stl",
+    "small_sphere.stl",
+    "letter_H.stl",
+]
 
 
 def main(argv=None) -> int:
@@ -26,7 +35,9 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description="search time against the number of B shapes")
     p.add_argument("--variant", default="llvm_ad_mono")
     p.add_argument("--max-b", type=int, default=8)
-    p.add_argument("--out", default=os.path.join(os.path.dirname(HERE), "docs", "img", "scaling_b.png"))
+    p.add_argument(
+        "--out", default=os.path.join(os.path.dirname(HERE), "docs", "img", "scaling_b.png")
+    )
     args = p.parse_args(argv)
     use_variant(args.variant)
     from sieve_mi.meshes import load_shape
@@ -42,8 +53,17 @@ def main(argv=None) -> int:
         blocks = [load_shape(os.path.join(MESHES, POOL[i % len(POOL)])) for i in range(n)]
         pa, pb = PlayerA(a, frame, 1.0), PlayerB(blocks, frame)
         t = time.perf_counter()
-        pa.search(pb, method="pso", particles=10, iterations=10, starts=10, steps=100, learning_rate=0.05,
-                  rng=np.random.default_rng(0), seed=0)
+        pa.search(
+            pb,
+            method="pso",
+            particles=10,
+            iterations=10,
+            starts=10,
+            steps=100,
+            learning_rate=0.05,
+            rng=np.random.default_rng(0),
+            seed=0,
+        )
         dt = time.perf_counter() - t
         rows.append((n, sum(b.face_count for b in blocks), dt))
         print(f"{n:8d} {rows[-1][1]:7d} {dt:9.1f} {dt / n:8.1f}", flush=True)

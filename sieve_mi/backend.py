@@ -34,7 +34,9 @@ _PATTERNS = (
 
 def _llvm_major(path: str) -> int | None:
     """Major LLVM version encoded in a library path, or None if it cannot be told."""
-    m = re.search(r"llvm[-@]?(\d+)", path, re.IGNORECASE) or re.search(r"libLLVM[-.]?(?:so\.)?(\d+)", path)
+    m = re.search(r"llvm[-@]?(\d+)", path, re.IGNORECASE) or re.search(
+        r"libLLVM[-.]?(?:so\.)?(\d+)", path
+    )
     return int(m.group(1)) if m else None
 
 
@@ -95,7 +97,9 @@ def use_variant(variant: str | None = None):
     if variant is None:
         variant = default_variant()
         if variant not in VARIANTS:
-            raise SieveError(f"{VARIANT_ENV}={variant}: not a supported variant; use one of: {', '.join(VARIANTS)}")
+            raise SieveError(
+                f"{VARIANT_ENV}={variant}: not a supported variant; use one of: {', '.join(VARIANTS)}"
+            )
     if variant not in VARIANTS:
         raise SieveError(f"variant '{variant}' is not supported; use one of: {', '.join(VARIANTS)}")
     if variant.startswith("llvm") and configure_llvm() is None:
@@ -107,9 +111,13 @@ def use_variant(variant: str | None = None):
     import mitsuba as mi
 
     if variant.startswith("cuda") and not dr.has_backend(dr.JitBackend.CUDA):
-        raise SieveError("variant 'cuda_ad_mono' needs an NVIDIA GPU with a CUDA driver; none was found (use --variant llvm_ad_mono)")
+        raise SieveError(
+            "variant 'cuda_ad_mono' needs an NVIDIA GPU with a CUDA driver; none was found (use --variant llvm_ad_mono)"
+        )
     if variant.startswith("llvm") and not dr.has_backend(dr.JitBackend.LLVM):
-        raise SieveError("Dr.Jit could not load libLLVM; set DRJIT_LIBLLVM_PATH to a libLLVM 17+ library (e.g. Debian's libllvm19)")
+        raise SieveError(
+            "Dr.Jit could not load libLLVM; set DRJIT_LIBLLVM_PATH to a libLLVM 17+ library (e.g. Debian's libllvm19)"
+        )
     if mi.variant() != variant:
         mi.set_variant(variant)
     return mi

@@ -28,9 +28,9 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.errors import SieveError
-from sieve_mi.fabrication import filled, placed_vertices, projection, rasterize
 from sieve_mi.hole import Hole
 from sieve_mi.meshes import Shape, load_trimesh
+from sieve_mi.outline import filled, placed_vertices, projection, rasterize
 from sieve_mi.raster import Frame
 
 AXES = {"x": 0, "y": 1, "z": 2}
@@ -115,7 +115,9 @@ def holes_from_mesh(path: str, axis: str = "z") -> list[manifold3d.CrossSection]
     mesh = load_trimesh(path)
     v = np.asarray(mesh.vertices, dtype=np.float64)
     if not np.all(np.isfinite(v)) or len(mesh.faces) == 0:
-        raise SieveError(f"{path}: the sieve mesh has no usable triangles (or non-finite coordinates)")
+        raise SieveError(
+            f"{path}: the sieve mesh has no usable triangles (or non-finite coordinates)"
+        )
     a = AXES[axis]
     order = [i for i in range(3) if i != a] + [a]
     v = v[:, order]
@@ -125,8 +127,10 @@ def holes_from_mesh(path: str, axis: str = "z") -> list[manifold3d.CrossSection]
     free = filled(solid) - solid
     holes = [h for h in free.decompose() if h.area() > 1e-9 * max(solid.area(), 1e-300)]
     if not holes:
-        raise SieveError(f"{path}: no through-hole along {axis} (every line along {axis} inside the plate hits it); "
-                         "check --axis or the file")
+        raise SieveError(
+            f"{path}: no through-hole along {axis} (every line along {axis} inside the plate hits it); "
+            "check --axis or the file"
+        )
     return sorted(holes, key=lambda h: -h.area())
 
 
@@ -150,19 +154,29 @@ def mask_from_image(path: str) -> np.ndarray:
                 if im.mode in ("RGBA", "LA") or "transparency" in im.info:
                     alpha = np.asarray(im.convert("RGBA"))[..., 3]
                     grey = np.asarray(im.convert("L"))
-                    mask = (alpha > 127) & (grey > 127) if (alpha < 255).any() and (grey < 128).any() else alpha > 127
+                    mask = (
+                        (alpha > 127) & (grey > 127)
+                        if (alpha < 255).any() and (grey < 128).any()
+                        else alpha > 127
+                    )
                 else:
                     mask = np.asarray(im.convert("L")) > 127
     except (UnidentifiedImageError, OSError, RuntimeError) as exc:
-        raise SieveError(f"{path}: could not be read as an image ({exc.__class__.__name__})") from None
+        raise SieveError(
+            f"{path}: could not be read as an image ({exc.__class__.__name__})"
+        ) from None
     if not mask.any():
         raise SieveError(f"{path}: no hole pixels (the hole must be white on black)")
     if mask.all():
-        raise SieveError(f"{path}: every pixel is hole; the hole must be white on a black background")
+        raise SieveError(
+            f"{path}: every pixel is hole; the hole must be white on a black background"
+        )
     return mask
 
 
-def frame_for_polygons(holes: list[manifold3d.CrossSection], resolution: int) -> tuple[Frame, np.ndarray]:
+def frame_for_polygons(
+    holes: list[manifold3d.CrossSection], resolution: int
+) -> tuple[Frame, np.ndarray]:
     """A frame centred on the holes' bounding box, covering them with a margin.
 
     Returns
@@ -187,11 +201,11 @@ def frame_for_image(mask: np.ndarray, pixel_size: float) -> tuple[Frame, np.ndar
     mask : (N, N) bool ndarray
     """
     rows, cols = np.nonzero(mask)
-    crop = mask[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
+    crop = mask[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
     n = max(crop.shape) + 8
     out = np.zeros((n, n), dtype=bool)
     r0, c0 = (n - crop.shape[0]) // 2, (n - crop.shape[1]) // 2
-    out[r0:r0 + crop.shape[0], c0:c0 + crop.shape[1]] = crop
+    out[r0 : r0 + crop.shape[0], c0 : c0 + crop.shape[1]] = crop
     return Frame(n, 0.5 * n * pixel_size), out
 
 
@@ -211,12 +225,24 @@ def split_mask(mask: np.ndarray) -> list[np.ndarray]:
 
 def scaled(shape: Shape, s: float) -> Shape:
     """The shape uniformly scaled about its centre by ``s``."""
-    return Shape(name=shape.name, path=shape.path, vertices=shape.vertices * s, faces=shape.faces,
-                 centre=shape.centre * s, radius=shape.radius * s, hull=shape.hull * s)
+    return Shape(
+        name=shape.name,
+        path=shape.path,
+        vertices=shape.vertices * s,
+        faces=shape.faces,
+        centre=shape.centre * s,
+        radius=shape.radius * s,
+        hull=shape.hull * s,
+    )
 
 
-def attempt(shape: Shape, holes: list[Hole], settings: CheckSettings, s: float,
-            outlines: list[manifold3d.CrossSection] | None = None) -> Verdict:
+def attempt(
+    shape: Shape,
+    holes: list[Hole],
+    settings: CheckSettings,
+    s: float,
+    outlines: list[manifold3d.CrossSection] | None = None,
+) -> Verdict:
     """Player B's best attempt to pass ``shape`` scaled by ``s`` through any of ``holes``."""
     from sieve_mi.players import PlayerB
 
@@ -226,9 +252,16 @@ def attempt(shape: Shape, holes: list[Hole], settings: CheckSettings, s: float,
     att = player.attack(holes, settings.starts, settings.steps, settings.learning_rate, rng)
     order = np.lexsort((att.protrusion[:, 0], att.beta[:, 0]))
     k = int(order[0])
-    v = Verdict(scale=float(s), passes=bool(att.beta[k, 0] == 0), beta=float(att.beta[k, 0]),
-                protrusion=float(att.protrusion[k, 0]), rotation=[float(x) for x in att.quats[k, 0]],
-                translation=[float(x) for x in att.trans[k, 0]], hole=k, fitting_starts=int(att.fits[k, 0]))
+    v = Verdict(
+        scale=float(s),
+        passes=bool(att.beta[k, 0] == 0),
+        beta=float(att.beta[k, 0]),
+        protrusion=float(att.protrusion[k, 0]),
+        rotation=[float(x) for x in att.quats[k, 0]],
+        translation=[float(x) for x in att.trans[k, 0]],
+        hole=k,
+        fitting_starts=int(att.fits[k, 0]),
+    )
     if outlines is not None:
         proj = projection(placed_vertices(b, att.quats[k, 0], att.trans[k, 0]), b.faces)
         v.exact_outside_area = float((proj - outlines[k]).area())
@@ -285,9 +318,17 @@ def fit_scale(evaluate, first: Verdict, rel_tol: float, limit: int = 12) -> tupl
     return lo, [lo, hi]
 
 
-def check(shape: Shape, *, sieve: str | None = None, axis: str = "z", image: str | None = None,
-          pixel_size: float | None = None, units: str = "mm", settings: CheckSettings | None = None,
-          progress=None) -> CheckReport:
+def check(
+    shape: Shape,
+    *,
+    sieve: str | None = None,
+    axis: str = "z",
+    image: str | None = None,
+    pixel_size: float | None = None,
+    units: str = "mm",
+    settings: CheckSettings | None = None,
+    progress=None,
+) -> CheckReport:
     """Test a shape against a sieve (a plate mesh or a hole image).
 
     Parameters
@@ -316,11 +357,21 @@ def check(shape: Shape, *, sieve: str | None = None, axis: str = "z", image: str
         outlines = [o.translate([-centre[0], -centre[1]]) for o in outlines]
         holes = [Hole.from_mask(rasterize(o, frame), frame) for o in outlines]
         source = sieve
-        info = [{"area": float(o.area()), "centre": [float(c) for c in (np.asarray(o.bounds()[:2]) + np.asarray(o.bounds()[2:])) / 2 + centre]}
-                for o in outlines]
+        info = [
+            {
+                "area": float(o.area()),
+                "centre": [
+                    float(c)
+                    for c in (np.asarray(o.bounds()[:2]) + np.asarray(o.bounds()[2:])) / 2 + centre
+                ],
+            }
+            for o in outlines
+        ]
     else:
         if pixel_size is None or not (pixel_size > 0 and math.isfinite(pixel_size)):
-            raise SieveError(f"--pixel-size {pixel_size}: give the hole image's pixel size, a positive number in scene units")
+            raise SieveError(
+                f"--pixel-size {pixel_size}: give the hole image's pixel size, a positive number in scene units"
+            )
         frame, mask = frame_for_image(mask_from_image(image), pixel_size)
         holes = [Hole.from_mask(m, frame) for m in split_mask(mask)]
         outlines, centre, source = None, np.zeros(2), image
@@ -337,8 +388,14 @@ def check(shape: Shape, *, sieve: str | None = None, axis: str = "z", image: str
         return v
 
     first = evaluate(1.0)
-    rep = CheckReport(shape=shape.path or shape.name, sieve=source, units=units, holes=info, pixel_size=frame.pixel_size,
-                      result=first)
+    rep = CheckReport(
+        shape=shape.path or shape.name,
+        sieve=source,
+        units=units,
+        holes=info,
+        pixel_size=frame.pixel_size,
+        result=first,
+    )
     if settings.fit:
         rep.fit_scale, rep.fit_bracket = fit_scale(evaluate, first, settings.fit_tolerance)
     rep.evaluations = evaluations
@@ -350,11 +407,15 @@ def summary(rep: CheckReport) -> str:
     """Plain-text result of a check."""
     r, u = rep.result, rep.units
     holes = ", ".join(f"{h['area']:.4g} {u}²" for h in rep.holes)
-    lines = [f"shape {rep.shape} against {rep.sieve}: {len(rep.holes)} hole(s) of area {holes}, pixel {rep.pixel_size:.4g} {u}",
-             f"result: {'PASSES' if r.passes else 'blocked'}   beta {r.beta:.4f}   protrusion {r.protrusion:.3f} {u}   "
-             f"({r.fitting_starts} start(s) fit)"]
+    lines = [
+        f"shape {rep.shape} against {rep.sieve}: {len(rep.holes)} hole(s) of area {holes}, pixel {rep.pixel_size:.4g} {u}",
+        f"result: {'PASSES' if r.passes else 'blocked'}   beta {r.beta:.4f}   protrusion {r.protrusion:.3f} {u}   "
+        f"({r.fitting_starts} start(s) fit)",
+    ]
     if r.exact_outside_area is not None:
-        lines.append(f"best pose, exact polygons: {r.exact_outside_area:.4g} {u}² of the shape's outline outside the hole")
+        lines.append(
+            f"best pose, exact polygons: {r.exact_outside_area:.4g} {u}² of the shape's outline outside the hole"
+        )
     if rep.fit_scale is not None:
         lo, hi = rep.fit_bracket
         if rep.fit_scale == 0:
@@ -362,6 +423,8 @@ def summary(rep: CheckReport) -> str:
         elif math.isinf(hi):
             lines.append(f"fit scale: at least {lo:.4g} (passed at every scale tried)")
         else:
-            lines.append(f"fit scale: {rep.fit_scale:.4g}  (passes at {lo:.4g}, blocked at {hi:.4g})")
+            lines.append(
+                f"fit scale: {rep.fit_scale:.4g}  (passes at {lo:.4g}, blocked at {hi:.4g})"
+            )
     lines.append(f"{len(rep.evaluations)} evaluation(s) in {rep.seconds:.1f} s")
     return "\n".join(lines)

@@ -28,9 +28,17 @@ def _quat_rows(dr, mi, qw, qx, qy, qz):
     """Rotation matrix entries (row-major, 9 arrays) of the normalised quaternion (qw, qx, qy, qz)."""
     n = dr.rsqrt(qw * qw + qx * qx + qy * qy + qz * qz)
     w, x, y, z = qw * n, qx * n, qy * n, qz * n
-    return (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+    return (
+        1 - 2 * (y * y + z * z),
+        2 * (x * y - w * z),
+        2 * (x * z + w * y),
+        2 * (x * y + w * z),
+        1 - 2 * (x * x + z * z),
+        2 * (y * z - w * x),
+        2 * (x * z - w * y),
+        2 * (y * z + w * x),
+        1 - 2 * (x * x + y * y),
+    )
 
 
 def auto_samples(shapes: list[Shape], spacing: float, most: int = 4) -> int:
@@ -123,7 +131,10 @@ class ClearanceObjective:
         pair_pose = np.repeat(np.arange(len(pose_shape)), n)
         start = np.repeat(self.offsets[pose_shape] - (np.cumsum(n) - n), n)
         pair_seg = np.arange(int(n.sum())) + start
-        self._pairs = (mi.UInt32(pair_pose.astype(np.uint32)), mi.UInt32(pair_seg.astype(np.uint32)))
+        self._pairs = (
+            mi.UInt32(pair_pose.astype(np.uint32)),
+            mi.UInt32(pair_seg.astype(np.uint32)),
+        )
         self.pose_count = len(pose_shape)
 
     def loss(self, q, t, holes: HoleStack, pose_hole):

@@ -10,32 +10,71 @@ from sieve_mi.errors import SieveError
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="sieve-mi", description="Design shape-aware sieves (Mitsuba 3 + Dr.Jit).")
+    p = argparse.ArgumentParser(
+        prog="sieve-mi", description="Design shape-aware sieves (Mitsuba 3 + Dr.Jit)."
+    )
     sub = p.add_subparsers(dest="command", required=True)
-    s = sub.add_parser("solve", help="design a hole that passes the [[pass]] shapes and blocks the [[block]] shapes")
+    s = sub.add_parser(
+        "solve",
+        help="design a hole that passes the [[pass]] shapes and blocks the [[block]] shapes",
+    )
     s.add_argument("scene", help="scene file (TOML)")
-    s.add_argument("--out", help="output folder (default: out/<name>/ beside the current directory)")
-    s.add_argument("--variant", help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono")
+    s.add_argument(
+        "--out", help="output folder (default: out/<name>/ beside the current directory)"
+    )
+    s.add_argument(
+        "--variant",
+        help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono",
+    )
     s.add_argument("--seed", type=int, help="random seed (overrides [solver] seed)")
     s.add_argument("--quiet", action="store_true", help="no progress bars")
     s.add_argument("--no-figure", action="store_true", help="skip the Mitsuba rendering figure.png")
-    c = sub.add_parser("check", help="test a shape against a sieve (plate mesh or hole image): passes or blocked, and the fit scale")
+    c = sub.add_parser(
+        "check",
+        help="test a shape against a sieve (plate mesh or hole image): passes or blocked, and the fit scale",
+    )
     c.add_argument("shape", help="mesh of the shape to test (STL, OBJ, PLY, ...)")
     src = c.add_mutually_exclusive_group(required=True)
     src.add_argument("--sieve", help="sieve plate mesh; its through-holes along --axis are used")
-    src.add_argument("--hole", help="hole image (white = hole, black = material); needs --pixel-size")
-    c.add_argument("--pixel-size", type=float, help="size of one pixel of --hole, in scene units (mm)")
-    c.add_argument("--axis", choices=("x", "y", "z"), default="z", help="direction the shape moves through the plate (default z)")
-    c.add_argument("--scale", type=float, default=1.0, help="uniform scale of the shape (file units to mm)")
-    c.add_argument("--starts", type=int, default=100, help="random starts of the fitting search (default 100)")
+    src.add_argument(
+        "--hole", help="hole image (white = hole, black = material); needs --pixel-size"
+    )
+    c.add_argument(
+        "--pixel-size", type=float, help="size of one pixel of --hole, in scene units (mm)"
+    )
+    c.add_argument(
+        "--axis",
+        choices=("x", "y", "z"),
+        default="z",
+        help="direction the shape moves through the plate (default z)",
+    )
+    c.add_argument(
+        "--scale", type=float, default=1.0, help="uniform scale of the shape (file units to mm)"
+    )
+    c.add_argument(
+        "--starts", type=int, default=100, help="random starts of the fitting search (default 100)"
+    )
     c.add_argument("--steps", type=int, default=500, help="Adam steps per start (default 500)")
     c.add_argument("--learning-rate", type=float, default=0.05)
-    c.add_argument("--resolution", type=int, default=256, help="raster side in pixels for --sieve (default 256)")
+    c.add_argument(
+        "--resolution",
+        type=int,
+        default=256,
+        help="raster side in pixels for --sieve (default 256)",
+    )
     c.add_argument("--seed", type=int, default=0)
     c.add_argument("--no-fit", action="store_true", help="skip the fit-scale search")
-    c.add_argument("--fit-tolerance", type=float, default=0.01, help="relative precision of the fit scale (default 0.01)")
+    c.add_argument(
+        "--fit-tolerance",
+        type=float,
+        default=0.01,
+        help="relative precision of the fit scale (default 0.01)",
+    )
     c.add_argument("--units", default="mm", help="unit name for the report (default mm)")
-    c.add_argument("--variant", help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono")
+    c.add_argument(
+        "--variant",
+        help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono",
+    )
     c.add_argument("--json", action="store_true", help="print the result as JSON")
     return p
 
@@ -68,8 +107,14 @@ def cmd_check(args) -> int:
     from sieve_mi.meshes import load_shape
 
     if args.hole is not None and args.pixel_size is None:
-        raise SieveError(f"--hole {args.hole}: also give --pixel-size (the image's pixel size in scene units)")
-    for name, value, minimum in (("--starts", args.starts, 1), ("--steps", args.steps, 1), ("--resolution", args.resolution, 16)):
+        raise SieveError(
+            f"--hole {args.hole}: also give --pixel-size (the image's pixel size in scene units)"
+        )
+    for name, value, minimum in (
+        ("--starts", args.starts, 1),
+        ("--steps", args.steps, 1),
+        ("--resolution", args.resolution, 16),
+    ):
         if value < minimum:
             raise SieveError(f"{name} {value}: must be at least {minimum}")
     if not (args.scale > 0 and args.scale < float("inf")):
@@ -80,10 +125,24 @@ def cmd_check(args) -> int:
         raise SieveError(f"--seed {args.seed}: must be >= 0")
     use_variant(args.variant)
     shape = load_shape(args.shape, scale=args.scale)
-    settings = CheckSettings(starts=args.starts, steps=args.steps, learning_rate=args.learning_rate, resolution=args.resolution,
-                             seed=args.seed, fit=not args.no_fit, fit_tolerance=args.fit_tolerance)
-    rep = check(shape, sieve=args.sieve, axis=args.axis, image=args.hole, pixel_size=args.pixel_size, units=args.units,
-                settings=settings)
+    settings = CheckSettings(
+        starts=args.starts,
+        steps=args.steps,
+        learning_rate=args.learning_rate,
+        resolution=args.resolution,
+        seed=args.seed,
+        fit=not args.no_fit,
+        fit_tolerance=args.fit_tolerance,
+    )
+    rep = check(
+        shape,
+        sieve=args.sieve,
+        axis=args.axis,
+        image=args.hole,
+        pixel_size=args.pixel_size,
+        units=args.units,
+        settings=settings,
+    )
     if args.json:
         print(json.dumps(rep.to_dict(), indent=2, default=lambda x: None if x != x else str(x)))
     else:

@@ -1,18 +1,7 @@
 """From a solved hole to a printable sieve (paper Sec. 5.4 and Supplemental B).
 
-The raster hole drives the game; for printing, sieve-mi rebuilds H exactly as a polygon:
-
-1. the projection of every placed A is the union of its projected triangles (manifold3d
-   :class:`~manifold3d.CrossSection`, positive fill rule after orienting every triangle
-   counter-clockwise), which is exact for any triangle soup, open or non-manifold;
-2. that union is offset outward by the tolerance with round joins. Round joins are polygons whose
-   chords fall inside the true arcs, so the offset distance is raised by the chord sagitta and by
-   the simplification tolerance: the outline never comes inward of the exact dilation
-   proj(A) + disk(tolerance), and lies at most a few per cent of the tolerance outside it;
-3. enclosed gaps are filled (only outer contours kept) when ``fill_holes`` is set.
-
-The plate is a rectangular block with that outline cut through it by a manifold3d boolean; its
-thickness defaults to the largest circumsphere diameter over all shapes, which rules out passing by
+The hole is the exact polygon of :mod:`sieve_mi.outline`. The plate is a rectangular block with
+that outline cut through it by a manifold3d boolean; its thickness defaults to the largest circumsphere diameter over all shapes, which rules out passing by
 wriggling (Supplemental Proposition B.1: a shape that passes through a prism at least as deep as
 its circumsphere's diameter must at some moment lie wholly inside it, so its projection fits H).
 """
@@ -29,14 +18,7 @@ import numpy as np
 import trimesh
 
 from sieve_mi.meshes import Shape
-from sieve_mi.raster import Frame
-from sieve_mi.rotations import to_matrix
-
-#: Largest distance by which a round join's chords may fall short of the true arc, as a fraction of
-#: the tolerance (the offset is raised by this much so the outline is never inside the exact one).
-ARC_ERROR = 0.01
-#: Simplification tolerance as a fraction of the tolerance (the offset is raised by it too).
-SIMPLIFY = 0.01
+from sieve_mi.outline import hole_outline, placed_vertices, raster_agreement
 
 
 @dataclass
@@ -60,164 +42,6 @@ class Plate:
     thickness: float
     border: float
     warnings: list = field(default_factory=list)
-
-
-def placed_vertices(shape: Shape, quat: np.ndarray, trans_xy: np.ndarray, z: float = 0.0) -> np.ndarray:
-    """The shape's vertices rotated about its centre by ``quat`` and moved to (tx, ty, z).
-
-    Parameters
-    ----------
-    shape : Shape
-    quat : (4,) array_like
-        Rotation (w, x, y, z).
-    trans_xy : (2,) array_like
-        Translation in the hole's plane, scene units.
-    z : float
-        Height added to every vertex, scene units.
-
-    Returns
-    -------
-    (V, 3) ndarray
-    """
-    v = shape.vertices @ to_matrix(np.asarray(quat, dtype=np.float64)).T
-    return v + np.array([trans_xy[0], trans_xy[1], z])
-
-
-def projection(vertices: np.ndarray, faces: np.ndarray, *, closed: bool = False) -> manifold3d.CrossSection:
-    """Exact projection of a triangle mesh onto the xy-plane: the union of its projected triangles.
-
-    Parameters
-    ----------
-    vertices : (V, 3) ndarray
-        Positions, scene units.
-    faces : (F, 3) ndarray of int
-    closed : bool
-        The mesh is watertight with consistent outward orientation; then the triangles facing +z
-        already cover the projection and the others are skipped (half the work).
-
-    Returns
-    -------
-    manifold3d.CrossSection
-        Empty if every triangle is seen edge-on.
-    """
-    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)][:, :, :2]
-    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    signed = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    scale = float(np.abs(tri).max()) if len(tri) else 1.0
-    keep = np.abs(signed) > 1e-14 * max(scale, 1e-300) ** 2
-    if closed:
-        front = signed > 0
-        if (keep & front).any():
-            keep &= front
-    tri, signed = tri[keep], signed[keep]
-    if len(tri) == 0:
-        return manifold3d.CrossSection()
-    tri[signed < 0] = tri[signed < 0][:, ::-1]
-    return manifold3d.CrossSection(list(tri), manifold3d.FillRule.Positive)
-
-
-def filled(section: manifold3d.CrossSection) -> manifold3d.CrossSection:
-    """The section with every enclosed gap filled: only its outer (counter-clockwise) contours."""
-    outer = [c for c in section.to_polygons() if _signed_area(c) > 0]
-    if not outer:
-        return manifold3d.CrossSection()
-    return manifold3d.CrossSection(outer, manifold3d.FillRule.Positive)
-
-
-def _signed_area(contour: np.ndarray) -> float:
-    x, y = np.asarray(contour, dtype=np.float64).T
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
-
-
-def round_segments(tolerance: float, arc_error: float = ARC_ERROR) -> int:
-    """Segments per full circle so that a chord's sagitta is at most ``arc_error * tolerance``."""
-    # sagitta r (1 - cos(pi / n)) <= e r  <=>  n >= pi / acos(1 - e)
-    return max(16, int(math.ceil(math.pi / math.acos(1.0 - arc_error))))
-
-
-def dilated(section: manifold3d.CrossSection, tolerance: float) -> manifold3d.CrossSection:
-    """Outward offset by ``tolerance`` that contains the exact dilation and stays within ~3 % of it.
-
-    Parameters
-    ----------
-    section : manifold3d.CrossSection
-    tolerance : float
-        Offset distance, scene units; 0 returns the section unchanged.
-    """
-    if tolerance <= 0 or section.is_empty():
-        return section
-    n = round_segments(tolerance)
-    sagitta = tolerance * (1.0 - math.cos(math.pi / n)) / math.cos(math.pi / n)
-    eps = SIMPLIFY * tolerance
-    grown = section.offset(tolerance + sagitta + eps, manifold3d.JoinType.Round, circular_segments=n)
-    return grown.simplify(eps)
-
-
-def hole_outline(shapes: list[Shape], quats: np.ndarray, trans: np.ndarray, tolerance: float,
-                 fill_holes: bool = True, closed: list[bool] | None = None) -> manifold3d.CrossSection:
-    """The exact hole H: the union of the placed A projections, dilated, gaps filled.
-
-    Parameters
-    ----------
-    shapes : list of Shape
-        The shapes that must pass.
-    quats : (m, 4) ndarray
-        Their rotations (w, x, y, z).
-    trans : (m, 2) ndarray
-        Their translations in the hole's plane, scene units.
-    tolerance : float
-        Dilation radius, scene units.
-    fill_holes : bool
-        Keep only outer contours (paper Fig. 4).
-    closed : list of bool, optional
-        Per shape, whether it is watertight (see :func:`projection`); default False.
-    """
-    parts = []
-    for i, shape in enumerate(shapes):
-        v = placed_vertices(shape, quats[i], trans[i])
-        parts.append(projection(v, shape.faces, closed=bool(closed[i]) if closed else False))
-    union = manifold3d.CrossSection.batch_boolean(parts, manifold3d.OpType.Add) if len(parts) > 1 else parts[0]
-    out = dilated(union, tolerance)
-    return filled(out) if fill_holes else out
-
-
-def rasterize(section: manifold3d.CrossSection, frame: Frame) -> np.ndarray:
-    """Pixel centres of ``frame`` inside ``section`` (even-odd over its contours), (N, N) bool."""
-    from matplotlib.path import Path
-
-    x, y = frame.centres()
-    xx, yy = np.meshgrid(x, y)
-    pts = np.column_stack([xx.ravel(), yy.ravel()])
-    inside = np.zeros(len(pts), dtype=np.int32)
-    for contour in section.to_polygons():
-        c = np.asarray(contour, dtype=np.float64)
-        lo, hi = c.min(0), c.max(0)
-        sel = np.flatnonzero((pts[:, 0] >= lo[0]) & (pts[:, 0] <= hi[0]) & (pts[:, 1] >= lo[1]) & (pts[:, 1] <= hi[1]))
-        if len(sel):
-            inside[sel] += Path(c).contains_points(pts[sel])
-    return (inside % 2 == 1).reshape(frame.resolution, frame.resolution)
-
-
-def raster_agreement(section: manifold3d.CrossSection, mask: np.ndarray, frame: Frame) -> dict:
-    """Compare the exact outline with the raster hole.
-
-    Returns
-    -------
-    dict
-        ``polygon_area`` and ``raster_area`` (square scene units), their relative difference
-        ``area_difference``, and ``pixels_only_raster`` / ``pixels_only_polygon``: pixel centres
-        inside one but not the other.
-    """
-    poly = rasterize(section, frame)
-    raster_area = float(mask.sum()) * frame.pixel_size**2
-    area = float(section.area())
-    return {
-        "polygon_area": area,
-        "raster_area": raster_area,
-        "area_difference": (area - raster_area) / max(raster_area, 1e-300),
-        "pixels_only_raster": int((mask & ~poly).sum()),
-        "pixels_only_polygon": int((poly & ~mask).sum()),
-    }
 
 
 def circumsphere_diameter(shape: Shape) -> float:
@@ -247,8 +71,13 @@ def default_thickness(shapes: list[Shape]) -> float:
     return math.ceil(d * 10.0) / 10.0
 
 
-def plate(outline: manifold3d.CrossSection, thickness: float, border: float, *,
-          required_thickness: float | None = None) -> Plate:
+def plate(
+    outline: manifold3d.CrossSection,
+    thickness: float,
+    border: float,
+    *,
+    required_thickness: float | None = None,
+) -> Plate:
     """A rectangular plate with ``outline`` cut through it.
 
     Parameters
@@ -271,16 +100,27 @@ def plate(outline: manifold3d.CrossSection, thickness: float, border: float, *,
     if thickness <= 0 or border <= 0:
         raise ValueError("thickness and border must be positive")
     (x0, y0), (x1, y1) = _bounds(outline)
-    block = manifold3d.Manifold.cube([x1 - x0 + 2 * border, y1 - y0 + 2 * border, thickness]).translate(
-        [x0 - border, y0 - border, -thickness])
-    cut = manifold3d.Manifold.extrude(outline, thickness + 2.0).translate([0.0, 0.0, -thickness - 1.0])
+    block = manifold3d.Manifold.cube(
+        [x1 - x0 + 2 * border, y1 - y0 + 2 * border, thickness]
+    ).translate([x0 - border, y0 - border, -thickness])
+    cut = manifold3d.Manifold.extrude(outline, thickness + 2.0).translate(
+        [0.0, 0.0, -thickness - 1.0]
+    )
     body = block - cut
     warnings = []
     if required_thickness is not None and thickness < required_thickness - 1e-9:
-        warnings.append(f"plate thickness {thickness:g} is less than the largest circumsphere diameter "
-                        f"{required_thickness:g}: a blocked shape may pass by tilting and sliding inside the hole "
-                        "(Supplemental Proposition B.1); use at least that thickness for a guaranteed block")
-    return Plate(mesh=to_trimesh(body), outline=outline, thickness=float(thickness), border=float(border), warnings=warnings)
+        warnings.append(
+            f"plate thickness {thickness:g} is less than the largest circumsphere diameter "
+            f"{required_thickness:g}: a blocked shape may pass by tilting and sliding inside the hole "
+            "(Supplemental Proposition B.1); use at least that thickness for a guaranteed block"
+        )
+    return Plate(
+        mesh=to_trimesh(body),
+        outline=outline,
+        thickness=float(thickness),
+        border=float(border),
+        warnings=warnings,
+    )
 
 
 def _bounds(section: manifold3d.CrossSection) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -291,11 +131,16 @@ def _bounds(section: manifold3d.CrossSection) -> tuple[tuple[float, float], tupl
 def to_trimesh(body: manifold3d.Manifold) -> trimesh.Trimesh:
     """A manifold3d solid as a trimesh (float64 vertices, no processing that could alter it)."""
     m = body.to_mesh()
-    return trimesh.Trimesh(np.asarray(m.vert_properties, dtype=np.float64)[:, :3], np.asarray(m.tri_verts, dtype=np.int64),
-                           process=False)
+    return trimesh.Trimesh(
+        np.asarray(m.vert_properties, dtype=np.float64)[:, :3],
+        np.asarray(m.tri_verts, dtype=np.int64),
+        process=False,
+    )
 
 
-def shape_mesh(shape: Shape, quat: np.ndarray, trans_xy: np.ndarray, lift: float) -> trimesh.Trimesh:
+def shape_mesh(
+    shape: Shape, quat: np.ndarray, trans_xy: np.ndarray, lift: float
+) -> trimesh.Trimesh:
     """A shape in a pose, raised so its lowest point is ``lift`` above the plate's top (z = 0)."""
     v = placed_vertices(shape, quat, trans_xy)
     v[:, 2] += lift - v[:, 2].min()
@@ -312,21 +157,29 @@ def write_3mf(path: str, mesh: trimesh.Trimesh, unit: str = "millimeter") -> Non
     unit : str
         3MF unit name: micron, millimeter, centimeter, inch, foot or meter.
     """
-    verts = "".join(f'<vertex x="{x:.9g}" y="{y:.9g}" z="{z:.9g}"/>' for x, y, z in np.asarray(mesh.vertices))
+    verts = "".join(
+        f'<vertex x="{x:.9g}" y="{y:.9g}" z="{z:.9g}"/>' for x, y, z in np.asarray(mesh.vertices)
+    )
     tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in np.asarray(mesh.faces))
-    model = ('<?xml version="1.0" encoding="UTF-8"?>\n'
-             f'<model unit="{unit}" xml:lang="en-US" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
-             '<resources><object id="1" type="model"><mesh>'
-             f"<vertices>{verts}</vertices><triangles>{tris}</triangles>"
-             '</mesh></object></resources><build><item objectid="1"/></build></model>')
-    types = ('<?xml version="1.0" encoding="UTF-8"?>\n'
-             '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
-             '<Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/>'
-             '<Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/></Types>')
-    rels = ('<?xml version="1.0" encoding="UTF-8"?>\n'
-            '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
-            '<Relationship Target="/3D/3dmodel.model" Id="rel0" '
-            'Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/></Relationships>')
+    model = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        f'<model unit="{unit}" xml:lang="en-US" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
+        '<resources><object id="1" type="model"><mesh>'
+        f"<vertices>{verts}</vertices><triangles>{tris}</triangles>"
+        '</mesh></object></resources><build><item objectid="1"/></build></model>'
+    )
+    types = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
+        '<Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/>'
+        '<Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/></Types>'
+    )
+    rels = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
+        '<Relationship Target="/3D/3dmodel.model" Id="rel0" '
+        'Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/></Relationships>'
+    )
     with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as z:
         z.writestr("[Content_Types].xml", types)
         z.writestr("_rels/.rels", rels)
@@ -341,13 +194,26 @@ def read_3mf(path: str) -> trimesh.Trimesh:
     with zipfile.ZipFile(path) as z:
         root = ET.fromstring(z.read("3D/3dmodel.model"))
     mesh = root.find(".//m:object/m:mesh", ns)
-    v = np.array([[float(e.get(k)) for k in "xyz"] for e in mesh.find("m:vertices", ns)], dtype=np.float64)
-    f = np.array([[int(e.get(k)) for k in ("v1", "v2", "v3")] for e in mesh.find("m:triangles", ns)], dtype=np.int64)
+    v = np.array(
+        [[float(e.get(k)) for k in "xyz"] for e in mesh.find("m:vertices", ns)], dtype=np.float64
+    )
+    f = np.array(
+        [[int(e.get(k)) for k in ("v1", "v2", "v3")] for e in mesh.find("m:triangles", ns)],
+        dtype=np.int64,
+    )
     return trimesh.Trimesh(v, f, process=False)
 
 
-UNIT_NAMES = {"mm": "millimeter", "cm": "centimeter", "m": "meter", "in": "inch", "inch": "inch", "um": "micron",
-              "micron": "micron", "ft": "foot"}
+UNIT_NAMES = {
+    "mm": "millimeter",
+    "cm": "centimeter",
+    "m": "meter",
+    "in": "inch",
+    "inch": "inch",
+    "um": "micron",
+    "micron": "micron",
+    "ft": "foot",
+}
 
 
 def is_closed(shape: Shape) -> bool:
@@ -383,13 +249,21 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
     scene = result.scene
     fab = scene.fabrication
     closed = [is_closed(s) for s in result.pass_shapes]
-    outline = hole_outline(result.pass_shapes, result.pass_quats, result.pass_trans, fab.tolerance,
-                           fill_holes=fab.fill_holes, closed=closed)
+    outline = hole_outline(
+        result.pass_shapes,
+        result.pass_quats,
+        result.pass_trans,
+        fab.tolerance,
+        fill_holes=fab.fill_holes,
+        closed=closed,
+    )
     required = default_thickness(result.pass_shapes + result.block_shapes)
     thickness = fab.thickness if fab.thickness is not None else required
     sieve = plate(outline, thickness, fab.border, required_thickness=required)
     sieve.mesh.export(os.path.join(out_dir, "sieve.stl"))
-    write_3mf(os.path.join(out_dir, "sieve.3mf"), sieve.mesh, UNIT_NAMES.get(scene.units, "millimeter"))
+    write_3mf(
+        os.path.join(out_dir, "sieve.3mf"), sieve.mesh, UNIT_NAMES.get(scene.units, "millimeter")
+    )
     write_svg(os.path.join(out_dir, "hole.svg"), outline, scene.units)
     lift = 0.25 * thickness
     passes = []
@@ -402,14 +276,23 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
         m = shape_mesh(shape, result.attack.quats[0, j], result.attack.trans[0, j], lift)
         m.export(os.path.join(out_dir, f"block_{j}.stl"))
         blocks.append(m)
-    files = ["sieve.stl", "sieve.3mf", "hole.svg"] + [f"pass_{i}.stl" for i in range(len(passes))] + \
-        [f"block_{j}.stl" for j in range(len(blocks))]
+    files = (
+        ["sieve.stl", "sieve.3mf", "hole.svg"]
+        + [f"pass_{i}.stl" for i in range(len(passes))]
+        + [f"block_{j}.stl" for j in range(len(blocks))]
+    )
     if figure:
         from sieve_mi.figure import render_figure
 
         beside = beside_plate(sieve.mesh, blocks)
-        render_figure(os.path.join(out_dir, "figure.png"), sieve.mesh, passes, beside,
-                      [bool(b) for b in result.attack.blocked()[0]], title=f"{scene.name}: winner {result.winner}")
+        render_figure(
+            os.path.join(out_dir, "figure.png"),
+            sieve.mesh,
+            passes,
+            beside,
+            [bool(b) for b in result.attack.blocked()[0]],
+            title=f"{scene.name}: winner {result.winner}",
+        )
         files.append("figure.png")
     (x0, y0, z0), (x1, y1, z1) = sieve.mesh.bounds
     return {
@@ -424,7 +307,9 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
     }
 
 
-def beside_plate(plate_mesh: trimesh.Trimesh, meshes: list[trimesh.Trimesh], gap: float | None = None) -> list[trimesh.Trimesh]:
+def beside_plate(
+    plate_mesh: trimesh.Trimesh, meshes: list[trimesh.Trimesh], gap: float | None = None
+) -> list[trimesh.Trimesh]:
     """Copies of ``meshes`` standing in a row on the ground beside the plate (for the figure).
 
     Parameters
@@ -464,6 +349,8 @@ def write_svg(path: str, outline: manifold3d.CrossSection, units: str = "mm") ->
         d.append(f"M {pts} Z")
     svg_units = units if units in ("mm", "cm", "in") else ""
     with open(path, "w") as fh:
-        fh.write(f'<svg xmlns="http://www.w3.org/2000/svg" width="{w:.6g}{svg_units}" height="{h:.6g}{svg_units}" '
-                 f'viewBox="{x0 - pad:.6g} {-(y1 + pad):.6g} {w:.6g} {h:.6g}">\n'
-                 f'<path fill="black" fill-rule="evenodd" d="{" ".join(d)}"/>\n</svg>\n')
+        fh.write(
+            f'<svg xmlns="http://www.w3.org/2000/svg" width="{w:.6g}{svg_units}" height="{h:.6g}{svg_units}" '
+            f'viewBox="{x0 - pad:.6g} {-(y1 + pad):.6g} {w:.6g} {h:.6g}">\n'
+            f'<path fill="black" fill-rule="evenodd" d="{" ".join(d)}"/>\n</svg>\n'
+        )

@@ -60,9 +60,18 @@ ESCAPED_RGB = (0.95, 0.42, 0.03)
 GROUND_RGB = (0.50, 0.45, 0.38)
 
 
-def render_figure(path: str, plate: trimesh.Trimesh, passes: list[trimesh.Trimesh], blocks: list[trimesh.Trimesh],
-                  blocked: list[bool], *, width: int = 1200, height: int = 900, spp: int = 16,
-                  title: str | None = None) -> None:
+def render_figure(
+    path: str,
+    plate: trimesh.Trimesh,
+    passes: list[trimesh.Trimesh],
+    blocks: list[trimesh.Trimesh],
+    blocked: list[bool],
+    *,
+    width: int = 1200,
+    height: int = 900,
+    spp: int = 16,
+    title: str | None = None,
+) -> None:
     """Render the sieve, the shapes that pass and the attempts of the shapes to block into a PNG.
 
     Nothing is moved: every mesh is drawn where it is. The camera looks at the union of all bounding
@@ -103,7 +112,9 @@ def render_figure(path: str, plate: trimesh.Trimesh, passes: list[trimesh.Trimes
     (Mitsuba cannot unset a variant).
     """
     if len(blocked) != len(blocks):
-        raise ValueError(f"blocked has {len(blocked)} entries but there are {len(blocks)} block meshes")
+        raise ValueError(
+            f"blocked has {len(blocked)} entries but there are {len(blocks)} block meshes"
+        )
     if width < 1 or height < 1 or spp < 1:
         raise ValueError(f"width, height and spp must be positive (got {width}, {height}, {spp})")
     _backend.configure_llvm()
@@ -112,7 +123,9 @@ def render_figure(path: str, plate: trimesh.Trimesh, passes: list[trimesh.Trimes
     before = mi.variant()
     try:
         variant = _select_variant(mi, before)
-        scene, sensor = _scene(mi, plate, passes, blocks, blocked, width, height, spp, title is not None)
+        scene, sensor = _scene(
+            mi, plate, passes, blocks, blocked, width, height, spp, title is not None
+        )
         image = np.asarray(mi.render(scene, sensor=sensor, spp=spp), dtype=np.float32)
     finally:
         if before is not None and mi.variant() != before:
@@ -147,7 +160,10 @@ def _select_variant(mi, before: str | None) -> str:
 
 def _bsdf(rgb) -> dict:
     """A two-sided diffuse material (open and inconsistently wound meshes shade from both sides)."""
-    return {"type": "twosided", "material": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(rgb)}}}
+    return {
+        "type": "twosided",
+        "material": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(rgb)}},
+    }
 
 
 def _triangles(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, int]:
@@ -178,10 +194,14 @@ def _mesh(mi, name: str, triangles: tuple[np.ndarray, np.ndarray, int], rgb, smo
     m = mi.Mesh(name, 3 * len(f), len(f), props=props, has_vertex_normals=normals is not None)
     params = mi.traverse(m)
     # The buffers' own types: Dr.Jit arrays in JIT variants, dynamic arrays in scalar ones.
-    params["vertex_positions"] = type(params["vertex_positions"])(corners.astype(np.float32).ravel())
+    params["vertex_positions"] = type(params["vertex_positions"])(
+        corners.astype(np.float32).ravel()
+    )
     params["faces"] = type(params["faces"])(np.arange(3 * len(f), dtype=np.uint32))
     if normals is not None:
-        params["vertex_normals"] = type(params["vertex_normals"])(normals.astype(np.float32).ravel())
+        params["vertex_normals"] = type(params["vertex_normals"])(
+            normals.astype(np.float32).ravel()
+        )
     params.update()
     return m
 
@@ -203,7 +223,9 @@ def _corner_normals(corners: np.ndarray, faces: np.ndarray, n_vertices: int) -> 
         Unit normals; a corner whose face normal is more than :data:`CREASE_ANGLE` from the mean (or
         whose mean vanishes, e.g. where the winding flips) gets its face normal (flat shading).
     """
-    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])  # length = 2 * area
+    cross = np.cross(
+        corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    )  # length = 2 * area
     length = np.linalg.norm(cross, axis=1, keepdims=True)
     fn = np.divide(cross, length, out=np.zeros_like(cross), where=length > 0)
     acc = np.zeros((n_vertices, 3))
@@ -249,16 +271,22 @@ def _camera(boxes: list[np.ndarray], aspect: float, title: bool):
     right = np.cross(fwd, [0.0, 0.0, 1.0])
     right /= np.linalg.norm(right)
     up = np.cross(right, fwd)
-    corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for b in boxes for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    corners = np.array(
+        [[b[i, 0], b[j, 1], b[k, 2]] for b in boxes for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+    )
     pr, pu, pf = corners @ right, corners @ up, corners @ fwd
     tx = math.tan(math.radians(FOV) / 2)
     ty = tx / aspect
-    windows = [(-tx * (1 - MARGIN), tx * (1 - MARGIN)),
-               (-ty * (1 - MARGIN), ty * (1 - MARGIN) - (2 * ty * TITLE_BAND if title else 0.0))]
+    windows = [
+        (-tx * (1 - MARGIN), tx * (1 - MARGIN)),
+        (-ty * (1 - MARGIN), ty * (1 - MARGIN) - (2 * ty * TITLE_BAND if title else 0.0)),
+    ]
     # Largest forward coordinate cf such that some lateral c satisfies, for every corner,
     # a_lo * (pf - cf) <= p - c <= a_hi * (pf - cf).
     extent = float(np.max(np.ptp(corners, axis=0))) or 1.0
-    cf = float(np.min(pf)) - 0.5 * extent  # never closer than half the scene's size (a point-like scene)
+    cf = (
+        float(np.min(pf)) - 0.5 * extent
+    )  # never closer than half the scene's size (a point-like scene)
     for p, (a_lo, a_hi) in zip((pr, pu), windows):
         cf = min(cf, (np.min(p - a_lo * pf) - np.max(p - a_hi * pf)) / (a_hi - a_lo))
     lateral = []
@@ -275,10 +303,16 @@ def _scene(mi, plate, passes, blocks, blocked, width, height, spp, title):
 
     Arguments are those of :func:`render_figure`; ``title`` (bool) keeps the title band free.
     """
-    items = [(plate, PLATE_RGB, False)] + [(m, PASS_RGB, True) for m in passes] + \
-        [(m, BLOCKED_RGB if b else ESCAPED_RGB, True) for m, b in zip(blocks, blocked)]
+    items = (
+        [(plate, PLATE_RGB, False)]
+        + [(m, PASS_RGB, True) for m in passes]
+        + [(m, BLOCKED_RGB if b else ESCAPED_RGB, True) for m, b in zip(blocks, blocked)]
+    )
     tris = [_triangles(m) for m, _, _ in items]
-    boxes = [np.array([c.reshape(-1, 3).min(0), c.reshape(-1, 3).max(0)]) if len(c) else None for c, _, _ in tris]
+    boxes = [
+        np.array([c.reshape(-1, 3).min(0), c.reshape(-1, 3).max(0)]) if len(c) else None
+        for c, _, _ in tris
+    ]
     present = [b for b in boxes if b is not None]
     if not present:
         present = [np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 0.0]])]
@@ -293,30 +327,49 @@ def _scene(mi, plate, passes, blocks, blocked, width, height, spp, title):
         "type": "scene",
         "integrator": dict(INTEGRATOR),
         "sky": {"type": "constant", "radiance": {"type": "rgb", "value": list(SKY_RGB)}},
-        "sun": {"type": "directional", "direction": _sun_direction().tolist(),
-                "irradiance": {"type": "rgb", "value": list(SUN_RGB)}},
-        "ground": {"type": "rectangle", "bsdf": _bsdf(GROUND_RGB),  # 40 scene sizes wide: fills the view
-                   "to_world": mi.ScalarTransform4f().translate([float(centre[0]), float(centre[1]), ground])
-                   @ mi.ScalarTransform4f().scale([20 * size, 20 * size, 1.0])},
+        "sun": {
+            "type": "directional",
+            "direction": _sun_direction().tolist(),
+            "irradiance": {"type": "rgb", "value": list(SUN_RGB)},
+        },
+        "ground": {
+            "type": "rectangle",
+            "bsdf": _bsdf(GROUND_RGB),  # 40 scene sizes wide: fills the view
+            "to_world": mi.ScalarTransform4f().translate(
+                [float(centre[0]), float(centre[1]), ground]
+            )
+            @ mi.ScalarTransform4f().scale([20 * size, 20 * size, 1.0]),
+        },
     }
     for i, ((_, rgb, smooth), t) in enumerate(zip(items, tris)):
         if len(t[0]):
             scene[f"mesh_{i}"] = _mesh(mi, f"mesh_{i}", t, rgb, smooth)
-    sensor = mi.load_dict({
-        "type": "perspective",
-        "fov": FOV,
-        "fov_axis": "x",
-        "near_clip": 1e-3 * size,
-        "far_clip": 1e3 * size,
-        "to_world": mi.ScalarTransform4f().look_at(origin=origin.tolist(), target=target.tolist(), up=up.tolist()),
-        "sampler": {"type": SAMPLER, "sample_count": spp},
-        "film": {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "gaussian"},
-                 "pixel_format": "luminance" if "mono" in mi.variant() else "rgb"},
-    })
+    sensor = mi.load_dict(
+        {
+            "type": "perspective",
+            "fov": FOV,
+            "fov_axis": "x",
+            "near_clip": 1e-3 * size,
+            "far_clip": 1e3 * size,
+            "to_world": mi.ScalarTransform4f().look_at(
+                origin=origin.tolist(), target=target.tolist(), up=up.tolist()
+            ),
+            "sampler": {"type": SAMPLER, "sample_count": spp},
+            "film": {
+                "type": "hdrfilm",
+                "width": width,
+                "height": height,
+                "rfilter": {"type": "gaussian"},
+                "pixel_format": "luminance" if "mono" in mi.variant() else "rgb",
+            },
+        }
+    )
     return mi.load_dict(scene), sensor
 
 
-def _ground_height(plate_box: np.ndarray | None, boxes: list[np.ndarray], lowest: float, size: float) -> float:
+def _ground_height(
+    plate_box: np.ndarray | None, boxes: list[np.ndarray], lowest: float, size: float
+) -> float:
     """Height of the ground plane, scene units.
 
     A little below the plate (:data:`GROUND_GAP` plate thicknesses plus 2 % of the scene), so the
@@ -373,12 +426,14 @@ def _with_title(rgb: np.ndarray, title: str) -> np.ndarray:
     ax.imshow(rgb, interpolation="nearest", aspect="auto")
     ax.set_axis_off()
     points = max(6.0, 0.5 * TITLE_BAND * h * 72 / dpi)
-    fig.text(0.5, 1 - TITLE_BAND / 2, title, ha="center", va="center", fontsize=points, color="#202020")
+    fig.text(
+        0.5, 1 - TITLE_BAND / 2, title, ha="center", va="center", fontsize=points, color="#202020"
+    )
     canvas.draw()
     out = np.asarray(canvas.buffer_rgba())[..., :3]
     if out.shape[:2] != (h, w):  # rounding of the figure size: keep the requested size exactly
         pad = np.zeros((max(h, out.shape[0]), max(w, out.shape[1]), 3), np.uint8)
-        pad[:out.shape[0], :out.shape[1]] = out
+        pad[: out.shape[0], : out.shape[1]] = out
         out = pad[:h, :w]
     return np.ascontiguousarray(out)
 

@@ -41,7 +41,7 @@ class Hole:
         return float(self.mask.sum()) * self.frame.pixel_size**2
 
     @classmethod
-    def from_mask(cls, mask: np.ndarray, frame: Frame) -> "Hole":
+    def from_mask(cls, mask: np.ndarray, frame: Frame) -> Hole:
         """Wrap a binary mask (N x N) as a hole, computing its outside distance."""
         mask = np.asarray(mask, dtype=bool)
         if not mask.any():
@@ -63,8 +63,12 @@ class Hole:
         i0 = np.clip(np.floor(c).astype(int), 0, n - 2)
         f = c - i0
         d = self.outside
-        v = (d[i0[..., 1], i0[..., 0]] * (1 - f[..., 0]) * (1 - f[..., 1]) + d[i0[..., 1], i0[..., 0] + 1] * f[..., 0] * (1 - f[..., 1])
-             + d[i0[..., 1] + 1, i0[..., 0]] * (1 - f[..., 0]) * f[..., 1] + d[i0[..., 1] + 1, i0[..., 0] + 1] * f[..., 0] * f[..., 1])
+        v = (
+            d[i0[..., 1], i0[..., 0]] * (1 - f[..., 0]) * (1 - f[..., 1])
+            + d[i0[..., 1], i0[..., 0] + 1] * f[..., 0] * (1 - f[..., 1])
+            + d[i0[..., 1] + 1, i0[..., 0]] * (1 - f[..., 0]) * f[..., 1]
+            + d[i0[..., 1] + 1, i0[..., 0] + 1] * f[..., 0] * f[..., 1]
+        )
         return v + extra
 
     def window(self, row0: int, col0: int, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -88,11 +92,19 @@ def dilate(mask: np.ndarray, frame: Frame, tolerance: float) -> np.ndarray:
     """
     if tolerance <= 0 or not mask.any():
         return np.asarray(mask, dtype=bool)
-    return ndimage.distance_transform_edt(~mask) * frame.pixel_size <= tolerance + 0.5 * frame.pixel_size
+    return (
+        ndimage.distance_transform_edt(~mask) * frame.pixel_size
+        <= tolerance + 0.5 * frame.pixel_size
+    )
 
 
-def build_hole(silhouettes: list[np.ndarray], frame: Frame, tolerance: float, fill_holes: bool = True,
-               extra: list[np.ndarray] | None = None) -> Hole:
+def build_hole(
+    silhouettes: list[np.ndarray],
+    frame: Frame,
+    tolerance: float,
+    fill_holes: bool = True,
+    extra: list[np.ndarray] | None = None,
+) -> Hole:
     """H from player A's silhouettes: their union, dilated by ``tolerance``, holes filled.
 
     Parameters

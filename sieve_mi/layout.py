@@ -15,8 +15,9 @@ so the final hole stays one simply connected region.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from scipy import ndimage
@@ -64,8 +65,15 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product a * b of quaternions (w, x, y, z): rotation b, then a."""
     aw, ax, ay, az = np.moveaxis(np.asarray(a, float), -1, 0)
     bw, bx, by, bz = np.moveaxis(np.asarray(b, float), -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        -1,
+    )
 
 
 def union_frame(radii: list[float], tolerance: float, resolution: int) -> Frame:
@@ -75,7 +83,9 @@ def union_frame(radii: list[float], tolerance: float, resolution: int) -> Frame:
     return Frame.covering(2.0 * r + tolerance, resolution)
 
 
-def separate_layout(radii: list[float], tolerance: float, gap: float, resolution: int) -> tuple[np.ndarray, Frame]:
+def separate_layout(
+    radii: list[float], tolerance: float, gap: float, resolution: int
+) -> tuple[np.ndarray, Frame]:
     """Holes side by side for ``layout.mode = "separate"``: the trivially valid answer (paper Sec. 5.3).
 
     Each shape's hole lies within its bounding circle grown by the tolerance; the circles are put in
@@ -107,9 +117,13 @@ def separate_layout(radii: list[float], tolerance: float, gap: float, resolution
     return trans, Frame(n, 0.5 * n * h)
 
 
-def eq14(beta: np.ndarray, area_fraction: np.ndarray, pieces: np.ndarray, s: LayoutSettings) -> np.ndarray:
+def eq14(
+    beta: np.ndarray, area_fraction: np.ndarray, pieces: np.ndarray, s: LayoutSettings
+) -> np.ndarray:
     """The energy of eq. 14, minus tau for every hole that falls apart into several pieces."""
-    return s.tau / 2 * np.tanh(s.rho * (beta - s.eta)) - s.alpha * area_fraction - s.tau * (pieces > 1)
+    return (
+        s.tau / 2 * np.tanh(s.rho * (beta - s.eta)) - s.alpha * area_fraction - s.tau * (pieces > 1)
+    )
 
 
 def pieces(mask: np.ndarray) -> int:
@@ -117,10 +131,16 @@ def pieces(mask: np.ndarray) -> int:
     return int(ndimage.label(mask, structure=np.ones((3, 3)))[1])
 
 
-def _rotated_silhouettes(player: PlayerA, quat: np.ndarray, angles: int) -> tuple[np.ndarray, np.ndarray]:
+def _rotated_silhouettes(
+    player: PlayerA, quat: np.ndarray, angles: int
+) -> tuple[np.ndarray, np.ndarray]:
     """The shape's dilated silhouettes under ``angles`` rotations about z applied after ``quat``."""
     theta = np.arange(angles) * (2 * np.pi / angles)
-    quats = normalize(quat_multiply(np.stack([from_axis_angle([0, 0, 1], t) for t in theta]), np.asarray(quat)[None]))
+    quats = normalize(
+        quat_multiply(
+            np.stack([from_axis_angle([0, 0, 1], t) for t in theta]), np.asarray(quat)[None]
+        )
+    )
     sils = np.stack([dilate(m, player.frame, player.tolerance) for m in player.silhouettes(quats)])
     return quats, sils
 
@@ -129,13 +149,21 @@ def _shifted(mask: np.ndarray, dr: int, dc: int) -> np.ndarray:
     """``mask`` moved by (dr, dc) pixels, zero-filled (no wrap-around)."""
     n0, n1 = mask.shape
     out = np.zeros_like(mask)
-    out[max(dr, 0):n0 + min(dr, 0), max(dc, 0):n1 + min(dc, 0)] = mask[max(-dr, 0):n0 - max(dr, 0),
-                                                                      max(-dc, 0):n1 - max(dc, 0)]
+    out[max(dr, 0) : n0 + min(dr, 0), max(dc, 0) : n1 + min(dc, 0)] = mask[
+        max(-dr, 0) : n0 - max(dr, 0), max(-dc, 0) : n1 - max(dc, 0)
+    ]
     return out
 
 
-def candidate_placements(player: PlayerA, base: np.ndarray, quat: np.ndarray, reach: float, *, angles: int = 72,
-                         per_angle: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def candidate_placements(
+    player: PlayerA,
+    base: np.ndarray,
+    quat: np.ndarray,
+    reach: float,
+    *,
+    angles: int = 72,
+    per_angle: int = 6,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """In-plane placements of a shape that touch a hole, ranked by the area of the hole they make.
 
     For each of ``angles`` rotations about z (applied after ``quat``), the overlap of the shape's
@@ -173,8 +201,12 @@ def candidate_placements(player: PlayerA, base: np.ndarray, quat: np.ndarray, re
     quats, sils = _rotated_silhouettes(player, quat, angles)
     size = 2 * n
     fb = np.fft.rfft2(base.astype(np.float32), s=(size, size))
-    corr = np.fft.irfft2(fb[None] * np.conj(np.fft.rfft2(sils.astype(np.float32), s=(size, size))), s=(size, size))
-    shift = np.rint(np.fft.fftfreq(size, 1.0 / size)).astype(int)  # wrapped index -> signed pixel shift
+    corr = np.fft.irfft2(
+        fb[None] * np.conj(np.fft.rfft2(sils.astype(np.float32), s=(size, size))), s=(size, size)
+    )
+    shift = np.rint(np.fft.fftfreq(size, 1.0 / size)).astype(
+        int
+    )  # wrapped index -> signed pixel shift
     sr, sc = np.meshgrid(shift, shift, indexing="ij")
     allowed = np.hypot(sr, sc) * h <= reach
     spacing = max(3, int(round(0.05 * reach / h)))  # local maxima at least ~5 % of the reach apart
@@ -196,16 +228,25 @@ def candidate_placements(player: PlayerA, base: np.ndarray, quat: np.ndarray, re
     if not qs:  # nothing touches the hole: fall back to the shape at the origin
         return np.asarray(quats[:1]), np.zeros((1, 2)), np.array([np.inf])
     order = np.argsort(areas, kind="stable")
-    return np.asarray(qs)[order], np.asarray(ts, dtype=np.float64)[order], np.asarray(areas, dtype=np.float64)[order]
+    return (
+        np.asarray(qs)[order],
+        np.asarray(ts, dtype=np.float64)[order],
+        np.asarray(areas, dtype=np.float64)[order],
+    )
 
 
-def _diverse(quats: np.ndarray, trans: np.ndarray, count: int, min_angle: float, min_distance: float) -> np.ndarray:
+def _diverse(
+    quats: np.ndarray, trans: np.ndarray, count: int, min_angle: float, min_distance: float
+) -> np.ndarray:
     """Indices of up to ``count`` entries, in order, skipping any that is within ``min_angle``
     radians *and* ``min_distance`` of one already taken (so the starts are not one placement many
     times over)."""
     taken: list[int] = []
     for i, (q, t) in enumerate(zip(quats, trans)):
-        near = [angle_between(q, quats[j]) < min_angle and np.linalg.norm(t - trans[j]) < min_distance for j in taken]
+        near = [
+            angle_between(q, quats[j]) < min_angle and np.linalg.norm(t - trans[j]) < min_distance
+            for j in taken
+        ]
         if not any(near):
             taken.append(i)
             if len(taken) == count:
@@ -223,11 +264,26 @@ def _stratified(total: int, count: int) -> np.ndarray:
     return np.concatenate([np.arange(head), tail])
 
 
-def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray, *, particles: int,
-          iterations: int, starts: int, steps: int, learning_rate: float, settings: LayoutSettings,
-          rng: np.random.Generator, progress: Callable[[int, float], None] | None = None,
-          recheck: tuple[int, int] | None = None,
-          finalists: int = 5, screen: int = 5, memory: AttackMemory | None = None, rounds: int = 3):
+def place(
+    player: PlayerA,
+    player_b: PlayerB,
+    base: np.ndarray,
+    quat: np.ndarray,
+    *,
+    particles: int,
+    iterations: int,
+    starts: int,
+    steps: int,
+    learning_rate: float,
+    settings: LayoutSettings,
+    rng: np.random.Generator,
+    progress: Callable[[int, float], None] | None = None,
+    recheck: tuple[int, int] | None = None,
+    finalists: int = 5,
+    screen: int = 5,
+    memory: AttackMemory | None = None,
+    rounds: int = 3,
+):
     """Place one more A shape into a hole (one step of the sequential scheme).
 
     Parameters
@@ -304,9 +360,23 @@ def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray
             x0 = pool[np.argsort(evaluate(pool), kind="stable")[::-1][:particles]]
         else:  # few candidates: repeat them, nudged by a pixel
             extra = particles - len(pool)
-            x0 = np.concatenate([pool, pool[np.arange(extra) % len(pool)] + np.r_[0, 0, 0, 0, frame.pixel_size / reach, 0]])
-        x, v, h = particle_swarm(evaluate, project(x0), iterations, rng, c_personal=settings.c_personal,
-                                 c_global=settings.c_global, project=project, progress=progress)
+            x0 = np.concatenate(
+                [
+                    pool,
+                    pool[np.arange(extra) % len(pool)]
+                    + np.r_[0, 0, 0, 0, frame.pixel_size / reach, 0],
+                ]
+            )
+        x, v, h = particle_swarm(
+            evaluate,
+            project(x0),
+            iterations,
+            rng,
+            c_personal=settings.c_personal,
+            c_global=settings.c_global,
+            project=project,
+            progress=progress,
+        )
         history.best += h.best
         history.evaluations += h.evaluations
         history.finalists = h.finalists
@@ -328,7 +398,9 @@ def place(player: PlayerA, player_b: PlayerB, base: np.ndarray, quat: np.ndarray
     return Placement(normalize(best[:4]), best[4:] * reach, value, best_beta, history)
 
 
-def alternative_rotations(finalists: list, best: np.ndarray, count: int, min_angle: float = 0.35) -> list[np.ndarray]:
+def alternative_rotations(
+    finalists: list, best: np.ndarray, count: int, min_angle: float = 0.35
+) -> list[np.ndarray]:
     """Other good rotations of one A from its own search, for a placement that fails with the best.
 
     Parameters
@@ -366,7 +438,9 @@ def sort_by_area(players: list[PlayerA], quats: np.ndarray) -> list[int]:
     return list(np.argsort(areas)[::-1])
 
 
-def compose(players: list[PlayerA], quats: np.ndarray, trans: np.ndarray, fill_holes: bool = True) -> Hole:
+def compose(
+    players: list[PlayerA], quats: np.ndarray, trans: np.ndarray, fill_holes: bool = True
+) -> Hole:
     """The hole made of every A shape at its placement: union of dilated silhouettes, filled."""
     frame = players[0].frame
     union = np.zeros((frame.resolution, frame.resolution), dtype=bool)
@@ -375,5 +449,3 @@ def compose(players: list[PlayerA], quats: np.ndarray, trans: np.ndarray, fill_h
     if fill_holes:
         union = ndimage.binary_fill_holes(union)
     return Hole.from_mask(union, frame)
-
-

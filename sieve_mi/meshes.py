@@ -74,18 +74,29 @@ def load_trimesh(path: str):
     try:
         loaded = trimesh.load(path, process=False)
     except Exception as exc:  # trimesh raises many exception types for bad files
-        raise _fail(path, f"could not be read as a mesh ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'no detail'})") from None
+        raise _fail(
+            path,
+            f"could not be read as a mesh ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'no detail'})",
+        ) from None
     if isinstance(loaded, trimesh.Scene):
-        geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
+        geoms = (
+            [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
+        )
         if not geoms:
-            raise _fail(path, "holds no triangles (a point cloud or empty scene?); give a triangle mesh")
+            raise _fail(
+                path, "holds no triangles (a point cloud or empty scene?); give a triangle mesh"
+            )
         loaded = trimesh.util.concatenate(geoms)
     if not isinstance(loaded, trimesh.Trimesh):
-        raise _fail(path, "holds no triangles (a point cloud or line drawing?); give a triangle mesh")
+        raise _fail(
+            path, "holds no triangles (a point cloud or line drawing?); give a triangle mesh"
+        )
     return loaded
 
 
-def shape_from_arrays(vertices: np.ndarray, faces: np.ndarray, *, name: str, path: str = "", scale: float = 1.0) -> Shape:
+def shape_from_arrays(
+    vertices: np.ndarray, faces: np.ndarray, *, name: str, path: str = "", scale: float = 1.0
+) -> Shape:
     """Validate, scale and centre a triangle mesh.
 
     Parameters
@@ -129,12 +140,25 @@ def shape_from_arrays(vertices: np.ndarray, faces: np.ndarray, *, name: str, pat
     centre = 0.5 * (lo + hi)
     v = vertices - centre
     tri = v[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    area = (
+        0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    )
     extent = float(np.max(hi - lo))
     if extent <= 0 or area <= 1e-12 * extent * extent:
-        raise _fail(where, "has zero surface area (all triangles degenerate); give a mesh with real triangles")
+        raise _fail(
+            where,
+            "has zero surface area (all triangles degenerate); give a mesh with real triangles",
+        )
     radius = float(np.linalg.norm(v[used], axis=1).max())
-    return Shape(name=name, path=path, vertices=v, faces=faces, centre=centre, radius=radius, hull=_hull_vertices(v[used]))
+    return Shape(
+        name=name,
+        path=path,
+        vertices=v,
+        faces=faces,
+        centre=centre,
+        radius=radius,
+        hull=_hull_vertices(v[used]),
+    )
 
 
 def _hull_vertices(points: np.ndarray) -> np.ndarray:
@@ -254,4 +278,10 @@ def segments(shape: Shape, spacing: float, samples_per_segment: int) -> Segments
     f0 = (k / pieces[parent])[:, None]
     f1 = ((k + 1) / pieces[parent])[:, None]
     d = b[parent] - a[parent]
-    return Segments(a=a[parent] + f0 * d, b=a[parent] + f1 * d, m1=m1[parent], m2=m2[parent], always=always[parent])
+    return Segments(
+        a=a[parent] + f0 * d,
+        b=a[parent] + f1 * d,
+        m1=m1[parent],
+        m2=m2[parent],
+        always=always[parent],
+    )

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -24,7 +24,14 @@ class BatchedAdam:
         Adam's moment decay rates and denominator offset (paper: 0.9, 0.999, 1e-8).
     """
 
-    def __init__(self, params: list, lr: float, beta_1: float = 0.9, beta_2: float = 0.999, epsilon: float = 1e-8):
+    def __init__(
+        self,
+        params: list,
+        lr: float,
+        beta_1: float = 0.9,
+        beta_2: float = 0.999,
+        epsilon: float = 1e-8,
+    ):
         import drjit as dr
         import mitsuba as mi
 
@@ -59,9 +66,18 @@ class SwarmHistory:
     finalists: list = field(default_factory=list)
 
 
-def particle_swarm(evaluate: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, iterations: int, rng: np.random.Generator,
-                   inertia: float = 0.25, c_personal: float = 0.25, c_global: float = 0.25, v0: np.ndarray | None = None,
-                   project: Callable[[np.ndarray], np.ndarray] | None = None, progress: Callable[[int, float], None] | None = None):
+def particle_swarm(
+    evaluate: Callable[[np.ndarray], np.ndarray],
+    x0: np.ndarray,
+    iterations: int,
+    rng: np.random.Generator,
+    inertia: float = 0.25,
+    c_personal: float = 0.25,
+    c_global: float = 0.25,
+    v0: np.ndarray | None = None,
+    project: Callable[[np.ndarray], np.ndarray] | None = None,
+    progress: Callable[[int, float], None] | None = None,
+):
     """Maximise ``evaluate`` with particle swarm optimisation (Poli 2008), all particles per call.
 
     Parameters
@@ -127,8 +143,16 @@ NLOPT_METHODS = {
 }
 
 
-def nlopt_maximise(evaluate_one: Callable[[np.ndarray], float], lower: np.ndarray, upper: np.ndarray, method: str,
-                   max_evaluations: int, x0: np.ndarray, seed: int, progress: Callable[[int, float], None] | None = None):
+def nlopt_maximise(
+    evaluate_one: Callable[[np.ndarray], float],
+    lower: np.ndarray,
+    upper: np.ndarray,
+    method: str,
+    max_evaluations: int,
+    x0: np.ndarray,
+    seed: int,
+    progress: Callable[[int, float], None] | None = None,
+):
     """Maximise a function of a box-bounded vector with one of nlopt's global methods.
 
     Parameters

@@ -62,7 +62,6 @@ from sieve_mi.clearance import _quat_rows  # the same rotation convention as the
 from sieve_mi.meshes import Shape
 from sieve_mi.raster import Frame
 
-
 #: Ways of rendering the silhouette: a minimal subclass of Mitsuba's ``direct_projective`` whose
 #: shading is "1 if the camera ray hits the mesh, else 0" (one ray per sample), or the stock
 #: ``direct_projective`` integrator with a black mesh in front of a uniform white emitter.
@@ -91,9 +90,24 @@ def _silhouette_plugin(mi) -> str:
     from mitsuba.ad.integrators.direct_projective import DirectProjectiveIntegrator
 
     class SilhouetteProjectiveIntegrator(DirectProjectiveIntegrator):
-        def sample(self, mode, scene, sampler, ray, depth, δL, state_in, active, project=False, si_shade=None, **kwargs):
+        def sample(
+            self,
+            mode,
+            scene,
+            sampler,
+            ray,
+            depth,
+            δL,
+            state_in,
+            active,
+            project=False,
+            si_shade=None,
+            **kwargs,
+        ):
             if project:
-                raise RuntimeError("the silhouette integrator does not sample indirect discontinuities (use sppi=0)")
+                raise RuntimeError(
+                    "the silhouette integrator does not sample indirect discontinuities (use sppi=0)"
+                )
             active = mi.Bool(active)
             hit = active if si_shade is not None else scene.ray_test(ray, active)
             return mi.Spectrum(dr.select(hit, 1.0, 0.0)), hit, [], None
@@ -129,8 +143,16 @@ class OverlapObjective:
         Base seed; each call of :meth:`loss` uses fresh seeds derived from it unless one is given.
     """
 
-    def __init__(self, shapes: list[Shape], frame: Frame, spp: int = 4, spp_grad: int = 1, margin: int = 0,
-                 seed: int = 0, integrator: str = "silhouette"):
+    def __init__(
+        self,
+        shapes: list[Shape],
+        frame: Frame,
+        spp: int = 4,
+        spp_grad: int = 1,
+        margin: int = 0,
+        seed: int = 0,
+        integrator: str = "silhouette",
+    ):
         import drjit as dr
         import mitsuba as mi
 
@@ -164,7 +186,9 @@ class OverlapObjective:
         plugin = _silhouette_plugin(mi) if integrator == "silhouette" else "direct_projective"
         self._scenes, self._params = [], []
         for s in shapes:
-            mesh = mi.Mesh(s.name or "shape", len(s.vertices), len(s.faces), has_vertex_normals=False)
+            mesh = mi.Mesh(
+                s.name or "shape", len(s.vertices), len(s.faces), has_vertex_normals=False
+            )
             mp = mi.traverse(mesh)
             mp["vertex_positions"] = mi.Float(s.vertices.astype(np.float32).ravel())
             mp["faces"] = mi.UInt32(s.faces.astype(np.uint32).ravel())
@@ -181,15 +205,26 @@ class OverlapObjective:
                     "fov_axis": "x",
                     "near_clip": 0.5 * d,
                     "far_clip": 2.0 * d,
-                    "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, d], target=[0, 0, 0], up=[0, 1, 0]),
-                    "film": {"type": "hdrfilm", "width": self.size, "height": self.size, "rfilter": {"type": "box"},
-                             "pixel_format": "luminance", "sample_border": True},
+                    "to_world": mi.ScalarTransform4f().look_at(
+                        origin=[0, 0, d], target=[0, 0, 0], up=[0, 1, 0]
+                    ),
+                    "film": {
+                        "type": "hdrfilm",
+                        "width": self.size,
+                        "height": self.size,
+                        "rfilter": {"type": "box"},
+                        "pixel_format": "luminance",
+                        "sample_border": True,
+                    },
                     "sampler": {"type": "independent", "sample_count": self.spp},
                 },
                 "shape": mesh,
             }
             if self._complement:
-                desc["background"] = {"type": "constant", "radiance": {"type": "uniform", "value": 1.0}}
+                desc["background"] = {
+                    "type": "constant",
+                    "radiance": {"type": "uniform", "value": 1.0},
+                }
             scene = mi.load_dict(desc)
             params = mi.traverse(scene)
             if self._complement:
@@ -231,7 +266,9 @@ class OverlapObjective:
         x = g[0] * p.x + g[1] * p.y + g[2] * p.z + tx
         y = g[3] * p.x + g[4] * p.y + g[5] * p.z + ty
         z = g[6] * p.x + g[7] * p.y + g[8] * p.z
-        w = (self.distance - z) / self.distance  # the camera at z = D then projects (x', y', z) onto (x, y)
+        w = (
+            self.distance - z
+        ) / self.distance  # the camera at z = D then projects (x', y', z) onto (x, y)
         return dr.ravel(mi.Point3f(x * w, y * w, z))
 
     def _outside(self, holes, pose_hole, k: int):
@@ -309,13 +346,21 @@ class OverlapObjective:
                 dr.enable_grad(leaf)
             params["shape.vertex_positions"] = leaf
             params.update()
-            rendered = mi.render(self._scenes[shape], params, spp=self.spp, spp_grad=self.spp_grad,
-                                 seed=seed, seed_grad=seed + 1)
+            rendered = mi.render(
+                self._scenes[shape],
+                params,
+                spp=self.spp,
+                spp_grad=self.spp_grad,
+                seed=seed,
+                seed_grad=seed + 1,
+            )
             img = self._coverage(rendered)
             outside = self._outside(holes, pose_hole, k)
             covered = dr.sum(img)
             # A silhouette entirely off the film counts as entirely outside (no gradient there).
-            value = dr.select(covered > 1e-6, dr.sum(img * outside) / dr.maximum(covered, 1e-6), mi.Float(1.0))
+            value = dr.select(
+                covered > 1e-6, dr.sum(img * outside) / dr.maximum(covered, 1e-6), mi.Float(1.0)
+            )
             if need_grad:
                 dr.backward(value)
                 g = dr.grad(leaf)

@@ -10,9 +10,8 @@ particle swarm whose particles are evaluated together, or with an nlopt global m
 from __future__ import annotations
 
 import os
-
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -79,21 +78,31 @@ class AttackMemory:
 
     def __init__(self, shapes: int, size: int = 3):
         self.size = int(size)
-        self._poses: list[list[tuple[float, float, np.ndarray, np.ndarray]]] = [[] for _ in range(shapes)]
+        self._poses: list[list[tuple[float, float, np.ndarray, np.ndarray]]] = [
+            [] for _ in range(shapes)
+        ]
 
     def update(self, attack: Attack) -> None:
         """Add each hole's best pose per shape from ``attack``, keep the ``size`` best per shape."""
         for b, kept in enumerate(self._poses):
             for h in range(attack.beta.shape[0]):
-                kept.append((float(attack.beta[h, b]), float(attack.protrusion[h, b]),
-                             np.array(attack.quats[h, b]), np.array(attack.trans[h, b])))
+                kept.append(
+                    (
+                        float(attack.beta[h, b]),
+                        float(attack.protrusion[h, b]),
+                        np.array(attack.quats[h, b]),
+                        np.array(attack.trans[h, b]),
+                    )
+                )
             kept.sort(key=lambda e: (e[0], e[1]))
-            del kept[self.size:]
+            del kept[self.size :]
 
     def poses(self, shape: int) -> tuple[np.ndarray, np.ndarray]:
         """The remembered rotations (W, 4) and translations (W, 2, scene units) of one shape."""
         kept = self._poses[shape]
-        return np.array([e[2] for e in kept]).reshape(-1, 4), np.array([e[3] for e in kept]).reshape(-1, 2)
+        return np.array([e[2] for e in kept]).reshape(-1, 4), np.array(
+            [e[3] for e in kept]
+        ).reshape(-1, 2)
 
 
 class PlayerB:
@@ -111,7 +120,13 @@ class PlayerB:
         Edge samples per segment for the clearance objective (default: from the edge lengths).
     """
 
-    def __init__(self, shapes: list[Shape], frame: Frame, objective: str = "clearance", samples_per_segment: int | None = None):
+    def __init__(
+        self,
+        shapes: list[Shape],
+        frame: Frame,
+        objective: str = "clearance",
+        samples_per_segment: int | None = None,
+    ):
         if objective not in OBJECTIVES:
             raise ValueError(f"unknown objective {objective!r}")
         self.shapes = shapes
@@ -133,9 +148,17 @@ class PlayerB:
                 self._loss = OverlapObjective(self.shapes, self.frame)
         return self._loss
 
-    def attack(self, holes: list[Hole], starts: int, steps: int, learning_rate: float, rng: np.random.Generator,
-               progress: Callable[[int], None] | None = None, centres: np.ndarray | None = None,
-               memory: AttackMemory | None = None) -> Attack:
+    def attack(
+        self,
+        holes: list[Hole],
+        starts: int,
+        steps: int,
+        learning_rate: float,
+        rng: np.random.Generator,
+        progress: Callable[[int], None] | None = None,
+        centres: np.ndarray | None = None,
+        memory: AttackMemory | None = None,
+    ) -> Attack:
         """Player B's best attempt on each hole, for each shape.
 
         Starts are uniform random rotations and translations in +-0.1 of the frame's half extent
@@ -176,14 +199,25 @@ class PlayerB:
                 w = min(len(mq), starts - 1)
                 q0[:, b, :w], t0[:, b, :w] = mq[:w], mt[:w]
             q0, t0 = q0.reshape(k, 4), t0.reshape(k, 2)
-        quats, trans = self.descend(holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress)
+        quats, trans = self.descend(
+            holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress
+        )
         attack = self._score(holes, quats, trans, pose_hole, pose_shape, starts)
         if memory is not None:
             memory.update(attack)
         return attack
 
-    def descend(self, holes: list[Hole], pose_hole: np.ndarray, pose_shape: np.ndarray, q0: np.ndarray, t0: np.ndarray,
-                steps: int, learning_rate: float, progress: Callable[[int], None] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def descend(
+        self,
+        holes: list[Hole],
+        pose_hole: np.ndarray,
+        pose_shape: np.ndarray,
+        q0: np.ndarray,
+        t0: np.ndarray,
+        steps: int,
+        learning_rate: float,
+        progress: Callable[[int], None] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Batched Adam from given starting poses; returns each start's best pose.
 
         Parameters
@@ -217,7 +251,9 @@ class PlayerB:
         loss.bind(pose_shape)
         scale = self.frame.half_extent
         t0 = np.asarray(t0) / scale
-        params = [mi.Float(q0[:, i].astype(np.float32)) for i in range(4)] + [mi.Float(t0[:, i].astype(np.float32)) for i in range(2)]
+        params = [mi.Float(q0[:, i].astype(np.float32)) for i in range(4)] + [
+            mi.Float(t0[:, i].astype(np.float32)) for i in range(2)
+        ]
         opt = BatchedAdam(params, lr=learning_rate)
         hole_idx = mi.UInt32(np.asarray(pose_hole).astype(np.uint32))
         best = [dr.detach(p) for p in params]
@@ -234,14 +270,24 @@ class PlayerB:
             best = [dr.select(improved, dr.detach(p), b) for p, b in zip(opt.params, best)]
             best_loss = dr.select(improved, per_pose, best_loss)
             opt.step()
-            norm = dr.rsqrt(dr.square(opt.params[0]) + dr.square(opt.params[1]) + dr.square(opt.params[2]) + dr.square(opt.params[3]))
+            norm = dr.rsqrt(
+                dr.square(opt.params[0])
+                + dr.square(opt.params[1])
+                + dr.square(opt.params[2])
+                + dr.square(opt.params[3])
+            )
             for i in range(4):
                 opt.params[i] = opt.params[i] * norm
             dr.eval(opt.params, best, best_loss, opt.m, opt.v)
             if progress:
                 progress(step + 1)
         if steps > 0:
-            _, per_pose = loss.loss(tuple(opt.params[:4]), (opt.params[4] * scale, opt.params[5] * scale), stack, hole_idx)
+            _, per_pose = loss.loss(
+                tuple(opt.params[:4]),
+                (opt.params[4] * scale, opt.params[5] * scale),
+                stack,
+                hole_idx,
+            )
             improved = per_pose < best_loss
             best = [dr.select(improved, dr.detach(p), b) for p, b in zip(opt.params, best)]
         final = np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
@@ -253,7 +299,9 @@ class PlayerB:
         prot = np.zeros(len(quats))
         for b in range(n_b):
             sel = pose_shape == b
-            s = score_poses(self.renderers[b], holes, quats[sel], trans[sel], pose_hole=pose_hole[sel])
+            s = score_poses(
+                self.renderers[b], holes, quats[sel], trans[sel], pose_hole=pose_hole[sel]
+            )
             beta[sel], prot[sel] = s.beta, s.protrusion
         beta = beta.reshape(n_h, n_b, starts)
         prot = prot.reshape(n_h, n_b, starts)
@@ -262,8 +310,13 @@ class PlayerB:
         idx = np.arange(n_h)[:, None], np.arange(n_b)[None, :]
         qs = quats.reshape(n_h, n_b, starts, 4)
         ts = trans.reshape(n_h, n_b, starts, 2)
-        return Attack(beta=beta[idx + (best,)], protrusion=prot[idx + (best,)], quats=qs[idx + (best,)],
-                      trans=ts[idx + (best,)], fits=(beta == 0).sum(-1))
+        return Attack(
+            beta=beta[idx + (best,)],
+            protrusion=prot[idx + (best,)],
+            quats=qs[idx + (best,)],
+            trans=ts[idx + (best,)],
+            fits=(beta == 0).sum(-1),
+        )
 
 
 _POOL = None
@@ -275,7 +328,9 @@ def _pool():
     if _POOL is None:
         from concurrent.futures import ThreadPoolExecutor
 
-        _POOL = ThreadPoolExecutor(max_workers=max(1, min(8, os.cpu_count() or 1)), thread_name_prefix="sieve-mi-raster")
+        _POOL = ThreadPoolExecutor(
+            max_workers=max(1, min(8, os.cpu_count() or 1)), thread_name_prefix="sieve-mi-raster"
+        )
     return _POOL
 
 
@@ -312,7 +367,9 @@ class PlayerA:
         zero = np.zeros(len(quats), int)
         return self.renderer.masks(quats, trans, self.frame, zero, zero, self.frame.resolution)
 
-    def holes(self, quats: np.ndarray, trans: np.ndarray | None = None, base: np.ndarray | None = None) -> list[Hole]:
+    def holes(
+        self, quats: np.ndarray, trans: np.ndarray | None = None, base: np.ndarray | None = None
+    ) -> list[Hole]:
         """The hole H for each pose: silhouette, dilated by the tolerance, holes filled.
 
         Parameters
@@ -335,9 +392,23 @@ class PlayerA:
         # SciPy's distance transforms release the GIL: build the particles' holes in parallel.
         return list(_pool().map(one, masks))
 
-    def search(self, player_b: PlayerB, *, method: str, particles: int, iterations: int, starts: int, steps: int,
-               learning_rate: float, rng: np.random.Generator, seed: int, inertia: float = 0.25, c_personal: float = 0.25,
-               c_global: float = 0.25, progress: Callable[[int, float], None] | None = None):
+    def search(
+        self,
+        player_b: PlayerB,
+        *,
+        method: str,
+        particles: int,
+        iterations: int,
+        starts: int,
+        steps: int,
+        learning_rate: float,
+        rng: np.random.Generator,
+        seed: int,
+        inertia: float = 0.25,
+        c_personal: float = 0.25,
+        c_global: float = 0.25,
+        progress: Callable[[int, float], None] | None = None,
+    ):
         """Global search over A's rotation.
 
         Returns
@@ -356,9 +427,27 @@ class PlayerA:
 
         if method == "pso":
             x0 = random_uniform(particles, rng)
-            return particle_swarm(evaluate, x0, iterations, rng, inertia, c_personal, c_global, project=normalize, progress=progress)
+            return particle_swarm(
+                evaluate,
+                x0,
+                iterations,
+                rng,
+                inertia,
+                c_personal,
+                c_global,
+                project=normalize,
+                progress=progress,
+            )
         lower, upper = -np.pi * np.ones(3), np.pi * np.ones(3)
         x0 = rng.uniform(-np.pi, np.pi, 3)
-        x, f, history = nlopt_maximise(lambda v: float(evaluate(from_rotvec(v)[None])[0]), lower, upper, method,
-                                       particles * (iterations + 1), x0, seed, progress)
+        x, f, history = nlopt_maximise(
+            lambda v: float(evaluate(from_rotvec(v)[None])[0]),
+            lower,
+            upper,
+            method,
+            particles * (iterations + 1),
+            x0,
+            seed,
+            progress,
+        )
         return from_rotvec(x), f, history

@@ -44,9 +44,14 @@ class Frame:
         """Continuous (column, row) coordinates of points ``xy`` (..., 2); pixel centres are integers."""
         xy = np.asarray(xy, dtype=np.float64)
         h = self.pixel_size
-        return np.stack([(xy[..., 0] + self.half_extent) / h - 0.5, (self.half_extent - xy[..., 1]) / h - 0.5], -1)
+        return np.stack(
+            [(xy[..., 0] + self.half_extent) / h - 0.5, (self.half_extent - xy[..., 1]) / h - 0.5],
+            -1,
+        )
 
-    def window_centres(self, row0: np.ndarray, col0: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    def window_centres(
+        self, row0: np.ndarray, col0: np.ndarray, size: int
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Pixel-centre coordinates of size x size windows whose top-left lattice pixel is (row0, col0).
 
         Returns
@@ -61,7 +66,7 @@ class Frame:
         return x, y
 
     @staticmethod
-    def covering(radius: float, resolution: int, margin_px: float = 3.0) -> "Frame":
+    def covering(radius: float, resolution: int, margin_px: float = 3.0) -> Frame:
         """The frame of given resolution whose inscribed disk holds a disk of ``radius`` plus a margin.
 
         Parameters

@@ -43,18 +43,33 @@ def report_dict(result: Result) -> dict:
     attack = result.attack
     passes = []
     for i, (entry, shape) in enumerate(zip(scene.passes, result.pass_shapes)):
-        passes.append({"mesh": entry.mesh, "name": shape.name, "rotation": [float(x) for x in result.pass_quats[i]],
-                       "translation": [float(x) for x in result.pass_trans[i]], "centre": [float(x) for x in shape.centre],
-                       "faces": shape.face_count})
+        passes.append(
+            {
+                "mesh": entry.mesh,
+                "name": shape.name,
+                "rotation": [float(x) for x in result.pass_quats[i]],
+                "translation": [float(x) for x in result.pass_trans[i]],
+                "centre": [float(x) for x in shape.centre],
+                "faces": shape.face_count,
+            }
+        )
         if i < len(result.alone) and result.alone[i] is not None:
             passes[-1]["alone_loss"] = float(result.alone[i])
     blocks = []
     for j, (entry, shape) in enumerate(zip(scene.blocks, result.block_shapes)):
         beta = float(attack.beta[0, j])
-        row = {"mesh": entry.mesh, "name": shape.name, "loss": beta, "blocked": bool(attack.blocked()[0, j]),
-                       "protrusion": float(attack.protrusion[0, j]), "rotation": [float(x) for x in attack.quats[0, j]],
-                       "translation": [float(x) for x in attack.trans[0, j]], "fitting_starts": int(attack.fits[0, j]),
-                       "centre": [float(x) for x in shape.centre], "faces": shape.face_count}
+        row = {
+            "mesh": entry.mesh,
+            "name": shape.name,
+            "loss": beta,
+            "blocked": bool(attack.blocked()[0, j]),
+            "protrusion": float(attack.protrusion[0, j]),
+            "rotation": [float(x) for x in attack.quats[0, j]],
+            "translation": [float(x) for x in attack.trans[0, j]],
+            "fitting_starts": int(attack.fits[0, j]),
+            "centre": [float(x) for x in shape.centre],
+            "faces": shape.face_count,
+        }
         if attack.margin_beta is not None:
             row["margin_loss"] = float(attack.margin_beta[0, j])
             row["margin_protrusion"] = float(attack.margin_protrusion[0, j])
@@ -65,7 +80,11 @@ def report_dict(result: Result) -> dict:
         "winner": result.winner,
         "pass": passes,
         "block": blocks,
-        "hole": {"area": hole.area, "resolution": hole.frame.resolution, "half_extent": hole.frame.half_extent},
+        "hole": {
+            "area": hole.area,
+            "resolution": hole.frame.resolution,
+            "half_extent": hole.frame.half_extent,
+        },
         "settings": scene.settings(),
         "variant": result.variant,
         "search_value": None if np.isnan(result.search_value) else float(result.search_value),
@@ -75,8 +94,8 @@ def report_dict(result: Result) -> dict:
         "pixel_size": hole.frame.pixel_size,
         "units": scene.units,
         "conventions": "rotation q = (w, x, y, z) acts on the mesh's points about its centre (bounding-box centre, "
-                       "given in file units times scale); the silhouette is the projection onto the xy-plane; "
-                       "translations are in the xy-plane in scene units, relative to the hole's centre",
+        "given in file units times scale); the silhouette is the projection onto the xy-plane; "
+        "translations are in the xy-plane in scene units, relative to the hole's centre",
     }
 
 
@@ -90,7 +109,14 @@ def _convergence_png(path: str, history: list[float]) -> None:
     if history:
         ax.plot(range(len(history)), history, marker="o")
     else:
-        ax.text(0.5, 0.5, "A's rotation was fixed: no search", ha="center", va="center", transform=ax.transAxes)
+        ax.text(
+            0.5,
+            0.5,
+            "A's rotation was fixed: no search",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+        )
     ax.set_xlabel("search iteration")
     ax.set_ylabel("best game value (min beta)")
     ax.set_title("Convergence of player A's search")
@@ -116,9 +142,23 @@ def _overlay_png(path: str, result: Result, b_masks: list) -> None:
     for j in range(cols):
         ax = axes[0, j]
         ax.set_facecolor("#d8d8d8")
-        ax.imshow(np.where(result.hole.mask, 1.0, np.nan), extent=(-r, r, -r, r), cmap="Greys", vmin=0, vmax=1.6, alpha=0.9)
+        ax.imshow(
+            np.where(result.hole.mask, 1.0, np.nan),
+            extent=(-r, r, -r, r),
+            cmap="Greys",
+            vmin=0,
+            vmax=1.6,
+            alpha=0.9,
+        )
         for a_mask in result.a_masks:
-            ax.contour(*frame.centres(), a_mask.astype(float), levels=[0.5], colors="k", linewidths=0.8, linestyles="--")
+            ax.contour(
+                *frame.centres(),
+                a_mask.astype(float),
+                levels=[0.5],
+                colors="k",
+                linewidths=0.8,
+                linestyles="--",
+            )
         if j < n_b:
             (x0, x1, y0, y1), m = b_masks[j]
             colour = colours[j % 10]
@@ -128,7 +168,10 @@ def _overlay_png(path: str, result: Result, b_masks: list) -> None:
             ax.imshow(rgba, extent=(x0, x1, y0, y1))
             beta = result.attack.beta[0, j]
             status = "blocked" if result.attack.blocked()[0, j] else "PASSES"
-            ax.set_title(f"{result.block_shapes[j].name}: {status}\nbeta={beta:.4f}, protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}", fontsize=9)
+            ax.set_title(
+                f"{result.block_shapes[j].name}: {status}\nbeta={beta:.4f}, protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}",
+                fontsize=9,
+            )
         lim = max(r, *(max(abs(v) for v in b_masks[j][0]) for j in range(n_b))) if n_b else r
         ax.set_xlim(-lim, lim)
         ax.set_ylim(-lim, lim)
@@ -140,7 +183,9 @@ def _overlay_png(path: str, result: Result, b_masks: list) -> None:
     plt.close(fig)
 
 
-def write_outputs(result: Result, out_dir: str, *, fabricate: bool = True, figure: bool = True) -> dict:
+def write_outputs(
+    result: Result, out_dir: str, *, fabricate: bool = True, figure: bool = True
+) -> dict:
     """Write every output of a solve into ``out_dir`` (replacing it) and return the report dict.
 
     Files: report.json, hole.png, hole.exr, masks/a_silhouette.exr, masks/block_<j>_<name>.exr,
@@ -161,15 +206,28 @@ def write_outputs(result: Result, out_dir: str, *, fabricate: bool = True, figur
         write_exr(os.path.join(tmp, "masks", "a_silhouette.exr"), result.a_mask.astype(np.float32))
         if len(result.a_masks) > 1:
             for i, (m, shape) in enumerate(zip(result.a_masks, result.pass_shapes)):
-                write_exr(os.path.join(tmp, "masks", f"pass_{i}_{_safe(shape.name)}.exr"), m.astype(np.float32))
+                write_exr(
+                    os.path.join(tmp, "masks", f"pass_{i}_{_safe(shape.name)}.exr"),
+                    m.astype(np.float32),
+                )
         b_masks = []
         for j, shape in enumerate(result.block_shapes):
-            scores, (row0, col0, size, masks) = score_poses(result.renderers[j], hole, result.attack.quats[0, j:j + 1],
-                                                            result.attack.trans[0, j:j + 1], return_masks=True)
-            write_exr(os.path.join(tmp, "masks", f"block_{j}_{_safe(shape.name)}.exr"), masks[0].astype(np.float32))
+            scores, (row0, col0, size, masks) = score_poses(
+                result.renderers[j],
+                hole,
+                result.attack.quats[0, j : j + 1],
+                result.attack.trans[0, j : j + 1],
+                return_masks=True,
+            )
+            write_exr(
+                os.path.join(tmp, "masks", f"block_{j}_{_safe(shape.name)}.exr"),
+                masks[0].astype(np.float32),
+            )
             x, y = hole.frame.window_centres(row0, col0, size)
             h = hole.frame.pixel_size
-            b_masks.append(((x[0, 0] - h / 2, x[0, -1] + h / 2, y[0, -1] - h / 2, y[0, 0] + h / 2), masks[0]))
+            b_masks.append(
+                ((x[0, 0] - h / 2, x[0, -1] + h / 2, y[0, -1] - h / 2, y[0, 0] + h / 2), masks[0])
+            )
         _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best)
         _overlay_png(os.path.join(tmp, "overlay.png"), result, b_masks)
         if fabricate:
@@ -196,14 +254,24 @@ def summary_table(report: dict) -> str:
     for p in report["pass"]:
         rows.append(("pass", p["name"], "-", "-", "passes (part of the hole)"))
     for b in report["block"]:
-        rows.append(("block", b["name"], f"{b['loss']:.4f}", f"{b['protrusion']:.3f}", "blocked" if b["blocked"] else "PASSES"))
+        rows.append(
+            (
+                "block",
+                b["name"],
+                f"{b['loss']:.4f}",
+                f"{b['protrusion']:.3f}",
+                "blocked" if b["blocked"] else "PASSES",
+            )
+        )
     widths = [max(len(r[i]) for r in rows) for i in range(5)]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
     t = report["timings"]
     lines.append("")
-    lines.append(f"winner: {report['winner']}   search {t.get('search_s', 0):.1f} s, verdict {t.get('verdict_s', 0):.1f} s, "
-                 f"pixel size {report['pixel_size']:.4g} {units}")
+    lines.append(
+        f"winner: {report['winner']}   search {t.get('search_s', 0):.1f} s, verdict {t.get('verdict_s', 0):.1f} s, "
+        f"pixel size {report['pixel_size']:.4g} {units}"
+    )
     hint = merge_hint(report)
     if hint:
         lines.append(hint)
@@ -221,5 +289,7 @@ def merge_hint(report: dict) -> str | None:
         return None
     through = ", ".join(b["name"] for b in report["block"] if not b["blocked"])
     each = ", ".join(f"{p['name']} {a:.3f}" for p, a in zip(passes, alone))
-    return (f"hint: the merged hole lets {through} through, but each pass shape alone blocked every block shape "
-            f"(weakest loss: {each}); set [layout] mode = \"separate\" for a valid sieve, or try another --seed")
+    return (
+        f"hint: the merged hole lets {through} through, but each pass shape alone blocked every block shape "
+        f'(weakest loss: {each}); set [layout] mode = "separate" for a valid sieve, or try another --seed'
+    )

@@ -104,7 +104,15 @@ def random_uniform(n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` rotations drawn uniformly from SO(3) (Shoemake's method), shape (n, 4)."""
     u1, u2, u3 = rng.random((3, n))
     a, b = np.sqrt(1 - u1), np.sqrt(u1)
-    q = np.stack([a * np.sin(2 * np.pi * u2), a * np.cos(2 * np.pi * u2), b * np.sin(2 * np.pi * u3), b * np.cos(2 * np.pi * u3)], -1)
+    q = np.stack(
+        [
+            a * np.sin(2 * np.pi * u2),
+            a * np.cos(2 * np.pi * u2),
+            b * np.sin(2 * np.pi * u3),
+            b * np.cos(2 * np.pi * u3),
+        ],
+        -1,
+    )
     return normalize(q)
 
 

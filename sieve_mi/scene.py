@@ -105,8 +105,13 @@ class Scene:
 
     def settings(self) -> dict:
         """The search and fabrication settings, as stored in ``report.json``."""
-        return {"units": self.units, "fabrication": asdict(self.fabrication), "solver": asdict(self.solver),
-                "verdict": asdict(self.verdict), "layout": asdict(self.layout)}
+        return {
+            "units": self.units,
+            "fabrication": asdict(self.fabrication),
+            "solver": asdict(self.solver),
+            "verdict": asdict(self.verdict),
+            "layout": asdict(self.layout),
+        }
 
 
 _TOP_KEYS = {"name", "units", "pass", "block", "fabrication", "solver", "verdict", "layout"}
@@ -127,16 +132,22 @@ class _Reader:
             if key not in allowed:
                 raise self.error(key, f"unknown key; known keys here: {', '.join(sorted(allowed))}")
 
-    def number(self, key, default, *, integer=False, minimum=None, maximum=None, exclusive_min=False):
+    def number(
+        self, key, default, *, integer=False, minimum=None, maximum=None, exclusive_min=False
+    ):
         value = self.table.get(key, default)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(key, f"expected a {'whole number' if integer else 'number'}, got {value!r}")
+            raise self.error(
+                key, f"expected a {'whole number' if integer else 'number'}, got {value!r}"
+            )
         if integer and (isinstance(value, float) and not value.is_integer()):
             raise self.error(key, f"expected a whole number, got {value!r}")
         if not math.isfinite(value):
             raise self.error(key, f"expected a finite number, got {value!r}")
         if minimum is not None and (value <= minimum if exclusive_min else value < minimum):
-            raise self.error(key, f"must be {'>' if exclusive_min else '>='} {minimum}, got {value!r}")
+            raise self.error(
+                key, f"must be {'>' if exclusive_min else '>='} {minimum}, got {value!r}"
+            )
         if maximum is not None and value > maximum:
             raise self.error(key, f"must be <= {maximum}, got {value!r}")
         return int(value) if integer else float(value)
@@ -163,19 +174,28 @@ def _read_shape(path: str, table, where: str) -> ShapeEntry:
     r.check_keys({f.name for f in fields(ShapeEntry)})
     if "mesh" not in table:
         raise r.error("mesh", "missing; give the path of a mesh file (relative to the scene file)")
-    entry = ShapeEntry(mesh=r.string("mesh", None), scale=r.number("scale", 1.0, minimum=0, exclusive_min=True))
+    entry = ShapeEntry(
+        mesh=r.string("mesh", None), scale=r.number("scale", 1.0, minimum=0, exclusive_min=True)
+    )
     if "name" in table:
         entry.name = r.string("name", None)
     if "rotation" in table:
         q = table["rotation"]
-        if not (isinstance(q, list) and len(q) == 4 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in q)):
+        if not (
+            isinstance(q, list)
+            and len(q) == 4
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in q)
+        ):
             raise r.error("rotation", f"expected a quaternion [w, x, y, z], got {q!r}")
         qn = np.asarray(q, float)
         norm = float(np.linalg.norm(qn))
         if not np.all(np.isfinite(qn)) or norm < 1e-9:
             raise r.error("rotation", f"quaternion {q!r} has no direction")
         if abs(norm - 1.0) > 1e-3:
-            raise r.error("rotation", f"quaternion {q!r} is not a unit quaternion (norm {norm:.4g}); divide it by its norm")
+            raise r.error(
+                "rotation",
+                f"quaternion {q!r} is not a unit quaternion (norm {norm:.4g}); divide it by its norm",
+            )
         entry.rotation = list(qn / norm)
     return entry
 
@@ -207,7 +227,9 @@ def load_scene(path: str) -> Scene:
     default_name = os.path.splitext(os.path.basename(path))[0]
     name = top.string("name", default_name)
     if any(c in name for c in "/\\") or name in (".", ".."):
-        raise top.error("name", f"'{name}' is used as a folder name; use letters, digits, '-' and '_'")
+        raise top.error(
+            "name", f"'{name}' is used as a folder name; use letters, digits, '-' and '_'"
+        )
     units = top.string("units", "mm", choices=sorted(_UNITS))
     for key in ("pass", "block"):
         if key not in data:
@@ -218,13 +240,19 @@ def load_scene(path: str) -> Scene:
     blocks = [_read_shape(path, t, f"block[{i}]") for i, t in enumerate(data["block"])]
     for i, b in enumerate(blocks):
         if b.rotation is not None:
-            raise SieveError(f"{path}: block[{i}].rotation: shapes to block are tried in every orientation; remove 'rotation'")
+            raise SieveError(
+                f"{path}: block[{i}].rotation: shapes to block are tried in every orientation; remove 'rotation'"
+            )
 
     fab_t = _table(path, data, "fabrication")
     r = _Reader(path, fab_t, "fabrication.")
     r.check_keys({f.name for f in fields(Fabrication)})
-    fab = Fabrication(tolerance=r.number("tolerance", 1.0, minimum=0), fill_holes=r.boolean("fill_holes", True),
-                      block_margin=r.number("block_margin", 0.0, minimum=0), border=r.number("border", 5.0, minimum=0, exclusive_min=True))
+    fab = Fabrication(
+        tolerance=r.number("tolerance", 1.0, minimum=0),
+        fill_holes=r.boolean("fill_holes", True),
+        block_margin=r.number("block_margin", 0.0, minimum=0),
+        border=r.number("border", 5.0, minimum=0, exclusive_min=True),
+    )
     if "thickness" in fab_t:
         fab.thickness = r.number("thickness", None, minimum=0, exclusive_min=True)
 
@@ -267,8 +295,17 @@ def load_scene(path: str) -> Scene:
         rounds=r.number("rounds", 3, integer=True, minimum=1, maximum=100),
         alternatives=r.number("alternatives", 2, integer=True, minimum=0, maximum=100),
     )
-    return Scene(path=path, name=name, units=units, passes=passes, blocks=blocks, fabrication=fab, solver=solver,
-                 verdict=verdict, layout=layout)
+    return Scene(
+        path=path,
+        name=name,
+        units=units,
+        passes=passes,
+        blocks=blocks,
+        fabrication=fab,
+        solver=solver,
+        verdict=verdict,
+        layout=layout,
+    )
 
 
 def _table(path: str, data: dict, key: str) -> dict:

@@ -33,7 +33,9 @@ class PoseScores:
     protrusion: np.ndarray
 
 
-def window_for(renderer: SilhouetteRenderer, frame: Frame, trans: np.ndarray, cap: int | None = None):
+def window_for(
+    renderer: SilhouetteRenderer, frame: Frame, trans: np.ndarray, cap: int | None = None
+):
     """Lattice windows covering each pose's bounding disk: (row0, col0, size)."""
     h = frame.pixel_size
     r = renderer.shape.radius
@@ -41,13 +43,24 @@ def window_for(renderer: SilhouetteRenderer, frame: Frame, trans: np.ndarray, ca
     size = min(full, cap or 2 * frame.resolution + 3)
     trans = np.atleast_2d(trans)
     # Centre the window on the pose when it is capped, else put its corner at the disk's corner.
-    start = frame.to_pixel(trans) - size / 2 if size < full else frame.to_pixel(trans + np.array([-r, r]))
+    start = (
+        frame.to_pixel(trans) - size / 2
+        if size < full
+        else frame.to_pixel(trans + np.array([-r, r]))
+    )
     start = np.floor(start).astype(np.int64) - 1
     return start[:, 1], start[:, 0], size
 
 
-def score_poses(renderer: SilhouetteRenderer, holes, quats: np.ndarray, trans: np.ndarray, pose_hole: np.ndarray | None = None,
-                return_masks: bool = False, chunk_rays: int = 1 << 24):
+def score_poses(
+    renderer: SilhouetteRenderer,
+    holes,
+    quats: np.ndarray,
+    trans: np.ndarray,
+    pose_hole: np.ndarray | None = None,
+    return_masks: bool = False,
+    chunk_rays: int = 1 << 24,
+):
     """Beta and protrusion of poses of one shape against one or several holes.
 
     Parameters
@@ -90,7 +103,9 @@ def score_poses(renderer: SilhouetteRenderer, holes, quats: np.ndarray, trans: n
         hit, pose, row, col = renderer.trace(quats[sl], trans[sl], frame, row0[sl], col0[sl], size)
         rc, cc = dr.clip(row, 0, n - 1), dr.clip(col, 0, n - 1)
         hole_of = dr.gather(mi.UInt32, mi.UInt32(pose_hole[sl].astype(np.uint32)), pose)
-        d = dr.gather(mi.Float, stack.texture, hole_of * (n * n) + mi.UInt32(rc) * n + mi.UInt32(cc))
+        d = dr.gather(
+            mi.Float, stack.texture, hole_of * (n * n) + mi.UInt32(rc) * n + mi.UInt32(cc)
+        )
         inside = (row == rc) & (col == cc) & (d == 0)
         dist = (d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))) * frame.pixel_size
         out = hit & ~inside
@@ -107,9 +122,16 @@ def score_poses(renderer: SilhouetteRenderer, holes, quats: np.ndarray, trans: n
     h = frame.pixel_size
     x0 = -frame.half_extent + (col0 + 0.5) * h
     y0 = frame.half_extent - (row0 + 0.5) * h
-    clipped = (lo[:, 0] < x0 - h) | (hi[:, 0] > x0 + (size - 1) * h + h) | (hi[:, 1] > y0 + h) | (lo[:, 1] < y0 - (size - 1) * h - h)
+    clipped = (
+        (lo[:, 0] < x0 - h)
+        | (hi[:, 0] > x0 + (size - 1) * h + h)
+        | (hi[:, 1] > y0 + h)
+        | (lo[:, 1] < y0 - (size - 1) * h - h)
+    )
     for k in np.flatnonzero(clipped):
-        corners = np.array([[lo[k, 0], lo[k, 1]], [lo[k, 0], hi[k, 1]], [hi[k, 0], lo[k, 1]], [hi[k, 0], hi[k, 1]]])
+        corners = np.array(
+            [[lo[k, 0], lo[k, 1]], [lo[k, 0], hi[k, 1]], [hi[k, 0], lo[k, 1]], [hi[k, 0], hi[k, 1]]]
+        )
         prot[k] = max(prot[k], float(holes[pose_hole[k]].outside_distance(corners).max()))
         beta[k] = max(beta[k], 1.0 / npix)
     scores = PoseScores(beta=beta, protrusion=prot)

@@ -291,7 +291,9 @@ def bowtie_polygon(width: float, height: float, waist: float) -> np.ndarray:
     return np.array([[-w, -h], [0.0, -s], [w, -h], [w, h], [0.0, s], [-w, h]])
 
 
-def bowtie(width: float = 30.0, height: float = 20.0, thickness: float = 6.0, waist: float = 6.0) -> trimesh.Trimesh:
+def bowtie(
+    width: float = 30.0, height: float = 20.0, thickness: float = 6.0, waist: float = 6.0
+) -> trimesh.Trimesh:
     """A bowtie plate: :func:`bowtie_polygon` extruded along z.
 
     Parameters
@@ -340,9 +342,13 @@ def arch_polygon(width: float, height: float, thickness: float, segments: int = 
     _check_positive(width=width, height=height, thickness=thickness)
     r = width / 2 - thickness
     if r <= 0:
-        raise ValueError(f"thickness ({thickness}) must be below width / 2 ({width / 2}) to leave an opening")
+        raise ValueError(
+            f"thickness ({thickness}) must be below width / 2 ({width / 2}) to leave an opening"
+        )
     if height <= r:
-        raise ValueError(f"height ({height}) must exceed the opening radius width/2 - thickness ({r})")
+        raise ValueError(
+            f"height ({height}) must exceed the opening radius width/2 - thickness ({r})"
+        )
     if int(segments) != segments or segments < 2:
         raise ValueError(f"segments must be an integer >= 2, got {segments!r}")
     w = width / 2
@@ -353,7 +359,11 @@ def arch_polygon(width: float, height: float, thickness: float, segments: int = 
 
 
 def arch(
-    width: float = 30.0, height: float = 20.0, thickness: float = 6.0, depth: float = 10.0, segments: int = 16
+    width: float = 30.0,
+    height: float = 20.0,
+    thickness: float = 6.0,
+    depth: float = 10.0,
+    segments: int = 16,
 ) -> trimesh.Trimesh:
     """A bridge-like arch: :func:`arch_polygon` extruded along z.
 
@@ -407,7 +417,9 @@ def _flatten_path(vertices: np.ndarray, codes: np.ndarray, curve_segments: int) 
             i += 2
         elif code == Path.CURVE4:
             p0, p1, p2, p3 = current[-1], vertices[i], vertices[i + 1], vertices[i + 2]
-            current.extend((1 - t) ** 3 * p0 + 3 * (1 - t) ** 2 * t * p1 + 3 * (1 - t) * t**2 * p2 + t**3 * p3)
+            current.extend(
+                (1 - t) ** 3 * p0 + 3 * (1 - t) ** 2 * t * p1 + 3 * (1 - t) * t**2 * p2 + t**3 * p3
+            )
             i += 3
         elif code == Path.CLOSEPOLY:
             if len(current) >= 3:
@@ -463,7 +475,9 @@ def glyph_contours(
     prop = FontProperties(family=font, weight=weight)
     prop.set_file(findfont(prop, fallback_to_default=False))
     path = TextPath((0.0, 0.0), char, size=100.0, prop=prop)
-    contours = _flatten_path(np.asarray(path.vertices, dtype=np.float64), np.asarray(path.codes), int(curve_segments))
+    contours = _flatten_path(
+        np.asarray(path.vertices, dtype=np.float64), np.asarray(path.codes), int(curve_segments)
+    )
     if not contours:
         raise ValueError(f"character {char!r} has no outline in font {font!r}")
     return contours

@@ -31,7 +31,9 @@ class SilhouetteRenderer:
         import mitsuba as mi
 
         self.shape = shape
-        mesh = mi.Mesh(shape.name or "shape", len(shape.vertices), len(shape.faces), has_vertex_normals=False)
+        mesh = mi.Mesh(
+            shape.name or "shape", len(shape.vertices), len(shape.faces), has_vertex_normals=False
+        )
         params = mi.traverse(mesh)
         params["vertex_positions"] = mi.Float(shape.vertices.astype(np.float32).ravel())
         params["faces"] = mi.UInt32(shape.faces.astype(np.uint32).ravel())
@@ -39,7 +41,15 @@ class SilhouetteRenderer:
         self._scene = mi.load_dict({"type": "scene", "shape": mesh})
         self._mi, self._dr = mi, dr
 
-    def trace(self, quats: np.ndarray, trans: np.ndarray, frame: Frame, row0: np.ndarray, col0: np.ndarray, size: int):
+    def trace(
+        self,
+        quats: np.ndarray,
+        trans: np.ndarray,
+        frame: Frame,
+        row0: np.ndarray,
+        col0: np.ndarray,
+        size: int,
+    ):
         """Trace one ray per pixel centre of K windows of the frame's pixel lattice (Dr.Jit arrays).
 
         Parameters
@@ -80,13 +90,25 @@ class SilhouetteRenderer:
         y = half - (mi.Float(row) + 0.5) * h - dr.gather(mi.Float, ty, pose)
         reach = self.shape.radius * 1.01 + h
         g = [dr.gather(mi.Float, c, pose) for c in cols]
-        origin = mi.Point3f(g[0] * x + g[1] * y - g[2] * reach, g[3] * x + g[4] * y - g[5] * reach, g[6] * x + g[7] * y - g[8] * reach)
+        origin = mi.Point3f(
+            g[0] * x + g[1] * y - g[2] * reach,
+            g[3] * x + g[4] * y - g[5] * reach,
+            g[6] * x + g[7] * y - g[8] * reach,
+        )
         ray = mi.Ray3f(origin, mi.Vector3f(g[2], g[5], g[8]))
         ray.maxt = mi.Float(2.0 * reach)
         return self._scene.ray_test(ray), pose, row, col
 
-    def masks(self, quats: np.ndarray, trans: np.ndarray, frame: Frame, row0: np.ndarray, col0: np.ndarray, size: int,
-              chunk_rays: int = 1 << 24) -> np.ndarray:
+    def masks(
+        self,
+        quats: np.ndarray,
+        trans: np.ndarray,
+        frame: Frame,
+        row0: np.ndarray,
+        col0: np.ndarray,
+        size: int,
+        chunk_rays: int = 1 << 24,
+    ) -> np.ndarray:
         """Binary silhouettes of K poses, each in a size x size window of the frame's pixel lattice.
 
         Parameters are those of :meth:`trace`; ``chunk_rays`` bounds the rays traced in one call.
@@ -109,9 +131,18 @@ class SilhouetteRenderer:
     def frame_mask(self, quat: np.ndarray, trans: np.ndarray, frame: Frame) -> np.ndarray:
         """The silhouette of one pose over the whole frame, (N, N) bool."""
         n = frame.resolution
-        return self.masks(np.asarray(quat)[None], np.asarray(trans)[None], frame, np.zeros(1, int), np.zeros(1, int), n)[0]
+        return self.masks(
+            np.asarray(quat)[None],
+            np.asarray(trans)[None],
+            frame,
+            np.zeros(1, int),
+            np.zeros(1, int),
+            n,
+        )[0]
 
-    def projected_extent(self, quats: np.ndarray, trans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def projected_extent(
+        self, quats: np.ndarray, trans: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned bounds of each pose's projection, from the convex hull's vertices.
 
         Returns

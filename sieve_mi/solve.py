@@ -9,7 +9,15 @@ import numpy as np
 from scipy import ndimage
 
 from sieve_mi.hole import Hole
-from sieve_mi.layout import LayoutSettings, alternative_rotations, compose, place, separate_layout, sort_by_area, union_frame
+from sieve_mi.layout import (
+    LayoutSettings,
+    alternative_rotations,
+    compose,
+    place,
+    separate_layout,
+    sort_by_area,
+    union_frame,
+)
 from sieve_mi.meshes import Shape, load_shape
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.players import Attack, AttackMemory, PlayerA, PlayerB
@@ -93,7 +101,9 @@ def hole_frame(shape: Shape, tolerance: float, resolution: int) -> Frame:
     return Frame.covering(shape.radius + tolerance, resolution)
 
 
-def frame_for(passes: list[Shape], tolerance: float, resolution: int, trans: np.ndarray | None = None) -> Frame:
+def frame_for(
+    passes: list[Shape], tolerance: float, resolution: int, trans: np.ndarray | None = None
+) -> Frame:
     """The frame of the final hole.
 
     One shape: its own frame. Several shapes at known in-plane translations ``trans`` (scene
@@ -143,9 +153,21 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Ba
     def report(it, best):
         bar.update(s.particles if s.outer == "pso" else 1, best=f"{best:.4f}", stage=label)
 
-    return player_a.search(player_b, method=s.outer, particles=s.particles, iterations=s.iterations, starts=s.starts,
-                           steps=s.steps, learning_rate=s.learning_rate, rng=rng, seed=seed, inertia=s.inertia,
-                           c_personal=s.c_personal, c_global=s.c_global, progress=report)
+    return player_a.search(
+        player_b,
+        method=s.outer,
+        particles=s.particles,
+        iterations=s.iterations,
+        starts=s.starts,
+        steps=s.steps,
+        learning_rate=s.learning_rate,
+        rng=rng,
+        seed=seed,
+        inertia=s.inertia,
+        c_personal=s.c_personal,
+        c_global=s.c_global,
+        progress=report,
+    )
 
 
 def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: int, progress: bool):
@@ -186,7 +208,9 @@ def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: in
         frame = union_frame([p.radius for p in passes], fab.tolerance, s.resolution)
         players = [PlayerA(p, frame, fab.tolerance, fab.fill_holes) for p in passes]
         player_b = PlayerB(blocks, frame, s.objective)
-        settings = LayoutSettings(lay.tau, lay.rho, lay.eta, lay.alpha, lay.c_personal, lay.c_global)
+        settings = LayoutSettings(
+            lay.tau, lay.rho, lay.eta, lay.alpha, lay.c_personal, lay.c_global
+        )
         order = sort_by_area(players, quats)
         placed = [order[0]]
         memory = AttackMemory(len(blocks), size=max(1, s.starts // 3))
@@ -205,16 +229,33 @@ def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: in
                 tries += [(None, q, 1) for q in alternatives.get(i, [])]
                 if len(placed) == 1:
                     tries += [(q, quats[i], 1) for q in alternatives.get(placed[0], [])]
-            current = compose([players[j] for j in placed], quats[placed], trans[placed], fab.fill_holes).mask
+            current = compose(
+                [players[j] for j in placed], quats[placed], trans[placed], fab.fill_holes
+            ).mask
             kept, kept_base = None, quats[placed[0]]
             for attempt, (base_q, q, rounds) in enumerate(tries):
                 base = current
                 if base_q is not None:  # the first pair, with another rotation of the base shape
-                    base = compose([players[placed[0]]], base_q[None], trans[placed], fab.fill_holes).mask
-                got = place(players[i], player_b, base, q, particles=s.particles, iterations=s.iterations,
-                            starts=s.starts, steps=s.steps, learning_rate=s.learning_rate, settings=settings, rng=rng,
-                            progress=report, memory=memory, recheck=(scene.verdict.starts, scene.verdict.steps),
-                            rounds=rounds)
+                    base = compose(
+                        [players[placed[0]]], base_q[None], trans[placed], fab.fill_holes
+                    ).mask
+                got = place(
+                    players[i],
+                    player_b,
+                    base,
+                    q,
+                    particles=s.particles,
+                    iterations=s.iterations,
+                    starts=s.starts,
+                    steps=s.steps,
+                    learning_rate=s.learning_rate,
+                    settings=settings,
+                    rng=rng,
+                    progress=report,
+                    memory=memory,
+                    recheck=(scene.verdict.starts, scene.verdict.steps),
+                    rounds=rounds,
+                )
                 history.best += got.history.best
                 history.evaluations += got.history.evaluations
                 label = f"place {passes[i].name}" + (f" (try {attempt + 1})" if attempt else "")
@@ -243,12 +284,18 @@ def weakest_hole(attack: Attack) -> Attack:
         return attack
     order = np.lexsort((attack.protrusion, attack.beta), axis=0)[0]
     cols = np.arange(attack.beta.shape[1])
-    return Attack(beta=attack.beta[order, cols][None], protrusion=attack.protrusion[order, cols][None],
-                  quats=attack.quats[order, cols][None], trans=attack.trans[order, cols][None],
-                  fits=attack.fits.sum(axis=0)[None])
+    return Attack(
+        beta=attack.beta[order, cols][None],
+        protrusion=attack.protrusion[order, cols][None],
+        quats=attack.quats[order, cols][None],
+        trans=attack.trans[order, cols][None],
+        fits=attack.fits.sum(axis=0)[None],
+    )
 
 
-def solve(scene: Scene, *, variant: str | None = None, seed: int | None = None, progress: bool = True) -> Result:
+def solve(
+    scene: Scene, *, variant: str | None = None, seed: int | None = None, progress: bool = True
+) -> Result:
     """Play the sieve game for a scene.
 
     Parameters
@@ -280,7 +327,9 @@ def solve(scene: Scene, *, variant: str | None = None, seed: int | None = None, 
     t1 = time.perf_counter()
     separate = len(passes) > 1 and scene.layout.mode == "separate"
     if separate:
-        trans, vframe = separate_layout([p.radius for p in passes], fab.tolerance, fab.border, v.resolution)
+        trans, vframe = separate_layout(
+            [p.radius for p in passes], fab.tolerance, fab.border, v.resolution
+        )
     else:
         vframe = frame_for(passes, fab.tolerance, v.resolution, trans)
     vplayers = [PlayerA(p, vframe, fab.tolerance, fab.fill_holes) for p in passes]
@@ -288,32 +337,62 @@ def solve(scene: Scene, *, variant: str | None = None, seed: int | None = None, 
         trans[0] = 0.0
     hole = compose(vplayers, quats, trans, fab.fill_holes)
     a_masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(vplayers, quats, trans)]
-    if len(passes) > 1 and not separate and int(ndimage.label(hole.mask, structure=np.ones((3, 3)))[1]) > 1:
+    if (
+        len(passes) > 1
+        and not separate
+        and int(ndimage.label(hole.mask, structure=np.ones((3, 3)))[1]) > 1
+    ):
         stages.append(("warning: the merged hole is not connected", 0))
     # Separate holes: B passes if it passes any one of them, so it is attacked on each.
     groups = [[i] for i in range(len(passes))] if separate else [list(range(len(passes)))]
     holes = [compose([vplayers[i] for i in g], quats[g], trans[g], fab.fill_holes) for g in groups]
     # With a blocking margin, B must fail against the hole grown by that margin (paper Fig. 14).
     if fab.block_margin > 0:
-        grown = [PlayerA(p, vframe, fab.tolerance + fab.block_margin, fab.fill_holes) for p in passes]
-        targets = [compose([grown[i] for i in g], quats[g], trans[g], fab.fill_holes) for g in groups]
+        grown = [
+            PlayerA(p, vframe, fab.tolerance + fab.block_margin, fab.fill_holes) for p in passes
+        ]
+        targets = [
+            compose([grown[i] for i in g], quats[g], trans[g], fab.fill_holes) for g in groups
+        ]
     else:
         targets = holes
     vplayer_b = PlayerB(blocks, vframe, "clearance")
     bar = _Bar(progress, v.steps, "verdict")
     centres = np.array([trans[g].mean(axis=0) for g in groups]) if separate else None
-    attack = vplayer_b.attack(targets, v.starts, v.steps, s.learning_rate, rng, progress=lambda n: bar.update(1),
-                              centres=centres)
+    attack = vplayer_b.attack(
+        targets,
+        v.starts,
+        v.steps,
+        s.learning_rate,
+        rng,
+        progress=lambda n: bar.update(1),
+        centres=centres,
+    )
     bar.close()
     attack = weakest_hole(attack)
     if fab.block_margin > 0:
         attack.margin_beta = attack.beta.copy()
         attack.margin_protrusion = attack.protrusion.copy()
         for j, r in enumerate(vplayer_b.renderers):
-            sc = score_poses(r, hole, attack.quats[0, j:j + 1], attack.trans[0, j:j + 1])
+            sc = score_poses(r, hole, attack.quats[0, j : j + 1], attack.trans[0, j : j + 1])
             attack.beta[0, j], attack.protrusion[0, j] = sc.beta[0], sc.protrusion[0]
     timings["verdict_s"] = time.perf_counter() - t1
     winner = "A" if bool(np.all(attack.blocked()[0])) else "B"
-    return Result(scene=scene, winner=winner, pass_shapes=passes, block_shapes=blocks, pass_quats=quats, pass_trans=trans,
-                  hole=hole, a_masks=a_masks, attack=attack, history=history, search_value=value, variant=variant,
-                  stages=stages, timings=timings, renderers=vplayer_b.renderers, alone=alone)
+    return Result(
+        scene=scene,
+        winner=winner,
+        pass_shapes=passes,
+        block_shapes=blocks,
+        pass_quats=quats,
+        pass_trans=trans,
+        hole=hole,
+        a_masks=a_masks,
+        attack=attack,
+        history=history,
+        search_value=value,
+        variant=variant,
+        stages=stages,
+        timings=timings,
+        renderers=vplayer_b.renderers,
+        alone=alone,
+    )

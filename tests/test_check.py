@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import subprocess
 import sys
 
@@ -22,7 +21,7 @@ import pytest
 import trimesh
 from PIL import Image
 
-from sieve_mi.check import CheckSettings, check, fit_scale, holes_from_mesh, Verdict
+from sieve_mi.check import CheckSettings, Verdict, check, fit_scale, holes_from_mesh
 from sieve_mi.errors import SieveError
 from sieve_mi.fabrication import to_trimesh
 from sieve_mi.meshes import shape_from_trimesh
@@ -30,10 +29,14 @@ from sieve_mi.meshes import shape_from_trimesh
 FAST = CheckSettings(starts=24, steps=150, resolution=192, fit_tolerance=0.01)
 
 
-def square_plate(path: str, w: float, *, offset=(3.0, -2.0), thickness: float = 20.0, axis: str = "z") -> str:
+def square_plate(
+    path: str, w: float, *, offset=(3.0, -2.0), thickness: float = 20.0, axis: str = "z"
+) -> str:
     """A 50 x 50 plate with a w x w square hole centred at ``offset``, written as STL."""
     plate = manifold3d.Manifold.cube([50, 50, thickness]).translate([-25, -25, -thickness / 2])
-    hole = manifold3d.Manifold.cube([w, w, thickness + 10]).translate([offset[0] - w / 2, offset[1] - w / 2, -thickness / 2 - 5])
+    hole = manifold3d.Manifold.cube([w, w, thickness + 10]).translate(
+        [offset[0] - w / 2, offset[1] - w / 2, -thickness / 2 - 5]
+    )
     mesh = to_trimesh(plate - hole)
     if axis == "x":  # turn the plate so its hole runs along x
         mesh.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [0, 1, 0]))
@@ -53,11 +56,16 @@ def test_holes_of_a_plate_are_found_exactly(tmp_path):
     b = holes[0].bounds()
     assert (b[0] + b[2]) / 2 == pytest.approx(3.0) and (b[1] + b[3]) / 2 == pytest.approx(-2.0)
     # a plate with two holes
-    plate = manifold3d.Manifold.cube([60, 30, 10]) - manifold3d.Manifold.cube([10, 10, 20]).translate([5, 5, -5]) \
+    plate = (
+        manifold3d.Manifold.cube([60, 30, 10])
+        - manifold3d.Manifold.cube([10, 10, 20]).translate([5, 5, -5])
         - manifold3d.Manifold.cylinder(20, 6.0, 6.0, 64).translate([40, 15, -5])
+    )
     to_trimesh(plate).export(str(tmp_path / "two.stl"))
     two = holes_from_mesh(str(tmp_path / "two.stl"))
-    assert [h.area() for h in two] == pytest.approx([manifold3d.CrossSection.circle(6.0, 64).area(), 100.0], rel=1e-6)
+    assert [h.area() for h in two] == pytest.approx(
+        [manifold3d.CrossSection.circle(6.0, 64).area(), 100.0], rel=1e-6
+    )
 
 
 def test_a_plate_without_a_through_hole_is_a_clear_error(tmp_path):
@@ -66,7 +74,9 @@ def test_a_plate_without_a_through_hole_is_a_clear_error(tmp_path):
     with pytest.raises(SieveError, match="no through-hole"):
         holes_from_mesh(path)
     # a blind hole (a pocket) is no through-hole either
-    pocket = manifold3d.Manifold.cube([20, 20, 5]) - manifold3d.Manifold.cube([5, 5, 10]).translate([7, 7, 2])
+    pocket = manifold3d.Manifold.cube([20, 20, 5]) - manifold3d.Manifold.cube([5, 5, 10]).translate(
+        [7, 7, 2]
+    )
     to_trimesh(pocket).export(path)
     with pytest.raises(SieveError, match="no through-hole"):
         holes_from_mesh(path)
@@ -78,9 +88,14 @@ def test_cube_through_square_hole_fit_scale(tmp_path):
     path = square_plate(str(tmp_path / "p.stl"), w)
     rep = check(cube(a), sieve=path, settings=FAST)
     assert rep.result.passes and rep.result.beta == 0
-    assert rep.result.exact_outside_area == pytest.approx(0.0, abs=0.05 * a)  # at most a sliver at the pixel scale
+    assert rep.result.exact_outside_area == pytest.approx(
+        0.0, abs=0.05 * a
+    )  # at most a sliver at the pixel scale
     # the pose is reported in the plate's coordinates: near the hole's centre (3, -2)
-    assert np.hypot(rep.result.translation[0] - 3.0, rep.result.translation[1] + 2.0) < (w - a) / 2 + 0.5
+    assert (
+        np.hypot(rep.result.translation[0] - 3.0, rep.result.translation[1] + 2.0)
+        < (w - a) / 2 + 0.5
+    )
     lo, hi = rep.fit_bracket
     assert hi / lo - 1 <= 0.011
     h = rep.pixel_size
@@ -119,10 +134,16 @@ def test_ball_through_a_round_hole_in_an_image(tmp_path):
 @pytest.mark.slow
 def test_a_long_rod_passes_a_slot_end_on(tmp_path):
     """Length does not matter when the rod can go end-on: a 4 x 4 x 60 rod through a 5 x 30 slot."""
-    plate = manifold3d.Manifold.cube([80, 80, 10]) - manifold3d.Manifold.cube([30, 5, 20]).translate([25, 37.5, -5])
+    plate = manifold3d.Manifold.cube([80, 80, 10]) - manifold3d.Manifold.cube(
+        [30, 5, 20]
+    ).translate([25, 37.5, -5])
     to_trimesh(plate).export(str(tmp_path / "slot.stl"))
     rod = shape_from_trimesh(trimesh.creation.box((4, 4, 60)), name="rod")
-    rep = check(rod, sieve=str(tmp_path / "slot.stl"), settings=CheckSettings(starts=48, steps=300, fit=False))
+    rep = check(
+        rod,
+        sieve=str(tmp_path / "slot.stl"),
+        settings=CheckSettings(starts=48, steps=300, fit=False),
+    )
     assert rep.result.passes
     assert rep.fit_scale is None
 
@@ -132,15 +153,31 @@ def test_fit_scale_bisection_on_a_known_threshold():
 
     def evaluate(s):
         calls.append(s)
-        return Verdict(scale=s, passes=s <= 1.37, beta=0.0, protrusion=0.0, rotation=[1, 0, 0, 0], translation=[0, 0],
-                       hole=0, fitting_starts=0)
+        return Verdict(
+            scale=s,
+            passes=s <= 1.37,
+            beta=0.0,
+            protrusion=0.0,
+            rotation=[1, 0, 0, 0],
+            translation=[0, 0],
+            hole=0,
+            fitting_starts=0,
+        )
 
     s, (lo, hi) = fit_scale(evaluate, evaluate(1.0), 0.001)
     assert lo <= 1.37 < hi and hi / lo - 1 <= 0.001 and s == lo
     calls.clear()
-    s, (lo, hi) = fit_scale(lambda x: Verdict(x, x <= 0.3, 0, 0, [], [], 0, 0), Verdict(1.0, False, 0.1, 1, [], [], 0, 0), 0.01)
+    s, (lo, hi) = fit_scale(
+        lambda x: Verdict(x, x <= 0.3, 0, 0, [], [], 0, 0),
+        Verdict(1.0, False, 0.1, 1, [], [], 0, 0),
+        0.01,
+    )
     assert lo <= 0.3 < hi and s == lo
-    s, (lo, hi) = fit_scale(lambda x: Verdict(x, False, 0.1, 1, [], [], 0, 0), Verdict(1.0, False, 0.1, 1, [], [], 0, 0), 0.01)
+    s, (lo, hi) = fit_scale(
+        lambda x: Verdict(x, False, 0.1, 1, [], [], 0, 0),
+        Verdict(1.0, False, 0.1, 1, [], [], 0, 0),
+        0.01,
+    )
     assert s == 0.0
 
 
@@ -150,33 +187,59 @@ def test_fit_scale_bisection_on_a_known_threshold():
 
 
 def run_cli(*args: str):
-    return subprocess.run([sys.executable, "-m", "sieve_mi", *args], capture_output=True, text=True, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "sieve_mi", *args], capture_output=True, text=True, timeout=600
+    )
 
 
 @pytest.mark.slow
 def test_check_command_json(tmp_path):
     path = square_plate(str(tmp_path / "p.stl"), 15.0)
     trimesh.creation.box((10, 10, 10)).export(str(tmp_path / "cube.stl"))
-    p = run_cli("check", str(tmp_path / "cube.stl"), "--sieve", path, "--starts", "24", "--steps", "150", "--json")
+    p = run_cli(
+        "check",
+        str(tmp_path / "cube.stl"),
+        "--sieve",
+        path,
+        "--starts",
+        "24",
+        "--steps",
+        "150",
+        "--json",
+    )
     assert p.returncode == 0, p.stderr
     rep = json.loads(p.stdout)
     assert rep["passes"] is True
     assert rep["fit_scale"] == pytest.approx(1.5, abs=0.03)
     # --scale applies before the test: the 10 mm cube at scale 1.6 is blocked
-    p = run_cli("check", str(tmp_path / "cube.stl"), "--sieve", path, "--scale", "1.6", "--starts", "24", "--steps", "150",
-                "--no-fit")
+    p = run_cli(
+        "check",
+        str(tmp_path / "cube.stl"),
+        "--sieve",
+        path,
+        "--scale",
+        "1.6",
+        "--starts",
+        "24",
+        "--steps",
+        "150",
+        "--no-fit",
+    )
     assert p.returncode == 0, p.stderr
     assert "blocked" in p.stdout
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["--sieve", "{tmp}/missing.stl"], "missing.stl"),
-    (["--hole", "{tmp}/h.png"], "--pixel-size"),
-    (["--hole", "{tmp}/black.png", "--pixel-size", "0.1"], "no hole pixels"),
-    (["--hole", "{tmp}/h.png", "--pixel-size", "-1"], "--pixel-size"),
-    (["--sieve", "{tmp}/solid.stl"], "no through-hole"),
-    (["--sieve", "{tmp}/solid.stl", "--scale", "0"], "--scale"),
-])
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--sieve", "{tmp}/missing.stl"], "missing.stl"),
+        (["--hole", "{tmp}/h.png"], "--pixel-size"),
+        (["--hole", "{tmp}/black.png", "--pixel-size", "0.1"], "no hole pixels"),
+        (["--hole", "{tmp}/h.png", "--pixel-size", "-1"], "--pixel-size"),
+        (["--sieve", "{tmp}/solid.stl"], "no through-hole"),
+        (["--sieve", "{tmp}/solid.stl", "--scale", "0"], "--scale"),
+    ],
+)
 def test_check_bad_input_is_one_line(tmp_path, args, needle):
     trimesh.creation.box((10, 10, 10)).export(str(tmp_path / "cube.stl"))
     trimesh.creation.box((20, 20, 5)).export(str(tmp_path / "solid.stl"))
@@ -186,6 +249,6 @@ def test_check_bad_input_is_one_line(tmp_path, args, needle):
     Image.fromarray(img).save(tmp_path / "h.png")
     p = run_cli("check", str(tmp_path / "cube.stl"), *[a.format(tmp=tmp_path) for a in args])
     assert p.returncode == 2, (p.stdout, p.stderr)
-    lines = [l for l in p.stderr.splitlines() if l.strip()]
+    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "Traceback" not in p.stderr
     assert needle in lines[0]

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import sphere
+
 from sieve_mi.clearance import ClearanceObjective, HoleStack
 from sieve_mi.hole import build_hole
 from sieve_mi.raster import Frame
@@ -67,7 +67,9 @@ def test_clearance_gradient_matches_finite_differences(mi, cube20):
         xp, xm = x0.copy(), x0.copy()
         xp[i] += eps
         xm[i] -= eps
-        fd = (_loss(mi, dr, obj, hole, xp[:4], xp[4:]) - _loss(mi, dr, obj, hole, xm[:4], xm[4:])) / (2 * eps)
+        fd = (
+            _loss(mi, dr, obj, hole, xp[:4], xp[4:]) - _loss(mi, dr, obj, hole, xm[:4], xm[4:])
+        ) / (2 * eps)
         # The loss is piecewise smooth (bilinear distance lookups, float32): a few percent agreement.
         assert grad[i] == pytest.approx(fd, rel=0.05, abs=1e-3 * abs(value)), f"parameter {i}"
 
@@ -78,7 +80,6 @@ def test_clearance_uses_only_silhouette_edges(mi, cube20):
     # A sphere's silhouette edges are a thin band: far fewer than all its edge segments.
     import drjit as dr
 
-    q = [mi.Float(1.0), mi.Float(0.0), mi.Float(0.0), mi.Float(0.0)]
     pair_pose, pair_seg = obj._pairs
     r3 = mi.Vector3f(0, 0, 1)
     s1 = dr.dot(dr.gather(mi.Vector3f, obj.m1, pair_seg), r3)

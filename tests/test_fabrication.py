@@ -15,6 +15,7 @@ import pytest
 import trimesh
 
 from sieve_mi import fabrication as fab
+from sieve_mi import outline
 from sieve_mi.meshes import shape_from_trimesh
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import align, from_axis_angle
@@ -33,15 +34,15 @@ def cube_shape(a: float = 10.0):
 def test_projection_of_a_cube_face_on_and_along_its_diagonal():
     a = 10.0
     cube = cube_shape(a)
-    face = fab.projection(fab.placed_vertices(cube, [1, 0, 0, 0], [0, 0]), cube.faces)
+    face = outline.projection(outline.placed_vertices(cube, [1, 0, 0, 0], [0, 0]), cube.faces)
     assert face.area() == pytest.approx(a * a, rel=1e-9)
     # body diagonal (1, 1, 1) turned onto z: a regular hexagon of area sqrt(3) a^2
     q = align(np.array([1.0, 1.0, 1.0]) / math.sqrt(3), np.array([0.0, 0.0, 1.0]))
-    hexagon = fab.projection(fab.placed_vertices(cube, q, [0, 0]), cube.faces)
+    hexagon = outline.projection(outline.placed_vertices(cube, q, [0, 0]), cube.faces)
     assert hexagon.area() == pytest.approx(math.sqrt(3) * a * a, rel=1e-9)
     assert hexagon.num_vert() == 6
     # the front-facing shortcut for closed meshes gives the same region
-    closed = fab.projection(fab.placed_vertices(cube, q, [0, 0]), cube.faces, closed=True)
+    closed = outline.projection(outline.placed_vertices(cube, q, [0, 0]), cube.faces, closed=True)
     assert sym_diff(closed, hexagon) == pytest.approx(0.0, abs=1e-9)
 
 
@@ -49,21 +50,26 @@ def test_projection_of_a_triangle_soup_with_mixed_winding_is_the_union():
     # two unit right triangles forming the unit square, wound opposite ways, plus an edge-on one
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1]], dtype=float)
     f = np.array([[0, 1, 2], [0, 3, 2], [0, 1, 5]])
-    sec = fab.projection(v, f)
+    sec = outline.projection(v, f)
     assert sec.area() == pytest.approx(1.0, rel=1e-12)
     # overlapping triangles: union, not sum (two copies of the same triangle)
     f2 = np.array([[0, 1, 2], [2, 1, 0]])
-    assert fab.projection(v, f2).area() == pytest.approx(0.5, rel=1e-12)
+    assert outline.projection(v, f2).area() == pytest.approx(0.5, rel=1e-12)
     # everything edge-on: empty
-    assert fab.projection(v, np.array([[0, 1, 5]])).is_empty()
+    assert outline.projection(v, np.array([[0, 1, 5]])).is_empty()
 
 
 def test_dilation_contains_the_exact_offset_and_stays_close():
     s, r = 10.0, 1.0
     square = manifold3d.CrossSection.square([s, s], center=True)
-    grown = fab.dilated(square, r)
+    grown = outline.dilated(square, r)
     exact = s * s + 4 * s * r + math.pi * r * r
-    assert exact <= grown.area() <= exact * 1.0 + (fab.ARC_ERROR * 1.1 + 2 * fab.SIMPLIFY) * r * (4 * s + 2 * math.pi * r)
+    assert (
+        exact
+        <= grown.area()
+        <= exact * 1.0
+        + (outline.ARC_ERROR * 1.1 + 2 * outline.SIMPLIFY) * r * (4 * s + 2 * math.pi * r)
+    )
     pts = np.vstack(grown.to_polygons())
     # every vertex lies at distance >= r from the square (never inward of the exact dilation) ...
     dx = np.maximum(np.abs(pts[:, 0]) - s / 2, 0)
@@ -71,13 +77,13 @@ def test_dilation_contains_the_exact_offset_and_stays_close():
     dist = np.hypot(dx, dy)
     assert dist.min() >= r - 1e-9
     # ... and within a few per cent of the tolerance from it
-    assert dist.max() <= r * (1 + fab.ARC_ERROR * 1.1 + 2 * fab.SIMPLIFY)
-    assert fab.dilated(square, 0.0).area() == pytest.approx(s * s)
+    assert dist.max() <= r * (1 + outline.ARC_ERROR * 1.1 + 2 * outline.SIMPLIFY)
+    assert outline.dilated(square, 0.0).area() == pytest.approx(s * s)
 
 
 def test_filled_removes_enclosed_gaps():
     ring = manifold3d.CrossSection.circle(10.0, 128) - manifold3d.CrossSection.circle(5.0, 128)
-    disk = fab.filled(ring)
+    disk = outline.filled(ring)
     assert disk.area() == pytest.approx(manifold3d.CrossSection.circle(10.0, 128).area(), rel=1e-9)
     assert len(disk.to_polygons()) == 1
 
@@ -87,7 +93,7 @@ def test_hole_outline_of_two_cubes_is_their_dilated_union():
     cube = cube_shape(a)
     quats = np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]])
     trans = np.array([[0.0, 0.0], [a, 0.0]])  # side by side: a 2a x a rectangle
-    out = fab.hole_outline([cube, cube], quats, trans, r)
+    out = outline.hole_outline([cube, cube], quats, trans, r)
     exact = 2 * a * a + 2 * (3 * a) * r + math.pi * r * r
     assert out.area() == pytest.approx(exact, rel=0.01)
     assert out.area() >= exact
@@ -97,10 +103,10 @@ def test_hole_outline_of_two_cubes_is_their_dilated_union():
 def test_outline_agrees_with_a_raster_of_it():
     cube = cube_shape(10.0)
     q = from_axis_angle(np.array([0.3, 1.0, 0.2]), 0.7)
-    out = fab.hole_outline([cube], q[None], np.zeros((1, 2)), 1.0)
+    out = outline.hole_outline([cube], q[None], np.zeros((1, 2)), 1.0)
     frame = Frame.covering(12.0, 256)
-    mask = fab.rasterize(out, frame)
-    agree = fab.raster_agreement(out, mask, frame)
+    mask = outline.rasterize(out, frame)
+    agree = outline.raster_agreement(out, mask, frame)
     # same region sampled at pixel centres: areas agree to within the boundary's pixels
     perimeter = 60.0
     assert abs(agree["polygon_area"] - agree["raster_area"]) < perimeter * frame.pixel_size
@@ -109,12 +115,16 @@ def test_outline_agrees_with_a_raster_of_it():
 
 def test_default_thickness_is_the_circumsphere_diameter():
     a = 10.0
-    assert fab.default_thickness([cube_shape(a)]) == pytest.approx(math.ceil(a * math.sqrt(3) * 10) / 10)
+    assert fab.default_thickness([cube_shape(a)]) == pytest.approx(
+        math.ceil(a * math.sqrt(3) * 10) / 10
+    )
     ball = shape_from_trimesh(trimesh.creation.icosphere(3, 7.0), name="ball")
     assert fab.circumsphere_diameter(ball) == pytest.approx(14.0, rel=1e-6)
     # an off-centre point set: the bounding-box centre is not the ball's centre
     # (a right triangle's circumcircle has the hypotenuse as diameter)
-    tri = trimesh.Trimesh([[0, 0, 0], [10, 0, 0], [0, 10, 0], [0, 0, 0.001]], [[0, 1, 2], [0, 1, 3]], process=False)
+    tri = trimesh.Trimesh(
+        [[0, 0, 0], [10, 0, 0], [0, 10, 0], [0, 0, 0.001]], [[0, 1, 2], [0, 1, 3]], process=False
+    )
     d = fab.circumsphere_diameter(shape_from_trimesh(tri, name="tri"))
     assert 10 * math.sqrt(2) - 1e-6 <= d <= 10 * math.sqrt(2) * 1.01
 
@@ -123,28 +133,28 @@ def _holes_of(mesh: trimesh.Trimesh, z: float) -> manifold3d.CrossSection:
     """Holes of the plate's cross-section at height z: filled outline minus material."""
     body = to_manifold(mesh)
     section = body.slice(z)
-    return fab.filled(section) - section
+    return outline.filled(section) - section
 
 
 def test_plate_is_one_watertight_body_with_the_hole_through_it():
     a, r, t, border = 10.0, 1.0, 18.0, 6.0
     cube = cube_shape(a)
     q = from_axis_angle(np.array([1.0, 2.0, 0.5]), 0.9)
-    outline = fab.hole_outline([cube], q[None], np.zeros((1, 2)), r)
-    plate = fab.plate(outline, t, border)
+    H = outline.hole_outline([cube], q[None], np.zeros((1, 2)), r)
+    plate = fab.plate(H, t, border)
     m = plate.mesh
     assert m.is_watertight and m.is_winding_consistent and m.is_volume
     assert len(m.split(only_watertight=False)) == 1
     (x0, y0, z0), (x1, y1, z1) = m.bounds
     assert z0 == pytest.approx(-t) and z1 == pytest.approx(0.0, abs=1e-9)
-    (ox0, oy0), (ox1, oy1) = fab._bounds(outline)
+    (ox0, oy0), (ox1, oy1) = fab._bounds(H)
     assert x1 - x0 == pytest.approx(ox1 - ox0 + 2 * border, rel=1e-6)
-    assert m.volume == pytest.approx(((x1 - x0) * (y1 - y0) - outline.area()) * t, rel=1e-6)
+    assert m.volume == pytest.approx(((x1 - x0) * (y1 - y0) - H.area()) * t, rel=1e-6)
     # the hole at several depths is H itself
     for z in (-0.1, -t / 2, -t + 0.1):
         holes = _holes_of(m, z)
-        assert holes.area() == pytest.approx(outline.area(), rel=1e-6)
-        assert sym_diff(holes, outline) < 1e-6 * outline.area()
+        assert holes.area() == pytest.approx(H.area(), rel=1e-6)
+        assert sym_diff(holes, H) < 1e-6 * H.area()
     assert plate.warnings == []
 
 
@@ -171,7 +181,7 @@ def test_svg_outline_is_written(tmp_path):
     path = tmp_path / "h.svg"
     fab.write_svg(str(path), outline, "mm")
     text = path.read_text()
-    assert 'width="11mm"' in text and "fill-rule=\"evenodd\"" in text
+    assert 'width="11mm"' in text and 'fill-rule="evenodd"' in text
     assert text.count("M ") == 1
 
 
@@ -189,7 +199,7 @@ def test_shapes_beside_the_plate_stand_on_its_ground_without_touching_it():
     from sieve_mi.fabrication import beside_plate
 
     plate = trimesh.creation.box(extents=(40.0, 30.0, 10.0))
-    plate.apply_translation((0.0, 0.0, -5.0))            # top at z = 0, bottom at z = -10
+    plate.apply_translation((0.0, 0.0, -5.0))  # top at z = 0, bottom at z = -10
     a = trimesh.creation.icosphere(radius=3.0)
     a.apply_translation((0.0, 0.0, 50.0))
     b = trimesh.creation.box(extents=(4.0, 4.0, 4.0))

@@ -19,10 +19,16 @@ W, H, SPP = 160, 120, 4
 
 def _plate(size: float = 80.0, thickness: float = 12.0, hole: float = 20.0) -> trimesh.Trimesh:
     """A plate (z from -thickness to 0) with a square hole around the origin, made by manifold3d."""
-    box = manifold3d.Manifold.cube([size, size, thickness], center=True).translate([0, 0, -thickness / 2])
-    cut = manifold3d.Manifold.cube([hole, hole, 3 * thickness], center=True).translate([0, 0, -thickness / 2])
+    box = manifold3d.Manifold.cube([size, size, thickness], center=True).translate(
+        [0, 0, -thickness / 2]
+    )
+    cut = manifold3d.Manifold.cube([hole, hole, 3 * thickness], center=True).translate(
+        [0, 0, -thickness / 2]
+    )
     m = (box - cut).to_mesh()
-    return trimesh.Trimesh(np.asarray(m.vert_properties)[:, :3], np.asarray(m.tri_verts), process=False)
+    return trimesh.Trimesh(
+        np.asarray(m.vert_properties)[:, :3], np.asarray(m.tri_verts), process=False
+    )
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +83,9 @@ def test_colours_size_and_variant(tmp_path, scene, mi, colour):
     render_figure(str(path), plate, passes, blocks, [True], width=W, height=H, spp=SPP)
     assert mi.variant() == before
     assert path.is_file() and path.stat().st_size > 0
-    assert os.listdir(tmp_path) == ["figure.png"], "the temporary file must be renamed, not left behind"
+    assert os.listdir(tmp_path) == ["figure.png"], (
+        "the temporary file must be renamed, not left behind"
+    )
     img = _read(path)
     green, red = _green(img), _red(img)
     assert green.sum() > 0.01 * W * H, "the A cube must show as green pixels"
@@ -93,7 +101,9 @@ def test_colours_size_and_variant(tmp_path, scene, mi, colour):
 def test_escaped_block_is_orange_and_title_keeps_size(tmp_path, scene, mi, colour):
     plate, passes, blocks = scene
     path = tmp_path / "figure.png"
-    render_figure(str(path), plate, passes, blocks, [False], width=W, height=H, spp=SPP, title="a title")
+    render_figure(
+        str(path), plate, passes, blocks, [False], width=W, height=H, spp=SPP, title="a title"
+    )
     img = _read(path)
     orange = _orange(img)
     assert orange.sum() > 0.01 * W * H
@@ -106,9 +116,15 @@ def test_flat_open_meshes_render(tmp_path, mi, colour):
     """Zero-thickness open meshes (a flat plate with a hole, a flat A and a flat B) render in colour."""
     ring = trimesh.creation.annulus(8.0, 30.0, height=1.0, sections=48)
     top = ring.vertices[:, 2] > 0
-    plate = trimesh.Trimesh(ring.vertices, ring.faces[np.all(top[ring.faces], axis=1)], process=False)
-    plate.apply_translation([0, 0, -plate.bounds[1, 2]])  # open, one-sided: only the top face, z = 0
-    sheet = trimesh.Trimesh([[-6, -6, 5], [6, -6, 5], [6, 6, 5], [-6, 6, 5]], [[0, 1, 2], [0, 2, 3]], process=False)
+    plate = trimesh.Trimesh(
+        ring.vertices, ring.faces[np.all(top[ring.faces], axis=1)], process=False
+    )
+    plate.apply_translation(
+        [0, 0, -plate.bounds[1, 2]]
+    )  # open, one-sided: only the top face, z = 0
+    sheet = trimesh.Trimesh(
+        [[-6, -6, 5], [6, -6, 5], [6, 6, 5], [-6, 6, 5]], [[0, 1, 2], [0, 2, 3]], process=False
+    )
     tilted = sheet.copy()
     tilted.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 3, [1, 0, 0]))
     tilted.apply_translation([45, 0, 10])
@@ -134,7 +150,9 @@ def test_mono_fallback_and_restore_on_error(tmp_path, scene, mi, monkeypatch):
     path = tmp_path / "grey.png"
     render_figure(str(path), plate, passes, blocks, [True], width=W, height=H, spp=SPP)
     img = _read(path)
-    assert np.all(img[..., 0] == img[..., 1]) and np.all(img[..., 1] == img[..., 2]), "mono renders grey"
+    assert np.all(img[..., 0] == img[..., 1]) and np.all(img[..., 1] == img[..., 2]), (
+        "mono renders grey"
+    )
     assert mi.variant() == before
     monkeypatch.undo()
 
@@ -143,11 +161,15 @@ def test_mono_fallback_and_restore_on_error(tmp_path, scene, mi, monkeypatch):
 
     monkeypatch.setattr(figure, "_scene", boom)
     with pytest.raises(RuntimeError, match="boom"):
-        render_figure(str(tmp_path / "x.png"), plate, passes, blocks, [True], width=W, height=H, spp=SPP)
+        render_figure(
+            str(tmp_path / "x.png"), plate, passes, blocks, [True], width=W, height=H, spp=SPP
+        )
     assert mi.variant() == before
     assert not (tmp_path / "x.png").exists()
     with pytest.raises(ValueError):
-        render_figure(str(tmp_path / "x.png"), plate, passes, blocks, [], width=W, height=H, spp=SPP)
+        render_figure(
+            str(tmp_path / "x.png"), plate, passes, blocks, [], width=W, height=H, spp=SPP
+        )
 
 
 def test_silhouettes_work_after_a_render(tmp_path, scene, cube20, mi):
@@ -159,7 +181,9 @@ def test_silhouettes_work_after_a_render(tmp_path, scene, cube20, mi):
     early = SilhouetteRenderer(cube20)
     m0 = early.frame_mask([1, 0, 0, 0], [5.0, -3.0], f)
     plate, passes, blocks = scene
-    render_figure(str(tmp_path / "f.png"), plate, passes, blocks, [True], width=W, height=H, spp=SPP)
+    render_figure(
+        str(tmp_path / "f.png"), plate, passes, blocks, [True], width=W, height=H, spp=SPP
+    )
     m1 = early.frame_mask([1, 0, 0, 0], [5.0, -3.0], f)
     m2 = SilhouetteRenderer(cube20).frame_mask([1, 0, 0, 0], [5.0, -3.0], f)
     assert m0.sum() > 0 and np.array_equal(m0, m1) and np.array_equal(m0, m2)
@@ -167,13 +191,18 @@ def test_silhouettes_work_after_a_render(tmp_path, scene, cube20, mi):
 
 @pytest.mark.parametrize("title", [False, True])
 def test_camera_frames_every_box(title):
-    boxes = [np.array([[-40.0, -40, -12], [40, 40, 0]]), np.array([[-9.0, -9, 10], [9, 9, 28]]),
-             np.array([[48.0, -13, 0], [74, 13, 26]])]
+    boxes = [
+        np.array([[-40.0, -40, -12], [40, 40, 0]]),
+        np.array([[-9.0, -9, 10], [9, 9, 28]]),
+        np.array([[48.0, -13, 0], [74, 13, 26]]),
+    ]
     aspect = 4 / 3
     origin, target, up = figure._camera(boxes, aspect, title)
     fwd = (target - origin) / np.linalg.norm(target - origin)
     right = np.cross(fwd, up)
-    corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for b in boxes for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    corners = np.array(
+        [[b[i, 0], b[j, 1], b[k, 2]] for b in boxes for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+    )
     d = corners - origin
     depth = d @ fwd
     x, y = (d @ right) / depth, (d @ up) / depth
@@ -183,7 +212,10 @@ def test_camera_frames_every_box(title):
     top = ty * m - (2 * ty * figure.TITLE_BAND if title else 0.0)
     assert np.all(depth > 0)
     eps = 1e-9
-    assert np.all(np.abs(x) <= tx * m + eps) and np.all(y >= -ty * m - eps) and np.all(y <= top + eps)
+    assert (
+        np.all(np.abs(x) <= tx * m + eps) and np.all(y >= -ty * m - eps) and np.all(y <= top + eps)
+    )
     # As close as possible: the picture's width or height is filled up to the margin.
-    assert math.isclose(x.max() - x.min(), 2 * tx * m, rel_tol=1e-6) or \
-        math.isclose(y.max() - y.min(), top + ty * m, rel_tol=1e-6)
+    assert math.isclose(x.max() - x.min(), 2 * tx * m, rel_tol=1e-6) or math.isclose(
+        y.max() - y.min(), top + ty * m, rel_tol=1e-6
+    )

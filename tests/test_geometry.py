@@ -5,13 +5,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from conftest import sphere
 from scipy.spatial import ConvexHull
 
-from conftest import sphere
 from sieve_mi.hole import build_hole
 from sieve_mi.meshes import edge_topology, load_shape, segments, shape_from_trimesh
 from sieve_mi.raster import Frame
-from sieve_mi.rotations import align, from_axis_angle, from_matrix, from_rotvec, random_uniform, to_matrix
+from sieve_mi.rotations import (
+    align,
+    from_axis_angle,
+    from_matrix,
+    from_rotvec,
+    random_uniform,
+    to_matrix,
+)
 from sieve_mi.silhouettes import SilhouetteRenderer
 
 
@@ -26,9 +33,15 @@ def test_quaternion_matrix_round_trip():
 
 def test_quaternion_conventions():
     # 90 degrees about z takes x to y (rotation acts on points, right-handed).
-    assert np.allclose(to_matrix(from_axis_angle([0, 0, 1], np.pi / 2)) @ [1, 0, 0], [0, 1, 0], atol=1e-12)
-    assert np.allclose(to_matrix(align([1, 1, 1], [0, 0, 1])) @ (np.ones(3) / np.sqrt(3)), [0, 0, 1], atol=1e-12)
-    assert np.allclose(to_matrix(from_rotvec([0, np.pi / 2, 0])), to_matrix(from_axis_angle([0, 1, 0], np.pi / 2)))
+    assert np.allclose(
+        to_matrix(from_axis_angle([0, 0, 1], np.pi / 2)) @ [1, 0, 0], [0, 1, 0], atol=1e-12
+    )
+    assert np.allclose(
+        to_matrix(align([1, 1, 1], [0, 0, 1])) @ (np.ones(3) / np.sqrt(3)), [0, 0, 1], atol=1e-12
+    )
+    assert np.allclose(
+        to_matrix(from_rotvec([0, np.pi / 2, 0])), to_matrix(from_axis_angle([0, 1, 0], np.pi / 2))
+    )
 
 
 def test_frame_pixel_centres_and_lookup():
@@ -57,7 +70,9 @@ def _projected_silhouette_length(shape, q):
     return np.linalg.norm(p[edges[sil, 0]] - p[edges[sil, 1]], axis=1).sum(), p
 
 
-@pytest.mark.parametrize("mesh", [trimesh.creation.box((20, 10, 6)), trimesh.creation.icosphere(2, 7.0)])
+@pytest.mark.parametrize(
+    "mesh", [trimesh.creation.box((20, 10, 6)), trimesh.creation.icosphere(2, 7.0)]
+)
 def test_silhouette_edges_trace_the_outline_of_convex_shapes(mesh):
     # For a convex polyhedron in general position the silhouette edges project onto the boundary
     # of the convex hull of the projection: their projected lengths add up to its perimeter.
@@ -65,7 +80,9 @@ def test_silhouette_edges_trace_the_outline_of_convex_shapes(mesh):
     for q in random_uniform(5, np.random.default_rng(3)):
         total, p = _projected_silhouette_length(shape, q)
         hull = ConvexHull(p)
-        assert total == pytest.approx(hull.area, rel=1e-6)  # in 2D, ConvexHull.area is the perimeter
+        assert total == pytest.approx(
+            hull.area, rel=1e-6
+        )  # in 2D, ConvexHull.area is the perimeter
 
 
 def test_silhouette_test_ignores_face_orientation():
@@ -75,7 +92,9 @@ def test_silhouette_test_ignores_face_orientation():
     a = shape_from_trimesh(mesh, name="a")
     b = shape_from_trimesh(trimesh.Trimesh(mesh.vertices, flipped, process=False), name="b")
     q = random_uniform(1, np.random.default_rng(5))[0]
-    assert _projected_silhouette_length(a, q)[0] == pytest.approx(_projected_silhouette_length(b, q)[0])
+    assert _projected_silhouette_length(a, q)[0] == pytest.approx(
+        _projected_silhouette_length(b, q)[0]
+    )
 
 
 def test_segments_respect_spacing():
@@ -95,7 +114,9 @@ def test_cube_silhouette_area_and_position(cube20):
     x, y = f.centres()
     xx, yy = np.meshgrid(x, y)
     area = m.sum() * h * h
-    assert abs(area - 400.0) <= 80.0 * h  # pixel-centre sampling: at most a pixel along the perimeter
+    assert (
+        abs(area - 400.0) <= 80.0 * h
+    )  # pixel-centre sampling: at most a pixel along the perimeter
     assert xx[m].mean() == pytest.approx(5.0, abs=h) and yy[m].mean() == pytest.approx(-3.0, abs=h)
 
 

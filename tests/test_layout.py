@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 import trimesh
 from scipy import ndimage
 
@@ -16,7 +15,7 @@ from sieve_mi.raster import Frame
 def _c_ring(frame: Frame, outer: float, inner: float, mouth: float) -> np.ndarray:
     """An annulus (radii in mm) with a gap of width ``mouth`` cut out of it on the +x side: a 'C'."""
     xc, yc = frame.centres()
-    x, y = np.meshgrid(xc, yc)            # rows run along y, columns along x
+    x, y = np.meshgrid(xc, yc)  # rows run along y, columns along x
     r = np.hypot(x, y)
     return (r <= outer) & (r >= inner) & ~((x > 0) & (np.abs(y) < mouth / 2))
 
@@ -24,8 +23,8 @@ def _c_ring(frame: Frame, outer: float, inner: float, mouth: float) -> np.ndarra
 def test_shifted_moves_without_wrapping():
     m = np.zeros((5, 5), dtype=bool)
     m[0, 0] = m[4, 4] = m[2, 3] = True
-    assert np.argwhere(_shifted(m, 1, 1)).tolist() == [[1, 1], [3, 4]]    # (4, 4) leaves the grid
-    assert np.argwhere(_shifted(m, -2, 0)).tolist() == [[0, 3], [2, 4]]   # (0, 0) leaves the grid
+    assert np.argwhere(_shifted(m, 1, 1)).tolist() == [[1, 1], [3, 4]]  # (4, 4) leaves the grid
+    assert np.argwhere(_shifted(m, -2, 0)).tolist() == [[0, 3], [2, 4]]  # (0, 0) leaves the grid
     assert _shifted(m, 0, 0).tolist() == m.tolist()
 
 
@@ -45,12 +44,12 @@ def test_most_compact_placement_does_not_close_the_c():
     bar = shape_from_trimesh(trimesh.creation.box(extents=(12.0, 3.0, 3.0)), name="bar")
     player = PlayerA(bar, frame, tolerance=0.5)
     quats, trans, area = candidate_placements(player, base, np.array([1.0, 0, 0, 0]), reach=15.0)
-    px = frame.pixel_size ** 2
-    disk = np.pi * 14.0 ** 2
+    px = frame.pixel_size**2
+    disk = np.pi * 14.0**2
     assert len(quats) > 10
-    assert np.all(np.diff(area) >= 0)                    # sorted, most compact first
-    assert area[0] * px < 0.75 * disk                    # the best leaves the mouth open
-    assert area[-1] * px > 0.9 * disk                    # ... while closing placements exist among the candidates
+    assert np.all(np.diff(area) >= 0)  # sorted, most compact first
+    assert area[0] * px < 0.75 * disk  # the best leaves the mouth open
+    assert area[-1] * px > 0.9 * disk  # ... while closing placements exist among the candidates
     # The first candidate really is what it claims: rebuild its hole from the returned pose.
     hole = player.holes(quats[:1], trans[:1], base=base)[0].mask
     assert pieces(hole) == 1
@@ -66,33 +65,53 @@ def test_alternative_rotations_are_distinct_and_good():
     about_z = lambda a: from_axis_angle(np.array([0.0, 0, 1]), a)  # noqa: E731
     finalists = [
         (best, 0.5),
-        (-best, 0.45),             # the same rotation as best (q and -q)
-        (about_z(0.1), 0.4),       # within 0.35 rad of best
-        (about_z(1.0), 0.3),       # distinct: kept
-        (about_z(1.2), 0.25),      # within 0.35 rad of the one just kept
-        (about_z(2.0), 0.2),       # distinct: kept
-        (about_z(3.0), 0.1),       # distinct, but the count is reached
+        (-best, 0.45),  # the same rotation as best (q and -q)
+        (about_z(0.1), 0.4),  # within 0.35 rad of best
+        (about_z(1.0), 0.3),  # distinct: kept
+        (about_z(1.2), 0.25),  # within 0.35 rad of the one just kept
+        (about_z(2.0), 0.2),  # distinct: kept
+        (about_z(3.0), 0.1),  # distinct, but the count is reached
     ]
     alt = alternative_rotations(finalists, best, 2)
     assert len(alt) == 2
-    assert np.allclose(np.abs(alt[0]), np.abs(about_z(1.0))) and np.allclose(np.abs(alt[1]), np.abs(about_z(2.0)))
+    assert np.allclose(np.abs(alt[0]), np.abs(about_z(1.0))) and np.allclose(
+        np.abs(alt[1]), np.abs(about_z(2.0))
+    )
     # Rotations that did not block every B alone (value <= 0) are never offered.
-    assert alternative_rotations([(best, 0.5), (about_z(1.0), 0.0), (about_z(2.0), 0.3)], best, 3) == []
+    assert (
+        alternative_rotations([(best, 0.5), (about_z(1.0), 0.0), (about_z(2.0), 0.3)], best, 3)
+        == []
+    )
 
 
 def test_merge_hint_only_when_each_shape_alone_blocked():
     from sieve_mi.report import merge_hint, summary_table
 
-    report = {"winner": "B", "units": "mm", "pixel_size": 0.2, "timings": {"search_s": 1.0, "verdict_s": 0.5},
-              "settings": {"layout": {"mode": "merged"}},
-              "pass": [{"name": "S", "alone_loss": 0.18}, {"name": "G", "alone_loss": 0.1}],
-              "block": [{"name": "R", "loss": 0.0, "protrusion": 0.0, "blocked": False},
-                        {"name": "A", "loss": 0.01, "protrusion": 0.4, "blocked": True}]}
+    report = {
+        "winner": "B",
+        "units": "mm",
+        "pixel_size": 0.2,
+        "timings": {"search_s": 1.0, "verdict_s": 0.5},
+        "settings": {"layout": {"mode": "merged"}},
+        "pass": [{"name": "S", "alone_loss": 0.18}, {"name": "G", "alone_loss": 0.1}],
+        "block": [
+            {"name": "R", "loss": 0.0, "protrusion": 0.0, "blocked": False},
+            {"name": "A", "loss": 0.01, "protrusion": 0.4, "blocked": True},
+        ],
+    }
     hint = merge_hint(report)
     assert "lets R through" in hint and 'mode = "separate"' in hint and "S 0.180" in hint
     assert hint in summary_table(report)
     # No hint when A wins, when one shape alone already let B through, or for a separate layout.
     assert merge_hint({**report, "winner": "A"}) is None
-    assert merge_hint({**report, "pass": [{"name": "S", "alone_loss": 0.18}, {"name": "G", "alone_loss": 0.0}]}) is None
+    assert (
+        merge_hint(
+            {
+                **report,
+                "pass": [{"name": "S", "alone_loss": 0.18}, {"name": "G", "alone_loss": 0.0}],
+            }
+        )
+        is None
+    )
     assert merge_hint({**report, "settings": {"layout": {"mode": "separate"}}}) is None
     assert merge_hint({**report, "pass": report["pass"][:1]}) is None

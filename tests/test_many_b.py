@@ -104,7 +104,9 @@ resolution = 192
 def wheel() -> trimesh.Trimesh:
     """A: ring + one spoke + axle, all of wire thickness WIRE, axle along z."""
     r = WIRE / 2
-    ring = manifold3d.Manifold.revolve(manifold3d.CrossSection.circle(r, 24).translate((D / 2, 0.0)), 64)
+    ring = manifold3d.Manifold.revolve(
+        manifold3d.CrossSection.circle(r, 24).translate((D / 2, 0.0)), 64
+    )
     axle = manifold3d.Manifold.cylinder(AXLE, r, -1.0, 24, True)
     spoke = manifold3d.Manifold.cylinder(D, r, -1.0, 24, True).rotate((0.0, 90.0, 0.0))
     return centred(from_manifold(ring + axle + spoke))
@@ -151,8 +153,15 @@ def test_argument_numbers():
     assert s_in == pytest.approx(19.91, abs=0.01)
     chord = COIN * math.cos(math.pi / 64)
     assert chord == pytest.approx(49.94, abs=0.01)
-    c40, s62, c62, c75 = (f(math.radians(a)) for f, a in ((math.sin, COIN_BLOCKED), (math.sin, CROSSOVER),
-                                                          (math.cos, CROSSOVER), (math.cos, BALL_BLOCKED)))
+    c40, s62, c62, c75 = (
+        f(math.radians(a))
+        for f, a in (
+            (math.sin, COIN_BLOCKED),
+            (math.sin, CROSSOVER),
+            (math.cos, CROSSOVER),
+            (math.cos, BALL_BLOCKED),
+        )
+    )
     # coin blocked: its chord exceeds the hole's diameter
     assert chord - max(D + WIRE, AXLE * c40 + WIRE) >= 4.3
     # crossover: the coin fits the axle, the ball fits the ellipse, each with about 3 mm to spare
@@ -180,7 +189,9 @@ def test_hole_lies_where_the_argument_puts_it(theta):
     in_strip = np.abs(px) <= WIRE / 2 + 1e-6
     assert np.all(in_slab | in_strip)
     # (iii): the hole holds the axle's rectangle and the thickened ellipse (up to a pixel)
-    rect = (np.abs(xx) <= WIRE * math.cos(math.pi / 24) / 2 - h) & (np.abs(yy) <= AXLE * math.sin(t) / 2 - h)
+    rect = (np.abs(xx) <= WIRE * math.cos(math.pi / 24) / 2 - h) & (
+        np.abs(yy) <= AXLE * math.sin(t) / 2 - h
+    )
     ell = (xx / ((D + WIRE) / 2 - h)) ** 2 + (yy / ((D * math.cos(t) + WIRE) / 2 - h)) ** 2 <= 1
     assert np.all(hole.mask[rect | ell])
 
@@ -191,13 +202,16 @@ def test_hole_lies_where_the_argument_puts_it(theta):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("theta, ball_blocked, coin_blocked", [
-    (0.0, False, True),    # face-on: a 41 mm disk, too small for the coin, roomy for the ball
-    (COIN_BLOCKED, False, True),
-    (CROSSOVER, False, False),  # both pass with about 3 mm to spare
-    (BALL_BLOCKED, True, False),
-    (90.0, True, False),   # edge-on: a 7 mm wide cross, the coin slides along the 60 mm axle
-])
+@pytest.mark.parametrize(
+    "theta, ball_blocked, coin_blocked",
+    [
+        (0.0, False, True),  # face-on: a 41 mm disk, too small for the coin, roomy for the ball
+        (COIN_BLOCKED, False, True),
+        (CROSSOVER, False, False),  # both pass with about 3 mm to spare
+        (BALL_BLOCKED, True, False),
+        (90.0, True, False),  # edge-on: a 7 mm wide cross, the coin slides along the 60 mm axle
+    ],
+)
 def test_fixed_orientation(write_scene, theta, ball_blocked, coin_blocked):
     r = solve(_scene(write_scene, ["ball", "coin"], rotation=tilt(theta)), seed=0, progress=False)
     assert theta_of(r.pass_quats[0]) == pytest.approx(theta, abs=1e-6)
@@ -213,7 +227,9 @@ def test_fixed_orientation(write_scene, theta, ball_blocked, coin_blocked):
 def _other_passes(r, other: trimesh.Trimesh, name: str) -> bool:
     """Whether the shape *not* in the game fits through the hole A chose (verdict settings)."""
     shape = shape_from_trimesh(other, name=name)
-    attack = PlayerB([shape], r.hole.frame).attack([r.hole], 40, 250, 0.05, np.random.default_rng(1))
+    attack = PlayerB([shape], r.hole.frame).attack(
+        [r.hole], 40, 250, 0.05, np.random.default_rng(1)
+    )
     return bool(attack.beta[0, 0] == 0.0)
 
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-
 from conftest import rng
+
 from sieve_mi.clearance import HoleStack
 from sieve_mi.hole import Hole
 from sieve_mi.meshes import shape_from_trimesh
@@ -47,7 +47,9 @@ def _arrays(mi, dr, q, t, grad=False):
 def _loss(mi, dr, obj, holes, q, t, seed, pose_hole=None):
     """Per-pose losses (ndarray) without gradients."""
     qa, ta = _arrays(mi, dr, q, t)
-    ph = mi.UInt32(np.zeros(len(qa[0]), np.uint32) if pose_hole is None else np.asarray(pose_hole, np.uint32))
+    ph = mi.UInt32(
+        np.zeros(len(qa[0]), np.uint32) if pose_hole is None else np.asarray(pose_hole, np.uint32)
+    )
     _, per = obj.loss(tuple(qa), tuple(ta), holes, ph, seed=seed)
     return per.numpy().astype(float)
 
@@ -55,10 +57,14 @@ def _loss(mi, dr, obj, holes, q, t, seed, pose_hole=None):
 def _grad(mi, dr, obj, holes, q, t, seed, pose_hole=None):
     """Per-pose losses and d(total)/d(q, t) as a (K, 6) array, through the caller's dr.backward."""
     qa, ta = _arrays(mi, dr, q, t, grad=True)
-    ph = mi.UInt32(np.zeros(len(qa[0]), np.uint32) if pose_hole is None else np.asarray(pose_hole, np.uint32))
+    ph = mi.UInt32(
+        np.zeros(len(qa[0]), np.uint32) if pose_hole is None else np.asarray(pose_hole, np.uint32)
+    )
     total, per = obj.loss(tuple(qa), tuple(ta), holes, ph, seed=seed)
     dr.backward(total)
-    return per.numpy().astype(float), np.stack([dr.grad(a).numpy() for a in qa + ta], axis=1).astype(float)
+    return per.numpy().astype(float), np.stack(
+        [dr.grad(a).numpy() for a in qa + ta], axis=1
+    ).astype(float)
 
 
 def _iou(a, b):
@@ -138,8 +144,14 @@ def test_loss_is_the_fraction_outside_the_hole(mi, box_obj):
 def _quat_mul(a, b):
     w1, x1, y1, z1 = a
     w2, x2, y2, z2 = b
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+    return np.array(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
 
 
 def test_gradient_matches_finite_differences(mi):
@@ -164,9 +176,14 @@ def test_gradient_matches_finite_differences(mi):
     x0 = np.concatenate([q0, t0])
 
     def fd(direction):
-        diffs = [(_loss(mi, dr, obj, stack, *np.split(x0 + eps * direction, [4]), seed=s)[0]
-                  - _loss(mi, dr, obj, stack, *np.split(x0 - eps * direction, [4]), seed=s)[0]) / (2 * eps)
-                 for s in range(4)]
+        diffs = [
+            (
+                _loss(mi, dr, obj, stack, *np.split(x0 + eps * direction, [4]), seed=s)[0]
+                - _loss(mi, dr, obj, stack, *np.split(x0 - eps * direction, [4]), seed=s)[0]
+            )
+            / (2 * eps)
+            for s in range(4)
+        ]
         return float(np.mean(diffs))
 
     numeric = np.array([fd(np.eye(6)[i]) for i in range(6)])
@@ -175,7 +192,10 @@ def test_gradient_matches_finite_differences(mi):
         assert abs(grads[i] - numeric[i]) < 0.1 * abs(numeric[i]), (i, grads[i], numeric[i])
     # Quaternion: d/dw and d/dz are small here (the loss only depends on q/|q|), so compare the
     # 4-vector as a whole.
-    assert np.linalg.norm(grads[:4] - numeric[:4]) < 0.15 * np.linalg.norm(numeric[:4]), (grads[:4], numeric[:4])
+    assert np.linalg.norm(grads[:4] - numeric[:4]) < 0.15 * np.linalg.norm(numeric[:4]), (
+        grads[:4],
+        numeric[:4],
+    )
     # The in-plane rotation (about z, in world space) as a directional derivative.
     dq = 0.5 * _quat_mul([0, 0, 0, 1], q0)
     direction = np.concatenate([dq, [0, 0]])
@@ -197,7 +217,9 @@ def test_each_pose_gets_its_own_gradient(mi):
     assert np.all(np.abs(grads[:, 4:]) > 0.05)
     for k in range(3):
         obj.bind(pose_shape[k : k + 1])
-        per_k, grad_k = _grad(mi, dr, obj, stack, q[k], t[k], seed=7, pose_hole=pose_hole[k : k + 1])
+        per_k, grad_k = _grad(
+            mi, dr, obj, stack, q[k], t[k], seed=7, pose_hole=pose_hole[k : k + 1]
+        )
         assert per_k[0] == pytest.approx(per[k], abs=1e-6)
         np.testing.assert_allclose(grad_k[0], grads[k], rtol=1e-3, atol=1e-5)
 
@@ -209,7 +231,9 @@ def test_stock_direct_projective_gives_the_same_images_and_gradients(mi):
     q, t = np.array([0.95, 0.1, -0.05, 0.2]), np.array([0.25, 0.1])
     out = []
     for integrator in ("silhouette", "direct_projective"):
-        obj = OverlapObjective([_box(0.8, 0.5, 0.3)], FRAME, spp=4, spp_grad=4, integrator=integrator)
+        obj = OverlapObjective(
+            [_box(0.8, 0.5, 0.3)], FRAME, spp=4, spp_grad=4, integrator=integrator
+        )
         obj.bind(np.zeros(1, int))
         out.append(_grad(mi, dr, obj, stack, q, t, seed=3))
     assert out[0][0] == pytest.approx(out[1][0], abs=1e-4)
@@ -221,7 +245,10 @@ def test_margin_sees_the_part_outside_the_frame(mi):
 
     shape = _box(0.8, 0.6, 0.4)
     stack = HoleStack([_rect_hole(-0.9, 0.9, -0.9, 0.9)])
-    q, t = np.array([1.0, 0, 0, 0]), np.array([0.8, 0.0])  # x from 0.4 to 1.2: a quarter past the frame
+    q, t = (
+        np.array([1.0, 0, 0, 0]),
+        np.array([0.8, 0.0]),
+    )  # x from 0.4 to 1.2: a quarter past the frame
     plain = OverlapObjective([shape], FRAME, spp=16)
     wide = OverlapObjective([shape], FRAME, spp=16, margin=16)
     for obj in (plain, wide):
@@ -229,7 +256,9 @@ def test_margin_sees_the_part_outside_the_frame(mi):
     qa, ta = _arrays(mi, dr, q, t)
     h = FRAME.pixel_size
     assert wide.silhouette(tuple(qa), tuple(ta)).numpy().shape == (96, 96)
-    assert wide.silhouette(tuple(qa), tuple(ta)).numpy().sum() * h * h == pytest.approx(0.48, abs=h * h)
+    assert wide.silhouette(tuple(qa), tuple(ta)).numpy().sum() * h * h == pytest.approx(
+        0.48, abs=h * h
+    )
     seen = _loss(mi, dr, plain, stack, q, t, seed=0)[0]  # only the part on the frame: x in [0.4, 1]
     full = _loss(mi, dr, wide, stack, q, t, seed=0)[0]
     assert seen == pytest.approx(0.1 / 0.6, abs=0.02)  # [0.9, 1.0] of [0.4, 1.0] is outside H

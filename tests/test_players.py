@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import rng, sphere
+
 from sieve_mi.optim import nlopt_maximise, particle_swarm
 from sieve_mi.players import PlayerA, PlayerB
 from sieve_mi.raster import Frame
@@ -22,7 +22,9 @@ def test_sphere_passes_or_is_blocked_by_the_inscribed_disk(cube20):
     f, a, hole = _cube_hole(cube20)
     h = f.pixel_size
     small, big = sphere(10.0), sphere(12.0)
-    attack = PlayerB([small, big], f).attack([hole], starts=10, steps=100, learning_rate=0.05, rng=rng())
+    attack = PlayerB([small, big], f).attack(
+        [hole], starts=10, steps=100, learning_rate=0.05, rng=rng()
+    )
     assert attack.beta[0, 0] == 0.0 and attack.fits[0, 0] > 0
     assert attack.beta[0, 1] > 0
     # The 24 mm sphere sticks out by 12 - 11 = 1 mm, up to a pixel of rasterisation.
@@ -33,12 +35,17 @@ def test_sphere_passes_or_is_blocked_by_the_inscribed_disk(cube20):
 
 def test_many_holes_are_attacked_independently(cube20):
     f, a, _ = _cube_hole(cube20)
-    from sieve_mi.rotations import from_axis_angle
 
     # Face-on square (blocks a 24 mm sphere) and a cube seen along its space diagonal (a hexagon
     # with inscribed radius 20/sqrt(2) = 14.1 mm, dilated by 1: admits it).
-    holes = a.holes(np.array([[1.0, 0, 0, 0], [0.8880738339771153, 0.32505758367186816, -0.32505758367186816, 0.0]]))
-    attack = PlayerB([sphere(12.0)], f).attack(holes, starts=8, steps=100, learning_rate=0.05, rng=rng(1))
+    holes = a.holes(
+        np.array(
+            [[1.0, 0, 0, 0], [0.8880738339771153, 0.32505758367186816, -0.32505758367186816, 0.0]]
+        )
+    )
+    attack = PlayerB([sphere(12.0)], f).attack(
+        holes, starts=8, steps=100, learning_rate=0.05, rng=rng(1)
+    )
     assert attack.beta[0, 0] > 0 and attack.beta[1, 0] == 0.0
 
 
@@ -49,7 +56,9 @@ def test_particle_swarm_finds_a_known_maximum():
         return -np.sum((x - target) ** 2, axis=1)
 
     x0 = np.random.default_rng(0).uniform(-1, 1, (20, 3))
-    best, value, history = particle_swarm(f, x0, 60, np.random.default_rng(1), inertia=0.5, c_personal=1.0, c_global=1.0)
+    best, value, history = particle_swarm(
+        f, x0, 60, np.random.default_rng(1), inertia=0.5, c_personal=1.0, c_global=1.0
+    )
     assert np.allclose(best, target, atol=0.05)
     assert np.all(np.diff(history.best) >= 0) and len(history.best) == 61
 
@@ -57,8 +66,15 @@ def test_particle_swarm_finds_a_known_maximum():
 @pytest.mark.parametrize("method", ["crs2", "direct", "esch", "isres"])
 def test_nlopt_methods_maximise(method):
     target = np.array([0.5, -1.0, 2.0])
-    x, v, history = nlopt_maximise(lambda x: -float(np.sum((x - target) ** 2)), -np.pi * np.ones(3), np.pi * np.ones(3),
-                                   method, 3000, np.zeros(3), seed=0)
+    x, v, history = nlopt_maximise(
+        lambda x: -float(np.sum((x - target) ** 2)),
+        -np.pi * np.ones(3),
+        np.pi * np.ones(3),
+        method,
+        3000,
+        np.zeros(3),
+        seed=0,
+    )
     assert v > -0.5 and history.evaluations <= 3000
 
 
@@ -69,8 +85,17 @@ def test_player_a_search_prefers_the_face_on_cube(cube20):
     f = Frame.covering(cube20.radius + 1.0, 96)
     a = PlayerA(cube20, f, tolerance=1.0)
     b = PlayerB([sphere(12.0, 2)], f)
-    q, value, history = a.search(b, method="pso", particles=8, iterations=4, starts=6, steps=60, learning_rate=0.05,
-                                 rng=rng(3), seed=3)
+    q, value, history = a.search(
+        b,
+        method="pso",
+        particles=8,
+        iterations=4,
+        starts=6,
+        steps=60,
+        learning_rate=0.05,
+        rng=rng(3),
+        seed=3,
+    )
     assert value > 0
     assert len(history.best) == 5
 
@@ -92,13 +117,27 @@ def test_attack_memory_replays_a_remembered_passage(cube20):
 
     memory = AttackMemory(1, size=2)
     upright = np.array([[[1.0, 0.0, 0.0, 0.0]]])
-    worse = np.array([[[0.0, 1.0, 0.0, 0.0]]])     # lying down: 21 x 40 does not fit
-    memory.update(Attack(beta=np.array([[0.3]]), protrusion=np.array([[9.0]]), quats=worse,
-                         trans=np.zeros((1, 1, 2)), fits=np.zeros((1, 1), int)))
-    memory.update(Attack(beta=np.array([[0.0]]), protrusion=np.array([[0.0]]), quats=upright,
-                         trans=np.zeros((1, 1, 2)), fits=np.ones((1, 1), int)))
+    worse = np.array([[[0.0, 1.0, 0.0, 0.0]]])  # lying down: 21 x 40 does not fit
+    memory.update(
+        Attack(
+            beta=np.array([[0.3]]),
+            protrusion=np.array([[9.0]]),
+            quats=worse,
+            trans=np.zeros((1, 1, 2)),
+            fits=np.zeros((1, 1), int),
+        )
+    )
+    memory.update(
+        Attack(
+            beta=np.array([[0.0]]),
+            protrusion=np.array([[0.0]]),
+            quats=upright,
+            trans=np.zeros((1, 1, 2)),
+            fits=np.ones((1, 1), int),
+        )
+    )
     q, _ = memory.poses(0)
-    assert q.tolist() == [[1.0, 0, 0, 0], [0.0, 1.0, 0, 0]]   # best first
+    assert q.tolist() == [[1.0, 0, 0, 0], [0.0, 1.0, 0, 0]]  # best first
 
     warm = b.attack([hole], starts=2, steps=0, learning_rate=0.05, rng=rng(5), memory=memory)
     assert warm.beta[0, 0] == 0.0 and warm.fits[0, 0] == 1

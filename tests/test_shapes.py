@@ -38,8 +38,12 @@ def contains(mesh: trimesh.Trimesh, points) -> np.ndarray:
     a, b, c = tri[:, :, 0], tri[:, :, 1], tri[:, :, 2]
     la, lb, lc = (np.linalg.norm(v, axis=-1) for v in (a, b, c))
     det = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
-    den = (la * lb * lc + np.einsum("pfi,pfi->pf", a, b) * lc
-           + np.einsum("pfi,pfi->pf", b, c) * la + np.einsum("pfi,pfi->pf", c, a) * lb)
+    den = (
+        la * lb * lc
+        + np.einsum("pfi,pfi->pf", a, b) * lc
+        + np.einsum("pfi,pfi->pf", b, c) * la
+        + np.einsum("pfi,pfi->pf", c, a) * lb
+    )
     winding = 2.0 * np.arctan2(det, den).sum(axis=1) / (4.0 * np.pi)
     return np.abs(winding) > 0.5
 
@@ -61,7 +65,9 @@ def genus(mesh: trimesh.Trimesh) -> float:
 
 
 def load_generator():
-    spec = importlib.util.spec_from_file_location("make_scene_meshes", os.path.join(REPO, "tools", "make_scene_meshes.py"))
+    spec = importlib.util.spec_from_file_location(
+        "make_scene_meshes", os.path.join(REPO, "tools", "make_scene_meshes.py")
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -198,7 +204,16 @@ def test_bowtie_volume_is_two_trapezoids_times_thickness():
     assert genus(mesh) == 0
     # each half is a trapezoid of width w/2 with parallel sides h and s
     trapezoids = 2 * (w / 2) * (h + s) / 2
-    own_polygon = np.array([[-w / 2, -h / 2], [0, -s / 2], [w / 2, -h / 2], [w / 2, h / 2], [0, s / 2], [-w / 2, h / 2]])
+    own_polygon = np.array(
+        [
+            [-w / 2, -h / 2],
+            [0, -s / 2],
+            [w / 2, -h / 2],
+            [w / 2, h / 2],
+            [0, s / 2],
+            [-w / 2, h / 2],
+        ]
+    )
     assert abs(shoelace(own_polygon)) == pytest.approx(trapezoids)
     assert mesh.volume == pytest.approx(trapezoids * t, rel=1e-12)
     np.testing.assert_allclose(mesh.extents, [w, h, t], atol=1e-12)
@@ -207,7 +222,9 @@ def test_bowtie_volume_is_two_trapezoids_times_thickness():
 def test_bowtie_is_narrow_at_the_waist():
     w, h, t, s = 30.0, 20.0, 6.0, 6.0
     mesh = shapes.bowtie(width=w, height=h, thickness=t, waist=s)
-    inside = contains(mesh, [[0, s / 2 - 0.5, 0], [w / 2 - 0.5, h / 2 - 0.5, 0], [-w / 2 + 0.5, -h / 2 + 0.5, 0]])
+    inside = contains(
+        mesh, [[0, s / 2 - 0.5, 0], [w / 2 - 0.5, h / 2 - 0.5, 0], [-w / 2 + 0.5, -h / 2 + 0.5, 0]]
+    )
     outside = contains(mesh, [[0, s / 2 + 0.5, 0], [0, -s / 2 - 0.5, 0], [0, 0, t / 2 + 0.5]])
     assert inside.all()
     assert not outside.any()
@@ -238,7 +255,9 @@ def test_arch_volume_is_polygon_area_times_depth():
     own = np.vstack([[[-w / 2, 0]], arc, [[w / 2, 0], [w / 2, h], [-w / 2, h]]])
     assert mesh.volume == pytest.approx(abs(shoelace(own)) * d, rel=1e-9)
     # equivalently: rectangle minus n isosceles triangles of apex angle pi/n
-    assert mesh.volume == pytest.approx((w * h - n * 0.5 * r * r * math.sin(math.pi / n)) * d, rel=1e-9)
+    assert mesh.volume == pytest.approx(
+        (w * h - n * 0.5 * r * r * math.sin(math.pi / n)) * d, rel=1e-9
+    )
 
 
 def test_arch_has_the_semicircle_removed():
@@ -255,7 +274,9 @@ def test_arch_has_the_semicircle_removed():
     y0 = -h / 2
     assert not contains(mesh, [[0, y0 + r / 2, 0]]).any()
     assert not contains(mesh, [[0, y0 + r - 0.5, 0]]).any()
-    assert contains(mesh, [[0, y0 + r + 0.5, 0], [w / 2 - t / 2, y0 + 0.5, 0], [-(w / 2 - t / 2), y0 + 0.5, 0]]).all()
+    assert contains(
+        mesh, [[0, y0 + r + 0.5, 0], [w / 2 - t / 2, y0 + 0.5, 0], [-(w / 2 - t / 2), y0 + 0.5, 0]]
+    ).all()
 
 
 def test_arch_rejects_impossible_proportions():
@@ -301,7 +322,10 @@ def test_letter_volume_is_outline_area_minus_holes_times_depth(char):
 
 
 def test_letter_scales_uniformly_with_height():
-    small, big = shapes.letter("R", height=30.0, depth=8.0), shapes.letter("R", height=60.0, depth=8.0)
+    small, big = (
+        shapes.letter("R", height=30.0, depth=8.0),
+        shapes.letter("R", height=60.0, depth=8.0),
+    )
     np.testing.assert_allclose(big.extents[:2], 2 * small.extents[:2], rtol=1e-9)
     assert big.volume == pytest.approx(4 * small.volume, rel=1e-9)
 
@@ -379,7 +403,9 @@ def test_stl_known_sizes(name):
 @pytest.mark.parametrize("name", LETTER_FILES)
 def test_letter_stl_height_and_depth(name):
     mesh = trimesh.load(os.path.join(MESH_DIR, name), force="mesh")
-    np.testing.assert_allclose(mesh.extents[1:], [30.0, 12.0], rtol=1e-6)  # tools/make_scene_meshes.py: height 30, depth 12
+    np.testing.assert_allclose(
+        mesh.extents[1:], [30.0, 12.0], rtol=1e-6
+    )  # tools/make_scene_meshes.py: height 30, depth 12
 
 
 def test_stl_files_are_byte_identical_to_a_fresh_run():

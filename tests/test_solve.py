@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
@@ -55,8 +54,10 @@ def test_prince_ruperts_cube(write_scene, scale, winner):
     # side 20 * 1.035 (Wallis); a 1% larger cube passes face-on. No cube larger than Nieuwland's
     # 20 * 3 sqrt(2) / 4 = 21.2 mm passes any projection of it, so the 10% larger cube is blocked.
     q = [float(x) for x in align([1, 1, 1], [0, 0, 1])]
-    body = (f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\nrotation = {q}\n'
-            f'[[block]]\nmesh = "{_mesh_path("cube.stl")}"\nscale = {scale}\n[fabrication]\ntolerance = 0.0\n')
+    body = (
+        f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\nrotation = {q}\n'
+        f'[[block]]\nmesh = "{_mesh_path("cube.stl")}"\nscale = {scale}\n[fabrication]\ntolerance = 0.0\n'
+    )
     settings = "[verdict]\nstarts = 100\nsteps = 400\nresolution = 256\n"
     r = solve(_scene(write_scene, body, settings), progress=False)
     assert r.winner == winner
@@ -66,17 +67,21 @@ def test_prince_ruperts_cube(write_scene, scale, winner):
 def test_block_margin_turns_a_near_block_into_a_pass(write_scene):
     # The 24 mm sphere sticks out of the 22 mm hole by 1 mm: with a 1.5 mm blocking margin it no longer counts as blocked.
     q = [1.0, 0.0, 0.0, 0.0]
-    body = (f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\nrotation = {q}\n[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n'
-            "[fabrication]\ntolerance = 1.0\nblock_margin = 1.5\n")
+    body = (
+        f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\nrotation = {q}\n[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n'
+        "[fabrication]\ntolerance = 1.0\nblock_margin = 1.5\n"
+    )
     r = solve(_scene(write_scene, body), progress=False)
     assert r.winner == "B"
-    assert r.attack.margin_beta[0, 0] == 0.0 and r.attack.beta[0, 0] > 0  # still sticks out of the real hole
+    assert (
+        r.attack.margin_beta[0, 0] == 0.0 and r.attack.beta[0, 0] > 0
+    )  # still sticks out of the real hole
 
 
 @pytest.mark.slow
 def test_nlopt_outer_method(write_scene):
-    body = (f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\n[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n')
-    settings = FAST.replace('resolution = 128', 'resolution = 128\nouter = "direct"')
+    body = f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\n[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n'
+    settings = FAST.replace("resolution = 128", 'resolution = 128\nouter = "direct"')
     r = solve(_scene(write_scene, body, settings), progress=False)
     assert r.winner == "A"
     assert len(r.history.best) == 6 * 4  # particles x (iterations + 1) evaluations
@@ -87,9 +92,11 @@ def test_nlopt_outer_method(write_scene):
 def test_both_objectives_find_the_face_on_cube(write_scene, objective):
     # Only near-face-on views of the cube block the 24 mm sphere: tilted views are hexagons whose
     # inscribed disk is up to 2 * 14.1 mm wide. Both objectives must lead player A there.
-    body = (f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\n[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n')
-    settings = (f'[solver]\nobjective = "{objective}"\nresolution = 64\nparticles = 6\niterations = 3\nstarts = 4\nsteps = 40\n'
-                "[verdict]\nstarts = 40\nsteps = 250\nresolution = 160\n")
+    body = f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\n[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n'
+    settings = (
+        f'[solver]\nobjective = "{objective}"\nresolution = 64\nparticles = 6\niterations = 3\nstarts = 4\nsteps = 40\n'
+        "[verdict]\nstarts = 40\nsteps = 250\nresolution = 160\n"
+    )
     r = solve(_scene(write_scene, body, settings), progress=False)
     assert r.winner == "A"
     assert r.attack.protrusion[0, 0] == pytest.approx(1.0, abs=2 * r.hole.frame.pixel_size)
@@ -105,14 +112,18 @@ def test_two_pass_shapes_share_one_connected_hole(write_scene):
     from sieve_mi.scoring import score_poses
     from sieve_mi.silhouettes import SilhouetteRenderer
 
-    body = (f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\n[[pass]]\nmesh = "{_mesh_path("prism.stl")}"\n'
-            f'[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n')
+    body = (
+        f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\n[[pass]]\nmesh = "{_mesh_path("prism.stl")}"\n'
+        f'[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n'
+    )
     r = solve(_scene(write_scene, body), progress=False)
     assert ndimage.label(r.hole.mask, structure=np.ones((3, 3)))[1] == 1
     for shape, q, t in zip(r.pass_shapes, r.pass_quats, r.pass_trans):
         s = score_poses(SilhouetteRenderer(shape), r.hole, q[None], t[None])
         assert s.beta[0] == 0.0, shape.name
-    assert np.allclose(r.pass_trans[np.argmax([m.sum() for m in r.a_masks])], 0.0)  # the largest sits at the origin
+    assert np.allclose(
+        r.pass_trans[np.argmax([m.sum() for m in r.a_masks])], 0.0
+    )  # the largest sits at the origin
 
 
 @pytest.mark.slow
@@ -127,14 +138,19 @@ def test_separate_layout_blocks_only_if_every_hole_blocks(write_scene):
 
     cube, sphere = _mesh_path("cube.stl"), _mesh_path("sphere.stl")
     sep = '[layout]\nmode = "separate"\n[fabrication]\nborder = 4.0\n'
-    body = f'name = "t"\n[[pass]]\nmesh = "{cube}"\n[[pass]]\nmesh = "{cube}"\n[[block]]\nmesh = "{sphere}"\n' + sep
+    body = (
+        f'name = "t"\n[[pass]]\nmesh = "{cube}"\n[[pass]]\nmesh = "{cube}"\n[[block]]\nmesh = "{sphere}"\n'
+        + sep
+    )
     r = solve(_scene(write_scene, body), progress=False)
     labels, n = ndimage.label(r.hole.mask, structure=np.ones((3, 3)))
     assert n == 2
     # each hole admits its cube (a cube's projection is at least its 20 x 20 face, grown by 1 mm),
     # with at least the border of material between them
-    h2 = r.hole.frame.pixel_size ** 2
-    assert (np.bincount(labels.ravel())[1:] * h2 >= 400 + 4 * 20 * 1.0 - 40 * r.hole.frame.pixel_size).all()
+    h2 = r.hole.frame.pixel_size**2
+    assert (
+        np.bincount(labels.ravel())[1:] * h2 >= 400 + 4 * 20 * 1.0 - 40 * r.hole.frame.pixel_size
+    ).all()
     for shape, q, t in zip(r.pass_shapes, r.pass_quats, r.pass_trans):
         assert score_poses(SilhouetteRenderer(shape), r.hole, q[None], t[None]).beta[0] == 0.0
     cols = np.flatnonzero(r.hole.mask.any(axis=0))
@@ -142,8 +158,10 @@ def test_separate_layout_blocks_only_if_every_hole_blocks(write_scene):
     assert gap * r.hole.frame.pixel_size >= 4.0 - r.hole.frame.pixel_size
     assert r.winner == "A"
 
-    body = (f'name = "t"\n[[pass]]\nmesh = "{cube}"\n[[pass]]\nmesh = "{cube}"\nscale = 1.5\n'
-            f'[[block]]\nmesh = "{sphere}"\n' + sep)
+    body = (
+        f'name = "t"\n[[pass]]\nmesh = "{cube}"\n[[pass]]\nmesh = "{cube}"\nscale = 1.5\n'
+        f'[[block]]\nmesh = "{sphere}"\n' + sep
+    )
     r = solve(_scene(write_scene, body), progress=False)
     assert r.winner == "B"
     # the sphere went through the big cube's hole

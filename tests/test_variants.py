@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import rng, sphere
+
 from sieve_mi.backend import default_variant, find_llvm, gpu_available, use_variant
 from sieve_mi.errors import SieveError
 
@@ -19,7 +19,9 @@ def _attack(cube20):
     return hole, PlayerB([sphere(10.0), sphere(12.0)], f).attack([hole], 10, 100, 0.05, rng())
 
 
-@pytest.mark.parametrize("variant", ["llvm_ad_mono", pytest.param("cuda_ad_mono", marks=pytest.mark.gpu)])
+@pytest.mark.parametrize(
+    "variant", ["llvm_ad_mono", pytest.param("cuda_ad_mono", marks=pytest.mark.gpu)]
+)
 def test_known_answer_on_each_variant(variant, cube20):
     if variant.startswith("cuda") and not gpu_available():
         pytest.skip("no CUDA device on this machine")

@@ -36,7 +36,9 @@ SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
     "sphere.stl": lambda: shapes.sphere(radius=12.0, subdivisions=3),
     "small_sphere.stl": lambda: shapes.sphere(radius=9.0, subdivisions=3),
     "bowtie.stl": lambda: shapes.bowtie(width=30.0, height=20.0, thickness=6.0, waist=6.0),
-    "arch.stl": lambda: shapes.arch(width=30.0, height=20.0, thickness=6.0, depth=10.0, segments=16),
+    "arch.stl": lambda: shapes.arch(
+        width=30.0, height=20.0, thickness=6.0, depth=10.0, segments=16
+    ),
     "prism.stl": lambda: shapes.box(12.0, 12.0, 30.0),
     **{
         f"letter_{c}.stl": (lambda c=c: shapes.letter(c, height=LETTER_HEIGHT, depth=LETTER_DEPTH))
@@ -67,7 +69,9 @@ def _read(path: str) -> bytes | None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default=os.path.join(REPO, "scenes", "meshes"), help="output folder")
+    parser.add_argument(
+        "--out", default=os.path.join(REPO, "scenes", "meshes"), help="output folder"
+    )
     parser.add_argument("--check", action="store_true", help="only compare with the files on disk")
     args = parser.parse_args(argv)
 
@@ -83,9 +87,14 @@ def main(argv: list[str] | None = None) -> int:
         with open(path, "wb") as f:
             f.write(data)
         ext = mesh.extents
-        print(f"{name:18s} {len(mesh.faces):5d} faces  extents {ext[0]:7.3f} x {ext[1]:7.3f} x {ext[2]:7.3f} mm")
+        print(
+            f"{name:18s} {len(mesh.faces):5d} faces  extents {ext[0]:7.3f} x {ext[1]:7.3f} x {ext[2]:7.3f} mm"
+        )
     if stale:
-        print("out of date: " + ", ".join(stale) + " (run tools/make_scene_meshes.py)", file=sys.stderr)
+        print(
+            "out of date: " + ", ".join(stale) + " (run tools/make_scene_meshes.py)",
+            file=sys.stderr,
+        )
         return 1
     return 0
 
