@@ -28,7 +28,7 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.errors import SieveError
-from sieve_mi.hole import Hole
+from sieve_mi.hole import Hole, split_pieces
 from sieve_mi.meshes import Shape, load_trimesh
 from sieve_mi.outline import filled, placed_vertices, projection, rasterize
 from sieve_mi.raster import Frame
@@ -209,15 +209,6 @@ def frame_for_image(mask: np.ndarray, pixel_size: float) -> tuple[Frame, np.ndar
     return Frame(n, 0.5 * n * pixel_size), out
 
 
-def split_mask(mask: np.ndarray) -> list[np.ndarray]:
-    """Connected components (8-connected) of a mask, largest first."""
-    from scipy import ndimage
-
-    labels, n = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
-    parts = [labels == i for i in range(1, n + 1)]
-    return sorted(parts, key=lambda m: -int(m.sum()))
-
-
 # ------------------------------------------------------------------------------------------------
 # Player B against fixed holes
 # ------------------------------------------------------------------------------------------------
@@ -373,7 +364,7 @@ def check(
                 f"--pixel-size {pixel_size}: give the hole image's pixel size, a positive number in scene units"
             )
         frame, mask = frame_for_image(mask_from_image(image), pixel_size)
-        holes = [Hole.from_mask(m, frame) for m in split_mask(mask)]
+        holes = [Hole.from_mask(m, frame) for m in split_pieces(mask)]
         outlines, centre, source = None, np.zeros(2), image
         info = [{"area": h.area} for h in holes]
     # Poses are reported in the sieve's own coordinates.

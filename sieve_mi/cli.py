@@ -93,7 +93,7 @@ def cmd_solve(args) -> int:
     result = solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
     report = write_outputs(result, out_dir, figure=not args.no_figure)
     print(summary_table(report))
-    for w in report.get("fabrication", {}).get("warnings", []):
+    for w in report["warnings"] + report.get("fabrication", {}).get("warnings", []):
         print(f"sieve-mi: warning: {w}", file=sys.stderr)
     print(f"outputs: {out_dir}/")
     return 0

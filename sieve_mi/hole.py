@@ -128,3 +128,15 @@ def build_hole(
     if fill_holes:
         union = ndimage.binary_fill_holes(union)
     return Hole.from_mask(union, frame)
+
+
+def pieces(mask: np.ndarray) -> int:
+    """Number of 8-connected pieces of a mask (N, N) bool."""
+    return int(ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))[1])
+
+
+def split_pieces(mask: np.ndarray) -> list[np.ndarray]:
+    """The 8-connected pieces of a mask, each as its own (N, N) bool mask, largest first."""
+    labels, n = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
+    sizes = np.bincount(labels.ravel(), minlength=n + 1)[1:]
+    return [labels == (k + 1) for k in np.argsort(-sizes, kind="stable")]

@@ -22,23 +22,30 @@ from typing import NamedTuple
 import numpy as np
 from scipy import ndimage
 
-from sieve_mi.hole import Hole, dilate
+from sieve_mi.hole import Hole, build_hole, dilate, pieces
+from sieve_mi.meshes import Shape
 from sieve_mi.optim import SwarmHistory, particle_swarm
 from sieve_mi.players import AttackMemory, PlayerA, PlayerB
 from sieve_mi.raster import Frame
-from sieve_mi.rotations import angle_between, from_axis_angle, normalize
+from sieve_mi.rotations import angle_between, from_axis_angle, normalize, quat_multiply
+from sieve_mi.scene import Layout, Solver
 
-
-@dataclass
-class LayoutSettings:
-    """Parameters of eq. 14 and of the placement swarm (paper defaults)."""
-
-    tau: float = 10.0
-    rho: float = 200.0
-    eta: float = 0.02
-    alpha: float = 5.0
-    c_personal: float = 0.05
-    c_global: float = 0.05
+#: In-plane rotations of a shape tried by :func:`candidate_placements` (every 5 degrees).
+ANGLES = 72
+#: Candidate translations kept per in-plane rotation (the strongest overlap peaks).
+PER_ANGLE = 6
+#: Overlap peaks are at least this fraction of the reach apart.
+PEAK_SPACING = 0.05
+#: A candidate must overlap the hole by more than this many pixels (it must touch it).
+MIN_OVERLAP = 0.5
+#: Candidates closer than this (radians) *and* :data:`DISTINCT_SHIFT` (fraction of the reach) to
+#: an earlier one are the same placement.
+DISTINCT_ANGLE = 0.2
+DISTINCT_SHIFT = 0.1
+#: ``SCREEN * particles`` distinct candidates are screened with a short attack.
+SCREEN = 5
+#: The swarm's best placements re-ranked by the long attack.
+FINALISTS = 5
 
 
 class Placement(NamedTuple):
@@ -61,26 +68,34 @@ class Placement(NamedTuple):
         return self.beta > 0
 
 
-def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product a * b of quaternions (w, x, y, z): rotation b, then a."""
-    aw, ax, ay, az = np.moveaxis(np.asarray(a, float), -1, 0)
-    bw, bx, by, bz = np.moveaxis(np.asarray(b, float), -1, 0)
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        -1,
-    )
-
-
 def union_frame(radii: list[float], tolerance: float, resolution: int) -> Frame:
     """A frame for a hole made of several shapes: every shape's centre may lie anywhere within the
     largest radius of the origin, so the frame covers twice the largest radius plus the tolerance."""
     r = max(radii)
     return Frame.covering(2.0 * r + tolerance, resolution)
+
+
+def hole_frame(shape: Shape, tolerance: float, resolution: int) -> Frame:
+    """The raster frame for one A's hole: covers A's dilated silhouette at every rotation."""
+    return Frame.covering(shape.radius + tolerance, resolution)
+
+
+def frame_for(
+    passes: list[Shape], tolerance: float, resolution: int, trans: np.ndarray | None = None
+) -> Frame:
+    """The frame of the final hole.
+
+    One shape: its own frame. Several shapes at known in-plane translations ``trans`` (scene
+    units): the smallest centred frame that holds every shape's bounding disk at its place, so the
+    verdict's pixels are as fine as the placed hole allows. Without ``trans``: the union frame,
+    which holds any placement the search may choose.
+    """
+    if len(passes) == 1:
+        return hole_frame(passes[0], tolerance, resolution)
+    if trans is None:
+        return union_frame([p.radius for p in passes], tolerance, resolution)
+    reach = max(float(np.hypot(*t)) + p.radius for p, t in zip(passes, trans))
+    return Frame.covering(reach + tolerance, resolution)
 
 
 def separate_layout(
@@ -117,18 +132,11 @@ def separate_layout(
     return trans, Frame(n, 0.5 * n * h)
 
 
-def eq14(
-    beta: np.ndarray, area_fraction: np.ndarray, pieces: np.ndarray, s: LayoutSettings
-) -> np.ndarray:
+def eq14(beta: np.ndarray, area_fraction: np.ndarray, pieces: np.ndarray, s: Layout) -> np.ndarray:
     """The energy of eq. 14, minus tau for every hole that falls apart into several pieces."""
     return (
         s.tau / 2 * np.tanh(s.rho * (beta - s.eta)) - s.alpha * area_fraction - s.tau * (pieces > 1)
     )
-
-
-def pieces(mask: np.ndarray) -> int:
-    """Number of 8-connected pieces of a mask."""
-    return int(ndimage.label(mask, structure=np.ones((3, 3)))[1])
 
 
 def _rotated_silhouettes(
@@ -161,8 +169,8 @@ def candidate_placements(
     quat: np.ndarray,
     reach: float,
     *,
-    angles: int = 72,
-    per_angle: int = 6,
+    angles: int = ANGLES,
+    per_angle: int = PER_ANGLE,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """In-plane placements of a shape that touch a hole, ranked by the area of the hole they make.
 
@@ -209,11 +217,11 @@ def candidate_placements(
     )  # wrapped index -> signed pixel shift
     sr, sc = np.meshgrid(shift, shift, indexing="ij")
     allowed = np.hypot(sr, sc) * h <= reach
-    spacing = max(3, int(round(0.05 * reach / h)))  # local maxima at least ~5 % of the reach apart
+    spacing = max(3, int(round(PEAK_SPACING * reach / h)))
     qs, ts, areas = [], [], []
     for k in range(angles):
         c = np.where(allowed, corr[k], -np.inf)
-        peaks = (c >= ndimage.maximum_filter(c, size=spacing, mode="wrap")) & (c > 0.5)
+        peaks = (c >= ndimage.maximum_filter(c, size=spacing, mode="wrap")) & (c > MIN_OVERLAP)
         idx = np.flatnonzero(peaks)
         idx = idx[np.argsort(c.ravel()[idx])[::-1][:per_angle]]
         for i in idx:
@@ -275,12 +283,12 @@ def place(
     starts: int,
     steps: int,
     learning_rate: float,
-    settings: LayoutSettings,
+    settings: Layout,
     rng: np.random.Generator,
     progress: Callable[[int, float], None] | None = None,
     recheck: tuple[int, int] | None = None,
-    finalists: int = 5,
-    screen: int = 5,
+    finalists: int = FINALISTS,
+    screen: int = SCREEN,
     memory: AttackMemory | None = None,
     rounds: int = 3,
 ):
@@ -300,7 +308,8 @@ def place(
         Placement swarm size and iterations.
     starts, steps, learning_rate :
         Player B's attack settings for every candidate hole.
-    settings : LayoutSettings
+    settings : sieve_mi.scene.Layout
+        Eq. 14's tau, rho, eta, alpha and the swarm's accelerations.
     rng : numpy.random.Generator
     recheck : (int, int), optional
         Starts and Adam steps of the attack that re-ranks the swarm's ``finalists`` best placements
@@ -328,7 +337,9 @@ def place(
     # touch the current hole, most compact filled hole first (an exhaustive search by FFT
     # cross-correlation, in place of the paper's gradient steps from random in-plane transforms).
     qc, tc, _ = candidate_placements(player, base, quat, reach)
-    distinct = _diverse(qc, tc, len(qc), min_angle=0.2, min_distance=0.1 * reach)
+    distinct = _diverse(
+        qc, tc, len(qc), min_angle=DISTINCT_ANGLE, min_distance=DISTINCT_SHIFT * reach
+    )
     pick = _stratified(len(distinct), screen * particles)
     qc, tc = qc[distinct[pick]], tc[distinct[pick]]
     x0 = np.concatenate([qc, tc / reach], axis=1)
@@ -341,14 +352,18 @@ def place(
         return x
 
     if memory is None:
-        memory = AttackMemory(len(player_b.shapes), size=max(1, starts // 3))
+        memory = AttackMemory.for_starts(len(player_b.shapes), starts)
+
+    def energy(x, n_starts: int, n_steps: int):
+        """Eq. 14 energy and the weakest B's beta of placements x (P, 6)."""
+        holes = player.holes(x[:, :4], x[:, 4:] * reach, base=base)
+        attack = player_b.attack(holes, n_starts, n_steps, learning_rate, rng, memory=memory)
+        area = np.array([hh.mask.mean() for hh in holes])
+        n = np.array([pieces(hh.mask) for hh in holes])
+        return eq14(attack.value(), area, n, settings), attack.value()
 
     def evaluate(x):
-        holes = player.holes(x[:, :4], x[:, 4:] * reach, base=base)
-        attack = player_b.attack(holes, starts, steps, learning_rate, rng, memory=memory)
-        area = np.array([h.mask.mean() for h in holes])
-        n = np.array([pieces(h.mask) for h in holes])
-        return eq14(attack.value(), area, n, settings)
+        return energy(x, starts, steps)[0]
 
     r_starts, r_steps = recheck if recheck is not None else (3 * starts, 3 * steps)
     pool = x0
@@ -377,20 +392,15 @@ def place(
             project=project,
             progress=progress,
         )
-        history.best += h.best
-        history.evaluations += h.evaluations
+        history.extend(h)
         history.finalists = h.finalists
         # The swarm ranks placements with a short attack, which can miss a narrow passage. Re-rank
         # its best few placements with a long attack and keep the best of those.
         xs = np.stack([f for f, _ in h.finalists[:finalists]]) if h.finalists else x[None]
-        holes = player.holes(xs[:, :4], xs[:, 4:] * reach, base=base)
-        attack = player_b.attack(holes, r_starts, r_steps, learning_rate, rng, memory=memory)
-        area = np.array([hh.mask.mean() for hh in holes])
-        n = np.array([pieces(hh.mask) for hh in holes])
-        energy = eq14(attack.value(), area, n, settings)
-        i = int(np.argmax(energy))
-        if energy[i] > value:
-            best, value, best_beta = xs[i], float(energy[i]), float(attack.value()[i])
+        values, betas = energy(xs, r_starts, r_steps)
+        i = int(np.argmax(values))
+        if values[i] > value:
+            best, value, best_beta = xs[i], float(values[i]), float(betas[i])
         if best_beta > 0:
             break
         # Every finalist lets some B through. The memory now holds the passing poses, so another
@@ -438,14 +448,155 @@ def sort_by_area(players: list[PlayerA], quats: np.ndarray) -> list[int]:
     return list(np.argsort(areas)[::-1])
 
 
-def compose(
-    players: list[PlayerA], quats: np.ndarray, trans: np.ndarray, fill_holes: bool = True
-) -> Hole:
-    """The hole made of every A shape at its placement: union of dilated silhouettes, filled."""
-    frame = players[0].frame
-    union = np.zeros((frame.resolution, frame.resolution), dtype=bool)
-    for p, q, t in zip(players, quats, trans):
-        union |= dilate(p.silhouettes(q[None], t[None])[0], frame, p.tolerance)
-    if fill_holes:
-        union = ndimage.binary_fill_holes(union)
-    return Hole.from_mask(union, frame)
+def compose(players: list[PlayerA], quats: np.ndarray, trans: np.ndarray) -> Hole:
+    """The hole made of every A shape at its placement (:func:`sieve_mi.hole.build_hole`).
+
+    Parameters
+    ----------
+    players : list of PlayerA
+        On one frame, with one tolerance and one ``fill_holes`` setting.
+    quats : (m, 4) ndarray
+    trans : (m, 2) ndarray
+        Scene units.
+    """
+    first = players[0]
+    masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(players, quats, trans)]
+    return build_hole(masks, first.frame, first.tolerance, first.fill_holes)
+
+
+@dataclass
+class Merged:
+    """Where every A sits in a merged hole, as :func:`merge` left it.
+
+    Attributes
+    ----------
+    quats : (m, 4) ndarray
+        Each A's rotation (w, x, y, z); the first placed shape's may have been swapped for one of
+        its alternatives.
+    trans : (m, 2) ndarray
+        Each A's translation, scene units; the largest shape sits at the origin.
+    value : float
+        The last placement's eq. 14 energy.
+    history : SwarmHistory
+        Best value per swarm iteration, all placements one after another.
+    stages : list of (str, int)
+        Label and number of iterations of every placement try.
+    """
+
+    quats: np.ndarray
+    trans: np.ndarray
+    value: float
+    history: SwarmHistory
+    stages: list
+
+
+def _tries(quat, own_alternatives, base_alternatives, rounds: int, lost: bool, first: bool):
+    """The (base rotation or None, rotation, rounds) tries of one placement, in order.
+
+    The shape's own best rotation first (several rounds); while no earlier placement let B through,
+    then its next-best distinct rotations, and for the first pair also the base shape's (Sec. 5.3
+    is greedy: a hole that lets B through cannot be mended by adding more shapes). One round each.
+    """
+    tries = [(None, quat, rounds)]
+    if not lost:
+        tries += [(None, q, 1) for q in own_alternatives]
+        if first:
+            tries += [(q, quat, 1) for q in base_alternatives]
+    return tries
+
+
+def merge(
+    players: list[PlayerA],
+    player_b: PlayerB,
+    quats: np.ndarray,
+    alternatives: dict,
+    *,
+    solver: Solver,
+    layout: Layout,
+    recheck: tuple[int, int],
+    rng: np.random.Generator,
+    progress: Callable[[str, float], None] | None = None,
+) -> Merged:
+    """The sequential scheme of Sec. 5.3: place every A, largest first, into one hole.
+
+    Parameters
+    ----------
+    players : list of PlayerA
+        Every A on the union frame (:func:`union_frame`).
+    player_b : PlayerB
+        The shapes to block, on the same frame.
+    quats : (m, 4) ndarray
+        Each A's best rotation when solved alone.
+    alternatives : dict of int to list of (4,) ndarray
+        Per A, other good rotations from its own search (:func:`alternative_rotations`).
+    solver, layout : sieve_mi.scene.Solver, sieve_mi.scene.Layout
+        Swarm and attack settings; eq. 14, ``rounds`` and ``alternatives``.
+    recheck : (int, int)
+        Starts and steps of the attack that re-ranks each placement's finalists.
+    rng : numpy.random.Generator
+    progress : callable, optional
+        Called as ``progress(stage_label, best)`` after every swarm iteration.
+
+    Returns
+    -------
+    Merged
+    """
+    quats = np.array(quats, dtype=np.float64)
+    trans = np.zeros((len(players), 2))
+    history, stages, value = SwarmHistory(), [], float("nan")
+    order = sort_by_area(players, quats)
+    placed = [order[0]]
+    memory = AttackMemory.for_starts(len(player_b.shapes), solver.starts)
+    lost = False  # a placement already lets some B through: later ones cannot mend that
+    for i in order[1:]:
+        name = players[i].shape.name
+        tries = _tries(
+            quats[i],
+            alternatives.get(i, []),
+            alternatives.get(placed[0], []),
+            layout.rounds,
+            lost,
+            len(placed) == 1,
+        )
+        current = compose([players[j] for j in placed], quats[placed], trans[placed]).mask
+        kept, kept_base = None, quats[placed[0]]
+        for attempt, (base_q, q, rounds) in enumerate(tries):
+            base = current
+            if base_q is not None:  # the first pair, with another rotation of the base shape
+                base = compose([players[placed[0]]], base_q[None], trans[placed]).mask
+            got = place(
+                players[i],
+                player_b,
+                base,
+                q,
+                particles=solver.particles,
+                iterations=solver.iterations,
+                starts=solver.starts,
+                steps=solver.steps,
+                learning_rate=solver.learning_rate,
+                settings=layout,
+                rng=rng,
+                progress=None
+                if progress is None
+                else (lambda it, best, _n=name: progress(f"place {_n}", best)),
+                memory=memory,
+                recheck=recheck,
+                rounds=rounds,
+            )
+            history.extend(got.history)
+            stages.append(
+                (
+                    f"place {name}" + (f" (try {attempt + 1})" if attempt else ""),
+                    len(got.history.best),
+                )
+            )
+            if kept is None or (got.blocks, got.value) > (kept.blocks, kept.value):
+                kept, kept_base = got, (quats[placed[0]] if base_q is None else base_q).copy()
+            if kept.blocks:
+                break
+        quats[i], trans[i], value = kept.quat, kept.trans, kept.value
+        quats[placed[0]] = kept_base
+        lost = lost or not kept.blocks
+        placed.append(i)
+    trans -= trans[order[0]]  # the first (largest) shape sits at the origin
+    return Merged(quats, trans, value, history, stages)

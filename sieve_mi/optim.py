@@ -65,6 +65,11 @@ class SwarmHistory:
     #: Final personal bests of a swarm (positions and values), best first; empty for nlopt.
     finalists: list = field(default_factory=list)
 
+    def extend(self, other: SwarmHistory) -> None:
+        """Append a later stage's values and evaluations (its finalists are not kept)."""
+        self.best += other.best
+        self.evaluations += other.evaluations
+
 
 def particle_swarm(
     evaluate: Callable[[np.ndarray], np.ndarray],

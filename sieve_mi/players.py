@@ -82,6 +82,11 @@ class AttackMemory:
             [] for _ in range(shapes)
         ]
 
+    @classmethod
+    def for_starts(cls, shapes: int, starts: int) -> AttackMemory:
+        """A memory sized for attacks of ``starts`` random starts: a third of them, at least one."""
+        return cls(shapes, size=max(1, starts // 3))
+
     def update(self, attack: Attack) -> None:
         """Add each hole's best pose per shape from ``attack``, keep the ``size`` best per shape."""
         for b, kept in enumerate(self._poses):
@@ -355,10 +360,6 @@ class PlayerA:
         self.tolerance = tolerance
         self.fill_holes = fill_holes
         self.renderer = SilhouetteRenderer(shape)
-
-    def silhouette(self, quat: np.ndarray) -> np.ndarray:
-        """A's silhouette under rotation ``quat`` on the frame, (N, N) bool."""
-        return self.renderer.frame_mask(normalize(quat), np.zeros(2), self.frame)
 
     def silhouettes(self, quats: np.ndarray, trans: np.ndarray | None = None) -> np.ndarray:
         """A's silhouettes on the frame for K poses, (K, N, N) bool (translations default to zero)."""

@@ -14,7 +14,6 @@ import time
 
 import numpy as np
 
-from sieve_mi.scoring import score_poses
 from sieve_mi.solve import Result
 
 
@@ -90,6 +89,7 @@ def report_dict(result: Result) -> dict:
         "search_value": None if np.isnan(result.search_value) else float(result.search_value),
         "convergence": [float(x) for x in result.history.best],
         "stages": [{"stage": label, "iterations": n} for label, n in result.stages],
+        "warnings": list(result.warnings),
         "timings": {k: round(float(v), 4) for k, v in result.timings.items()},
         "pixel_size": hole.frame.pixel_size,
         "units": scene.units,
@@ -126,7 +126,7 @@ def _convergence_png(path: str, history: list[float]) -> None:
     plt.close(fig)
 
 
-def _overlay_png(path: str, result: Result, b_masks: list) -> None:
+def _overlay_png(path: str, result: Result) -> None:
     """The hole with A's silhouette and each B's best attempt drawn over it."""
     import matplotlib
 
@@ -160,7 +160,7 @@ def _overlay_png(path: str, result: Result, b_masks: list) -> None:
                 linestyles="--",
             )
         if j < n_b:
-            (x0, x1, y0, y1), m = b_masks[j]
+            (x0, x1, y0, y1), m = result.block_masks[j]
             colour = colours[j % 10]
             rgba = np.zeros(m.shape + (4,))
             rgba[m] = colour
@@ -172,7 +172,11 @@ def _overlay_png(path: str, result: Result, b_masks: list) -> None:
                 f"{result.block_shapes[j].name}: {status}\nbeta={beta:.4f}, protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}",
                 fontsize=9,
             )
-        lim = max(r, *(max(abs(v) for v in b_masks[j][0]) for j in range(n_b))) if n_b else r
+        lim = (
+            max(r, *(max(abs(v) for v in result.block_masks[j].extent) for j in range(n_b)))
+            if n_b
+            else r
+        )
         ax.set_xlim(-lim, lim)
         ax.set_ylim(-lim, lim)
         ax.set_aspect("equal")
@@ -210,26 +214,13 @@ def write_outputs(
                     os.path.join(tmp, "masks", f"pass_{i}_{_safe(shape.name)}.exr"),
                     m.astype(np.float32),
                 )
-        b_masks = []
-        for j, shape in enumerate(result.block_shapes):
-            scores, (row0, col0, size, masks) = score_poses(
-                result.renderers[j],
-                hole,
-                result.attack.quats[0, j : j + 1],
-                result.attack.trans[0, j : j + 1],
-                return_masks=True,
-            )
+        for j, (shape, window) in enumerate(zip(result.block_shapes, result.block_masks)):
             write_exr(
                 os.path.join(tmp, "masks", f"block_{j}_{_safe(shape.name)}.exr"),
-                masks[0].astype(np.float32),
-            )
-            x, y = hole.frame.window_centres(row0, col0, size)
-            h = hole.frame.pixel_size
-            b_masks.append(
-                ((x[0, 0] - h / 2, x[0, -1] + h / 2, y[0, -1] - h / 2, y[0, 0] + h / 2), masks[0])
+                window.mask.astype(np.float32),
             )
         _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best)
-        _overlay_png(os.path.join(tmp, "overlay.png"), result, b_masks)
+        _overlay_png(os.path.join(tmp, "overlay.png"), result)
         if fabricate:
             from sieve_mi.fabrication import fabricate as make_sieve
 

@@ -120,3 +120,18 @@ def angle_between(q1: np.ndarray, q2: np.ndarray) -> float:
     """Angle in radians of the rotation taking q1 to q2."""
     d = abs(float(np.dot(normalize(q1), normalize(q2))))
     return 2.0 * float(np.arccos(min(1.0, d)))
+
+
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a * b of quaternions (w, x, y, z): rotation b, then a."""
+    aw, ax, ay, az = np.moveaxis(np.asarray(a, float), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.asarray(b, float), -1, 0)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        -1,
+    )

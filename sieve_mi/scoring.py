@@ -9,12 +9,22 @@ reductions run in one Dr.Jit kernel for all poses.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from sieve_mi.hole import Hole
 from sieve_mi.raster import Frame
 from sieve_mi.silhouettes import SilhouetteRenderer
+
+
+class MaskWindow(NamedTuple):
+    """A shape's silhouette on a window of a hole's pixel lattice (for images and figures)."""
+
+    #: (x0, x1, y0, y1): the window's outer edges, scene units.
+    extent: tuple
+    #: (S, S) bool: pixel centres covered by the silhouette, row 0 at the top.
+    mask: np.ndarray
 
 
 @dataclass
@@ -33,14 +43,16 @@ class PoseScores:
     protrusion: np.ndarray
 
 
-def window_for(
-    renderer: SilhouetteRenderer, frame: Frame, trans: np.ndarray, cap: int | None = None
-):
-    """Lattice windows covering each pose's bounding disk: (row0, col0, size)."""
+def window_for(renderer: SilhouetteRenderer, frame: Frame, trans: np.ndarray):
+    """Lattice windows covering each pose's bounding disk: (row0, col0, size).
+
+    The window side is capped at twice the frame plus a margin; a capped window is centred on the
+    pose (a projection larger than it cannot fit anyway, see :func:`score_poses`).
+    """
     h = frame.pixel_size
     r = renderer.shape.radius
     full = int(np.ceil(2 * r / h)) + 3
-    size = min(full, cap or 2 * frame.resolution + 3)
+    size = min(full, 2 * frame.resolution + 3)
     trans = np.atleast_2d(trans)
     # Centre the window on the pose when it is capped, else put its corner at the disk's corner.
     start = (
@@ -138,3 +150,26 @@ def score_poses(
     if return_masks:
         return scores, (row0, col0, size, masks)
     return scores
+
+
+def mask_window(
+    renderer: SilhouetteRenderer, hole: Hole, quat: np.ndarray, trans: np.ndarray
+) -> MaskWindow:
+    """One pose's silhouette on the lattice window of :func:`score_poses` around it.
+
+    Parameters
+    ----------
+    renderer : SilhouetteRenderer
+    hole : Hole
+        Its frame fixes the lattice.
+    quat : (4,) ndarray
+    trans : (2,) ndarray
+        Scene units.
+    """
+    _, (row0, col0, size, masks) = score_poses(
+        renderer, hole, np.atleast_2d(quat), np.atleast_2d(trans), return_masks=True
+    )
+    x, y = hole.frame.window_centres(row0, col0, size)
+    half = hole.frame.pixel_size / 2
+    extent = (x[0, 0] - half, x[0, -1] + half, y[0, -1] - half, y[0, 0] + half)
+    return MaskWindow(tuple(float(e) for e in extent), masks[0])

@@ -1,4 +1,9 @@
-"""The whole game for one scene: search (player A against player B), then the verdict."""
+"""The whole game for one scene: player A's search, then the verdict (:mod:`sieve_mi.verdict`).
+
+:func:`search` chooses every A's rotation (each alone against all of B, Secs. 5.1-5.2) and, for
+several A in one hole, their placements (:func:`sieve_mi.layout.merge`, Sec. 5.3); the verdict
+re-runs player B for longer against the chosen hole and declares the winner.
+"""
 
 from __future__ import annotations
 
@@ -6,25 +11,16 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage
 
 from sieve_mi.hole import Hole
-from sieve_mi.layout import (
-    LayoutSettings,
-    alternative_rotations,
-    compose,
-    place,
-    separate_layout,
-    sort_by_area,
-    union_frame,
-)
+from sieve_mi.layout import alternative_rotations, hole_frame, merge, union_frame
 from sieve_mi.meshes import Shape, load_shape
 from sieve_mi.optim import SwarmHistory
-from sieve_mi.players import Attack, AttackMemory, PlayerA, PlayerB
-from sieve_mi.raster import Frame
+from sieve_mi.players import Attack, PlayerA, PlayerB
 from sieve_mi.rotations import normalize
 from sieve_mi.scene import Scene
-from sieve_mi.scoring import score_poses
+from sieve_mi.scoring import MaskWindow
+from sieve_mi.verdict import judge
 
 
 @dataclass
@@ -33,6 +29,7 @@ class Result:
 
     Attributes
     ----------
+    scene : Scene
     winner : {"A", "B"}
         "A" iff every shape to block is blocked after the verdict.
     pass_shapes, block_shapes : list of Shape
@@ -45,15 +42,24 @@ class Result:
     a_masks : list of (N, N) bool ndarrays
         Each A's undilated silhouette at its placement, on the hole's frame.
     attack : Attack
-        Player B's best attempts in the verdict (one hole).
+        Player B's best attempts in the verdict (one row: per shape, its best hole).
+    block_masks : list of MaskWindow
+        Each B's silhouette in its best attempt, on a window of the hole's pixel lattice.
     history : SwarmHistory
         Best search value per iteration (all stages of a many-A search, one after another).
-    stages : list of (str, int)
-        Label and number of iterations of each search stage.
     search_value : float
         The game value of the chosen placement during the search (NaN when A was fixed).
+    variant : str
+        The Mitsuba variant that ran.
+    stages : list of (str, int)
+        Label and number of iterations of each search stage.
+    warnings : list of str
+        What the user should know about the result (e.g. a merged hole in several pieces).
     timings : dict
         Seconds per stage.
+    alone : list of float or None
+        Per pass shape: its own search's value (the weakest B's loss against that shape's hole
+        alone, short attack), or None where its rotation was fixed in the scene.
     """
 
     scene: Scene
@@ -65,28 +71,45 @@ class Result:
     hole: Hole
     a_masks: list
     attack: Attack
+    block_masks: list[MaskWindow]
     history: SwarmHistory
     search_value: float
     variant: str
     stages: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
-    renderers: list = field(default_factory=list, repr=False)
-    #: Per pass shape: its own search's value (the weakest B's loss against that shape's hole
-    #: alone, short attack), or None where its rotation was fixed in the scene.
     alone: list = field(default_factory=list)
 
     @property
-    def pass_quat(self) -> np.ndarray:
-        """The first A's rotation."""
-        return self.pass_quats[0]
-
-    @property
     def a_mask(self) -> np.ndarray:
-        """All A silhouettes together."""
-        out = np.zeros_like(self.a_masks[0])
-        for m in self.a_masks:
-            out |= m
-        return out
+        """All A silhouettes together, (N, N) bool."""
+        return np.logical_or.reduce(self.a_masks)
+
+
+@dataclass
+class Search:
+    """Player A's choice, as :func:`search` made it.
+
+    Attributes
+    ----------
+    quats : (m, 4) ndarray
+        Each A's rotation (w, x, y, z).
+    trans : (m, 2) ndarray
+        Each A's translation, scene units (zeros unless merged).
+    value : float
+        The game value of the last stage (NaN when every A was fixed).
+    history : SwarmHistory
+    stages : list of (str, int)
+    alone : list of float or None
+        Each A's own search value (None where fixed).
+    """
+
+    quats: np.ndarray
+    trans: np.ndarray
+    value: float
+    history: SwarmHistory
+    stages: list
+    alone: list
 
 
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
@@ -94,29 +117,6 @@ def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
     passes = [load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name) for e in scene.passes]
     blocks = [load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name) for e in scene.blocks]
     return passes, blocks
-
-
-def hole_frame(shape: Shape, tolerance: float, resolution: int) -> Frame:
-    """The raster frame for one A's hole: covers A's dilated silhouette at every rotation."""
-    return Frame.covering(shape.radius + tolerance, resolution)
-
-
-def frame_for(
-    passes: list[Shape], tolerance: float, resolution: int, trans: np.ndarray | None = None
-) -> Frame:
-    """The frame of the final hole.
-
-    One shape: its own frame. Several shapes at known in-plane translations ``trans`` (scene
-    units): the smallest centred frame that holds every shape's bounding disk at its place, so the
-    verdict's pixels are as fine as the placed hole allows. Without ``trans``: the union frame,
-    which holds any placement the search may choose.
-    """
-    if len(passes) == 1:
-        return hole_frame(passes[0], tolerance, resolution)
-    if trans is None:
-        return union_frame([p.radius for p in passes], tolerance, resolution)
-    reach = max(float(np.hypot(*t)) + p.radius for p, t in zip(passes, trans))
-    return Frame.covering(reach + tolerance, resolution)
 
 
 class _Bar:
@@ -170,126 +170,71 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Ba
     )
 
 
-def search(scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: int, progress: bool):
+def search(
+    scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: int, progress: bool
+) -> Search:
     """Player A's placements: rotations (and translations for several shapes) of every A.
+
+    Parameters
+    ----------
+    scene : Scene
+    passes, blocks : list of Shape
+        A and B.
+    rng : numpy.random.Generator
+    seed : int
+        Seed for nlopt's own generator.
+    progress : bool
+        Show a progress bar on stderr.
 
     Returns
     -------
-    quats : (m, 4) ndarray
-    trans : (m, 2) ndarray
-    value : float
-    history : SwarmHistory
-    stages : list of (str, int)
+    Search
     """
-    s, fab, lay = scene.solver, scene.fabrication, scene.layout
+    s, lay = scene.solver, scene.layout
     m = len(passes)
-    quats = np.zeros((m, 4))
-    trans = np.zeros((m, 2))
     fixed = [e.rotation for e in scene.passes]
-    history, stages = SwarmHistory(), []
-    free = [i for i in range(m) if fixed[i] is None]
-    placements = m - 1 if (m > 1 and lay.mode == "merged") else 0
+    merged = m > 1 and lay.mode == "merged"
     per_stage = s.particles * (s.iterations + 1)
-    bar = _Bar(progress, per_stage * (len(free) + placements), "search", grow_by=per_stage)
+    stages_planned = sum(q is None for q in fixed) + (m - 1 if merged else 0)
+    bar = _Bar(progress, per_stage * stages_planned, "search", grow_by=per_stage)
+    out = Search(np.zeros((m, 4)), np.zeros((m, 2)), float("nan"), SwarmHistory(), [], [None] * m)
     alternatives: dict[int, list[np.ndarray]] = {}
-    alone: list[float | None] = [None] * m
-    value = float("nan")
     for i in range(m):
         if fixed[i] is not None:
-            quats[i] = normalize(np.asarray(fixed[i]))
+            out.quats[i] = normalize(np.asarray(fixed[i]))
             continue
-        quats[i], value, h = _search_one(passes[i], blocks, scene, rng, seed, bar, passes[i].name)
-        alone[i] = float(value)
-        alternatives[i] = alternative_rotations(h.finalists, quats[i], lay.alternatives)
-        history.best += h.best
-        history.evaluations += h.evaluations
-        stages.append((f"rotate {passes[i].name}", len(h.best)))
-    if m > 1 and lay.mode == "merged":
-        frame = union_frame([p.radius for p in passes], fab.tolerance, s.resolution)
-        players = [PlayerA(p, frame, fab.tolerance, fab.fill_holes) for p in passes]
-        player_b = PlayerB(blocks, frame, s.objective)
-        settings = LayoutSettings(
-            lay.tau, lay.rho, lay.eta, lay.alpha, lay.c_personal, lay.c_global
+        out.quats[i], out.value, h = _search_one(
+            passes[i], blocks, scene, rng, seed, bar, passes[i].name
         )
-        order = sort_by_area(players, quats)
-        placed = [order[0]]
-        memory = AttackMemory(len(blocks), size=max(1, s.starts // 3))
-        lost = False  # a placement already lets some B through: later ones cannot mend that
-        for i in order[1:]:
-
-            def report(it, best, _n=passes[i].name):
-                bar.update(s.particles, best=f"{best:.3f}", stage=f"place {_n}")
-
-            # The shape's own best rotation first (several rounds); if every placement still lets
-            # some B through, its next-best distinct rotations from its own search, and for the
-            # first pair the base shape's too (Sec. 5.3 is greedy: a hole that lets B through
-            # cannot be mended by adding more shapes to it). One round each.
-            tries = [(None, quats[i], lay.rounds)]
-            if not lost:
-                tries += [(None, q, 1) for q in alternatives.get(i, [])]
-                if len(placed) == 1:
-                    tries += [(q, quats[i], 1) for q in alternatives.get(placed[0], [])]
-            current = compose(
-                [players[j] for j in placed], quats[placed], trans[placed], fab.fill_holes
-            ).mask
-            kept, kept_base = None, quats[placed[0]]
-            for attempt, (base_q, q, rounds) in enumerate(tries):
-                base = current
-                if base_q is not None:  # the first pair, with another rotation of the base shape
-                    base = compose(
-                        [players[placed[0]]], base_q[None], trans[placed], fab.fill_holes
-                    ).mask
-                got = place(
-                    players[i],
-                    player_b,
-                    base,
-                    q,
-                    particles=s.particles,
-                    iterations=s.iterations,
-                    starts=s.starts,
-                    steps=s.steps,
-                    learning_rate=s.learning_rate,
-                    settings=settings,
-                    rng=rng,
-                    progress=report,
-                    memory=memory,
-                    recheck=(scene.verdict.starts, scene.verdict.steps),
-                    rounds=rounds,
-                )
-                history.best += got.history.best
-                history.evaluations += got.history.evaluations
-                label = f"place {passes[i].name}" + (f" (try {attempt + 1})" if attempt else "")
-                stages.append((label, len(got.history.best)))
-                if kept is None or (got.blocks, got.value) > (kept.blocks, kept.value):
-                    kept, kept_base = got, (quats[placed[0]] if base_q is None else base_q).copy()
-                if kept.blocks:
-                    break
-            quats[i], trans[i], value = kept.quat, kept.trans, kept.value
-            quats[placed[0]] = kept_base
-            lost = lost or not kept.blocks
-            placed.append(i)
-        # The first (largest) shape sits at the origin: shift everything so.
-        trans -= trans[order[0]]
+        out.alone[i] = float(out.value)
+        alternatives[i] = alternative_rotations(h.finalists, out.quats[i], lay.alternatives)
+        out.history.extend(h)
+        out.stages.append((f"rotate {passes[i].name}", len(h.best)))
+    if merged:
+        got = _merge(scene, passes, blocks, out.quats, alternatives, rng, bar)
+        out.quats, out.trans, out.value = got.quats, got.trans, got.value
+        out.history.extend(got.history)
+        out.stages += got.stages
     bar.close()
-    return quats, trans, value, history, stages, alone
+    return out
 
 
-def weakest_hole(attack: Attack) -> Attack:
-    """Collapse an attack on several separate holes to one row: per shape, its best hole.
-
-    A shape passes a sieve with several holes if it passes any of them, so per shape the hole with
-    the lowest beta (then protrusion) is kept.
-    """
-    if attack.beta.shape[0] == 1:
-        return attack
-    order = np.lexsort((attack.protrusion, attack.beta), axis=0)[0]
-    cols = np.arange(attack.beta.shape[1])
-    return Attack(
-        beta=attack.beta[order, cols][None],
-        protrusion=attack.protrusion[order, cols][None],
-        quats=attack.quats[order, cols][None],
-        trans=attack.trans[order, cols][None],
-        fits=attack.fits.sum(axis=0)[None],
+def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: _Bar):
+    """Several A in one hole: the placements of :func:`sieve_mi.layout.merge` on the union frame."""
+    s, fab = scene.solver, scene.fabrication
+    frame = union_frame([p.radius for p in passes], fab.tolerance, s.resolution)
+    players = [PlayerA(p, frame, fab.tolerance, fab.fill_holes) for p in passes]
+    player_b = PlayerB(blocks, frame, s.objective)
+    return merge(
+        players,
+        player_b,
+        quats,
+        alternatives,
+        solver=s,
+        layout=scene.layout,
+        recheck=(scene.verdict.starts, scene.verdict.steps),
+        rng=rng,
+        progress=lambda label, best: bar.update(s.particles, best=f"{best:.3f}", stage=label),
     )
 
 
@@ -302,11 +247,16 @@ def solve(
     ----------
     scene : Scene
     variant : str, optional
-        Mitsuba variant ("llvm_ad_mono" or "cuda_ad_mono"); default ``$SIEVE_MI_VARIANT`` or "llvm_ad_mono".
+        Mitsuba variant ("llvm_ad_mono" or "cuda_ad_mono"); default ``$SIEVE_MI_VARIANT`` or
+        "llvm_ad_mono".
     seed : int, optional
         Overrides ``[solver] seed``.
     progress : bool
         Show progress bars on stderr.
+
+    Returns
+    -------
+    Result
     """
     from sieve_mi.backend import use_variant
 
@@ -314,85 +264,35 @@ def solve(
     variant = use_variant(variant).variant()
     t_load = time.perf_counter()
     passes, blocks = load_shapes(scene)
-    s, v, fab = scene.solver, scene.verdict, scene.fabrication
-    seed = s.seed if seed is None else seed
+    seed = scene.solver.seed if seed is None else seed
     rng = np.random.default_rng(seed)
     timings = {"init_s": t_load - t_init, "load_s": time.perf_counter() - t_load}
-
     t0 = time.perf_counter()
-    quats, trans, value, history, stages, alone = search(scene, passes, blocks, rng, seed, progress)
+    found = search(scene, passes, blocks, rng, seed, progress)
     timings["search_s"] = time.perf_counter() - t0
-
-    # Verdict: a long re-run of player B against the chosen hole.
     t1 = time.perf_counter()
-    separate = len(passes) > 1 and scene.layout.mode == "separate"
-    if separate:
-        trans, vframe = separate_layout(
-            [p.radius for p in passes], fab.tolerance, fab.border, v.resolution
-        )
-    else:
-        vframe = frame_for(passes, fab.tolerance, v.resolution, trans)
-    vplayers = [PlayerA(p, vframe, fab.tolerance, fab.fill_holes) for p in passes]
-    if len(passes) == 1:
-        trans[0] = 0.0
-    hole = compose(vplayers, quats, trans, fab.fill_holes)
-    a_masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(vplayers, quats, trans)]
-    if (
-        len(passes) > 1
-        and not separate
-        and int(ndimage.label(hole.mask, structure=np.ones((3, 3)))[1]) > 1
-    ):
-        stages.append(("warning: the merged hole is not connected", 0))
-    # Separate holes: B passes if it passes any one of them, so it is attacked on each.
-    groups = [[i] for i in range(len(passes))] if separate else [list(range(len(passes)))]
-    holes = [compose([vplayers[i] for i in g], quats[g], trans[g], fab.fill_holes) for g in groups]
-    # With a blocking margin, B must fail against the hole grown by that margin (paper Fig. 14).
-    if fab.block_margin > 0:
-        grown = [
-            PlayerA(p, vframe, fab.tolerance + fab.block_margin, fab.fill_holes) for p in passes
-        ]
-        targets = [
-            compose([grown[i] for i in g], quats[g], trans[g], fab.fill_holes) for g in groups
-        ]
-    else:
-        targets = holes
-    vplayer_b = PlayerB(blocks, vframe, "clearance")
-    bar = _Bar(progress, v.steps, "verdict")
-    centres = np.array([trans[g].mean(axis=0) for g in groups]) if separate else None
-    attack = vplayer_b.attack(
-        targets,
-        v.starts,
-        v.steps,
-        s.learning_rate,
-        rng,
-        progress=lambda n: bar.update(1),
-        centres=centres,
+    bar = _Bar(progress, scene.verdict.steps, "verdict")
+    v = judge(
+        scene, passes, blocks, found.quats, found.trans, rng, progress=lambda n: bar.update(1)
     )
     bar.close()
-    attack = weakest_hole(attack)
-    if fab.block_margin > 0:
-        attack.margin_beta = attack.beta.copy()
-        attack.margin_protrusion = attack.protrusion.copy()
-        for j, r in enumerate(vplayer_b.renderers):
-            sc = score_poses(r, hole, attack.quats[0, j : j + 1], attack.trans[0, j : j + 1])
-            attack.beta[0, j], attack.protrusion[0, j] = sc.beta[0], sc.protrusion[0]
     timings["verdict_s"] = time.perf_counter() - t1
-    winner = "A" if bool(np.all(attack.blocked()[0])) else "B"
     return Result(
         scene=scene,
-        winner=winner,
+        winner=v.winner,
         pass_shapes=passes,
         block_shapes=blocks,
-        pass_quats=quats,
-        pass_trans=trans,
-        hole=hole,
-        a_masks=a_masks,
-        attack=attack,
-        history=history,
-        search_value=value,
+        pass_quats=found.quats,
+        pass_trans=v.trans,
+        hole=v.hole,
+        a_masks=v.a_masks,
+        attack=v.attack,
+        block_masks=v.block_masks,
+        history=found.history,
+        search_value=found.value,
         variant=variant,
-        stages=stages,
+        stages=found.stages,
+        warnings=v.warnings,
         timings=timings,
-        renderers=vplayer_b.renderers,
-        alone=alone,
+        alone=found.alone,
     )
