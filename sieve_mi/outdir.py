@@ -12,7 +12,8 @@ Every command that writes a folder (``solve``, ``check --out``) goes through :fu
   and the new folder is swapped in atomically (``renameat2(RENAME_EXCHANGE)`` on Linux; else
   rename the old aside, rename the new in, restore the old on failure); the old one is removed
   last. SIGINT, SIGTERM and SIGHUP are held back during the swap and the clean-up.
-* Any exception, KeyboardInterrupt included, removes the temporary folder. Temporary folders
+* Any exception, KeyboardInterrupt included, removes the temporary folder (and the parent
+  folders the run created, if they are empty). Temporary folders
   of runs that were killed outright (their pid is gone) are removed by the next run that writes
   into the same parent folder.
 """
@@ -291,6 +292,7 @@ def writing(
     inputs = list(inputs)
     dest = validate(out_dir, inputs=inputs, option=option)
     parent = os.path.dirname(dest)
+    created = _first_missing(parent)
     tmp = None
     try:
         with deferred_signals():
@@ -309,7 +311,26 @@ def writing(
         with deferred_signals():
             if tmp is not None:
                 shutil.rmtree(tmp, ignore_errors=True)
+            _remove_created(parent, created)
         raise
+
+
+def _first_missing(path: str) -> str | None:
+    """The outermost folder that ``os.makedirs(path)`` would create, or None if it exists."""
+    missing = None
+    while not os.path.lexists(path):
+        missing, path = path, os.path.dirname(path)
+    return missing
+
+
+def _remove_created(parent: str, created: str | None) -> None:
+    """Remove the folders from ``parent`` up to ``created`` that a failed run made, if empty."""
+    while created is not None and _contains(created, parent):
+        try:
+            os.rmdir(parent)
+        except OSError:
+            return
+        parent = os.path.dirname(parent)
 
 
 def _make_temp(parent: str) -> str:

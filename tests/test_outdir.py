@@ -358,8 +358,8 @@ def test_an_interrupted_solve_leaves_the_old_output(
     if name == "_exchange":
         return  # a first run renames its folder in: no exchange
     with pytest.raises(KeyboardInterrupt):
-        _write(tiny_result, tmp_path / "fresh")  # a first run leaves nothing at all
-    assert not (tmp_path / "fresh").exists() and temp_folders(tmp_path) == []
+        _write(tiny_result, tmp_path / "new" / "fresh")  # a first run leaves nothing at all
+    assert not (tmp_path / "new").exists() and temp_folders(tmp_path) == []
 
 
 @pytest.mark.slow
