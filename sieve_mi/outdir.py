@@ -296,7 +296,10 @@ def writing(
     tmp = None
     try:
         with deferred_signals():
-            os.makedirs(parent, exist_ok=True)
+            try:
+                os.makedirs(parent, exist_ok=True)
+            except OSError as exc:
+                raise SieveError(f"{option} {out_dir}: cannot create its folder ({exc})") from None
             remove_stale(parent)
             tmp = _make_temp(parent)
         yield tmp
