@@ -79,6 +79,11 @@ def validate(out_dir: str, *, inputs: Iterable[str] = (), option: str = "--out")
         raise SieveError(f"{say} exists and is not a folder; choose another path")
     dest = os.path.realpath(out_dir)
     _refuse_protected(dest, say, inputs)
+    base = os.path.dirname(dest)
+    while not os.path.lexists(base):
+        base = os.path.dirname(base)
+    if not os.path.isdir(base) or not os.access(base, os.W_OK | os.X_OK):
+        raise SieveError(f"{say}: cannot write into {base}; choose another folder")
     if os.path.isdir(dest) and os.listdir(dest) and not is_replaceable(dest):
         raise SieveError(
             f"{say} exists and holds files that sieve-mi did not write; choose another folder"

@@ -208,6 +208,9 @@ def test_a_symlink_to_an_earlier_output_replaces_its_target(tmp_path):
     fake_output(tmp_path / "link", "new")
     assert os.path.islink(tmp_path / "link")
     assert assert_complete(tmp_path / "real") == {"run": "new"}
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(SieveError, match="cannot write into"):
+        outdir.validate(str(tmp_path / "file" / "sub" / "out"))
     os.symlink(tmp_path / "nowhere", tmp_path / "dangling")
     with pytest.raises(SieveError, match="broken symbolic link"):
         outdir.validate(str(tmp_path / "dangling"))
