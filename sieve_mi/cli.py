@@ -1,10 +1,13 @@
-"""Command line: ``sieve-mi solve SCENE`` and ``sieve-mi check SHAPE (--sieve PLATE | --hole IMAGE --pixel-size MM)``."""
+"""Command line: ``sieve-mi solve SCENE [--out DIR]`` and ``sieve-mi check SHAPE (--sieve PLATE | --hole IMAGE --pixel-size MM) [--out DIR]``."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import signal
 import sys
+import threading
 
 from sieve_mi.errors import SieveError
 
@@ -20,7 +23,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     s.add_argument("scene", help="scene file (TOML)")
     s.add_argument(
-        "--out", help="output folder (default: out/<name>/ beside the current directory)"
+        "--out",
+        help="output folder (default: out/<name>/ in the current directory); an existing folder "
+        "is replaced only if it is an earlier sieve-mi output",
     )
     s.add_argument(
         "--variant",
@@ -76,18 +81,23 @@ def _parser() -> argparse.ArgumentParser:
         help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono",
     )
     c.add_argument("--json", action="store_true", help="print the result as JSON")
+    c.add_argument(
+        "--out",
+        help="also write the result as DIR/report.json (same rules as solve --out: only a new, "
+        "empty or earlier sieve-mi output folder is used)",
+    )
     return p
 
 
 def cmd_solve(args) -> int:
-    from sieve_mi.report import summary_table, write_outputs
+    from sieve_mi.outdir import validate
+    from sieve_mi.report import input_paths, summary_table, write_outputs
     from sieve_mi.scene import load_scene
     from sieve_mi.solve import solve
 
     scene = load_scene(args.scene)
     out_dir = args.out or os.path.join("out", scene.name)
-    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
-        raise SieveError(f"{out_dir}: --out exists and is not a folder; choose another path")
+    validate(out_dir, inputs=input_paths(scene))  # again just before the swap
     if args.seed is not None and args.seed < 0:
         raise SieveError(f"--seed {args.seed}: must be >= 0")
     result = solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
@@ -102,6 +112,7 @@ def cmd_solve(args) -> int:
 def cmd_check(args) -> int:
     import json
 
+    from sieve_mi import outdir
     from sieve_mi.backend import use_variant
     from sieve_mi.check import CheckSettings, check, summary
     from sieve_mi.meshes import load_shape
@@ -123,6 +134,9 @@ def cmd_check(args) -> int:
         raise SieveError(f"--fit-tolerance {args.fit_tolerance}: must be between 0 and 1")
     if args.seed < 0:
         raise SieveError(f"--seed {args.seed}: must be >= 0")
+    inputs = [p for p in (args.shape, args.sieve, args.hole) if p]
+    if args.out is not None:
+        outdir.validate(args.out, inputs=inputs)  # again just before the swap
     use_variant(args.variant)
     shape = load_shape(args.shape, scale=args.scale)
     settings = CheckSettings(
@@ -143,23 +157,59 @@ def cmd_check(args) -> int:
         units=args.units,
         settings=settings,
     )
-    if args.json:
-        print(json.dumps(rep.to_dict(), indent=2, default=lambda x: None if x != x else str(x)))
-    else:
-        print(summary(rep))
+    text = json.dumps(rep.to_dict(), indent=2, default=lambda x: None if x != x else str(x))
+    if args.out is not None:
+        with outdir.writing(args.out, command="check", inputs=inputs) as tmp:
+            with open(os.path.join(tmp, "report.json"), "w") as fh:
+                fh.write(text + "\n")
+    print(text if args.json else summary(rep))
+    if args.out is not None:
+        print(f"outputs: {args.out}/", file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+class Terminated(KeyboardInterrupt):
+    """Raised by the SIGTERM and SIGHUP handlers, so a kill cleans up as Ctrl-C does."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def _termination_as_interrupt():
+    """Turn SIGTERM and SIGHUP into :class:`Terminated` inside the block (main thread only)."""
+    names = ("SIGTERM", "SIGHUP")
+    sigs = [getattr(signal, n) for n in names if hasattr(signal, n)]
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.signal(s, _raise_terminated) for s in sigs}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        if args.command == "solve":
-            return cmd_solve(args)
-        if args.command == "check":
-            return cmd_check(args)
+        with _termination_as_interrupt():
+            if args.command == "solve":
+                return cmd_solve(args)
+            if args.command == "check":
+                return cmd_check(args)
     except SieveError as exc:
         print(f"sieve-mi: error: {exc}", file=sys.stderr)
         return 2
+    except Terminated as exc:
+        print("sieve-mi: terminated", file=sys.stderr)
+        return 128 + exc.signum
     except KeyboardInterrupt:
         print("sieve-mi: interrupted", file=sys.stderr)
         return 130

@@ -1,19 +1,19 @@
 """Writing a solve's outputs: report.json, hole and mask images, convergence and overlay plots.
 
-Everything is written into a temporary folder beside the destination and moved into place at
-the end, so an interrupted or failed run never leaves half-written outputs.
+Everything is written into a temporary folder beside the destination and swapped into place at
+the end by :mod:`sieve_mi.outdir`, so an interrupted or failed run never leaves half-written
+outputs, and a folder that sieve-mi did not write is never replaced.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import shutil
-import tempfile
 import time
 
 import numpy as np
 
+from sieve_mi import outdir
 from sieve_mi.solve import Result
 
 
@@ -187,6 +187,11 @@ def _overlay_png(path: str, result: Result) -> None:
     plt.close(fig)
 
 
+def input_paths(scene) -> list[str]:
+    """The scene file and every mesh it names (absolute): an output folder may not hold them."""
+    return [scene.path] + [scene.resolve(e.mesh) for e in (*scene.passes, *scene.blocks)]
+
+
 def write_outputs(
     result: Result, out_dir: str, *, fabricate: bool = True, figure: bool = True
 ) -> dict:
@@ -195,32 +200,14 @@ def write_outputs(
     Files: report.json, hole.png, hole.exr, masks/a_silhouette.exr, masks/block_<j>_<name>.exr,
     convergence.png, overlay.png; with ``fabricate`` also the printable sieve (sieve.stl, sieve.3mf,
     hole.svg), pass_<i>.stl, block_<j>.stl and, with ``figure``, figure.png (see
-    :func:`sieve_mi.fabrication.fabricate`). Everything is written into a temporary folder first, so
-    a failure leaves no half-written output.
+    :func:`sieve_mi.fabrication.fabricate`), and the marker ``.sieve-mi``. Everything is written
+    into a temporary folder and swapped in at the end (:func:`sieve_mi.outdir.writing`): an
+    interrupted or failed run leaves the old folder as it was, and a folder that sieve-mi did not
+    write is refused (:class:`~sieve_mi.errors.SieveError`), never replaced.
     """
     report = report_dict(result)
-    parent = os.path.dirname(os.path.abspath(out_dir)) or "."
-    os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".sieve-mi-", dir=parent)
-    try:
-        os.makedirs(os.path.join(tmp, "masks"))
-        hole = result.hole
-        write_png(os.path.join(tmp, "hole.png"), hole.mask)
-        write_exr(os.path.join(tmp, "hole.exr"), hole.mask.astype(np.float32))
-        write_exr(os.path.join(tmp, "masks", "a_silhouette.exr"), result.a_mask.astype(np.float32))
-        if len(result.a_masks) > 1:
-            for i, (m, shape) in enumerate(zip(result.a_masks, result.pass_shapes)):
-                write_exr(
-                    os.path.join(tmp, "masks", f"pass_{i}_{_safe(shape.name)}.exr"),
-                    m.astype(np.float32),
-                )
-        for j, (shape, window) in enumerate(zip(result.block_shapes, result.block_masks)):
-            write_exr(
-                os.path.join(tmp, "masks", f"block_{j}_{_safe(shape.name)}.exr"),
-                window.mask.astype(np.float32),
-            )
-        _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best)
-        _overlay_png(os.path.join(tmp, "overlay.png"), result)
+    with outdir.writing(out_dir, command="solve", inputs=input_paths(result.scene)) as tmp:
+        _write_images(result, tmp)
         if fabricate:
             from sieve_mi.fabrication import fabricate as make_sieve
 
@@ -229,13 +216,29 @@ def write_outputs(
             report["timings"]["fabrication_s"] = round(time.perf_counter() - t0, 4)
         with open(os.path.join(tmp, "report.json"), "w") as fh:
             json.dump(report, fh, indent=2)
-        if os.path.isdir(out_dir):
-            shutil.rmtree(out_dir)
-        os.replace(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return report
+
+
+def _write_images(result: Result, tmp: str) -> None:
+    """The hole and mask images and the convergence and overlay plots, into folder ``tmp``."""
+    os.makedirs(os.path.join(tmp, "masks"))
+    hole = result.hole
+    write_png(os.path.join(tmp, "hole.png"), hole.mask)
+    write_exr(os.path.join(tmp, "hole.exr"), hole.mask.astype(np.float32))
+    write_exr(os.path.join(tmp, "masks", "a_silhouette.exr"), result.a_mask.astype(np.float32))
+    if len(result.a_masks) > 1:
+        for i, (m, shape) in enumerate(zip(result.a_masks, result.pass_shapes)):
+            write_exr(
+                os.path.join(tmp, "masks", f"pass_{i}_{_safe(shape.name)}.exr"),
+                m.astype(np.float32),
+            )
+    for j, (shape, window) in enumerate(zip(result.block_shapes, result.block_masks)):
+        write_exr(
+            os.path.join(tmp, "masks", f"block_{j}_{_safe(shape.name)}.exr"),
+            window.mask.astype(np.float32),
+        )
+    _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best)
+    _overlay_png(os.path.join(tmp, "overlay.png"), result)
 
 
 def summary_table(report: dict) -> str:
