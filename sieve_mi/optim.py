@@ -1,4 +1,4 @@
-"""Optimisers: batched Adam in Dr.Jit (player B) and particle swarm / nlopt (player A)."""
+"""Optimisers: Adam over batched poses (player B) and particle swarm / nlopt (player A)."""
 
 from __future__ import annotations
 
@@ -7,53 +7,58 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: Names of a pose's parameters in :func:`pose_adam`: quaternion (w, x, y, z), then translation.
+QUAT_KEYS = ("qw", "qx", "qy", "qz")
+POSE_KEYS = QUAT_KEYS + ("tx", "ty")
 
-class BatchedAdam:
-    """Adam (Kingma and Ba) over a list of Dr.Jit arrays, every element an independent problem.
 
-    The learning rate and the step count enter the update kernel as opaque values, so the kernel
-    compiled in the first step is reused by every later step and by later runs of the same size.
+def pose_adam(q0: np.ndarray, t0: np.ndarray, lr: float):
+    """:class:`drjit.opt.Adam` over K independent poses, one Dr.Jit array per pose parameter.
+
+    Adam's update is element-wise, so every pose is its own problem; the library keeps each
+    step's learning-rate and bias-correction factor opaque, so the kernels compiled in the first
+    step are reused by every later step. Moments are (beta_1, beta_2) = (0.9, 0.999) and
+    epsilon 1e-8 (the paper's values, the library's defaults).
 
     Parameters
     ----------
-    params : list of mi.Float
-        Arrays to optimise; updated in place (the list entries are replaced).
+    q0 : (K, 4) ndarray
+        Starting quaternions (w, x, y, z).
+    t0 : (K, 2) ndarray
+        Starting translations (in the units the caller optimises in).
     lr : float
         Learning rate (parameter units per step).
-    beta_1, beta_2, epsilon : float
-        Adam's moment decay rates and denominator offset (paper: 0.9, 0.999, 1e-8).
+
+    Returns
+    -------
+    drjit.opt.Adam
+        With parameters :data:`POSE_KEYS`, each (K,) float32.
     """
+    import drjit as dr
+    import mitsuba as mi
 
-    def __init__(
-        self,
-        params: list,
-        lr: float,
-        beta_1: float = 0.9,
-        beta_2: float = 0.999,
-        epsilon: float = 1e-8,
-    ):
-        import drjit as dr
-        import mitsuba as mi
+    opt = dr.opt.Adam(lr=float(lr))
+    x0 = np.concatenate([np.asarray(q0), np.asarray(t0)], axis=1).astype(np.float32)
+    for i, key in enumerate(POSE_KEYS):
+        opt[key] = mi.Float(x0[:, i])
+    return opt
 
-        self.dr, self.mi = dr, mi
-        self.params = params
-        self.lr = lr
-        self.b1, self.b2, self.eps = beta_1, beta_2, epsilon
-        self.m = [dr.zeros(mi.Float, dr.width(p)) for p in params]
-        self.v = [dr.zeros(mi.Float, dr.width(p)) for p in params]
-        self.t = 0
 
-    def step(self) -> None:
-        """Apply one update from the gradients currently stored on ``params``."""
-        dr, mi = self.dr, self.mi
-        self.t += 1
-        lr = dr.opaque(mi.Float, self.lr * np.sqrt(1 - self.b2**self.t) / (1 - self.b1**self.t))
-        for i, p in enumerate(self.params):
-            g = dr.grad(p)
-            self.m[i] = self.b1 * self.m[i] + (1 - self.b1) * g
-            self.v[i] = self.b2 * self.v[i] + (1 - self.b2) * dr.square(g)
-            self.params[i] = dr.detach(p) - lr * self.m[i] / (dr.sqrt(self.v[i]) + self.eps)
-        dr.schedule(self.m, self.v)
+def renormalise_quaternions(opt, *also) -> None:
+    """Project the quaternions of a :func:`pose_adam` optimiser back onto the unit sphere.
+
+    The projection, the optimiser's pending step and ``also`` (any Dr.Jit arrays or PyTrees)
+    are evaluated in one kernel launch. Adam's moments are kept.
+    """
+    import drjit as dr
+
+    q = [opt[k] for k in QUAT_KEYS]
+    norm = dr.rsqrt(sum(dr.square(dr.detach(x)) for x in q))
+    unit = [dr.detach(x) * norm for x in q]
+    dr.schedule(unit, also)
+    dr.eval()
+    for key, value in zip(QUAT_KEYS, unit):
+        opt[key] = value
 
 
 @dataclass
