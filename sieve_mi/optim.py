@@ -160,6 +160,11 @@ def nlopt_maximise(
 ):
     """Maximise a function of a box-bounded vector with one of nlopt's global methods.
 
+    The budget is enforced here, not only by nlopt (some methods overshoot ``maxeval``): once it
+    is spent, the objective asks nlopt to stop with ``opt.force_stop()`` and no longer calls
+    ``evaluate_one``. An exception raised by ``evaluate_one`` stops nlopt the same way and is
+    re-raised unchanged (raising through nlopt's C code would surface as ``SystemError``).
+
     Parameters
     ----------
     evaluate_one : callable
@@ -169,7 +174,7 @@ def nlopt_maximise(
     method : str
         A key of :data:`NLOPT_METHODS`.
     max_evaluations : int
-        Evaluation budget.
+        Evaluation budget (at least 1).
     x0 : (D,) ndarray
         Starting point (used by methods that take one).
     seed : int
@@ -177,7 +182,14 @@ def nlopt_maximise(
 
     Returns
     -------
-    best_x, best_value, history
+    best_x : (D,) ndarray
+    best_value : float
+    history : SwarmHistory
+
+    Raises
+    ------
+    SieveError
+        When nlopt fails before evaluating anything (e.g. a method that rejects the problem).
     """
     import nlopt
 
@@ -185,11 +197,18 @@ def nlopt_maximise(
     opt = nlopt.opt(getattr(nlopt, NLOPT_METHODS[method]), len(lower))
     history = SwarmHistory()
     best = {"x": np.array(x0, float), "f": -np.inf}
+    failure: list[BaseException] = []
 
     def objective(x, grad):
-        if history.evaluations >= max_evaluations:  # some methods overshoot maxeval slightly
-            raise nlopt.ForcedStop
-        f = float(evaluate_one(np.asarray(x)))
+        if failure or history.evaluations >= max_evaluations:
+            opt.force_stop()  # methods that ignore it (crs2) stop at maxeval; nothing is evaluated
+            return -np.inf
+        try:
+            f = float(evaluate_one(np.asarray(x)))
+        except Exception as e:  # re-raised below, after nlopt has returned
+            failure.append(e)
+            opt.force_stop()
+            return -np.inf
         history.evaluations += 1
         if f > best["f"]:
             best["x"], best["f"] = np.array(x, float), f
@@ -204,8 +223,23 @@ def nlopt_maximise(
     opt.set_maxeval(int(max_evaluations))
     if method == "mlsl":
         opt.set_local_optimizer(nlopt.opt(nlopt.LN_BOBYQA, len(lower)))
-    try:
-        opt.optimize(list(np.clip(x0, lower, upper)))
-    except (nlopt.RoundoffLimited, nlopt.ForcedStop, ValueError, RuntimeError):
-        pass  # keep the best point seen so far
+    _run_nlopt(opt, np.clip(x0, lower, upper), method, history)
+    if failure:
+        raise failure[0]
     return best["x"], best["f"], history
+
+
+def _run_nlopt(opt, x0: np.ndarray, method: str, history: SwarmHistory) -> None:
+    """``opt.optimize(x0)``, where a forced stop and a round-off limit are normal ends."""
+    import nlopt
+
+    from sieve_mi.errors import SieveError
+
+    try:
+        opt.optimize(list(x0))
+    except (nlopt.ForcedStop, nlopt.RoundoffLimited):
+        pass  # our budget or nlopt's precision: the best point seen so far stands
+    except (RuntimeError, ValueError) as e:
+        if history.evaluations == 0:
+            raise SieveError(f"[solver] outer = {method!r}: nlopt failed to start: {e}") from None
+        # nlopt's generic failure after some evaluations: they are still valid points.

@@ -74,6 +74,8 @@ class Result:
     #: Per pass shape: its own search's value (the weakest B's loss against that shape's hole
     #: alone, short attack), or None where its rotation was fixed in the scene.
     alone: list = field(default_factory=list)
+    #: The seed the run used (``[solver] seed`` or the ``seed`` argument that overrode it).
+    seed: int | None = None
 
     @property
     def pass_quat(self) -> np.ndarray:
@@ -395,4 +397,5 @@ def solve(
         timings=timings,
         renderers=vplayer_b.renderers,
         alone=alone,
+        seed=seed,
     )
