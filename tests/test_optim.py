@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 
 from sieve_mi.errors import SieveError
 from sieve_mi.optim import (
@@ -126,3 +127,27 @@ def test_descend_compiles_no_kernel_after_its_third_step(mi, cube20):
     finally:
         dr.set_flag(dr.JitFlag.KernelHistory, False)
     assert all(seen[3:]) and set().union(*seen[3:]) <= set().union(*seen[:3])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("outer", ["pso", *sorted(NLOPT_METHODS)])
+def test_every_outer_method_solves_end_to_end(write_scene, outer):
+    # The hole's plane contains a direction u with a zero component in the cube's frame (two
+    # planes through the origin share a line); along u the 20 mm cube is 20 (|u1| + |u2|) <=
+    # 20 sqrt(2) = 28.3 mm wide, the hole (1 mm tolerance per side) at most 30.3 mm. A 32 mm
+    # sphere is blocked whatever rotation the search picks: A wins with every method, after
+    # exactly its budget of particles x (iterations + 1) = 3 x 2 evaluations.
+    from sieve_mi.scene import load_scene
+    from sieve_mi.solve import solve
+
+    ball = trimesh.creation.icosphere(2, 16.0)
+    cube = trimesh.creation.box((20.0, 20.0, 20.0))
+    path = write_scene(
+        'name = "t"\n[[pass]]\nmesh = "meshes/cube.stl"\n[[block]]\nmesh = "meshes/ball.stl"\n'
+        f'[solver]\nouter = "{outer}"\nresolution = 64\nparticles = 3\niterations = 1\n'
+        "starts = 4\nsteps = 20\n[verdict]\nstarts = 8\nsteps = 40\nresolution = 64\n",
+        {"cube.stl": cube, "ball.stl": ball},
+    )
+    r = solve(load_scene(path), progress=False)
+    assert r.winner == "A" and r.attack.beta[0, 0] > 0
+    assert r.history.evaluations == 6 and r.search_value == r.history.best[-1] > 0
