@@ -23,6 +23,10 @@ from sieve_mi.hole import Hole
 from sieve_mi.meshes import Shape, segments
 from sieve_mi.raster import Frame
 
+#: Active (pose, segment) pairs that one thread sums in the first level of the per-pose reduction
+#: (:meth:`ClearanceObjective._pose_sums`). Fixed, so results do not depend on the machine.
+CHUNK = 16
+
 
 def _quat_rows(dr, mi, qw, qx, qy, qz):
     """Rotation matrix entries (row-major, 9 arrays) of the normalised quaternion (qw, qx, qy, qz)."""
@@ -138,7 +142,12 @@ class ClearanceObjective:
         self.pose_count = len(pose_shape)
 
     def loss(self, q, t, holes: HoleStack, pose_hole):
-        """Total and per-pose clearance loss (pixels squared).
+        """Total and per-pose clearance loss (pixels squared), summed in a fixed order.
+
+        Every sum runs in an order that depends only on the inputs, never on thread scheduling,
+        so the same inputs give the same bits on every run (see :meth:`_pose_sums`). The gradient
+        with respect to ``q`` and ``t`` is the loss' exact gradient, reduced per pose the same way
+        and attached to the AD graph through per-pose (element-wise) operations only.
 
         Parameters
         ----------
@@ -153,41 +162,140 @@ class ClearanceObjective:
         Returns
         -------
         total : mi.Float
-            Sum over all poses (differentiable).
+            Sum over all poses (differentiable with respect to ``q`` and ``t``).
         per_pose : mi.Float
             Loss of each pose (detached).
         """
         dr, mi = self.dr, self.mi
-        pair_pose, pair_seg = self._pairs
         rows = _quat_rows(dr, mi, *q)
+        with dr.suspend_grad():
+            r = [dr.detach(x) for x in rows[:6]]
+            sums = self._pose_sums(
+                self._active_pairs(rows), r, (dr.detach(t[0]), dr.detach(t[1])), holes, pose_hole
+            )
+        per_pose = sums[0]
+        total = dr.sum(per_pose)
+        if dr.grad_enabled(q, t):
+            # d total / d(q, t) = sum over rows of (d row / d(q, t)) * (d L / d row): per pose.
+            link = t[0] * sums[1] + t[1] * sums[2]
+            for i in range(6):
+                link = link + rows[i] * sums[3 + i]
+            link = dr.sum(link)
+            total = total + (link - dr.detach(link))
+        return total, per_pose
+
+    def _active_pairs(self, rows):
+        """Indices (ascending) of the (pose, segment) pairs whose segment is on the silhouette."""
+        dr, mi = self.dr, self.mi
+        pair_pose, pair_seg = self._pairs
         with dr.suspend_grad():
             r3 = mi.Vector3f(dr.detach(rows[6]), dr.detach(rows[7]), dr.detach(rows[8]))
             r3p = dr.gather(mi.Vector3f, r3, pair_pose)
             s1 = dr.dot(r3p, dr.gather(mi.Vector3f, self.m1, pair_seg))
             s2 = dr.dot(r3p, dr.gather(mi.Vector3f, self.m2, pair_seg))
             flag = (s1 * s2 >= 0) | dr.gather(mi.Bool, self.always, pair_seg)
-            active = dr.compress(flag)
-        n_active = dr.width(active)
-        if n_active == 0:
-            zero = dr.zeros(mi.Float, self.pose_count)
-            return dr.sum(zero), zero
-        idx = dr.arange(mi.UInt32, n_active * self.samples)
-        pair = dr.gather(mi.UInt32, active, idx // self.samples)
-        frac = (mi.Float(idx % self.samples) + 0.5) / self.samples
-        pose = dr.gather(mi.UInt32, pair_pose, pair)
-        seg = dr.gather(mi.UInt32, pair_seg, pair)
-        p = dr.gather(mi.Vector3f, self.a, seg) + dr.gather(mi.Vector3f, self.d, seg) * frac
-        g = [dr.gather(mi.Float, r, pose) for r in rows[:6]]
-        x = g[0] * p.x + g[1] * p.y + g[2] * p.z + dr.gather(mi.Float, t[0], pose)
-        y = g[3] * p.x + g[4] * p.y + g[5] * p.z + dr.gather(mi.Float, t[1], pose)
-        dist = self._lookup(x, y, holes, dr.gather(mi.UInt32, pose_hole, pose))
-        value = dist * dist
-        per_pose = dr.zeros(mi.Float, self.pose_count)
-        dr.scatter_reduce(dr.ReduceOp.Add, per_pose, dr.detach(value), pose)
-        return dr.sum(value), per_pose
+            return dr.compress(flag)
+
+    def _pose_sums(self, active, rows, t, holes: HoleStack, pose_hole) -> list:
+        """Per-pose sums of the loss and of its derivatives, in an order fixed by the inputs.
+
+        Two levels, both sequential loops over contiguous ranges: each thread sums the samples of
+        at most :data:`CHUNK` consecutive active pairs of one pose (``active`` is ascending, so a
+        pose's pairs are contiguous), then one thread per pose sums its chunks in order. The
+        result depends on neither the thread count nor the scheduling (atomic scatter-adds do).
+
+        Parameters
+        ----------
+        active : mi.UInt32
+            Active pair indices, ascending (from :meth:`_active_pairs`).
+        rows : list of 6 mi.Float
+            First two rows of each pose's rotation matrix, row-major (detached).
+        t : tuple of 2 mi.Float
+            Translations, scene units (detached).
+        holes : HoleStack
+        pose_hole : mi.UInt32
+
+        Returns
+        -------
+        list of 9 mi.Float, each (K,)
+            L, dL/dt_x, dL/dt_y, dL/d(row 0) (3), dL/d(row 1) (3), L in pixels squared and t
+            in scene units.
+        """
+        dr, mi = self.dr, self.mi
+        k = self.pose_count
+        if dr.width(active) == 0:
+            return [dr.zeros(mi.Float, k) for _ in range(9)]
+        count = dr.zeros(mi.UInt32, k)  # integer sums are exact: order does not matter
+        dr.scatter_reduce(dr.ReduceOp.Add, count, 1, dr.gather(mi.UInt32, self._pairs[0], active))
+        chunks = (count + (CHUNK - 1)) // CHUNK
+        first_pair, first_chunk = dr.prefix_sum(count), dr.prefix_sum(chunks)
+        dr.eval(count, chunks, first_pair, first_chunk)
+        n_chunks = int(dr.sum(chunks)[0])
+        partial = self._chunk_sums(
+            active, n_chunks, (count, first_pair, first_chunk), rows, t, holes, pose_hole
+        )
+        return self._sum_chunks(partial, chunks, first_chunk)
+
+    def _chunk_sums(self, active, n_chunks, layout, rows, t, holes, pose_hole) -> list:
+        """First level of :meth:`_pose_sums`: 9 partial sums per chunk, each (n_chunks,)."""
+        dr, mi = self.dr, self.mi
+        count, first_pair, first_chunk = layout
+        c = dr.arange(mi.UInt32, n_chunks)
+        # The pose of chunk c: the last pose whose first chunk is <= c.
+        r = dr.binary_search(
+            0, self.pose_count - 1, lambda i: dr.gather(mi.UInt32, first_chunk, i) <= c
+        )
+        pose = dr.select(dr.gather(mi.UInt32, first_chunk, r) <= c, r, r - 1)
+        begin = dr.gather(mi.UInt32, first_pair, pose)
+        lo = begin + (c - dr.gather(mi.UInt32, first_chunk, pose)) * CHUNK
+        hi = dr.minimum(lo + CHUNK, begin + dr.gather(mi.UInt32, count, pose))
+        g = [dr.gather(mi.Float, x, pose) for x in list(rows) + list(t)]
+        hole = dr.gather(mi.UInt32, pose_hole, pose)
+        fracs = [(j + 0.5) / self.samples for j in range(self.samples)]
+
+        def body(i, *acc):
+            seg = dr.gather(mi.UInt32, self._pairs[1], dr.gather(mi.UInt32, active, i))
+            a, d = dr.gather(mi.Vector3f, self.a, seg), dr.gather(mi.Vector3f, self.d, seg)
+            acc = list(acc)
+            for frac in fracs:
+                p = a + d * frac
+                x = g[0] * p.x + g[1] * p.y + g[2] * p.z + g[6]
+                y = g[3] * p.x + g[4] * p.y + g[5] * p.z + g[7]
+                dist, ddx, ddy = self._lookup(x, y, holes, hole)
+                gx, gy = 2 * dist * ddx, 2 * dist * ddy
+                terms = (dist * dist, gx, gy, gx * p.x, gx * p.y, gx * p.z, gy * p.x, gy * p.y)
+                acc = [s + v for s, v in zip(acc, terms + (gy * p.z,))]
+            return (i + 1, *acc)
+
+        zero = [dr.zeros(mi.Float, n_chunks) for _ in range(9)]
+        out = dr.while_loop((lo, *zero), lambda i, *_: i < hi, body, label="clearance chunks")
+        return list(out[1:])
+
+    def _sum_chunks(self, partial, chunks, first_chunk) -> list:
+        """Second level of :meth:`_pose_sums`: each pose sums its chunks in order, (K,) each."""
+        dr, mi = self.dr, self.mi
+        k = self.pose_count
+        dr.eval(partial)
+        end = first_chunk + chunks
+
+        def body(j, *acc):
+            return (j + 1, *[s + dr.gather(mi.Float, p, j) for s, p in zip(acc, partial)])
+
+        zero = [dr.zeros(mi.Float, k) for _ in range(9)]
+        out = dr.while_loop((mi.UInt32(first_chunk), *zero), lambda j, *_: j < end, body)
+        return list(out[1:])
 
     def _lookup(self, x, y, holes: HoleStack, hole_index):
-        """Distance to H in pixels at world points (x, y): bilinear inside the frame, extended outside."""
+        """Distance to H in pixels at world points (x, y), and its derivatives (pixels per unit).
+
+        Bilinear in the distance texture inside the frame, extended outside it by the distance to
+        the frame, ``sqrt(e^2 + 1e-6) - 1e-3`` with ``e`` the distance to the frame in pixels.
+
+        Returns
+        -------
+        d, dd_dx, dd_dy : mi.Float
+            The distance (pixels) and its derivatives with respect to x and y (per scene unit).
+        """
         dr, mi = self.dr, self.mi
         f = holes.frame
         n = f.resolution
@@ -196,10 +304,9 @@ class ClearanceObjective:
         v = (f.half_extent - y) * inv_h - 0.5
         uc = dr.clip(u, 0.0, n - 1.0)
         vc = dr.clip(v, 0.0, n - 1.0)
-        e2 = dr.square(u - uc) + dr.square(v - vc)
-        extra = dr.sqrt(e2 + 1e-6) - 1e-3
-        iu = dr.minimum(mi.UInt32(dr.floor(dr.detach(uc))), n - 2)
-        iv = dr.minimum(mi.UInt32(dr.floor(dr.detach(vc))), n - 2)
+        root = dr.sqrt(dr.square(u - uc) + dr.square(v - vc) + 1e-6)
+        iu = dr.minimum(mi.UInt32(dr.floor(uc)), n - 2)
+        iv = dr.minimum(mi.UInt32(dr.floor(vc)), n - 2)
         fu, fv = uc - mi.Float(iu), vc - mi.Float(iv)
         base = hole_index * (n * n) + iv * n + iu
         tex = holes.texture
@@ -207,5 +314,11 @@ class ClearanceObjective:
         d01 = dr.gather(mi.Float, tex, base + 1)
         d10 = dr.gather(mi.Float, tex, base + n)
         d11 = dr.gather(mi.Float, tex, base + n + 1)
-        d = dr.lerp(dr.lerp(d00, d01, fu), dr.lerp(d10, d11, fu), fv)
-        return d + extra
+        top, bottom = dr.lerp(d00, d01, fu), dr.lerp(d10, d11, fu)
+        d = dr.lerp(top, bottom, fv) + root - 1e-3
+        # Inside the frame the bilinear part varies with u, v; outside, the extension does.
+        dd_du = dr.select((u > 0) & (u < n - 1), dr.lerp(d01 - d00, d11 - d10, fv), 0.0)
+        dd_dv = dr.select((v > 0) & (v < n - 1), bottom - top, 0.0)
+        dd_du += (u - uc) / root
+        dd_dv += (v - vc) / root
+        return d, dd_du * inv_h, -dd_dv * inv_h

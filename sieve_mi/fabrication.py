@@ -180,10 +180,12 @@ def write_3mf(path: str, mesh: trimesh.Trimesh, unit: str = "millimeter") -> Non
         '<Relationship Target="/3D/3dmodel.model" Id="rel0" '
         'Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/></Relationships>'
     )
-    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as z:
-        z.writestr("[Content_Types].xml", types)
-        z.writestr("_rels/.rels", rels)
-        z.writestr("3D/3dmodel.model", model)
+    parts = (("[Content_Types].xml", types), ("_rels/.rels", rels), ("3D/3dmodel.model", model))
+    with zipfile.ZipFile(path, "w") as z:
+        for name, text in parts:  # a fixed timestamp: the same plate gives the same bytes
+            info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+            info.external_attr = 0o644 << 16
+            z.writestr(info, text, compress_type=zipfile.ZIP_DEFLATED)
 
 
 def read_3mf(path: str) -> trimesh.Trimesh:

@@ -1,4 +1,4 @@
-"""Optimisers: batched Adam in Dr.Jit (player B) and particle swarm / nlopt (player A)."""
+"""Optimisers: Adam over batched poses (player B) and particle swarm / nlopt (player A)."""
 
 from __future__ import annotations
 
@@ -7,53 +7,58 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: Names of a pose's parameters in :func:`pose_adam`: quaternion (w, x, y, z), then translation.
+QUAT_KEYS = ("qw", "qx", "qy", "qz")
+POSE_KEYS = QUAT_KEYS + ("tx", "ty")
 
-class BatchedAdam:
-    """Adam (Kingma and Ba) over a list of Dr.Jit arrays, every element an independent problem.
 
-    The learning rate and the step count enter the update kernel as opaque values, so the kernel
-    compiled in the first step is reused by every later step and by later runs of the same size.
+def pose_adam(q0: np.ndarray, t0: np.ndarray, lr: float):
+    """:class:`drjit.opt.Adam` over K independent poses, one Dr.Jit array per pose parameter.
+
+    Adam's update is element-wise, so every pose is its own problem; the library keeps each
+    step's learning-rate and bias-correction factor opaque, so the kernels compiled in the first
+    step are reused by every later step. Moments are (beta_1, beta_2) = (0.9, 0.999) and
+    epsilon 1e-8 (the paper's values, the library's defaults).
 
     Parameters
     ----------
-    params : list of mi.Float
-        Arrays to optimise; updated in place (the list entries are replaced).
+    q0 : (K, 4) ndarray
+        Starting quaternions (w, x, y, z).
+    t0 : (K, 2) ndarray
+        Starting translations (in the units the caller optimises in).
     lr : float
         Learning rate (parameter units per step).
-    beta_1, beta_2, epsilon : float
-        Adam's moment decay rates and denominator offset (paper: 0.9, 0.999, 1e-8).
+
+    Returns
+    -------
+    drjit.opt.Adam
+        With parameters :data:`POSE_KEYS`, each (K,) float32.
     """
+    import drjit as dr
+    import mitsuba as mi
 
-    def __init__(
-        self,
-        params: list,
-        lr: float,
-        beta_1: float = 0.9,
-        beta_2: float = 0.999,
-        epsilon: float = 1e-8,
-    ):
-        import drjit as dr
-        import mitsuba as mi
+    opt = dr.opt.Adam(lr=float(lr))
+    x0 = np.concatenate([np.asarray(q0), np.asarray(t0)], axis=1).astype(np.float32)
+    for i, key in enumerate(POSE_KEYS):
+        opt[key] = mi.Float(x0[:, i])
+    return opt
 
-        self.dr, self.mi = dr, mi
-        self.params = params
-        self.lr = lr
-        self.b1, self.b2, self.eps = beta_1, beta_2, epsilon
-        self.m = [dr.zeros(mi.Float, dr.width(p)) for p in params]
-        self.v = [dr.zeros(mi.Float, dr.width(p)) for p in params]
-        self.t = 0
 
-    def step(self) -> None:
-        """Apply one update from the gradients currently stored on ``params``."""
-        dr, mi = self.dr, self.mi
-        self.t += 1
-        lr = dr.opaque(mi.Float, self.lr * np.sqrt(1 - self.b2**self.t) / (1 - self.b1**self.t))
-        for i, p in enumerate(self.params):
-            g = dr.grad(p)
-            self.m[i] = self.b1 * self.m[i] + (1 - self.b1) * g
-            self.v[i] = self.b2 * self.v[i] + (1 - self.b2) * dr.square(g)
-            self.params[i] = dr.detach(p) - lr * self.m[i] / (dr.sqrt(self.v[i]) + self.eps)
-        dr.schedule(self.m, self.v)
+def renormalise_quaternions(opt, *also) -> None:
+    """Project the quaternions of a :func:`pose_adam` optimiser back onto the unit sphere.
+
+    The projection, the optimiser's pending step and ``also`` (any Dr.Jit arrays or PyTrees)
+    are evaluated in one kernel launch. Adam's moments are kept.
+    """
+    import drjit as dr
+
+    q = [opt[k] for k in QUAT_KEYS]
+    norm = dr.rsqrt(sum(dr.square(dr.detach(x)) for x in q))
+    unit = [dr.detach(x) * norm for x in q]
+    dr.schedule(unit, also)
+    dr.eval()
+    for key, value in zip(QUAT_KEYS, unit):
+        opt[key] = value
 
 
 @dataclass
@@ -160,6 +165,11 @@ def nlopt_maximise(
 ):
     """Maximise a function of a box-bounded vector with one of nlopt's global methods.
 
+    The budget is enforced here, not only by nlopt (some methods overshoot ``maxeval``): once it
+    is spent, the objective asks nlopt to stop with ``opt.force_stop()`` and no longer calls
+    ``evaluate_one``. An exception raised by ``evaluate_one`` stops nlopt the same way and is
+    re-raised unchanged (raising through nlopt's C code would surface as ``SystemError``).
+
     Parameters
     ----------
     evaluate_one : callable
@@ -169,7 +179,7 @@ def nlopt_maximise(
     method : str
         A key of :data:`NLOPT_METHODS`.
     max_evaluations : int
-        Evaluation budget.
+        Evaluation budget (at least 1).
     x0 : (D,) ndarray
         Starting point (used by methods that take one).
     seed : int
@@ -177,7 +187,14 @@ def nlopt_maximise(
 
     Returns
     -------
-    best_x, best_value, history
+    best_x : (D,) ndarray
+    best_value : float
+    history : SwarmHistory
+
+    Raises
+    ------
+    SieveError
+        When nlopt fails before evaluating anything (e.g. a method that rejects the problem).
     """
     import nlopt
 
@@ -185,11 +202,18 @@ def nlopt_maximise(
     opt = nlopt.opt(getattr(nlopt, NLOPT_METHODS[method]), len(lower))
     history = SwarmHistory()
     best = {"x": np.array(x0, float), "f": -np.inf}
+    failure: list[BaseException] = []
 
     def objective(x, grad):
-        if history.evaluations >= max_evaluations:  # some methods overshoot maxeval slightly
-            raise nlopt.ForcedStop
-        f = float(evaluate_one(np.asarray(x)))
+        if failure or history.evaluations >= max_evaluations:
+            opt.force_stop()  # methods that ignore it (crs2) stop at maxeval; nothing is evaluated
+            return -np.inf
+        try:
+            f = float(evaluate_one(np.asarray(x)))
+        except Exception as e:  # re-raised below, after nlopt has returned
+            failure.append(e)
+            opt.force_stop()
+            return -np.inf
         history.evaluations += 1
         if f > best["f"]:
             best["x"], best["f"] = np.array(x, float), f
@@ -204,8 +228,23 @@ def nlopt_maximise(
     opt.set_maxeval(int(max_evaluations))
     if method == "mlsl":
         opt.set_local_optimizer(nlopt.opt(nlopt.LN_BOBYQA, len(lower)))
-    try:
-        opt.optimize(list(np.clip(x0, lower, upper)))
-    except (nlopt.RoundoffLimited, nlopt.ForcedStop, ValueError, RuntimeError):
-        pass  # keep the best point seen so far
+    _run_nlopt(opt, np.clip(x0, lower, upper), method, history)
+    if failure:
+        raise failure[0]
     return best["x"], best["f"], history
+
+
+def _run_nlopt(opt, x0: np.ndarray, method: str, history: SwarmHistory) -> None:
+    """``opt.optimize(x0)``, where a forced stop and a round-off limit are normal ends."""
+    import nlopt
+
+    from sieve_mi.errors import SieveError
+
+    try:
+        opt.optimize(list(x0))
+    except (nlopt.ForcedStop, nlopt.RoundoffLimited):
+        pass  # our budget or nlopt's precision: the best point seen so far stands
+    except (RuntimeError, ValueError) as e:
+        if history.evaluations == 0:
+            raise SieveError(f"[solver] outer = {method!r}: nlopt failed to start: {e}") from None
+        # nlopt's generic failure after some evaluations: they are still valid points.

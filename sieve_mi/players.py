@@ -17,7 +17,14 @@ import numpy as np
 
 from sieve_mi.hole import Hole, build_hole
 from sieve_mi.meshes import Shape
-from sieve_mi.optim import BatchedAdam, nlopt_maximise, particle_swarm
+from sieve_mi.optim import (
+    POSE_KEYS,
+    QUAT_KEYS,
+    nlopt_maximise,
+    particle_swarm,
+    pose_adam,
+    renormalise_quaternions,
+)
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import from_rotvec, normalize, random_uniform
 from sieve_mi.scoring import score_poses
@@ -255,46 +262,32 @@ class PlayerB:
         stack = HoleStack(holes)
         loss.bind(pose_shape)
         scale = self.frame.half_extent
-        t0 = np.asarray(t0) / scale
-        params = [mi.Float(q0[:, i].astype(np.float32)) for i in range(4)] + [
-            mi.Float(t0[:, i].astype(np.float32)) for i in range(2)
-        ]
-        opt = BatchedAdam(params, lr=learning_rate)
+        opt = pose_adam(q0, np.asarray(t0) / scale, learning_rate)
         hole_idx = mi.UInt32(np.asarray(pose_hole).astype(np.uint32))
-        best = [dr.detach(p) for p in params]
-        best_loss = dr.full(mi.Float, np.inf, k)
-        for step in range(steps):
-            for p in opt.params:
-                dr.enable_grad(p)
-            q = tuple(opt.params[:4])
-            t = (opt.params[4] * scale, opt.params[5] * scale)
-            total, per_pose = loss.loss(q, t, stack, hole_idx)
-            dr.backward(total)
-            # Remember each start's best pose so far (Adam may step past a fit).
+        best = [dr.detach(opt[key]) for key in POSE_KEYS]
+        best_loss = dr.opaque(mi.Float, np.inf, k)
+
+        def evaluate():
+            q = tuple(opt[key] for key in QUAT_KEYS)
+            return loss.loss(q, (opt["tx"] * scale, opt["ty"] * scale), stack, hole_idx)
+
+        def keep_best(per_pose, best, best_loss):
+            # Each start keeps the best pose it visited (Adam may step past a fit).
             improved = per_pose < best_loss
-            best = [dr.select(improved, dr.detach(p), b) for p, b in zip(opt.params, best)]
-            best_loss = dr.select(improved, per_pose, best_loss)
-            opt.step()
-            norm = dr.rsqrt(
-                dr.square(opt.params[0])
-                + dr.square(opt.params[1])
-                + dr.square(opt.params[2])
-                + dr.square(opt.params[3])
-            )
-            for i in range(4):
-                opt.params[i] = opt.params[i] * norm
-            dr.eval(opt.params, best, best_loss, opt.m, opt.v)
+            kept = [dr.select(improved, dr.detach(opt[key]), b) for key, b in zip(POSE_KEYS, best)]
+            return kept, dr.select(improved, per_pose, best_loss)
+
+        for step in range(steps):
+            total, per_pose = evaluate()
+            dr.backward(total)
+            best, best_loss = keep_best(per_pose, best, best_loss)
+            opt.step(eval=False)
+            renormalise_quaternions(opt, best, best_loss)
             if progress:
                 progress(step + 1)
         if steps > 0:
-            _, per_pose = loss.loss(
-                tuple(opt.params[:4]),
-                (opt.params[4] * scale, opt.params[5] * scale),
-                stack,
-                hole_idx,
-            )
-            improved = per_pose < best_loss
-            best = [dr.select(improved, dr.detach(p), b) for p, b in zip(opt.params, best)]
+            with dr.suspend_grad():
+                best, _ = keep_best(evaluate()[1], best, best_loss)
         final = np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
         return normalize(final[:, :4]), final[:, 4:] * scale
 

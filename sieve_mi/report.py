@@ -14,6 +14,7 @@ import time
 import numpy as np
 
 from sieve_mi import outdir
+from sieve_mi.provenance import provenance
 from sieve_mi.solve import Result
 
 
@@ -86,6 +87,12 @@ def report_dict(result: Result) -> dict:
         },
         "settings": scene.settings(),
         "variant": result.variant,
+        "provenance": provenance(
+            scene.path,
+            [(e.mesh, scene.resolve(e.mesh)) for e in scene.passes + scene.blocks],
+            result.variant,
+            result.seed,
+        ),
         "search_value": None if np.isnan(result.search_value) else float(result.search_value),
         "convergence": [float(x) for x in result.history.best],
         "stages": [{"stage": label, "iterations": n} for label, n in result.stages],

@@ -79,6 +79,8 @@ class Result:
     warnings: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
     alone: list = field(default_factory=list)
+    #: The seed the run used (``[solver] seed`` or the ``seed`` argument that overrode it).
+    seed: int | None = None
 
     @property
     def a_mask(self) -> np.ndarray:
@@ -295,4 +297,5 @@ def solve(
         warnings=v.warnings,
         timings=timings,
         alone=found.alone,
+        seed=seed,
     )
