@@ -284,10 +284,11 @@ class Scene:
     solver: Solver = field(default_factory=Solver)
     verdict: Verdict = field(default_factory=Verdict)
     layout: Layout = field(default_factory=Layout)
+    #: The scene file's folder, absolute, fixed at load time (a later ``chdir`` does not move it).
+    directory: str = field(init=False, repr=False, compare=False)
 
-    @property
-    def directory(self) -> str:
-        return os.path.dirname(os.path.abspath(self.path))
+    def __post_init__(self):
+        self.directory = os.path.dirname(os.path.abspath(self.path))
 
     def resolve(self, mesh: str) -> str:
         """A mesh path relative to the scene file, made absolute."""
@@ -460,7 +461,8 @@ def load_scene(path: str) -> Scene:
     """
     data = _read_file(path)
     top = _Reader(path, data, "")
-    top.check_keys({key_of(f) for f in fields(Scene) if f.name != "path"})
+    tables = table_fields()
+    top.check_keys({key_of(f) for f in fields(Scene) if spec_of(f) is not None or f in tables})
     values = top.read(Scene)
     values.setdefault("name", os.path.splitext(os.path.basename(path))[0])
     _check_folder_name(path, values["name"])
@@ -470,7 +472,7 @@ def load_scene(path: str) -> Scene:
             raise SieveError(
                 f"{path}: block[{i}].rotation: shapes to block are tried in every orientation; remove 'rotation'"
             )
-    for f in table_fields():
+    for f in tables:
         cls = value_types(Scene)[f.name]
         r = _Reader(path, _table(path, data, f.name), f.name + ".")
         r.check_keys({key_of(g) for g in fields(cls)})
