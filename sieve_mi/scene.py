@@ -1,103 +1,294 @@
 """Scene files (TOML): what must pass, what must be blocked, and how to search.
 
-See ``docs/scene-format.md`` for every key, its unit and its default. Paths are relative to the
-scene file. Every problem is reported as one :class:`~sieve_mi.errors.SieveError` line naming the
-file and the key.
+Every key of a scene file is declared once, as a field of one of the dataclasses below: the field
+carries its default, and its :class:`Spec` (made by :func:`setting`) carries its bounds or accepted
+values, its unit and its one-line meaning. The reader (:func:`load_scene`) takes defaults and
+validation from there, the class docstrings list them, and ``tests/test_scene.py`` checks that
+``docs/scene-format.md`` says the same. Adding a key is one line in its class (and a row in the
+docs, which the test asks for), e.g.::
+
+    certify: bool = setting(False, "prove the winner exactly")
+
+Paths are relative to the scene file. Every problem is reported as one
+:class:`~sieve_mi.errors.SieveError` line naming the file and the key.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import os
 import tomllib
-from dataclasses import asdict, dataclass, field, fields
+import types
+import typing
+from dataclasses import MISSING, asdict, dataclass, field, fields
 
 import numpy as np
 
 from sieve_mi.errors import SieveError
 from sieve_mi.optim import NLOPT_METHODS
 
+#: Accepted ``units`` (a label for reports; meshes are not converted).
+UNITS = ("mm", "cm", "m", "in", "um")
+#: Accepted ``[solver] objective`` values: player B's loss.
+OBJECTIVES = ("clearance", "overlap")
+#: Accepted ``[solver] outer`` values: player A's optimiser (PSO or an nlopt global method).
+OUTERS = ("pso", *NLOPT_METHODS)
+#: Accepted ``[layout] mode`` values.
+LAYOUT_MODES = ("merged", "separate")
 
+
+@dataclass(frozen=True)
+class Spec:
+    """How one scene key is checked and documented (the metadata of its dataclass field).
+
+    Attributes
+    ----------
+    doc : str
+        One-line meaning.
+    unit : str or None
+        Unit of a number (``"scene units"``, ``"s"``), None where it has none.
+    minimum, maximum : int or float or None
+        Inclusive bounds of a number (``minimum`` is exclusive where ``exclusive_min``).
+    exclusive_min : bool
+        Whether the value must be strictly greater than ``minimum``.
+    choices : tuple of str or None
+        The accepted values of a string.
+    default_doc : str or None
+        The default in words, where it is not a fixed value (e.g. "the file's stem").
+    key : str or None
+        The TOML key, where it differs from the field name.
+    """
+
+    doc: str
+    unit: str | None = None
+    minimum: float | None = None
+    maximum: float | None = None
+    exclusive_min: bool = False
+    choices: tuple[str, ...] | None = None
+    default_doc: str | None = None
+    key: str | None = None
+
+
+def setting(default=MISSING, doc: str = "", **spec):
+    """A dataclass field for a scene key: its default and its :class:`Spec`.
+
+    Parameters
+    ----------
+    default : bool, int, float, str or None
+        The value used when the key is absent; leave it out for a required key.
+    doc : str
+        One-line meaning.
+    **spec
+        The other fields of :class:`Spec` (``unit``, ``minimum``, ``maximum``, ``exclusive_min``,
+        ``choices``, ``default_doc``, ``key``).
+
+    Returns
+    -------
+    dataclasses.Field
+    """
+    return field(default=default, metadata={"spec": Spec(doc, **spec)})
+
+
+def spec_of(f: dataclasses.Field) -> Spec | None:
+    """The :class:`Spec` of a dataclass field, or None for a field that is not a scene key."""
+    return f.metadata.get("spec")
+
+
+def key_of(f: dataclasses.Field) -> str:
+    """The TOML key of a dataclass field."""
+    spec = spec_of(f)
+    return spec.key if spec is not None and spec.key else f.name
+
+
+@functools.cache
+def value_types(cls: type) -> dict[str, type]:
+    """The value type of each field of a dataclass, without ``| None``.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass of this module.
+
+    Returns
+    -------
+    dict of str to type
+        ``bool``, ``int``, ``float``, ``str``, ``list[float]`` (a quaternion),
+        ``list[ShapeEntry]`` or a dataclass (a table); ``float | None`` gives ``float``.
+    """
+    out = {}
+    for name, hint in typing.get_type_hints(cls).items():
+        if isinstance(hint, types.UnionType):
+            hint = next(a for a in typing.get_args(hint) if a is not type(None))
+        out[name] = hint
+    return out
+
+
+def describe(cls: type, f: dataclasses.Field) -> str:
+    """A field's type and bounds in words, e.g. ``"int 16–4096"`` or ``"number > 0"``.
+
+    The form docs/scene-format.md uses in its type column.
+    """
+    spec, kind = spec_of(f), value_types(cls)[f.name]
+    words = {bool: "bool", int: "int", float: "number", str: "string", list[float]: "[w, x, y, z]"}
+    word = words.get(kind, "tables")
+    if spec.minimum is not None and spec.maximum is not None and not spec.exclusive_min:
+        return f"{word} {spec.minimum}–{spec.maximum}"
+    if spec.minimum is not None:
+        word += f" {'>' if spec.exclusive_min else '≥'} {spec.minimum}"
+    if spec.maximum is not None:
+        word += f" ≤ {spec.maximum}"
+    return word
+
+
+def _documented(cls: type) -> type:
+    """Append an ``Attributes`` section built from the fields' :class:`Spec` to the docstring."""
+    lines = ["", "    Attributes", "    ----------"]
+    for f in fields(cls):
+        spec = spec_of(f)
+        if spec is None:
+            continue
+        if spec.default_doc is not None:
+            default = spec.default_doc
+        elif f.default is MISSING:
+            default = "required"
+        else:
+            default = repr(f.default)
+        unit = f" ({spec.unit})" if spec.unit else ""
+        lines += [
+            f"    {f.name} : {describe(cls, f)}, default {default}",
+            f"        {spec.doc[:1].upper()}{spec.doc[1:]}{unit}.",
+        ]
+        if spec.choices:
+            lines.append(f"        One of: {', '.join(spec.choices)}.")
+    cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n" + "\n".join(lines) + "\n"
+    return cls
+
+
+@_documented
 @dataclass
 class ShapeEntry:
     """One ``[[pass]]`` or ``[[block]]`` table."""
 
-    mesh: str
-    scale: float = 1.0
-    rotation: list[float] | None = None
-    name: str | None = None
+    mesh: str = setting(doc="mesh file, relative to the scene file (anything trimesh reads)")
+    scale: float = setting(
+        1.0, "uniform scale from file units to scene units", minimum=0, exclusive_min=True
+    )
+    rotation: list[float] | None = setting(
+        None,
+        "[[pass]] only: A's fixed orientation, a unit quaternion (w, x, y, z); no search",
+        default_doc="none",
+    )
+    name: str | None = setting(None, "label in reports and file names", default_doc="file stem")
 
 
+@_documented
 @dataclass
 class Fabrication:
     """``[fabrication]``: how the hole is made physical."""
 
-    tolerance: float = 1.0
-    fill_holes: bool = True
-    block_margin: float = 0.0
-    thickness: float | None = None
-    border: float = 5.0
+    tolerance: float = setting(
+        1.0, "A's silhouette is dilated by this much", unit="scene units", minimum=0
+    )
+    fill_holes: bool = setting(True, "fill holes of the silhouette so H is simply connected")
+    block_margin: float = setting(
+        0.0,
+        "B counts as blocked only if it also fails against H grown by this margin",
+        unit="scene units",
+        minimum=0,
+    )
+    thickness: float | None = setting(
+        None,
+        "sieve plate thickness",
+        unit="scene units",
+        minimum=0,
+        exclusive_min=True,
+        default_doc="largest circumsphere diameter",
+    )
+    border: float = setting(
+        5.0, "plate material around the hole", unit="scene units", minimum=0, exclusive_min=True
+    )
 
 
+@_documented
 @dataclass
 class Solver:
     """``[solver]``: the search (paper Sec. 6 defaults)."""
 
-    objective: str = "clearance"
-    outer: str = "pso"
-    resolution: int = 256
-    particles: int = 10
-    iterations: int = 10
-    starts: int = 10
-    steps: int = 100
-    learning_rate: float = 0.05
-    seed: int = 0
-    inertia: float = 0.25
-    c_personal: float = 0.25
-    c_global: float = 0.25
+    objective: str = setting("clearance", "player B's loss", choices=OBJECTIVES)
+    outer: str = setting("pso", "player A's optimiser", choices=OUTERS)
+    resolution: int = setting(
+        256, "raster side in pixels during the search", minimum=16, maximum=4096
+    )
+    particles: int = setting(10, "PSO particles", minimum=1)
+    iterations: int = setting(10, "PSO iterations", minimum=0)
+    starts: int = setting(10, "random starts of each B per evaluation", minimum=1)
+    steps: int = setting(100, "Adam steps per start", minimum=0)
+    learning_rate: float = setting(0.05, "Adam's learning rate", minimum=0, exclusive_min=True)
+    seed: int = setting(0, "random seed (--seed overrides)", minimum=0)
+    inertia: float = setting(0.25, "PSO inertia", minimum=0)
+    c_personal: float = setting(0.25, "PSO acceleration towards a particle's best", minimum=0)
+    c_global: float = setting(0.25, "PSO acceleration towards the swarm's best", minimum=0)
 
 
+@_documented
 @dataclass
 class Verdict:
     """``[verdict]``: the long re-run of player B that declares the winner."""
 
-    starts: int = 100
-    steps: int = 500
-    resolution: int = 256
+    starts: int = setting(100, "random starts per B", minimum=1)
+    steps: int = setting(500, "Adam steps per start", minimum=0)
+    resolution: int = setting(
+        256, "raster side in pixels for the final hole and scores", minimum=16, maximum=4096
+    )
 
 
+@_documented
 @dataclass
 class Layout:
     """``[layout]``: how several pass shapes make one hole (paper Sec. 5.3, eq. 14)."""
 
-    mode: str = "merged"
-    tau: float = 10.0
-    rho: float = 200.0
-    eta: float = 0.02
-    alpha: float = 5.0
-    c_personal: float = 0.05
-    c_global: float = 0.05
-    rounds: int = 3
-    alternatives: int = 2
+    mode: str = setting("merged", "one merged hole, or one hole per A", choices=LAYOUT_MODES)
+    tau: float = setting(
+        10.0, "eq. 14 τ: weight of the blocking term", minimum=0, exclusive_min=True
+    )
+    rho: float = setting(
+        200.0, "eq. 14 ρ: steepness of the tanh on β", minimum=0, exclusive_min=True
+    )
+    eta: float = setting(0.02, "eq. 14 η: β at which a block counts", minimum=0)
+    alpha: float = setting(5.0, "eq. 14 α: weight of the hole-area penalty", minimum=0)
+    c_personal: float = setting(0.05, "placement PSO acceleration ψ1", minimum=0)
+    c_global: float = setting(0.05, "placement PSO acceleration ψ2", minimum=0)
+    rounds: int = setting(
+        3, "screening, swarm and re-ranking rounds per placement", minimum=1, maximum=100
+    )
+    alternatives: int = setting(
+        2, "next-best rotations of a shape tried after that", minimum=0, maximum=100
+    )
 
 
+@_documented
 @dataclass
 class Scene:
-    """A parsed, validated scene."""
+    """A parsed, validated scene (the top level of the file)."""
 
     path: str
-    name: str
-    units: str
-    passes: list[ShapeEntry]
-    blocks: list[ShapeEntry]
+    name: str = setting(
+        doc="output folder out/<name>/ (unless --out)", default_doc="the file's stem"
+    )
+    passes: list[ShapeEntry] = setting(doc="set A: shapes that must pass", key="pass")
+    blocks: list[ShapeEntry] = setting(doc="set B: shapes that must be blocked", key="block")
+    units: str = setting("mm", "a label for reports; meshes are not converted", choices=UNITS)
     fabrication: Fabrication = field(default_factory=Fabrication)
     solver: Solver = field(default_factory=Solver)
     verdict: Verdict = field(default_factory=Verdict)
     layout: Layout = field(default_factory=Layout)
+    #: The scene file's folder, absolute, fixed at load time (a later ``chdir`` does not move it).
+    directory: str = field(init=False, repr=False, compare=False)
 
-    @property
-    def directory(self) -> str:
-        return os.path.dirname(os.path.abspath(self.path))
+    def __post_init__(self):
+        self.directory = os.path.dirname(os.path.abspath(self.path))
 
     def resolve(self, mesh: str) -> str:
         """A mesh path relative to the scene file, made absolute."""
@@ -105,17 +296,17 @@ class Scene:
 
     def settings(self) -> dict:
         """The search and fabrication settings, as stored in ``report.json``."""
-        return {
-            "units": self.units,
-            "fabrication": asdict(self.fabrication),
-            "solver": asdict(self.solver),
-            "verdict": asdict(self.verdict),
-            "layout": asdict(self.layout),
-        }
+        return {"units": self.units, **{key: asdict(t) for key, t in self.tables().items()}}
+
+    def tables(self) -> dict:
+        """The settings tables by TOML key: ``{"fabrication": Fabrication(...), ...}``."""
+        return {f.name: getattr(self, f.name) for f in table_fields()}
 
 
-_TOP_KEYS = {"name", "units", "pass", "block", "fabrication", "solver", "verdict", "layout"}
-_UNITS = {"mm", "cm", "m", "in", "um"}
+def table_fields() -> list[dataclasses.Field]:
+    """The fields of :class:`Scene` that are settings tables (``[fabrication]``, ``[solver]``, ...)."""
+    kinds = value_types(Scene)
+    return [f for f in fields(Scene) if dataclasses.is_dataclass(kinds[f.name])]
 
 
 class _Reader:
@@ -132,10 +323,18 @@ class _Reader:
             if key not in allowed:
                 raise self.error(key, f"unknown key; known keys here: {', '.join(sorted(allowed))}")
 
-    def number(
-        self, key, default, *, integer=False, minimum=None, maximum=None, exclusive_min=False
-    ):
-        value = self.table.get(key, default)
+    def read(self, cls: type) -> dict:
+        """The keys of ``cls`` present in this table, checked against their :class:`Spec`."""
+        kinds = value_types(cls)
+        values = {}
+        for f in fields(cls):
+            spec = spec_of(f)
+            if spec is not None and key_of(f) in self.table and kinds[f.name] in _READERS:
+                values[f.name] = _READERS[kinds[f.name]](self, key_of(f), spec)
+        return values
+
+    def number(self, key: str, spec: Spec, integer: bool = False):
+        value = self.table[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(
                 key, f"expected a {'whole number' if integer else 'number'}, got {value!r}"
@@ -144,60 +343,102 @@ class _Reader:
             raise self.error(key, f"expected a whole number, got {value!r}")
         if not math.isfinite(value):
             raise self.error(key, f"expected a finite number, got {value!r}")
-        if minimum is not None and (value <= minimum if exclusive_min else value < minimum):
+        low, high = spec.minimum, spec.maximum
+        if low is not None and (value <= low if spec.exclusive_min else value < low):
             raise self.error(
-                key, f"must be {'>' if exclusive_min else '>='} {minimum}, got {value!r}"
+                key, f"must be {'>' if spec.exclusive_min else '>='} {low}, got {value!r}"
             )
-        if maximum is not None and value > maximum:
-            raise self.error(key, f"must be <= {maximum}, got {value!r}")
+        if high is not None and value > high:
+            raise self.error(key, f"must be <= {high}, got {value!r}")
         return int(value) if integer else float(value)
 
-    def boolean(self, key, default):
-        value = self.table.get(key, default)
+    def integer(self, key: str, spec: Spec) -> int:
+        return self.number(key, spec, integer=True)
+
+    def boolean(self, key: str, spec: Spec) -> bool:
+        value = self.table[key]
         if not isinstance(value, bool):
             raise self.error(key, f"expected true or false, got {value!r}")
         return value
 
-    def string(self, key, default, choices=None):
-        value = self.table.get(key, default)
+    def string(self, key: str, spec: Spec) -> str:
+        value = self.table[key]
         if not isinstance(value, str) or not value:
             raise self.error(key, f"expected a non-empty string, got {value!r}")
-        if choices is not None and value not in choices:
-            raise self.error(key, f"'{value}' is not one of: {', '.join(choices)}")
+        if spec.choices is not None and value not in spec.choices:
+            raise self.error(key, f"{value!r} is not one of: {', '.join(spec.choices)}")
         return value
+
+    def quaternion(self, key: str, spec: Spec) -> list[float]:
+        """A rotation (w, x, y, z) of norm 1 (to 1e-3), returned normalised."""
+        q = self.table[key]
+        if not (
+            isinstance(q, list)
+            and len(q) == 4
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in q)
+        ):
+            raise self.error(key, f"expected a quaternion [w, x, y, z], got {q!r}")
+        qn = np.asarray(q, float)
+        norm = float(np.linalg.norm(qn))
+        if not np.all(np.isfinite(qn)) or norm < 1e-9:
+            raise self.error(key, f"quaternion {q!r} has no direction")
+        if abs(norm - 1.0) > 1e-3:
+            raise self.error(
+                key,
+                f"quaternion {q!r} is not a unit quaternion (norm {norm:.4g}); divide it by its norm",
+            )
+        return [float(v) for v in qn / norm]
+
+
+_READERS = {
+    bool: _Reader.boolean,
+    int: _Reader.integer,
+    float: _Reader.number,
+    str: _Reader.string,
+    list[float]: _Reader.quaternion,
+}
 
 
 def _read_shape(path: str, table, where: str) -> ShapeEntry:
     if not isinstance(table, dict):
         raise SieveError(f"{path}: {where}: expected a table like [[pass]] with a 'mesh' key")
     r = _Reader(path, table, where + ".")
-    r.check_keys({f.name for f in fields(ShapeEntry)})
+    r.check_keys({key_of(f) for f in fields(ShapeEntry)})
     if "mesh" not in table:
         raise r.error("mesh", "missing; give the path of a mesh file (relative to the scene file)")
-    entry = ShapeEntry(
-        mesh=r.string("mesh", None), scale=r.number("scale", 1.0, minimum=0, exclusive_min=True)
-    )
-    if "name" in table:
-        entry.name = r.string("name", None)
-    if "rotation" in table:
-        q = table["rotation"]
-        if not (
-            isinstance(q, list)
-            and len(q) == 4
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in q)
-        ):
-            raise r.error("rotation", f"expected a quaternion [w, x, y, z], got {q!r}")
-        qn = np.asarray(q, float)
-        norm = float(np.linalg.norm(qn))
-        if not np.all(np.isfinite(qn)) or norm < 1e-9:
-            raise r.error("rotation", f"quaternion {q!r} has no direction")
-        if abs(norm - 1.0) > 1e-3:
-            raise r.error(
-                "rotation",
-                f"quaternion {q!r} is not a unit quaternion (norm {norm:.4g}); divide it by its norm",
-            )
-        entry.rotation = list(qn / norm)
-    return entry
+    return ShapeEntry(**r.read(ShapeEntry))
+
+
+def _read_shapes(path: str, data: dict, key: str) -> list[ShapeEntry]:
+    """The ``[[pass]]`` or ``[[block]]`` tables (one or more)."""
+    if key not in data:
+        raise SieveError(
+            f"{path}: {key}: missing; add at least one [[{key}]] table with a 'mesh' key"
+        )
+    if not isinstance(data[key], list) or not data[key]:
+        raise SieveError(f"{path}: {key}: expected one or more [[{key}]] tables")
+    return [_read_shape(path, t, f"{key}[{i}]") for i, t in enumerate(data[key])]
+
+
+def _check_folder_name(path: str, name: str) -> None:
+    """Raise unless ``name`` can be one folder's name (no separators, NUL, '.' or '..')."""
+    if any(c in name for c in "/\\\0") or name in (".", ".."):
+        raise SieveError(
+            f"{path}: name: {name!r} is used as a folder name; use letters, digits, '-' and '_'"
+        )
+
+
+def _read_file(path: str) -> dict:
+    """The TOML document at ``path``; a missing, unreadable or invalid file is a SieveError."""
+    if not os.path.exists(path):
+        raise SieveError(f"{path}: scene file not found")
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise SieveError(f"{path}: not valid TOML ({exc})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SieveError(f"{path}: could not be read ({exc})") from None
 
 
 def load_scene(path: str) -> Scene:
@@ -208,104 +449,35 @@ def load_scene(path: str) -> Scene:
     path : str
         The TOML file.
 
+    Returns
+    -------
+    Scene
+        Every key absent from the file has its field's default.
+
     Raises
     ------
     SieveError
         On a missing file, bad TOML, unknown keys, wrong types or out-of-range values.
     """
-    if not os.path.exists(path):
-        raise SieveError(f"{path}: scene file not found")
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise SieveError(f"{path}: not valid TOML ({exc})") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SieveError(f"{path}: could not be read ({exc})") from None
+    data = _read_file(path)
     top = _Reader(path, data, "")
-    top.check_keys(_TOP_KEYS)
-    default_name = os.path.splitext(os.path.basename(path))[0]
-    name = top.string("name", default_name)
-    if any(c in name for c in "/\\") or name in (".", ".."):
-        raise top.error(
-            "name", f"'{name}' is used as a folder name; use letters, digits, '-' and '_'"
-        )
-    units = top.string("units", "mm", choices=sorted(_UNITS))
-    for key in ("pass", "block"):
-        if key not in data:
-            raise top.error(key, f"missing; add at least one [[{key}]] table with a 'mesh' key")
-        if not isinstance(data[key], list) or not data[key]:
-            raise top.error(key, f"expected one or more [[{key}]] tables")
-    passes = [_read_shape(path, t, f"pass[{i}]") for i, t in enumerate(data["pass"])]
-    blocks = [_read_shape(path, t, f"block[{i}]") for i, t in enumerate(data["block"])]
+    tables = table_fields()
+    top.check_keys({key_of(f) for f in fields(Scene) if spec_of(f) is not None or f in tables})
+    values = top.read(Scene)
+    values.setdefault("name", os.path.splitext(os.path.basename(path))[0])
+    _check_folder_name(path, values["name"])
+    passes, blocks = _read_shapes(path, data, "pass"), _read_shapes(path, data, "block")
     for i, b in enumerate(blocks):
         if b.rotation is not None:
             raise SieveError(
                 f"{path}: block[{i}].rotation: shapes to block are tried in every orientation; remove 'rotation'"
             )
-
-    fab_t = _table(path, data, "fabrication")
-    r = _Reader(path, fab_t, "fabrication.")
-    r.check_keys({f.name for f in fields(Fabrication)})
-    fab = Fabrication(
-        tolerance=r.number("tolerance", 1.0, minimum=0),
-        fill_holes=r.boolean("fill_holes", True),
-        block_margin=r.number("block_margin", 0.0, minimum=0),
-        border=r.number("border", 5.0, minimum=0, exclusive_min=True),
-    )
-    if "thickness" in fab_t:
-        fab.thickness = r.number("thickness", None, minimum=0, exclusive_min=True)
-
-    sol_t = _table(path, data, "solver")
-    r = _Reader(path, sol_t, "solver.")
-    r.check_keys({f.name for f in fields(Solver)})
-    solver = Solver(
-        objective=r.string("objective", "clearance", choices=["clearance", "overlap"]),
-        outer=r.string("outer", "pso", choices=["pso", *NLOPT_METHODS]),
-        resolution=r.number("resolution", 256, integer=True, minimum=16, maximum=4096),
-        particles=r.number("particles", 10, integer=True, minimum=1),
-        iterations=r.number("iterations", 10, integer=True, minimum=0),
-        starts=r.number("starts", 10, integer=True, minimum=1),
-        steps=r.number("steps", 100, integer=True, minimum=0),
-        learning_rate=r.number("learning_rate", 0.05, minimum=0, exclusive_min=True),
-        seed=r.number("seed", 0, integer=True, minimum=0),
-        inertia=r.number("inertia", 0.25, minimum=0),
-        c_personal=r.number("c_personal", 0.25, minimum=0),
-        c_global=r.number("c_global", 0.25, minimum=0),
-    )
-    ver_t = _table(path, data, "verdict")
-    r = _Reader(path, ver_t, "verdict.")
-    r.check_keys({f.name for f in fields(Verdict)})
-    verdict = Verdict(
-        starts=r.number("starts", 100, integer=True, minimum=1),
-        steps=r.number("steps", 500, integer=True, minimum=0),
-        resolution=r.number("resolution", 256, integer=True, minimum=16, maximum=4096),
-    )
-    lay_t = _table(path, data, "layout")
-    r = _Reader(path, lay_t, "layout.")
-    r.check_keys({f.name for f in fields(Layout)})
-    layout = Layout(
-        mode=r.string("mode", "merged", choices=["merged", "separate"]),
-        tau=r.number("tau", 10.0, minimum=0, exclusive_min=True),
-        rho=r.number("rho", 200.0, minimum=0, exclusive_min=True),
-        eta=r.number("eta", 0.02, minimum=0),
-        alpha=r.number("alpha", 5.0, minimum=0),
-        c_personal=r.number("c_personal", 0.05, minimum=0),
-        c_global=r.number("c_global", 0.05, minimum=0),
-        rounds=r.number("rounds", 3, integer=True, minimum=1, maximum=100),
-        alternatives=r.number("alternatives", 2, integer=True, minimum=0, maximum=100),
-    )
-    return Scene(
-        path=path,
-        name=name,
-        units=units,
-        passes=passes,
-        blocks=blocks,
-        fabrication=fab,
-        solver=solver,
-        verdict=verdict,
-        layout=layout,
-    )
+    for f in tables:
+        cls = value_types(Scene)[f.name]
+        r = _Reader(path, _table(path, data, f.name), f.name + ".")
+        r.check_keys({key_of(g) for g in fields(cls)})
+        values[f.name] = cls(**r.read(cls))
+    return Scene(path=path, passes=passes, blocks=blocks, **values)
 
 
 def _table(path: str, data: dict, key: str) -> dict:

@@ -170,6 +170,10 @@ def test_missing_scene_file(tmp_path):
             'name = "x"\n[[pass]]\nmesh = "MESH"\n[[block]]\nmesh = "MESH"\n[layout]\nalternatives = 1.5\n',
             ["layout.alternatives", "whole number"],
         ),
+        (
+            'name = "a\\u0000b"\n[[pass]]\nmesh = "MESH"\n[[block]]\nmesh = "MESH"\n',
+            ["scene.toml: name:", "folder name"],
+        ),
     ],
 )
 def test_bad_scenes_fail_with_one_line(write_scene, tmp_path, text, needles):

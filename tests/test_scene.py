@@ -1,0 +1,531 @@
+"""The scene reader: defaults, keys, types, bounds, rotations, names and paths; docs agree with code.
+
+``docs/scene-format.md`` is the user's reference. Its tables are parsed here and compared with the
+dataclass fields of :mod:`sieve_mi.scene` (key, type, bounds, default, accepted values, unit), and a
+minimal scene must load to exactly the defaults the docs state.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import tomllib
+from dataclasses import MISSING, fields
+
+import pytest
+
+from sieve_mi import scene
+from sieve_mi.errors import SieveError
+from sieve_mi.scene import Scene, ShapeEntry, key_of, load_scene, spec_of, value_types
+
+DOCS = os.path.join(os.path.dirname(__file__), "..", "docs", "scene-format.md")
+MINIMAL = '[[pass]]\nmesh = "a.stl"\n[[block]]\nmesh = "b.stl"\n'
+
+
+def _docs_text() -> str:
+    with open(DOCS, encoding="utf-8") as fh:
+        return fh.read()
+
+
+def _write(tmp_path, text: str, name: str = "scene.toml") -> str:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return str(path)
+
+
+def _error(tmp_path, text: str) -> str:
+    """The reader's message for a bad scene, less the leading '<path>: ' (checked to be there)."""
+    path = _write(tmp_path, text)
+    with pytest.raises(SieveError) as exc:
+        load_scene(path)
+    message = str(exc.value)
+    assert "\n" not in message and message.startswith(f"{path}: "), message
+    return message[len(path) + 2 :]
+
+
+# --- docs/scene-format.md, parsed ------------------------------------------------------------
+
+
+def _doc_tables(text: str) -> dict[str, list[dict[str, str]]]:
+    """Each ``## heading`` with a table: its rows as {column header: cell}."""
+    tables: dict[str, list[dict[str, str]]] = {}
+    heading, header = None, None
+    for line in text.splitlines():
+        if line.startswith("## "):
+            heading, header = line[3:].strip(), None
+        elif line.startswith("|") and heading is not None:
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if header is None:
+                header, tables[heading] = cells, []
+            elif not set(line) <= set("|-: "):
+                tables[heading].append(dict(zip(header, cells)))
+        else:
+            header = None
+    return tables
+
+
+def _sections() -> dict[str, type]:
+    """The docs heading (its start) that documents each class of keys."""
+    out = {"Top level": Scene, "`[[pass]]` and `[[block]]`": ShapeEntry}
+    for f in scene.table_fields():
+        out[f"`[{f.name}]`"] = value_types(Scene)[f.name]
+    return out
+
+
+def _doc_rows(text: str) -> dict[type, dict[str, dict[str, str]]]:
+    """For each class: its documented rows by key (``[[pass]]`` is key ``pass``)."""
+    tables = _doc_tables(text)
+    out = {}
+    for start, cls in _sections().items():
+        rows = next((r for h, r in tables.items() if h.startswith(start)), [])
+        out[cls] = {re.fullmatch(r"`\[*(\w+)\]*`", r["key"]).group(1): r for r in rows}
+    return out
+
+
+_TYPE = re.compile(
+    r"(number|int|bool|string|tables|\[w, x, y, z\])(?: (≥|>) (-?[\d.]+)| (-?[\d.]+)–(-?[\d.]+))?"
+)
+_KINDS = {
+    "number": float,
+    "int": int,
+    "bool": bool,
+    "string": str,
+    "tables": list[ShapeEntry],
+    "[w, x, y, z]": list[float],
+}
+
+
+def _doc_type(cell: str):
+    """(kind, minimum, exclusive, maximum) from a type cell such as ``int 16–4096``."""
+    m = _TYPE.fullmatch(cell)
+    if m is None:
+        return None
+    word, op, low, low2, high = m.groups()
+    low = low if low is not None else low2
+    return (
+        _KINDS[word],
+        None if low is None else float(low),
+        op == ">",
+        None if high is None else float(high),
+    )
+
+
+def _doc_default(cell: str):
+    """A backticked TOML value as Python (``"`1.0`"`` gives 1.0), else the words themselves."""
+    if cell.startswith("`") and cell.endswith("`"):
+        return tomllib.loads(f"v = {cell[1:-1]}")["v"]
+    return cell
+
+
+def _row_disagreements(cls: type, f, row: dict[str, str]) -> list[str]:
+    spec, kind, where = spec_of(f), value_types(cls)[f.name], f"{cls.__name__}.{f.name}"
+    out = []
+    code_type = (
+        kind,
+        None if spec.minimum is None else float(spec.minimum),
+        spec.exclusive_min,
+        None if spec.maximum is None else float(spec.maximum),
+    )
+    if _doc_type(row["type"]) != code_type:
+        out.append(f"{where}: docs type {row['type']!r}, code {code_type}")
+    words = spec.default_doc or ("required" if f.default is MISSING else None)
+    documented = _doc_default(row["default"])
+    if words is not None and documented != words:
+        out.append(f"{where}: docs default {row['default']!r}, code {words!r}")
+    if words is None and (documented != f.default or type(documented) is not type(f.default)):
+        out.append(f"{where}: docs default {row['default']!r}, code {f.default!r}")
+    for choice in spec.choices or ():
+        if f"`{choice}`" not in row["meaning"]:
+            out.append(f"{where}: {choice!r} is accepted but not documented")
+    if "unit" in row and row["unit"] != (spec.unit or ""):
+        out.append(f"{where}: docs unit {row['unit']!r}, code {spec.unit!r}")
+    return out
+
+
+def _disagreements(text: str) -> list[str]:
+    """Every way the docs' tables and the dataclasses differ (empty when they agree)."""
+    out = []
+    for cls, rows in _doc_rows(text).items():
+        code = {key_of(f): f for f in fields(cls) if spec_of(f) is not None}
+        out += [f"{cls.__name__}: {k} documented, not in code" for k in rows.keys() - code.keys()]
+        out += [f"{cls.__name__}: {k} in code, not documented" for k in code.keys() - rows.keys()]
+        for key in rows.keys() & code.keys():
+            out += _row_disagreements(cls, code[key], rows[key])
+    return out
+
+
+def test_docs_and_dataclasses_agree():
+    assert _disagreements(_docs_text()) == []
+
+
+@pytest.mark.parametrize(
+    "old, new",
+    [
+        ("| `tau` | number > 0 |", "| `tau` | number ≥ 0 |"),  # exclusive vs inclusive bound
+        ("| `particles` | int ≥ 1 | `10` |", "| `particles` | int ≥ 1 | `11` |"),  # default
+        (
+            "| `tolerance` | number ≥ 0 | `1.0` |",
+            "| `tolerance` | number ≥ 0 | `1` |",
+        ),  # int vs float
+        ("| `resolution` | int 16–4096 |", "| `resolution` | int 16–2048 |"),  # upper bound
+        ("| `steps` | int ≥ 0 | `500` |", "| `steps` | int ≥ 1 | `500` |"),  # lower bound
+        ("| `border` |", "| `margin` |"),  # a key the code does not have, and one undocumented
+        (", `ags`", ""),  # an accepted outer method left out
+        ("| `fill_holes` | bool | `true` |", "| `fill_holes` | bool | `false` |"),
+        ("| `thickness` | number > 0 | largest", "| `thickness` | number > 0 | smallest"),
+        (
+            "| `block_margin` | number ≥ 0 | `0.0` | scene units",
+            "| `block_margin` | number ≥ 0 | `0.0` | mm",
+        ),
+        ("## `[verdict]`", "## verdict"),  # a whole table no longer found
+    ],
+)
+def test_docs_check_catches_a_disagreement(old, new):
+    text = _docs_text()
+    assert text.count(old) >= 1, old
+    assert _disagreements(text.replace(old, new, 1)) != []
+
+
+def test_minimal_scene_loads_to_the_documented_defaults(tmp_path):
+    s = load_scene(_write(tmp_path, MINIMAL, "minimal.toml"))
+    rows = _doc_rows(_docs_text())
+    for f in scene.table_fields():
+        table, documented_rows = getattr(s, f.name), rows[value_types(Scene)[f.name]]
+        assert documented_rows, f"no [{f.name}] table in the docs"
+        for key, row in documented_rows.items():
+            documented, value = _doc_default(row["default"]), getattr(table, key)
+            if row["default"].startswith("`"):
+                assert value == documented and type(value) is type(documented), (f.name, key)
+            else:  # a default in words is worked out later (the plate's thickness)
+                assert value is None, (f.name, key)
+    assert s.name == "minimal" and s.units == _doc_default(rows[Scene]["units"]["default"])
+    for entry, mesh in ((s.passes[0], "a.stl"), (s.blocks[0], "b.stl")):
+        assert entry == ShapeEntry(mesh=mesh, scale=1.0, rotation=None, name=None)
+    assert s.settings() == {
+        "units": s.units,
+        **{f.name: vars(getattr(s, f.name)) for f in scene.table_fields()},
+    }
+    assert list(s.settings()) == ["units", "fabrication", "solver", "verdict", "layout"]
+    json.dumps(s.settings())  # report.json must be able to hold it
+
+
+# --- every key of every table ----------------------------------------------------------------
+
+
+def _toml(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return json.dumps(value) if isinstance(value, str) else repr(value)
+
+
+def _settings_keys() -> list:
+    """(table, field, kind, spec) for every key of every settings table."""
+    out = []
+    for t in scene.table_fields():
+        cls = value_types(Scene)[t.name]
+        for f in fields(cls):
+            kind = value_types(cls)[f.name]
+            out.append(pytest.param(t.name, f, kind, spec_of(f), id=f"{t.name}.{f.name}"))
+    return out
+
+
+def _other_value(f, kind, spec):
+    """A valid value that is not the default."""
+    if spec.choices:
+        return next(c for c in spec.choices if c != f.default)
+    if kind is bool:
+        return not f.default
+    if kind is int:
+        value = f.default + 1
+        return value if spec.maximum is None or value <= spec.maximum else spec.minimum
+    return (f.default or 1.0) * 1.5 + 0.25
+
+
+@pytest.mark.parametrize("table, f, kind, spec", _settings_keys())
+def test_every_key_is_read_into_its_field(tmp_path, table, f, kind, spec):
+    value = _other_value(f, kind, spec)
+    s = load_scene(_write(tmp_path, MINIMAL + f"[{table}]\n{f.name} = {_toml(value)}\n"))
+    read, default = getattr(s, table), value_types(Scene)[table]()
+    assert getattr(read, f.name) == value and type(getattr(read, f.name)) is kind
+    assert all(
+        getattr(read, g.name) == getattr(default, g.name) for g in fields(read) if g is not f
+    )
+
+
+def test_explicit_defaults_are_accepted(tmp_path):
+    # Each default written out in the file must pass its own checks and read back the same.
+    text = MINIMAL
+    for t in scene.table_fields():
+        table = value_types(Scene)[t.name]()
+        items = [f"{k} = {_toml(v)}" for k, v in vars(table).items() if v is not None]
+        text += f"[{t.name}]\n" + "\n".join(items) + "\n"
+    s = load_scene(_write(tmp_path, text))
+    assert s.settings() == load_scene(_write(tmp_path, MINIMAL, "minimal.toml")).settings()
+
+
+@pytest.mark.parametrize("table", ["fabrication", "solver", "verdict", "layout", "pass", "block"])
+def test_unknown_key_names_table_and_known_keys(tmp_path, table):
+    if table in ("pass", "block"):
+        text = MINIMAL.replace(f"[[{table}]]\n", f"[[{table}]]\npartciles = 3\n")
+        where, cls = f"{table}[0]", ShapeEntry
+    else:
+        text, where = MINIMAL + f"[{table}]\npartciles = 3\n", table
+        cls = value_types(Scene)[table]
+    known = ", ".join(sorted(f.name for f in fields(cls)))
+    assert _error(tmp_path, text) == f"{where}.partciles: unknown key; known keys here: {known}"
+
+
+def test_unknown_top_level_key(tmp_path):
+    message = _error(tmp_path, MINIMAL.replace("[[pass]]", "colour = 1\n[[pass]]", 1))
+    assert message == (
+        "colour: unknown key; known keys here: "
+        "block, fabrication, layout, name, pass, solver, units, verdict"
+    )
+
+
+@pytest.mark.parametrize("table, f, kind, spec", _settings_keys())
+def test_wrong_type_is_one_line_naming_the_key(tmp_path, table, f, kind, spec):
+    wrong = {bool: "1", int: '"3"', float: '"1mm"', str: "3"}[kind]
+    expected = {
+        bool: "expected true or false, got 1",
+        int: "expected a whole number, got '3'",
+        float: "expected a number, got '1mm'",
+        str: "expected a non-empty string, got 3",
+    }[kind]
+    text = MINIMAL + f"[{table}]\n{f.name} = {wrong}\n"
+    assert _error(tmp_path, text) == f"{table}.{f.name}: {expected}"
+
+
+@pytest.mark.parametrize(
+    "key, value, expected",
+    [
+        ("particles", "2.5", "expected a whole number, got 2.5"),
+        ("particles", "true", "expected a whole number, got True"),
+        ("learning_rate", "false", "expected a number, got False"),
+        ("learning_rate", "nan", "expected a finite number, got nan"),
+        ("inertia", "inf", "expected a finite number, got inf"),
+        ("objective", '""', "expected a non-empty string, got ''"),
+        ("objective", '"area"', "'area' is not one of: clearance, overlap"),
+        ("outer", '"PSO"', "'PSO' is not one of: pso, crs2, esch, direct, isres, mlsl, ags"),
+        ("seed", "[1, 2]", "expected a whole number, got [1, 2]"),
+    ],
+)
+def test_bad_solver_values(tmp_path, key, value, expected):
+    assert _error(tmp_path, MINIMAL + f"[solver]\n{key} = {value}\n") == f"solver.{key}: {expected}"
+
+
+def test_whole_float_is_an_int(tmp_path):
+    s = load_scene(
+        _write(tmp_path, MINIMAL + "[solver]\nparticles = 3.0\n[fabrication]\nborder = 2\n")
+    )
+    assert s.solver.particles == 3 and type(s.solver.particles) is int
+    assert s.fabrication.border == 2.0 and type(s.fabrication.border) is float
+
+
+def test_booleans(tmp_path):
+    s = load_scene(_write(tmp_path, MINIMAL + "[fabrication]\nfill_holes = false\n"))
+    assert s.fabrication.fill_holes is False
+    text = MINIMAL + '[fabrication]\nfill_holes = "false"\n'
+    assert _error(tmp_path, text) == "fabrication.fill_holes: expected true or false, got 'false'"
+
+
+# --- bounds ----------------------------------------------------------------------------------
+
+
+def _bounded_keys() -> list:
+    return [
+        p
+        for p in _settings_keys()
+        if p.values[3].minimum is not None or p.values[3].maximum is not None
+    ]
+
+
+def _step(kind) -> float:
+    return 1 if kind is int else 1e-9
+
+
+@pytest.mark.parametrize("table, f, kind, spec", _bounded_keys())
+def test_lower_bound(tmp_path, table, f, kind, spec):
+    low, step = spec.minimum, _step(kind)
+    on_bound = MINIMAL + f"[{table}]\n{f.name} = {_toml(kind(low))}\n"
+    below = MINIMAL + f"[{table}]\n{f.name} = {_toml(kind(low) - step)}\n"
+    above = MINIMAL + f"[{table}]\n{f.name} = {_toml(kind(low) + step)}\n"
+    assert getattr(getattr(load_scene(_write(tmp_path, above)), table), f.name) == low + step
+    assert _error(tmp_path, below).startswith(f"{table}.{f.name}: must be ")
+    if spec.exclusive_min:
+        assert _error(tmp_path, on_bound) == f"{table}.{f.name}: must be > {low}, got {kind(low)!r}"
+    else:
+        assert getattr(getattr(load_scene(_write(tmp_path, on_bound)), table), f.name) == low
+
+
+@pytest.mark.parametrize(
+    "table, key, high",
+    [("solver", "resolution", 4096), ("verdict", "resolution", 4096), ("layout", "rounds", 100)],
+)
+def test_upper_bound_is_inclusive(tmp_path, table, key, high):
+    s = load_scene(_write(tmp_path, MINIMAL + f"[{table}]\n{key} = {high}\n"))
+    assert getattr(getattr(s, table), key) == high
+    text = MINIMAL + f"[{table}]\n{key} = {high + 1}\n"
+    assert _error(tmp_path, text) == f"{table}.{key}: must be <= {high}, got {high + 1}"
+
+
+def test_documented_error_example(tmp_path):
+    assert _error(tmp_path, MINIMAL + "[solver]\nparticles = 0\n") == (
+        "solver.particles: must be >= 1, got 0"
+    )
+    assert _error(tmp_path, MINIMAL + "[layout]\ntau = 0\n") == "layout.tau: must be > 0, got 0"
+
+
+# --- shapes: scale, rotation, name, mesh -----------------------------------------------------
+
+
+def _pass(extra: str) -> str:
+    return MINIMAL.replace('mesh = "a.stl"\n', f'mesh = "a.stl"\n{extra}\n', 1)
+
+
+def test_shape_keys_are_read(tmp_path):
+    s = load_scene(_write(tmp_path, _pass('scale = 2\nname = "cube"\nrotation = [0, 0, 0, 1]')))
+    assert s.passes[0] == ShapeEntry(
+        mesh="a.stl", scale=2.0, rotation=[0.0, 0.0, 0.0, 1.0], name="cube"
+    )
+
+
+@pytest.mark.parametrize(
+    "extra, expected",
+    [
+        ("scale = 0", "pass[0].scale: must be > 0, got 0"),
+        ("scale = -1.5", "pass[0].scale: must be > 0, got -1.5"),
+        ('scale = "2"', "pass[0].scale: expected a number, got '2'"),
+        ("name = 7", "pass[0].name: expected a non-empty string, got 7"),
+    ],
+)
+def test_bad_shape_values(tmp_path, extra, expected):
+    assert _error(tmp_path, _pass(extra)) == expected
+
+
+def test_empty_mesh_path(tmp_path):
+    text = MINIMAL.replace('mesh = "a.stl"', 'mesh = ""', 1)
+    assert _error(tmp_path, text) == "pass[0].mesh: expected a non-empty string, got ''"
+
+
+def test_shape_without_mesh(tmp_path):
+    text = MINIMAL.replace('mesh = "b.stl"', "scale = 2.0")
+    assert _error(tmp_path, text) == (
+        "block[0].mesh: missing; give the path of a mesh file (relative to the scene file)"
+    )
+
+
+def test_near_unit_rotation_is_normalised(tmp_path):
+    # 0.6² + 0.8² = 1; times 1.0005 is within the 1e-3 tolerance and comes back of norm 1.
+    s = load_scene(_write(tmp_path, _pass("rotation = [0.6003, 0.8004, 0, 0]")))
+    q = s.passes[0].rotation
+    assert q == pytest.approx([0.6, 0.8, 0.0, 0.0], abs=1e-12)
+    assert math.fsum(v * v for v in q) == pytest.approx(1.0, abs=1e-15)
+
+
+@pytest.mark.parametrize(
+    "q, expected",
+    [
+        ("[2, 0, 0, 0]", "is not a unit quaternion (norm 2); divide it by its norm"),
+        ("[1, 1, 0, 0]", "is not a unit quaternion (norm 1.414); divide it by its norm"),
+        ("[1.002, 0, 0, 0]", "is not a unit quaternion (norm 1.002); divide it by its norm"),
+        ("[0, 0, 0, 0]", "has no direction"),
+        ("[nan, 0, 0, 0]", "has no direction"),
+        ("[inf, 0, 0, 0]", "has no direction"),
+    ],
+)
+def test_bad_rotation(tmp_path, q, expected):
+    message = _error(tmp_path, _pass(f"rotation = {q}"))
+    assert message.startswith("pass[0].rotation: quaternion [") and message.endswith(expected)
+
+
+@pytest.mark.parametrize("q", ["[1, 0, 0]", "[1, 0, 0, 0, 0]", '"identity"', "[true, 0, 0, 0]"])
+def test_rotation_not_four_numbers(tmp_path, q):
+    message = _error(tmp_path, _pass(f"rotation = {q}"))
+    assert message.startswith("pass[0].rotation: expected a quaternion [w, x, y, z], got ")
+
+
+def test_block_rotation_is_refused(tmp_path):
+    text = MINIMAL.replace('mesh = "b.stl"', 'mesh = "b.stl"\nrotation = [1, 0, 0, 0]')
+    assert _error(tmp_path, text) == (
+        "block[0].rotation: shapes to block are tried in every orientation; remove 'rotation'"
+    )
+
+
+@pytest.mark.parametrize("name", ["a/b", "a\\\\b", ".", "..", "a\\u0000b"])
+def test_name_that_cannot_be_a_folder(tmp_path, name):
+    message = _error(tmp_path, f'name = "{name}"\n' + MINIMAL)
+    assert message.startswith("name: ") and "is used as a folder name" in message
+
+
+@pytest.mark.parametrize("name", ["cube-vs_sphere 2", "v1.2", "..x"])
+def test_name_that_is_a_folder(tmp_path, name):
+    assert load_scene(_write(tmp_path, f'name = "{name}"\n' + MINIMAL)).name == name
+
+
+def test_name_defaults_to_the_file_stem(tmp_path):
+    assert load_scene(_write(tmp_path, MINIMAL, "my.scene.toml")).name == "my.scene"
+
+
+def test_relative_mesh_paths_resolve_against_the_scene_file(tmp_path, monkeypatch):
+    (tmp_path / "scenes").mkdir()
+    absolute = str(tmp_path / "elsewhere" / "b.stl")
+    text = f'[[pass]]\nmesh = "../meshes/a.stl"\n[[block]]\nmesh = "{absolute}"\n'
+    s = load_scene(_write(tmp_path, text, "scenes/s.toml"))
+    monkeypatch.chdir(tmp_path / "scenes")  # not the current directory: the scene file's
+    assert s.resolve(s.passes[0].mesh) == str(tmp_path / "meshes" / "a.stl")
+    assert s.resolve(s.blocks[0].mesh) == absolute
+    relative = load_scene("s.toml")
+    monkeypatch.chdir(tmp_path)
+    assert relative.resolve("a.stl") == str(tmp_path / "scenes" / "a.stl")
+
+
+# --- the file and its top level --------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        (
+            '[[block]]\nmesh = "b.stl"\n',
+            "pass: missing; add at least one [[pass]] table with a 'mesh' key",
+        ),
+        ('pass = []\n[[block]]\nmesh = "b.stl"\n', "pass: expected one or more [[pass]] tables"),
+        (
+            'pass = "a.stl"\n[[block]]\nmesh = "b.stl"\n',
+            "pass: expected one or more [[pass]] tables",
+        ),
+        (
+            'pass = [1]\n[[block]]\nmesh = "b.stl"\n',
+            "pass[0]: expected a table like [[pass]] with a 'mesh' key",
+        ),
+        ("solver = 3\n" + MINIMAL, "solver: expected a table [solver]"),
+        ('units = "ft"\n' + MINIMAL, "units: 'ft' is not one of: mm, cm, m, in, um"),
+    ],
+)
+def test_bad_top_level(tmp_path, text, expected):
+    assert _error(tmp_path, text) == expected
+
+
+def test_units(tmp_path):
+    assert load_scene(_write(tmp_path, 'units = "in"\n' + MINIMAL)).units == "in"
+
+
+def test_missing_unreadable_and_invalid_files(tmp_path):
+    missing = str(tmp_path / "nope.toml")
+    with pytest.raises(SieveError, match=r"nope\.toml: scene file not found$"):
+        load_scene(missing)
+    with pytest.raises(SieveError, match=r": could not be read \("):
+        load_scene(str(tmp_path))  # a folder
+    assert _error(tmp_path, "name = \n").startswith("not valid TOML (")
+    (tmp_path / "latin1.toml").write_bytes(b'name = "\xe9"\n')
+    with pytest.raises(SieveError, match=r"latin1\.toml: could not be read \("):
+        load_scene(str(tmp_path / "latin1.toml"))
+
+
+def test_class_docstrings_list_every_key():
+    for cls in [ShapeEntry, *(value_types(Scene)[f.name] for f in scene.table_fields())]:
+        for f in fields(cls):
+            assert f"\n    {f.name} : " in cls.__doc__, (cls.__name__, f.name)
