@@ -105,6 +105,17 @@ def representative(section: manifold3d.CrossSection) -> np.ndarray:
     return np.array([cx, cy])
 
 
+def even_odd_path(contours: list[np.ndarray]):
+    """A matplotlib Path of all contours, filled even-odd (fast point in polygon for the heuristics)."""
+    from matplotlib.path import Path
+
+    verts = np.concatenate([np.vstack([c, c[:1]]) for c in contours])
+    codes = np.concatenate(
+        [[Path.MOVETO] + [Path.LINETO] * (len(c) - 1) + [Path.CLOSEPOLY] for c in contours]
+    )
+    return Path(verts, codes)
+
+
 def count_open(node: Node) -> int:
     """Leaves of the subtree without evidence (not excluded)."""
     if node.children:
@@ -129,6 +140,7 @@ class Search:
         hull_idx = self._hull_indices()
         self.start = farthest_points(self.vertices, hull_idx, settings.initial_points)
         self.group = group
+        self.region = even_odd_path([np.asarray(c) for c in hole.to_polygons()])
 
     def _hull_indices(self) -> np.ndarray:
         hull = {tuple(p) for p in self.shape.hull}
@@ -213,13 +225,13 @@ class Search:
             if j is None or j in pts or len(pts) >= self.settings.max_points:
                 break
             pts.append(j)
-        if self._passage(rot, proj_all, pts, out):
+        if j is None and self._passage(rot, proj_all, pts, out):
             return "passage", pts
         return "split", pts
 
     def _worst(self, placed: np.ndarray, allowance: np.ndarray) -> int | None:
         """The vertex furthest outside H beyond its allowance at these placed positions, or None."""
-        outside = ~bounds.inside(placed, self.segs)
+        outside = ~self.region.contains_points(placed)
         if not outside.any():
             return None
         idx = np.flatnonzero(outside)
@@ -233,7 +245,7 @@ class Search:
         if left.is_empty():
             return False
         t = representative(left)
-        if not bounds.inside(proj_all + t, self.segs).all():
+        if not self.region.contains_points(proj_all + t).all():
             return False
         quat = from_matrix(rot)
         sil = projection(placed_vertices(self.shape, quat, t), self.shape.faces)
