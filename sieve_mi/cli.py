@@ -1,5 +1,4 @@
-"""Command line: ``sieve-mi solve SCENE``, ``sieve-mi check SHAPE (--sieve PLATE | --hole IMAGE --pixel-size MM)``
-and ``sieve-mi certify SHAPE (--sieve PLATE | --hole SVG)`` / ``sieve-mi certify --replay CERT``."""
+"""Command line: ``sieve-mi solve SCENE`` and ``sieve-mi check SHAPE (--sieve PLATE | --hole IMAGE --pixel-size MM)``."""
 
 from __future__ import annotations
 
