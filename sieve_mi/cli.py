@@ -86,7 +86,30 @@ def _parser() -> argparse.ArgumentParser:
         help="also write the result as DIR/report.json (same rules as solve --out: only a new, "
         "empty or earlier sieve-mi output folder is used)",
     )
+    _certify_parser(sub)
     return p
+
+
+def _certify_parser(sub) -> None:
+    """``sieve-mi certify SHAPE (--sieve PLATE | --hole SVG)`` and ``sieve-mi certify --replay CERT``."""
+    k = sub.add_parser(
+        "certify",
+        help="prove that a shape cannot pass a sieve in any pose (or find a pose that passes)",
+    )
+    k.add_argument("shape", nargs="?", help="mesh of the shape (STL, OBJ, PLY, ...)")
+    src = k.add_mutually_exclusive_group()
+    src.add_argument("--sieve", help="sieve plate mesh; its through-holes along --axis are used")
+    src.add_argument("--hole", help="hole outline as SVG (the hole.svg that solve writes)")
+    src.add_argument("--replay", help="re-check a certificate file independently")
+    k.add_argument(
+        "--axis", choices=("x", "y", "z"), default="z", help="direction through the plate"
+    )
+    k.add_argument(
+        "--scale", type=float, default=1.0, help="uniform scale of the shape (default 1)"
+    )
+    k.add_argument("--budget", type=float, default=30.0, help="time budget in seconds (default 30)")
+    k.add_argument("--certificate", help="write the certificate (JSON) to this file")
+    k.add_argument("--json", action="store_true", help="print the result as JSON")
 
 
 def cmd_solve(args) -> int:
@@ -196,6 +219,63 @@ def _termination_as_interrupt():
             signal.signal(s, handler)
 
 
+def cmd_certify(args) -> int:
+    import json
+
+    from sieve_mi.certify import certify, read_svg_hole, replay
+
+    if args.replay is not None:
+        if args.shape or args.certificate:
+            raise SieveError(
+                "--replay takes only the certificate file (no SHAPE, no --certificate)"
+            )
+        rep = replay(args.replay)
+        if args.json:
+            print(json.dumps(rep, indent=2))
+        else:
+            verdict = "valid" if rep["valid"] else "INVALID"
+            print(
+                f"certificate {verdict}: claims {rep['status']}, {rep['leaves']} leaves re-proved, "
+                f"{rep['open']} open, {rep['seconds']:.2f} s"
+            )
+            for e in rep["errors"]:
+                print(f"  {e}")
+        return 0
+    if not args.shape or (args.sieve is None and args.hole is None):
+        raise SieveError("certify needs SHAPE and --sieve PLATE or --hole SVG (or --replay CERT)")
+    if not (0 < args.scale < float("inf")):
+        raise SieveError(f"--scale {args.scale}: must be a positive number")
+    if not (0 < args.budget < float("inf")):
+        raise SieveError(f"--budget {args.budget}: must be a positive number of seconds")
+    if args.certificate and not os.path.isdir(os.path.dirname(os.path.abspath(args.certificate))):
+        raise SieveError(f"--certificate {args.certificate}: its folder does not exist")
+    from sieve_mi.check import holes_from_mesh
+    from sieve_mi.meshes import load_shape
+
+    shape = load_shape(args.shape, scale=args.scale)
+    holes = holes_from_mesh(args.sieve, args.axis) if args.sieve else [read_svg_hole(args.hole)]
+    result = certify(shape, holes, budget_s=args.budget, scale=args.scale)
+    if args.certificate:
+        result.write_certificate(args.certificate)
+    if args.json:
+        print(json.dumps(result.to_dict(), indent=2))
+    else:
+        print(_certify_summary(shape.name, result))
+    return 0
+
+
+def _certify_summary(name: str, r) -> str:
+    line = (
+        f"{name}: {r.status} ({r.method}) in {r.seconds:.2f} s; cells {r.cells_examined} examined, "
+        f"{r.cells_excluded} excluded, {r.cells_open} open; excluded {100 * r.excluded_fraction:.2f} %"
+    )
+    if r.passage:
+        q, t = r.passage["quaternion"], r.passage["translation"]
+        line += "\npassage: rotation (w,x,y,z) " + ", ".join(f"{v:.6f}" for v in q)
+        line += ", translation " + ", ".join(f"{v:.6f}" for v in t)
+    return line
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
@@ -204,6 +284,8 @@ def main(argv: list[str] | None = None) -> int:
                 return cmd_solve(args)
             if args.command == "check":
                 return cmd_check(args)
+            if args.command == "certify":
+                return cmd_certify(args)
     except SieveError as exc:
         print(f"sieve-mi: error: {exc}", file=sys.stderr)
         return 2

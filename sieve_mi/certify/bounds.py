@@ -1,0 +1,261 @@
+"""Exclusion tests: rigorous reasons why no pose in a set of rotations lets the shape through H.
+
+All tests err towards "not excluded"; the margins are stated where they are added (see
+docs/certify.md for the full argument).
+
+* :func:`inscribed_ball` and :func:`no_disk_fits`: a ball of radius rho inside the (closed) shape
+  projects to a disk of radius rho in every rotation; if no such disk fits in H, no rotation
+  passes (a root-level proof).
+* :func:`width_test`: a batched pre-test for many cells at once: the points' dilated extent along a
+  direction exceeds the width of H's convex hull along it.
+* :class:`OffsetCache` and :func:`translations_left`: the exact test of a cell, the intersection over
+  the points of (H grown by each point's displacement bound) shifted by the point's projection.
+"""
+
+from __future__ import annotations
+
+import math
+
+import manifold3d
+import numpy as np
+
+from sieve_mi.meshes import Shape
+
+#: Segments per full circle of the round joins of H's offsets (chords within 0.12 % of the radius).
+ROUND_SEGMENTS = 64
+#: Growth factor of the radius grid offsets are rounded up to (one cached offset per grid value).
+RADIUS_STEP = 1.06
+
+
+# ------------------------------------------------------------------------------------------------
+# Polygon distances (the search's own; the replay has an independent implementation)
+# ------------------------------------------------------------------------------------------------
+
+
+def contour_segments(contours: list[np.ndarray]) -> np.ndarray:
+    """All edges of closed contours as an (m, 2, 2) array of (start, end) points."""
+    segs = [np.stack([c, np.roll(c, -1, axis=0)], axis=1) for c in contours if len(c) >= 2]
+    return np.concatenate(segs) if segs else np.zeros((0, 2, 2))
+
+
+def boundary_distance(points: np.ndarray, segs: np.ndarray, chunk: int = 2048) -> np.ndarray:
+    """Exact Euclidean distance from each point to the nearest segment, (n,).
+
+    Parameters
+    ----------
+    points : (n, 2) ndarray
+    segs : (m, 2, 2) ndarray
+    """
+    a, d = segs[:, 0], segs[:, 1] - segs[:, 0]
+    dd = np.maximum((d * d).sum(1), 1e-300)
+    out = np.empty(len(points))
+    for s in range(0, len(points), chunk):
+        p = points[s : s + chunk, None, :] - a[None]
+        u = np.clip((p * d[None]).sum(-1) / dd[None], 0.0, 1.0)
+        r = p - u[..., None] * d[None]
+        out[s : s + chunk] = np.sqrt((r * r).sum(-1).min(axis=1))
+    return out
+
+
+def inside(points: np.ndarray, segs: np.ndarray, chunk: int = 2048) -> np.ndarray:
+    """Even-odd point-in-polygon over all segments (crossings of a ray towards +x), (n,) bool."""
+    a, b = segs[:, 0], segs[:, 1]
+    out = np.empty(len(points), dtype=bool)
+    for s in range(0, len(points), chunk):
+        x, y = points[s : s + chunk, 0:1], points[s : s + chunk, 1:2]
+        straddle = (a[None, :, 1] > y) != (b[None, :, 1] > y)
+        dy = np.where(straddle, b[None, :, 1] - a[None, :, 1], 1.0)
+        xc = a[None, :, 0] + (y - a[None, :, 1]) * (b[None, :, 0] - a[None, :, 0]) / dy
+        out[s : s + chunk] = (straddle & (xc > x)).sum(axis=1) % 2 == 1
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+# Root level: a ball inside the shape against the largest disk inside H
+# ------------------------------------------------------------------------------------------------
+
+
+def _triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Exact distance from point ``p`` (3,) to each triangle of ``tri`` (F, 3, 3), (F,)."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    n = np.cross(b - a, c - a)
+    nn = np.maximum((n * n).sum(1), 1e-300)
+    h = ((p - a) * n).sum(1) / nn
+    foot = p - h[:, None] * n
+    inside_tri = np.ones(len(tri), dtype=bool)
+    for u, v in ((a, b), (b, c), (c, a)):
+        inside_tri &= (np.cross(v - u, foot - u) * n).sum(1) >= 0
+    best = np.where(inside_tri, np.abs(h) * np.sqrt(nn), np.inf)
+    for u, v in ((a, b), (b, c), (c, a)):
+        d = v - u
+        t = np.clip(((p - u) * d).sum(1) / np.maximum((d * d).sum(1), 1e-300), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(p - u - t[:, None] * d, axis=1))
+    return best
+
+
+def _winding_number(p: np.ndarray, tri: np.ndarray) -> float:
+    """Generalised winding number of a closed oriented triangle mesh about ``p`` (solid angles / 4 pi)."""
+    a, b, c = tri[:, 0] - p, tri[:, 1] - p, tri[:, 2] - p
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    num = (a * np.cross(b, c)).sum(1)
+    den = la * lb * lc + (a * b).sum(1) * lc + (b * c).sum(1) * la + (c * a).sum(1) * lb
+    return float(np.arctan2(num, den).sum() / (2.0 * np.pi))
+
+
+def inscribed_ball(shape: Shape) -> tuple[np.ndarray, float] | None:
+    """A ball (centre, radius) inside the solid bounded by the shape, or None.
+
+    Only for closed meshes (every edge shared by exactly two triangles, consistently oriented):
+    then the winding number is constant off the surface, a point with winding number != 0 is
+    enclosed, and every line through it meets the surface. The centre is the shape's centre; the
+    radius is the exact distance to the nearest triangle, lowered by a relative 1e-9 for rounding.
+    """
+    import trimesh
+
+    mesh = trimesh.Trimesh(shape.vertices, shape.faces, process=False)
+    if not (mesh.is_watertight and mesh.is_winding_consistent):
+        return None
+    tri = shape.vertices[shape.faces]
+    centre = np.zeros(3)
+    rho = float(_triangle_distance(centre, tri).min())
+    if rho <= 1e-9 * shape.radius or abs(round(_winding_number(centre, tri))) < 1:
+        return None
+    return centre, rho * (1.0 - 1e-9)
+
+
+def no_disk_fits(segs: np.ndarray, rho: float, *, max_boxes: int = 200_000) -> bool:
+    """True if no disk of radius ``rho`` fits inside the polygon with edges ``segs`` (proved).
+
+    Branch and bound over square boxes covering the polygon's bounding box: a box of centre c and
+    half-diagonal e holds no centre of such a disk if d(c, boundary) + e < rho (the distance to the
+    boundary is 1-Lipschitz) or if c is outside and d(c, boundary) > e (the box lies outside). A
+    centre inside with d >= rho is a disk that fits: False. Boxes are refined until decided.
+    """
+    lo, hi = segs.reshape(-1, 2).min(0), segs.reshape(-1, 2).max(0)
+    half = 0.5 * float(np.max(hi - lo))
+    c = (0.5 * (lo + hi))[None, :]
+    margin = 1e-9 * max(half, rho)
+    while len(c):
+        if len(c) > max_boxes:
+            return False
+        e = half * math.sqrt(2.0)
+        d = boundary_distance(c, segs)
+        ins = inside(c, segs)
+        if np.any(ins & (d >= rho)):
+            return False
+        keep = ~((d + e < rho - margin) | (~ins & (d > e + margin)))
+        c, half = c[keep], 0.5 * half
+        offs = np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]]) * half
+        c = (c[:, None, :] + offs[None]).reshape(-1, 2)
+    return True
+
+
+# ------------------------------------------------------------------------------------------------
+# Batched pre-test: widths along fixed directions
+# ------------------------------------------------------------------------------------------------
+
+
+def directions(count: int) -> np.ndarray:
+    """``count`` unit directions evenly spread over a half circle, (count, 2)."""
+    a = np.pi * np.arange(count) / count
+    return np.column_stack([np.cos(a), np.sin(a)])
+
+
+def width_test(
+    proj: np.ndarray, radii: np.ndarray, support: np.ndarray, dirs: np.ndarray, eta: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Cells whose points cannot all fit along some direction, for all cells at once.
+
+    If pi_i + t lies in H + disk(r_i) for every point i, then along a unit direction u,
+    max_i (u . pi_i - r_i) - min_i (u . pi_i + r_i) <= width of hull(H) along u. A cell where
+    this fails by more than ``eta`` for some u is excluded.
+
+    Parameters
+    ----------
+    proj : (n, k, 2) ndarray
+        The points projected at each cell's centre rotation.
+    radii : (n, k) ndarray
+        Their displacement bounds.
+    support : (2, M) ndarray
+        max and min of u . x over H's vertices, per direction.
+    dirs : (M, 2) ndarray
+    eta : float
+        Margin, scene units.
+
+    Returns
+    -------
+    excluded : (n,) bool ndarray
+    direction : (n,) int ndarray
+        The direction that excludes each excluded cell (-1 otherwise).
+    """
+    dots = proj @ dirs.T  # (n, k, M)
+    r = radii[..., None]
+    spread = (dots - r).max(axis=1) - (dots + r).min(axis=1)  # (n, M)
+    excess = spread - (support[0] - support[1])[None, :] - eta
+    best = excess.argmax(axis=1)
+    excluded = excess[np.arange(len(best)), best] > 0
+    return excluded, np.where(excluded, best, -1)
+
+
+# ------------------------------------------------------------------------------------------------
+# The exact test of one cell: intersection of shifted offsets
+# ------------------------------------------------------------------------------------------------
+
+
+class OffsetCache:
+    """Offsets of H by radii rounded up to a geometric grid, each computed once.
+
+    Round joins place their vertices on the arc of the offset distance (to the 1e-8 coordinate
+    grid of manifold3d), so chords fall inside the arc by at most the sagitta; offsetting by
+    r / cos(pi / n) + eta puts every chord outside the arc of radius r: the polygon contains
+    H + disk(r) (docs/certify.md; ``tests/test_certify.py`` checks it on this manifold3d).
+    """
+
+    def __init__(self, hole: manifold3d.CrossSection, eta: float, r_min: float):
+        self.hole = hole
+        self.eta = eta
+        self.r_min = r_min
+        self.cache: dict[int, manifold3d.CrossSection] = {}
+
+    def grid_index(self, r: float) -> int:
+        """Index of the smallest grid radius >= r."""
+        if r <= self.r_min:
+            return 0
+        return int(math.ceil(math.log(r / self.r_min) / math.log(RADIUS_STEP) + 1e-12))
+
+    def get(self, r: float) -> manifold3d.CrossSection:
+        """A polygon containing H + disk(r)."""
+        i = self.grid_index(r)
+        if i not in self.cache:
+            radius = self.r_min * RADIUS_STEP**i
+            delta = radius / math.cos(math.pi / ROUND_SEGMENTS) + self.eta
+            self.cache[i] = self.hole.offset(
+                delta, manifold3d.JoinType.Round, circular_segments=ROUND_SEGMENTS
+            )
+        return self.cache[i]
+
+
+def translations_left(
+    cache: OffsetCache, proj: np.ndarray, radii: np.ndarray
+) -> manifold3d.CrossSection:
+    """The translations t with pi_i + t in (a polygon containing) H + disk(r_i) for every point i.
+
+    Parameters
+    ----------
+    cache : OffsetCache
+    proj : (k, 2) ndarray
+        Projections of the points at the cell's centre rotation.
+    radii : (k,) ndarray
+        Displacement bounds, scene units; 0 gives H itself (grown by ``eta``).
+
+    Returns
+    -------
+    manifold3d.CrossSection
+        Empty iff the cell is excluded by these points.
+    """
+    parts = [
+        cache.get(float(r)).translate((-float(p[0]), -float(p[1]))) for p, r in zip(proj, radii)
+    ]
+    if len(parts) == 1:
+        return parts[0]
+    return manifold3d.CrossSection.batch_boolean(parts, manifold3d.OpType.Intersect)

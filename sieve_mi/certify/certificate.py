@@ -1,0 +1,162 @@
+"""The result of a certification and its certificate file (JSON).
+
+Certificate format (``"format": "sieve-mi-certificate/1"``; lengths in scene units):
+
+* ``shape``: ``path``, ``scale``, the centred mesh (``vertices`` (V, 3), ``faces`` (F, 3)), its
+  ``sha256`` (see :func:`mesh_hash`; the replay compares it with the file at ``path`` when that
+  exists) and ``points``: the (k, 3) vertices the evidence refers to by index.
+* ``hole``: the contours of H (list of (m, 2) lists; outer counter-clockwise, holes clockwise).
+* ``symmetry``: ``"none"``, ``"klein"`` or ``"octahedral"``: the domain searched (module
+  :mod:`sieve_mi.certify.symmetry`).
+* ``root``: ``{"kind": "ball", "centre", "radius"}`` when the shape is blocked for all rotations at
+  once, else null.
+* ``tree``: one node per domain face, in order; a node is ``{"e": evidence}`` (an excluded leaf),
+  ``{"c": [8 nodes]}`` (split into octants: child c takes the upper half of component j iff bit
+  (2 - j) of c is set) or ``{"open": true}``. Evidence is ``{"kind": "width", "direction": m,
+  "points": [...]}`` (direction m of ``directions`` unit vectors over a half circle) or
+  ``{"kind": "translations", "points": [...]}``.
+* ``settings``: ``kappa`` (slack, see :class:`~sieve_mi.certify.search.Settings`), ``directions``.
+* ``status`` and ``passage`` (quaternion, translation) as found.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sieve_mi.errors import SieveError
+from sieve_mi.meshes import Shape
+
+FORMAT = "sieve-mi-certificate/1"
+
+
+def mesh_hash(shape: Shape) -> str:
+    """SHA-256 of the shape's centred vertices (float64) and faces (int64), hex."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(shape.vertices, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(shape.faces, dtype=np.int64).tobytes())
+    return h.hexdigest()
+
+
+@dataclass
+class Certification:
+    """Whether a shape can pass a hole, with the evidence.
+
+    Attributes
+    ----------
+    status : str
+        ``"proved"`` (no rotation and translation lets it through), ``"passage"`` (a pose that
+        fits was found) or ``"undecided"`` (the budget or the smallest cell size was reached).
+    seconds : float
+    method : str
+        ``"ball"`` (root-level inscribed-ball test) or ``"cells"`` (branch and bound).
+    cells_examined, cells_excluded, cells_open : int
+    excluded_fraction : float
+        Excluded share of the searched rotation domain, measured by volume in face coordinates.
+    depth : int
+        Levels of the cell tree.
+    symmetry : str
+        Symmetry group used to shrink the domain.
+    passage : dict or None
+        ``quaternion`` (w, x, y, z) about the shape's centre and ``translation`` (x, y) in the
+        hole's frame, scene units.
+    """
+
+    status: str
+    seconds: float
+    method: str
+    cells_examined: int = 0
+    cells_excluded: int = 0
+    cells_open: int = 0
+    excluded_fraction: float = 0.0
+    depth: int = 0
+    symmetry: str = "none"
+    passage: dict | None = None
+    certificate: dict = field(default_factory=dict, repr=False)
+
+    def to_dict(self) -> dict:
+        """The result as plain JSON-ready data (without the certificate)."""
+        return {
+            "status": self.status,
+            "seconds": self.seconds,
+            "method": self.method,
+            "cells_examined": self.cells_examined,
+            "cells_excluded": self.cells_excluded,
+            "cells_open": self.cells_open,
+            "excluded_fraction": self.excluded_fraction,
+            "depth": self.depth,
+            "symmetry": self.symmetry,
+            "passage": self.passage,
+        }
+
+    def write_certificate(self, path: str) -> None:
+        """Write the certificate (JSON) to ``path``, atomically (a temporary file, then renamed)."""
+        folder = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(folder):
+            raise SieveError(f"{path}: folder {folder} does not exist")
+        tmp = f"{path}.tmp{os.getpid()}"
+        with open(tmp, "w") as fh:
+            json.dump(self.certificate, fh)
+        os.replace(tmp, path)
+
+
+def tree_to_dict(node) -> dict:
+    """A search :class:`~sieve_mi.certify.search.Node` as a certificate node."""
+    if node.children:
+        return {"c": [tree_to_dict(c) for c in node.children]}
+    if node.evidence is not None:
+        return {"e": node.evidence}
+    return {"open": True}
+
+
+def build(
+    shape: Shape,
+    contours: list,
+    status: str,
+    symmetry: str,
+    root: dict | None,
+    outcome,
+    settings,
+    scale: float = 1.0,
+) -> dict:
+    """The certificate dictionary (format in the module docstring).
+
+    Point indices in the evidence are renumbered into ``shape.points``.
+    """
+    used = sorted(outcome.points) if outcome is not None else []
+    renumber = {old: new for new, old in enumerate(used)}
+    vertices = shape.vertices[np.unique(shape.faces)]
+
+    def renum(node: dict) -> dict:
+        if "c" in node:
+            return {"c": [renum(c) for c in node["c"]]}
+        if "e" in node:
+            e = dict(node["e"])
+            e["points"] = [renumber[p] for p in e["points"]]
+            return {"e": e}
+        return node
+
+    tree = [renum(tree_to_dict(n)) for n in outcome.roots] if outcome is not None else []
+    return {
+        "format": FORMAT,
+        "status": status,
+        "shape": {
+            "name": shape.name,
+            "path": os.path.abspath(shape.path) if shape.path else "",
+            "scale": scale,
+            "sha256": mesh_hash(shape),
+            "vertices": shape.vertices.tolist(),
+            "faces": shape.faces.tolist(),
+            "points": vertices[used].tolist(),
+        },
+        "hole": [np.asarray(c, dtype=np.float64).tolist() for c in contours],
+        "symmetry": symmetry,
+        "root": root,
+        "tree": tree,
+        "settings": {"kappa": settings.kappa, "directions": settings.directions},
+        "passage": outcome.passage if outcome is not None else None,
+    }

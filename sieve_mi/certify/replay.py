@@ -1,0 +1,377 @@
+"""Independent replay of a certificate: re-check every leaf without the search code.
+
+Nothing here uses manifold3d or :mod:`sieve_mi.certify.bounds` / ``search``: the hole is the
+certificate's contours, distances are exact point-to-segment distances computed here, point in
+polygon is matplotlib's ``Path`` (even-odd over the contours), and the distance to the mesh for the
+ball evidence is trimesh's ``triangles.closest_point``. The replay
+
+1. checks that the stored mesh matches its hash (and the file at ``shape.path``, when present) and
+   that every evidence point is a vertex of the mesh;
+2. checks the claimed symmetry group on the mesh and that the tree's roots are its domain's faces;
+3. walks the tree, rebuilding each cell's box by halving (so the leaves cover the domain by
+   construction; a split node must have exactly 8 children);
+4. re-proves each leaf: ``width`` evidence by the width inequality along its direction,
+   ``translations`` evidence by a quadtree over translations that must discard every box (a box of
+   centre c and half-diagonal e is discarded when some point i has c + pi_i outside H at distance
+   > r_i + e; boxes are refined down to the slack the search left, kappa times the displacement
+   bound of the shape's radius), ``ball`` evidence by the winding number, the distance to the mesh
+   and a quadtree showing that no disk of the ball's radius fits in H;
+5. checks a claimed passage: every vertex inside H, no projected edge crossing H's boundary, and no
+   vertex of H inside a projected triangle.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import time
+
+import numpy as np
+
+from sieve_mi.errors import SieveError
+
+MAX_BOXES = 400_000
+
+
+class Hole:
+    """H from its contours: exact distance to the boundary and even-odd point in polygon."""
+
+    def __init__(self, contours: list):
+        from matplotlib.path import Path
+
+        self.contours = [np.asarray(c, dtype=np.float64) for c in contours]
+        self.paths = [Path(c) for c in self.contours]
+        self.a = np.concatenate(self.contours)
+        self.b = np.concatenate([np.roll(c, -1, axis=0) for c in self.contours])
+        self.vertices = self.a
+
+    def contains(self, p: np.ndarray) -> np.ndarray:
+        count = np.zeros(len(p), dtype=np.int64)
+        for path in self.paths:
+            count += path.contains_points(p)
+        return count % 2 == 1
+
+    def distance(self, p: np.ndarray) -> np.ndarray:
+        """Distance from each point to the boundary, via complex arithmetic, (n,)."""
+        za = self.a[:, 0] + 1j * self.a[:, 1]
+        zd = (self.b[:, 0] + 1j * self.b[:, 1]) - za
+        out = np.empty(len(p))
+        for s in range(0, len(p), 1024):
+            z = (p[s : s + 1024, 0] + 1j * p[s : s + 1024, 1])[:, None] - za[None]
+            u = (z * np.conj(zd)).real / np.maximum(np.abs(zd) ** 2, 1e-300)
+            out[s : s + 1024] = np.abs(z - np.clip(u, 0, 1) * zd).min(axis=1)
+        return out
+
+    def outside_by(self, p: np.ndarray) -> np.ndarray:
+        """Distance from each point to H (0 inside), (n,)."""
+        return np.where(self.contains(p), 0.0, self.distance(p))
+
+
+def rotation(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array(
+        [
+            [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
+        ]
+    )
+
+
+def quaternion(face: int, v: np.ndarray) -> np.ndarray:
+    q = np.insert(np.asarray(v, dtype=np.float64), face, 1.0)
+    return q / np.linalg.norm(q)
+
+
+def cell_angle(face: int, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre quaternion and covering angle (largest over the 8 corners, plus 1e-12), radians."""
+    q0 = quaternion(face, 0.5 * (lo + hi))
+    worst = 0.0
+    for c in range(8):
+        corner = [hi[j] if (c >> (2 - j)) & 1 else lo[j] for j in range(3)]
+        worst = max(worst, float(np.linalg.norm(quaternion(face, corner) - q0)))
+    return q0, 2.0 * math.asin(min(1.0, worst / 2.0)) + 1e-12
+
+
+def no_translation(hole: Hole, proj: np.ndarray, radii: np.ndarray, resolve: float) -> bool:
+    """True if no t puts every proj_i + t within radii_i of H (quadtree over t, exact distances)."""
+    lo = hole.vertices.min(0) - radii[0] - proj[0]
+    hi = hole.vertices.max(0) + radii[0] - proj[0]
+    half = 0.5 * float(np.max(hi - lo))
+    centres = (0.5 * (lo + hi))[None, :]
+    while len(centres):
+        e = half * math.sqrt(2.0)
+        if len(centres) > MAX_BOXES or e < 0.25 * resolve:
+            return False
+        placed = (centres[:, None, :] + proj[None]).reshape(-1, 2)
+        far = hole.outside_by(placed).reshape(len(centres), -1) > radii[None] + e
+        centres, half = centres[~far.any(axis=1)], 0.5 * half
+        offsets = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]) * half
+        centres = (centres[:, None, :] + offsets[None]).reshape(-1, 2)
+    return True
+
+
+def disk_never_fits(hole: Hole, rho: float) -> bool:
+    """True if no disk of radius ``rho`` fits in H (quadtree over disk centres)."""
+    lo, hi = hole.vertices.min(0), hole.vertices.max(0)
+    half = 0.5 * float(np.max(hi - lo))
+    centres = (0.5 * (lo + hi))[None, :]
+    while len(centres):
+        e = half * math.sqrt(2.0)
+        if len(centres) > MAX_BOXES:
+            return False
+        d, ins = hole.distance(centres), hole.contains(centres)
+        if np.any(ins & (d >= rho)):
+            return False
+        settled = (d + e < rho * (1 - 1e-9)) | (~ins & (d > e * (1 + 1e-9)))
+        centres, half = centres[~settled], 0.5 * half
+        offsets = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]) * half
+        centres = (centres[:, None, :] + offsets[None]).reshape(-1, 2)
+    return True
+
+
+class Replay:
+    """State of one replay: the certificate, the hole, and the problems found."""
+
+    def __init__(self, cert: dict):
+        self.cert = cert
+        self.errors: list[str] = []
+        shape = cert["shape"]
+        self.vertices = np.asarray(shape["vertices"], dtype=np.float64)
+        self.faces = np.asarray(shape["faces"], dtype=np.int64)
+        self.points = np.asarray(shape["points"], dtype=np.float64).reshape(-1, 3)
+        self.hole = Hole(cert["hole"])
+        self.radius = float(np.linalg.norm(self.vertices[np.unique(self.faces)], axis=1).max())
+        self.kappa = float(cert["settings"]["kappa"])
+        m = int(cert["settings"]["directions"])
+        a = np.pi * np.arange(m) / m
+        self.dirs = np.column_stack([np.cos(a), np.sin(a)])
+        self.leaves = self.open = 0
+
+    def check_mesh(self) -> None:
+        h = hashlib.sha256()
+        h.update(np.ascontiguousarray(self.vertices).tobytes())
+        h.update(np.ascontiguousarray(self.faces).tobytes())
+        if h.hexdigest() != self.cert["shape"]["sha256"]:
+            self.errors.append("the stored mesh does not match its sha256")
+        path = self.cert["shape"].get("path", "")
+        if path and os.path.isfile(path):
+            from sieve_mi.meshes import load_shape
+
+            s = load_shape(path, scale=float(self.cert["shape"].get("scale", 1.0)))
+            if not (
+                np.array_equal(s.vertices, self.vertices) and np.array_equal(s.faces, self.faces)
+            ):
+                self.errors.append(f"{path} differs from the certificate's mesh")
+        known = {tuple(v) for v in self.vertices[np.unique(self.faces)]}
+        bad = [i for i, p in enumerate(self.points) if tuple(p) not in known]
+        if bad:
+            self.errors.append(f"points {bad[:5]} are not vertices of the mesh")
+
+    def check_symmetry(self) -> tuple[list[int], float]:
+        """Verify the claimed group; the domain's faces and half-width."""
+        group = self.cert["symmetry"]
+        turns = {
+            "klein": [np.diag([1.0, -1, -1]), np.diag([-1.0, 1, -1]), np.diag([-1.0, -1, 1])],
+            "octahedral": [
+                np.diag([1.0, -1, -1]),
+                np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]),
+                np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]]),
+                np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]),
+            ],
+        }
+        if group not in ("none", "klein", "octahedral"):
+            self.errors.append(f"unknown symmetry {group!r}")
+            return [0, 1, 2, 3], 1.0
+        verts = self.vertices[np.unique(self.faces)]
+        known = set(map(tuple, verts))
+        for m in turns.get(group, []):
+            if set(map(tuple, verts @ m.T)) != known:
+                self.errors.append(f"the mesh is not symmetric under the claimed {group} group")
+                break
+        if group == "none":
+            return [0, 1, 2, 3], 1.0
+        return [0], (1.0 if group == "klein" else 0.41422)
+
+    def check_leaf(self, face: int, lo: np.ndarray, hi: np.ndarray, ev: dict) -> bool:
+        """Re-prove one excluded cell from its evidence."""
+        idx = np.asarray(ev.get("points", []), dtype=np.int64)
+        if len(idx) == 0 or idx.min() < 0 or idx.max() >= len(self.points):
+            return False
+        q0, theta = cell_angle(face, lo, hi)
+        p = self.points[idx]
+        proj = p @ rotation(q0)[:2].T
+        radii = 2.0 * math.sin(theta) * np.linalg.norm(p, axis=1)
+        if ev.get("kind") == "width":
+            u = self.dirs[int(ev["direction"]) % len(self.dirs)]
+            dots = proj @ u
+            hv = self.hole.vertices @ u
+            spread = (dots - radii).max() - (dots + radii).min()
+            return bool(spread > (hv.max() - hv.min()) * (1 + 1e-12) + 1e-12)
+        if ev.get("kind") == "translations":
+            resolve = self.kappa * 2.0 * math.sin(theta) * self.radius
+            return no_translation(self.hole, proj, radii, resolve)
+        return False
+
+    def walk(self, node: dict, face: int, lo: np.ndarray, hi: np.ndarray, depth: int = 0) -> None:
+        """Check a subtree: split nodes have 8 children, leaves re-proved, open leaves counted."""
+        if depth > 60:
+            self.errors.append("the cell tree is deeper than 60 levels")
+        elif "c" in node:
+            kids = node["c"]
+            if not isinstance(kids, list) or len(kids) != 8:
+                self.errors.append(f"a split cell at depth {depth} has {len(kids)} children, not 8")
+                return
+            mid = 0.5 * (lo + hi)
+            for c, kid in enumerate(kids):
+                upper = np.array([(c >> (2 - j)) & 1 for j in range(3)], dtype=bool)
+                self.walk(kid, face, np.where(upper, mid, lo), np.where(upper, hi, mid), depth + 1)
+        elif "e" in node:
+            self.leaves += 1
+            if not self.check_leaf(face, lo, hi, node["e"]):
+                self.errors.append(
+                    f"leaf face {face} box {lo.tolist()}..{hi.tolist()}: evidence does not hold"
+                )
+        else:
+            self.open += 1
+
+    def check_ball(self, root: dict) -> None:
+        """A ball inside the closed mesh, and no disk of its radius inside H."""
+        import trimesh
+
+        mesh = trimesh.Trimesh(self.vertices, self.faces, process=False)
+        centre, rho = np.asarray(root["centre"], dtype=np.float64), float(root["radius"])
+        if not (mesh.is_watertight and mesh.is_winding_consistent):
+            self.errors.append("ball evidence needs a closed, consistently oriented mesh")
+            return
+        tri = self.vertices[self.faces]
+        foot = trimesh.triangles.closest_point(tri, np.repeat(centre[None], len(tri), axis=0))
+        if not np.linalg.norm(foot - centre, axis=1).min() >= rho:
+            self.errors.append(f"the ball of radius {rho} is not inside the mesh")
+        a = self.vertices[self.faces] - centre
+        la, lb, lc = np.linalg.norm(a, axis=2).T
+        triple = np.einsum("ij,ij->i", a[:, 0], np.cross(a[:, 1], a[:, 2]))
+        den = la * lb * lc + lc * (a[:, 0] * a[:, 1]).sum(1)
+        den += la * (a[:, 1] * a[:, 2]).sum(1) + lb * (a[:, 2] * a[:, 0]).sum(1)
+        if abs(np.arctan2(triple, den).sum() / (2 * np.pi)) < 0.5:
+            self.errors.append("the ball's centre is not enclosed by the mesh")
+        if not disk_never_fits(self.hole, rho):
+            self.errors.append(f"a disk of radius {rho} may fit in the hole")
+
+    def check_passage(self, passage: dict) -> None:
+        """The pose puts the exact projection inside H."""
+        q = np.asarray(passage["quaternion"], dtype=np.float64)
+        t = np.asarray(passage["translation"], dtype=np.float64)
+        p = self.vertices @ rotation(q)[:2].T + t
+        if not self.hole.contains(p[np.unique(self.faces)]).all():
+            self.errors.append("passage: a vertex lies outside the hole")
+            return
+        edges = np.unique(
+            np.sort(
+                np.concatenate(
+                    [self.faces[:, [0, 1]], self.faces[:, [1, 2]], self.faces[:, [2, 0]]]
+                ),
+                axis=1,
+            ),
+            axis=0,
+        )
+        if segments_cross(p[edges[:, 0]], p[edges[:, 1]], self.hole.a, self.hole.b):
+            self.errors.append("passage: an edge of the shape crosses the hole's boundary")
+        tri = p[self.faces]
+        if points_in_triangles(self.hole.vertices, tri):
+            self.errors.append("passage: a corner of the hole lies inside the shape's projection")
+
+
+def _orient(a, b, c):
+    return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (
+        c[..., 0] - a[..., 0]
+    )
+
+
+def segments_cross(p0, p1, q0, q1) -> bool:
+    """Whether any segment p0-p1 properly crosses any segment q0-q1."""
+    for s in range(0, len(p0), 256):
+        a, b = p0[s : s + 256, None], p1[s : s + 256, None]
+        c, d = q0[None], q1[None]
+        o1, o2 = _orient(a, b, c), _orient(a, b, d)
+        o3, o4 = _orient(c, d, a), _orient(c, d, b)
+        if np.any((o1 * o2 < 0) & (o3 * o4 < 0)):
+            return True
+    return False
+
+
+def points_in_triangles(points: np.ndarray, tri: np.ndarray) -> bool:
+    """Whether any point lies strictly inside any (non-degenerate) triangle."""
+    for s in range(0, len(tri), 256):
+        t = tri[s : s + 256, None]
+        x = points[None]
+        o = [_orient(t[..., i, :], t[..., (i + 1) % 3, :], x) for i in range(3)]
+        if np.any(((o[0] > 0) & (o[1] > 0) & (o[2] > 0)) | ((o[0] < 0) & (o[1] < 0) & (o[2] < 0))):
+            return True
+    return False
+
+
+def replay(source) -> dict:
+    """Re-check a certificate (a path or the loaded dict) independently of the search.
+
+    Returns
+    -------
+    dict
+        ``valid`` (every check passed and the tree is complete), ``proved`` (valid and the claim is
+        a proof with no open cell), ``status`` claimed, ``leaves`` re-proved, ``open`` cells,
+        ``errors`` (the first 10 problems) and ``seconds``.
+
+    Raises
+    ------
+    SieveError
+        If the file cannot be read or is not a sieve-mi certificate.
+    """
+    t0 = time.perf_counter()
+    cert = _load(source)
+    try:
+        r = Replay(cert)
+        r.check_mesh()
+        faces, half = r.check_symmetry()
+        if cert.get("root"):
+            r.check_ball(cert["root"])
+        elif len(cert["tree"]) != len(faces):
+            r.errors.append(f"the tree has {len(cert['tree'])} roots, the domain {len(faces)}")
+        else:
+            for face, node in zip(faces, cert["tree"]):
+                r.walk(node, face, np.full(3, -half), np.full(3, half))
+        if cert.get("passage"):
+            r.check_passage(cert["passage"])
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise SieveError(f"malformed certificate ({type(exc).__name__}: {exc})") from None
+    status = cert.get("status")
+    valid = not r.errors and (status != "proved" or r.open == 0)
+    return {
+        "valid": valid,
+        "proved": valid and status == "proved" and r.open == 0,
+        "status": status,
+        "leaves": r.leaves,
+        "open": r.open,
+        "errors": r.errors[:10],
+        "seconds": time.perf_counter() - t0,
+    }
+
+
+def _load(source) -> dict:
+    if isinstance(source, dict):
+        cert = source
+    else:
+        if not os.path.isfile(source):
+            raise SieveError(f"{source}: certificate not found")
+        try:
+            with open(source) as fh:
+                cert = json.load(fh)
+        except (OSError, ValueError) as exc:
+            raise SieveError(f"{source}: not a readable JSON certificate ({exc})") from None
+    if not isinstance(cert, dict) or cert.get("format") != "sieve-mi-certificate/1":
+        raise SieveError(
+            f"{source if isinstance(source, str) else 'certificate'}: not a sieve-mi certificate"
+        )
+    return cert

@@ -1,0 +1,255 @@
+"""Branch and bound over rotation space: exclude cells, split the rest, or find a passage.
+
+Level by level (breadth first): all cells of a level get the batched width pre-test
+(:func:`~sieve_mi.certify.bounds.width_test`, NumPy over cells x points x directions); each
+survivor gets the exact polygon test with its own point set, which grows by the shape's vertex
+that sticks out furthest at the cell's centre pose before the cell is split. A cell whose centre
+pose puts the exact silhouette inside H is a passage and ends the search.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import manifold3d
+import numpy as np
+
+from sieve_mi.certify import bounds, cells
+from sieve_mi.meshes import Shape
+from sieve_mi.outline import placed_vertices, projection
+from sieve_mi.rotations import from_matrix, to_matrix
+
+
+@dataclass
+class Settings:
+    """Search settings.
+
+    Attributes
+    ----------
+    budget_s : float
+        Wall-clock budget, seconds; cells left then are reported open (status "undecided").
+    min_angle : float
+        Cells whose covering angle (radians on S^3) falls below this are not split further.
+    initial_points : int
+        Hull vertices every cell starts with (farthest-point sampled, farthest from the centre
+        first); also the points of the batched width pre-test.
+    max_points : int
+        Points a cell may use before it is split.
+    directions : int
+        Directions of the width pre-test.
+    kappa : float
+        Slack: every point's displacement bound is computed as if it were ``kappa`` times the
+        shape's radius further from the centre, so an exclusion holds with room to spare, which
+        the independent replay needs to confirm it on a finite translation grid.
+    """
+
+    budget_s: float = 30.0
+    min_angle: float = 1e-4
+    initial_points: int = 8
+    max_points: int = 24
+    directions: int = 36
+    kappa: float = 0.05
+
+
+@dataclass
+class Node:
+    """A cell of the search tree: a leaf with evidence, a split cell with 8 children, or open."""
+
+    face: int
+    lo: np.ndarray
+    hi: np.ndarray
+    evidence: dict | None = None
+    children: list | None = None
+
+
+@dataclass
+class Outcome:
+    """What the branch and bound found."""
+
+    roots: list
+    passage: dict | None = None
+    examined: int = 0
+    excluded: int = 0
+    open_cells: int = 0
+    excluded_volume: float = 0.0
+    depth: int = 0
+    points: set = field(default_factory=set)
+
+
+def farthest_points(vertices: np.ndarray, hull_idx: np.ndarray, count: int) -> list[int]:
+    """``count`` hull vertex indices by farthest-point sampling, the farthest from the centre first."""
+    pts = vertices[hull_idx]
+    chosen = [int(np.argmax(np.linalg.norm(pts, axis=1)))]
+    d = np.linalg.norm(pts - pts[chosen[0]], axis=1)
+    while len(chosen) < min(count, len(pts)):
+        j = int(np.argmax(d))
+        chosen.append(j)
+        d = np.minimum(d, np.linalg.norm(pts - pts[j], axis=1))
+    return [int(hull_idx[j]) for j in chosen]
+
+
+def representative(section: manifold3d.CrossSection) -> np.ndarray:
+    """A translation inside ``section`` (the centroid of its largest piece, or a vertex of it)."""
+    pieces = section.decompose()
+    piece = max(pieces, key=lambda s: s.area()) if pieces else section
+    contour = max(piece.to_polygons(), key=len)
+    c = np.asarray(contour, dtype=np.float64)
+    x, y = c.T
+    cross = x * np.roll(y, -1) - np.roll(x, -1) * y
+    area = cross.sum() / 2.0
+    if abs(area) < 1e-300:
+        return c.mean(axis=0)
+    cx = ((x + np.roll(x, -1)) * cross).sum() / (6 * area)
+    cy = ((y + np.roll(y, -1)) * cross).sum() / (6 * area)
+    return np.array([cx, cy])
+
+
+def even_odd_path(contours: list[np.ndarray]):
+    """A matplotlib Path of all contours, filled even-odd (fast point in polygon for the heuristics)."""
+    from matplotlib.path import Path
+
+    verts = np.concatenate([np.vstack([c, c[:1]]) for c in contours])
+    codes = np.concatenate(
+        [[Path.MOVETO] + [Path.LINETO] * (len(c) - 1) + [Path.CLOSEPOLY] for c in contours]
+    )
+    return Path(verts, codes)
+
+
+def count_open(node: Node) -> int:
+    """Leaves of the subtree without evidence (not excluded)."""
+    if node.children:
+        return sum(count_open(c) for c in node.children)
+    return int(node.evidence is None)
+
+
+class Search:
+    """One branch and bound of ``shape`` against the hole ``hole`` (one CrossSection, scene units)."""
+
+    def __init__(self, shape: Shape, hole: manifold3d.CrossSection, settings: Settings, group: str):
+        self.shape, self.hole, self.settings = shape, hole, settings
+        self.vertices = shape.vertices[np.unique(shape.faces)]
+        self.lengths = np.linalg.norm(self.vertices, axis=1)
+        self.segs = bounds.contour_segments([np.asarray(c) for c in hole.to_polygons()])
+        scale = float(np.abs(self.segs).max())
+        self.eta = 1e-6 * max(scale, shape.radius)
+        self.cache = bounds.OffsetCache(hole, self.eta, r_min=self.eta)
+        self.dirs = bounds.directions(settings.directions)
+        hv = self.segs[:, 0] @ self.dirs.T
+        self.support = np.stack([hv.max(axis=0), hv.min(axis=0)])
+        hull_idx = self._hull_indices()
+        self.start = farthest_points(self.vertices, hull_idx, settings.initial_points)
+        self.group = group
+        self.region = even_odd_path([np.asarray(c) for c in hole.to_polygons()])
+
+    def _hull_indices(self) -> np.ndarray:
+        hull = {tuple(p) for p in self.shape.hull}
+        idx = [i for i, p in enumerate(self.vertices) if tuple(p) in hull]
+        return np.asarray(idx if idx else range(len(self.vertices)), dtype=np.int64)
+
+    def radii(self, theta: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+        """Displacement bounds with the slack of :class:`Settings` ``kappa``, (n, k)."""
+        slack = self.settings.kappa * self.shape.radius
+        return cells.displacement(theta, lengths + slack) + self.eta
+
+    def run(self, roots: cells.Cells) -> Outcome:
+        """Branch and bound from ``roots`` until every cell is decided, a passage or the budget."""
+        t0 = time.perf_counter()
+        nodes = [Node(int(f), lo, hi) for f, lo, hi in zip(roots.face, roots.lo, roots.hi)]
+        out = Outcome(roots=nodes, points=set(self.start))
+        level, points = roots, [list(self.start) for _ in nodes]
+        while len(level) and out.passage is None:
+            out.depth += 1
+            level, nodes, points = self._level(level, nodes, points, out, t0)
+        out.open_cells = sum(count_open(n) for n in out.roots)
+        return out
+
+    def _level(self, level, nodes, points, out: Outcome, t0: float):
+        """Decide or split every cell of one level; returns the next level's cells."""
+        theta = cells.covering_angles(level)
+        rot = to_matrix(cells.centres(level))
+        excluded, direction = self._pretest(rot, theta)
+        split_idx, split_pts = [], []
+        for i, node in enumerate(nodes):
+            if out.passage is not None or time.perf_counter() - t0 > self.settings.budget_s:
+                return cells.Cells(level.face[:0], level.lo[:0], level.hi[:0]), [], []
+            out.examined += 1
+            if excluded[i]:
+                node.evidence = {"kind": "width", "direction": int(direction[i])}
+                node.evidence["points"] = list(self.start)
+            else:
+                verdict, pts = self._examine(rot[i], float(theta[i]), list(points[i]), out)
+                if verdict == "excluded":
+                    node.evidence = {"kind": "translations", "points": pts}
+                elif verdict == "passage" or theta[i] < self.settings.min_angle:
+                    continue
+                else:
+                    split_idx.append(i)
+                    split_pts.append(pts)
+                    continue
+            out.excluded += 1
+            out.excluded_volume += float(cells.volumes(level.take([i]))[0])
+            out.points.update(node.evidence["points"])
+        return self._split(level, nodes, split_idx, split_pts)
+
+    def _split(self, level, nodes, split_idx, split_pts):
+        parents = level.take(np.asarray(split_idx, dtype=np.int64))
+        children = cells.split(parents)
+        next_nodes, next_pts = [], []
+        for k, i in enumerate(split_idx):
+            kids = [
+                Node(int(children.face[8 * k + c]), children.lo[8 * k + c], children.hi[8 * k + c])
+                for c in range(8)
+            ]
+            nodes[i].children = kids
+            next_nodes += kids
+            next_pts += [split_pts[k]] * 8
+        return children, next_nodes, next_pts
+
+    def _pretest(self, rot: np.ndarray, theta: np.ndarray):
+        """The batched width test of all cells of a level with the starting points."""
+        p = self.vertices[self.start]
+        proj = np.einsum("nij,kj->nki", rot[:, :2, :], p)
+        radii = self.radii(theta, self.lengths[self.start])
+        return bounds.width_test(proj, radii, self.support, self.dirs, self.eta)
+
+    def _examine(self, rot: np.ndarray, theta: float, pts: list, out: Outcome):
+        """The exact test of one cell, adding points while they help; ``(verdict, points)``."""
+        proj_all = self.vertices @ rot[:2].T
+        allowance = self.radii(np.array([theta]), self.lengths)[0]
+        while True:
+            left = bounds.translations_left(self.cache, proj_all[pts], allowance[pts])
+            if left.is_empty():
+                return "excluded", pts
+            j = self._worst(proj_all + representative(left), allowance)
+            if j is None or j in pts or len(pts) >= self.settings.max_points:
+                break
+            pts.append(j)
+        if j is None and self._passage(rot, proj_all, pts, out):
+            return "passage", pts
+        return "split", pts
+
+    def _worst(self, placed: np.ndarray, allowance: np.ndarray) -> int | None:
+        """The vertex furthest outside H beyond its allowance at these placed positions, or None."""
+        outside = ~self.region.contains_points(placed)
+        if not outside.any():
+            return None
+        idx = np.flatnonzero(outside)
+        excess = bounds.boundary_distance(placed[idx], self.segs) - allowance[idx]
+        return int(idx[np.argmax(excess)]) if excess.max() > 0 else None
+
+    def _passage(self, rot: np.ndarray, proj_all: np.ndarray, pts: list, out: Outcome) -> bool:
+        """Whether the centre pose fits: all vertices inside at a candidate t, then the silhouette."""
+        parts = [self.hole.translate((-float(x), -float(y))) for x, y in proj_all[pts]]
+        left = manifold3d.CrossSection.batch_boolean(parts, manifold3d.OpType.Intersect)
+        if left.is_empty():
+            return False
+        t = representative(left)
+        if not self.region.contains_points(proj_all + t).all():
+            return False
+        quat = from_matrix(rot)
+        sil = projection(placed_vertices(self.shape, quat, t), self.shape.faces)
+        if (sil - self.hole).area() > 1e-12 * max(sil.area(), 1e-300):
+            return False
+        out.passage = {"quaternion": quat.tolist(), "translation": t.tolist()}
+        return True

@@ -1,0 +1,278 @@
+"""Certified blocks (issue 11): proofs, passages and the independent replay, on known answers.
+
+Known answers used here:
+
+* the hole of a face-on 20 mm cube grown by 1 mm is a 22 mm rounded square: its largest inscribed
+  disk has radius 11, so the 24 mm sphere (inscribed ball radius ~11.9) and the 23 mm cube (11.5)
+  cannot pass, while a 15 mm cube passes face-on;
+* Nieuwland: the unit cube seen along (2, 2, -1) holds a square of side 3 sqrt(2) / 4 = 1.0607 and
+  no cube larger than that passes a unit cube, so a 1.04 cube passes and a 1.08 cube cannot.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+from sieve_mi import shapes
+from sieve_mi.certify import cells, certify, read_svg_hole, replay, symmetry
+from sieve_mi.certify.bounds import OffsetCache, boundary_distance, contour_segments, width_test
+from sieve_mi.errors import SieveError
+from sieve_mi.meshes import shape_from_trimesh
+from sieve_mi.outline import hole_outline
+from sieve_mi.rotations import align
+
+
+def _shape(mesh, name="b"):
+    return shape_from_trimesh(mesh, name=name)
+
+
+@pytest.fixture(scope="module")
+def cube_hole():
+    cube = _shape(shapes.cube(20.0), "cube")
+    return hole_outline([cube], np.array([[1.0, 0, 0, 0]]), np.zeros((1, 2)), 1.0, closed=[True])
+
+
+@pytest.fixture(scope="module")
+def nieuwland_hole():
+    unit = _shape(shapes.cube(1.0), "unit")
+    q = align(np.array([2.0, 2.0, -1.0]), np.array([0.0, 0.0, 1.0]))
+    return hole_outline([unit], q[None], np.zeros((1, 2)), 0.0, closed=[True])
+
+
+@pytest.fixture(scope="module")
+def proof_108(nieuwland_hole):
+    return certify(_shape(shapes.cube(1.08)), [nieuwland_hole], budget_s=60)
+
+
+# ------------------------------------------------------------------------------------------------
+# Geometry of the cells and the bounds
+# ------------------------------------------------------------------------------------------------
+
+
+def test_root_face_covering_angle_is_60_degrees():
+    # The centre (1,0,0,0) and the corner (1,1,1,1)/2 are 60 degrees apart on S^3.
+    theta = cells.covering_angles(cells.roots([0, 1, 2, 3], 1.0))
+    assert np.allclose(theta, math.pi / 3, atol=1e-9)
+
+
+def test_covering_angle_bounds_every_rotation_of_the_cell():
+    rng = np.random.default_rng(0)
+    c = cells.Cells(np.array([2]), np.array([[0.1, -0.3, 0.2]]), np.array([[0.35, -0.05, 0.45]]))
+    q0 = cells.centres(c)[0]
+    v = c.lo + rng.random((2000, 3)) * (c.hi - c.lo)
+    q = cells.face_quaternions(np.full(2000, 2), v)
+    angles = np.arccos(np.clip(q @ q0, -1, 1))
+    theta = cells.covering_angles(c)[0]
+    assert angles.max() <= theta
+    assert angles.max() > 0.9 * theta  # attained near a corner
+
+
+def test_split_covers_the_parent_exactly():
+    parent = cells.roots([1], 1.0)
+    kids = cells.split(parent)
+    assert len(kids) == 8
+    assert np.isclose(cells.volumes(kids).sum(), cells.volumes(parent)[0])
+    assert np.allclose(kids.lo.min(0), -1) and np.allclose(kids.hi.max(0), 1)
+
+
+def test_symmetry_groups():
+    assert symmetry.detect(_shape(shapes.cube(10.0))) == "octahedral"
+    assert symmetry.detect(_shape(shapes.box(20.0, 10.0, 5.0))) == "klein"
+    bent = shapes.box(20.0, 10.0, 5.0)
+    v = bent.vertices.copy()
+    v[np.argmax(v.sum(1))] *= 1.2
+    assert symmetry.detect(_shape(trimesh.Trimesh(v, bent.faces))) == "none"
+
+
+def test_offsets_contain_the_exact_dilation(cube_hole):
+    # Every point of the offset's boundary is at least r from H: the polygon contains H + disk(r).
+    cache = OffsetCache(cube_hole, eta=1e-6, r_min=1e-6)
+    segs = contour_segments([np.asarray(c) for c in cube_hole.to_polygons()])
+    for r in (0.01, 0.7, 3.0):
+        contour = np.asarray(cache.get(r).to_polygons()[0])
+        nxt = np.roll(contour, -1, axis=0)
+        t = np.linspace(0, 1, 50)[:, None, None]
+        samples = (contour[None] + t * (nxt - contour)[None]).reshape(-1, 2)
+        assert boundary_distance(samples, segs).min() >= r
+
+
+def test_width_test_excludes_points_wider_than_the_hole():
+    # Two points 30 mm apart along x, displacement bound 1 mm each, against a 22 mm wide square.
+    square = np.array([[-11.0, -11], [11, -11], [11, 11], [-11, 11]])
+    dirs = np.array([[1.0, 0.0], [0.0, 1.0]])
+    support = np.stack([(square @ dirs.T).max(0), (square @ dirs.T).min(0)])
+    proj = np.array([[[-15.0, 0.0], [15.0, 0.0]], [[-9.0, 0.0], [9.0, 0.0]]])
+    excluded, direction = width_test(proj, np.ones((2, 2)), support, dirs, 1e-9)
+    assert excluded.tolist() == [True, False]  # 30 - 2 > 22, but 18 - 2 < 22
+    assert direction.tolist() == [0, -1]
+
+
+# ------------------------------------------------------------------------------------------------
+# Known answers
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "mesh", [shapes.sphere(12.0), shapes.cube(23.0)], ids=["sphere-24", "cube-23"]
+)
+def test_balls_too_big_for_the_cube_hole_are_proved_at_the_root(cube_hole, mesh):
+    result = certify(_shape(mesh), [cube_hole], budget_s=10)
+    assert result.status == "proved" and result.method == "ball"
+    assert 11.0 < result.certificate["root"]["radius"] < 12.0
+    assert replay(result.certificate)["proved"]
+
+
+def test_smaller_cube_finds_a_passage_that_really_fits(cube_hole):
+    from sieve_mi.outline import placed_vertices, projection
+
+    shape = _shape(shapes.cube(15.0))
+    result = certify(shape, [cube_hole], budget_s=10)
+    assert result.status == "passage"
+    p = result.passage
+    sil = projection(placed_vertices(shape, p["quaternion"], p["translation"]), shape.faces)
+    assert sil.area() >= 15.0**2 - 1e-6  # at least a face's area
+    assert (sil - cube_hole).area() < 1e-9
+    rep = replay(result.certificate)
+    assert rep["valid"] and not rep["proved"]
+
+
+def test_nieuwland_cube_108_proved_blocked(proof_108):
+    assert proof_108.status == "proved" and proof_108.method == "cells"
+    assert proof_108.symmetry == "octahedral"
+    assert proof_108.cells_open == 0
+    assert proof_108.excluded_fraction == pytest.approx(1.0)
+    rep = replay(proof_108.certificate)
+    assert rep["proved"] and rep["leaves"] == proof_108.cells_excluded
+
+
+def test_nieuwland_cube_104_passes(nieuwland_hole):
+    result = certify(_shape(shapes.cube(1.04)), [nieuwland_hole], budget_s=60)
+    assert result.status == "passage"
+    assert 0 < result.excluded_fraction < 1
+
+
+def test_budget_exhausted_is_undecided(nieuwland_hole):
+    result = certify(_shape(shapes.cube(1.062)), [nieuwland_hole], budget_s=0.05)
+    assert result.status == "undecided" and result.cells_open > 0
+    assert 0 <= result.excluded_fraction < 1
+    rep = replay(result.certificate)
+    assert rep["valid"] and not rep["proved"] and rep["open"] == result.cells_open
+
+
+# ------------------------------------------------------------------------------------------------
+# The replay rejects corrupted certificates
+# ------------------------------------------------------------------------------------------------
+
+
+def _first_split(node):
+    if "c" in node:
+        return node
+    raise AssertionError("no split node")
+
+
+def test_replay_rejects_a_moved_point(proof_108):
+    cert = copy.deepcopy(proof_108.certificate)
+    cert["shape"]["points"][0][0] += 0.01
+    rep = replay(cert)
+    assert not rep["valid"] and any("not vertices" in e for e in rep["errors"])
+
+
+def test_replay_rejects_a_removed_leaf(proof_108):
+    cert = copy.deepcopy(proof_108.certificate)
+    _first_split(cert["tree"][0])["c"].pop()
+    assert not replay(cert)["valid"]
+
+
+def test_replay_rejects_a_wider_hole(proof_108):
+    cert = copy.deepcopy(proof_108.certificate)
+    cert["hole"] = [(np.asarray(c) * 1.1).tolist() for c in cert["hole"]]
+    rep = replay(cert)
+    assert not rep["valid"] and any("evidence does not hold" in e for e in rep["errors"])
+
+
+def test_replay_rejects_a_ball_proof_against_a_wider_hole(cube_hole):
+    cert = copy.deepcopy(certify(_shape(shapes.sphere(12.0)), [cube_hole], budget_s=5).certificate)
+    cert["hole"] = [(np.asarray(c) * 1.2).tolist() for c in cert["hole"]]
+    assert not replay(cert)["valid"]
+
+
+def test_replay_rejects_a_false_symmetry_claim(proof_108):
+    cert = copy.deepcopy(proof_108.certificate)
+    v = np.asarray(cert["shape"]["vertices"])
+    v[0] *= 1.01  # no longer a cube (and the stored hash no longer matches)
+    cert["shape"]["vertices"] = v.tolist()
+    rep = replay(cert)
+    assert not rep["valid"] and any("symmetric" in e for e in rep["errors"])
+
+
+# ------------------------------------------------------------------------------------------------
+# Input: SVG holes and the command line
+# ------------------------------------------------------------------------------------------------
+
+
+def test_svg_hole_round_trip(tmp_path, cube_hole):
+    from sieve_mi.fabrication import write_svg
+
+    path = str(tmp_path / "hole.svg")
+    write_svg(path, cube_hole)
+    back = read_svg_hole(path)
+    assert back.area() == pytest.approx(cube_hole.area(), rel=1e-5)
+    assert back.bounds() == pytest.approx(cube_hole.bounds(), abs=1e-4)
+
+
+def test_bad_svg_is_one_clear_error(tmp_path):
+    bad = tmp_path / "bad.svg"
+    bad.write_text("<svg><path d='M 0 0 L 1 0'/></svg>")
+    with pytest.raises(SieveError, match="no polygon|no area"):
+        read_svg_hole(str(bad))
+
+
+def _cli(*args):
+    return subprocess.run(
+        [sys.executable, "-m", "sieve_mi", "certify", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+def test_cli_certifies_writes_and_replays(tmp_path, cube_hole):
+    from sieve_mi.fabrication import write_svg
+
+    mesh, svg, cert = tmp_path / "s.stl", str(tmp_path / "h.svg"), str(tmp_path / "c.json")
+    shapes.sphere(12.0).export(str(mesh))
+    write_svg(svg, cube_hole)
+    run = _cli(str(mesh), "--hole", svg, "--json", "--certificate", cert)
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["status"] == "proved"
+    again = _cli("--replay", cert, "--json")
+    assert again.returncode == 0 and json.loads(again.stdout)["proved"]
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["missing.stl", "--hole", "h.svg"], "not found"),
+        (["--replay", "missing.json"], "certificate not found"),
+        (["SHAPE"], "needs SHAPE and --sieve"),
+        (["SHAPE", "--hole", "HOLE", "--budget", "-1"], "--budget"),
+    ],
+)
+def test_cli_bad_input_one_line_exit_2(tmp_path, args, message):
+    mesh = tmp_path / "s.stl"
+    shapes.cube(5.0).export(str(mesh))
+    args = [str(mesh) if a == "SHAPE" else a for a in args]
+    args = [os.path.join(tmp_path, "h.svg") if a == "HOLE" else a for a in args]
+    run = _cli(*args)
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("sieve-mi: error:") and message in lines[0]
