@@ -10,7 +10,7 @@ scenes=("$@")
 for s in "${scenes[@]}"; do
   name=$(basename "$s" .toml)
   tmp=$(mktemp -d)
-  .venv/bin/sieve-mi solve "$s" --out "$tmp/o" --quiet --no-figure > "$dest/$name.txt" 2>&1 || echo "failed: $s" >> "$dest/$name.txt"
+  .venv/bin/python -m sieve_mi solve "$s" --out "$tmp/o" --quiet --no-figure > "$dest/$name.txt" 2>&1 || echo "failed: $s" >> "$dest/$name.txt"
   cp "$tmp/o/report.json" "$dest/$name.json" 2>/dev/null || true
   rm -rf "$tmp"
   echo "$name done"
