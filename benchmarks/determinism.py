@@ -35,10 +35,10 @@ def atomic_loss(obj, q, t, holes, pose_hole):
     import drjit as dr
     import mitsuba as mi
 
-    from sieve_mi.clearance import _quat_rows
+    from sieve_mi.rotations import quat_rows
 
     pair_pose, pair_seg = obj._pairs
-    rows = _quat_rows(dr, mi, *q)
+    rows = quat_rows(*q)
     active = obj._active_pairs(rows)
     if dr.width(active) == 0:
         zero = dr.zeros(mi.Float, obj.pose_count)
@@ -64,7 +64,7 @@ def hand_adam_descend(player, holes, pose_hole, q0, t0, steps, lr, loss_fn=atomi
     import drjit as dr
     import mitsuba as mi
 
-    from sieve_mi.clearance import HoleStack
+    from sieve_mi.hole import HoleStack
     from sieve_mi.rotations import normalize
 
     obj, stack, scale = player._loss_fn(), HoleStack(holes), player.frame.half_extent
@@ -122,7 +122,7 @@ def time_loss(player, holes, q0, t0, loss_fn, repeat):
     import drjit as dr
     import mitsuba as mi
 
-    from sieve_mi.clearance import HoleStack
+    from sieve_mi.hole import HoleStack
 
     obj, stack = player._loss_fn(), HoleStack(holes)
     obj.bind(np.zeros(len(q0), int))
@@ -149,7 +149,8 @@ def descents(player, holes, q0, t0, steps, repeat, config: str):
     import drjit as dr
     import mitsuba as mi
 
-    from sieve_mi.clearance import ClearanceObjective, HoleStack
+    from sieve_mi.clearance import ClearanceObjective
+    from sieve_mi.hole import HoleStack
 
     zeros = np.zeros(len(q0), int)
     pose_hole = np.arange(len(q0)) % len(holes)

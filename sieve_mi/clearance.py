@@ -19,30 +19,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from sieve_mi.hole import Hole
+from sieve_mi.hole import HoleStack
 from sieve_mi.meshes import Shape, segments
 from sieve_mi.raster import Frame
+from sieve_mi.rotations import quat_rows
 
 #: Active (pose, segment) pairs that one thread sums in the first level of the per-pose reduction
 #: (:meth:`ClearanceObjective._pose_sums`). Fixed, so results do not depend on the machine.
 CHUNK = 16
-
-
-def _quat_rows(dr, mi, qw, qx, qy, qz):
-    """Rotation matrix entries (row-major, 9 arrays) of the normalised quaternion (qw, qx, qy, qz)."""
-    n = dr.rsqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-    w, x, y, z = qw * n, qx * n, qy * n, qz * n
-    return (
-        1 - 2 * (y * y + z * z),
-        2 * (x * y - w * z),
-        2 * (x * z + w * y),
-        2 * (x * y + w * z),
-        1 - 2 * (x * x + z * z),
-        2 * (y * z - w * x),
-        2 * (x * z - w * y),
-        2 * (y * z + w * x),
-        1 - 2 * (x * x + y * y),
-    )
 
 
 def auto_samples(shapes: list[Shape], spacing: float, most: int = 4) -> int:
@@ -57,29 +41,8 @@ def auto_samples(shapes: list[Shape], spacing: float, most: int = 4) -> int:
     return int(np.clip(np.ceil(median), 1, most))
 
 
-class HoleStack:
-    """Several holes on one frame, as one flat Dr.Jit array of outside distances in pixels.
-
-    Parameters
-    ----------
-    holes : list of Hole
-        All on the same frame.
-    """
-
-    def __init__(self, holes: list[Hole]):
-        import mitsuba as mi
-
-        frame = holes[0].frame
-        if any(h.frame != frame for h in holes):
-            raise ValueError("all holes of a stack must share one frame")
-        self.frame = frame
-        self.count = len(holes)
-        stack = np.stack([h.outside for h in holes]) / frame.pixel_size
-        self.texture = mi.Float(stack.astype(np.float32).ravel())
-
-
 class ClearanceObjective:
-    """Clearance loss of several shapes, for many poses at once.
+    """Clearance loss of several shapes, for many poses at once (an :class:`~sieve_mi.objective.Objective`).
 
     Parameters
     ----------
@@ -166,8 +129,8 @@ class ClearanceObjective:
         per_pose : mi.Float
             Loss of each pose (detached).
         """
-        dr, mi = self.dr, self.mi
-        rows = _quat_rows(dr, mi, *q)
+        dr = self.dr
+        rows = quat_rows(*q)
         with dr.suspend_grad():
             r = [dr.detach(x) for x in rows[:6]]
             sums = self._pose_sums(
@@ -308,12 +271,10 @@ class ClearanceObjective:
         iu = dr.minimum(mi.UInt32(dr.floor(uc)), n - 2)
         iv = dr.minimum(mi.UInt32(dr.floor(vc)), n - 2)
         fu, fv = uc - mi.Float(iu), vc - mi.Float(iv)
-        base = hole_index * (n * n) + iv * n + iu
-        tex = holes.texture
-        d00 = dr.gather(mi.Float, tex, base)
-        d01 = dr.gather(mi.Float, tex, base + 1)
-        d10 = dr.gather(mi.Float, tex, base + n)
-        d11 = dr.gather(mi.Float, tex, base + n + 1)
+        d00 = holes.gather(hole_index, iv, iu)
+        d01 = holes.gather(hole_index, iv, iu + 1)
+        d10 = holes.gather(hole_index, iv + 1, iu)
+        d11 = holes.gather(hole_index, iv + 1, iu + 1)
         top, bottom = dr.lerp(d00, d01, fu), dr.lerp(d10, d11, fu)
         d = dr.lerp(top, bottom, fv) + root - 1e-3
         # Inside the frame the bilinear part varies with u, v; outside, the extension does.

@@ -85,6 +85,58 @@ class Hole:
         return mask, dist
 
 
+class HoleStack:
+    """Several holes on one frame as one flat Dr.Jit texture of outside distances, in pixels.
+
+    The texture holds hole ``k``'s pixel (row, col) at ``k N^2 + row N + col``; :meth:`gather` is
+    the one place that knows it. Losses and scores on the Dr.Jit side read holes only through it.
+
+    Parameters
+    ----------
+    holes : list of Hole
+        All on the same frame.
+
+    Attributes
+    ----------
+    frame : Frame
+    count : int
+        Number of holes.
+    texture : mi.Float
+        ``count * N^2`` outside distances in pixels (0 inside a hole).
+    """
+
+    def __init__(self, holes: list[Hole]):
+        import mitsuba as mi
+
+        frame = holes[0].frame
+        if any(h.frame != frame for h in holes):
+            raise ValueError("all holes of a stack must share one frame")
+        self.frame = frame
+        self.count = len(holes)
+        stack = np.stack([h.outside for h in holes]) / frame.pixel_size
+        self.texture = mi.Float(stack.astype(np.float32).ravel())
+
+    def gather(self, hole, row, col, active=True):
+        """Outside distance in pixels at pixel (row, col) of hole ``hole``.
+
+        Parameters
+        ----------
+        hole, row, col : mi.UInt32
+            Hole index and pixel indices, each in range (no clamping here).
+        active : mi.Bool or bool
+            Lanes to read; inactive lanes give 0.
+
+        Returns
+        -------
+        mi.Float
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        n = self.frame.resolution
+        return dr.gather(mi.Float, self.texture, hole * (n * n) + row * n + col, active)
+
+
 def dilate(mask: np.ndarray, frame: Frame, tolerance: float) -> np.ndarray:
     """Pixel centres within ``tolerance`` of the mask, rounded to the nearest half pixel.
 

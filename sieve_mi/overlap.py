@@ -58,9 +58,9 @@ import math
 
 import numpy as np
 
-from sieve_mi.clearance import _quat_rows  # the same rotation convention as the clearance loss
 from sieve_mi.meshes import Shape
 from sieve_mi.raster import Frame
+from sieve_mi.rotations import quat_rows
 
 #: Ways of rendering the silhouette: a minimal subclass of Mitsuba's ``direct_projective`` whose
 #: shading is "1 if the camera ray hits the mesh, else 0" (one ray per sample), or the stock
@@ -120,8 +120,7 @@ def _silhouette_plugin(mi) -> str:
 class OverlapObjective:
     """Overlap loss (fraction of the silhouette outside H) of several shapes, pose by pose.
 
-    Same interface as :class:`sieve_mi.clearance.ClearanceObjective`: :meth:`bind` then
-    :meth:`loss`.
+    An :class:`~sieve_mi.objective.Objective` (see there for :meth:`bind` and :meth:`loss`).
 
     Parameters
     ----------
@@ -237,7 +236,8 @@ class OverlapObjective:
         rr, cc = np.divmod(np.arange(self.size * self.size), self.size)
         fr, fc = rr - m, cc - m
         inside = (fr >= 0) & (fr < n) & (fc >= 0) & (fc < n)
-        self._pix = mi.UInt32(np.where(inside, fr * n + fc, 0).astype(np.uint32))
+        self._row = mi.UInt32(np.where(inside, fr, 0).astype(np.uint32))
+        self._col = mi.UInt32(np.where(inside, fc, 0).astype(np.uint32))
         self._in_frame = mi.Bool(inside)
         self._pose_shape = None
         self.pose_count = 0
@@ -274,9 +274,8 @@ class OverlapObjective:
     def _outside(self, holes, pose_hole, k: int):
         """1 on film pixels outside pose ``k``'s hole (or outside the frame), else 0."""
         dr, mi = self.dr, self.mi
-        n = self.frame.resolution
-        base = dr.gather(mi.UInt32, pose_hole, mi.UInt32(k)) * (n * n)
-        dist = dr.gather(mi.Float, holes.texture, base + self._pix, self._in_frame)
+        hole = dr.gather(mi.UInt32, pose_hole, mi.UInt32(k))
+        dist = holes.gather(hole, self._row, self._col, self._in_frame)
         return dr.select(self._in_frame & (dist <= 0), mi.Float(0), mi.Float(1))
 
     def _coverage(self, rendered):
@@ -291,7 +290,7 @@ class OverlapObjective:
         dr, mi = self.dr, self.mi
         shape = self._pose_shape[k] if self._pose_shape is not None else 0
         with dr.suspend_grad():
-            rows = _quat_rows(dr, mi, *q)
+            rows = quat_rows(*q)
             params = self._params[shape]
             params["shape.vertex_positions"] = dr.detach(self._vertices(rows, t, k, shape))
             params.update()
@@ -335,7 +334,7 @@ class OverlapObjective:
             zero = mi.Float(0.0)
             return zero, dr.zeros(mi.Float, 0)
         need_grad = any(dr.grad_enabled(a) for a in (*q, *t))
-        rows = _quat_rows(dr, mi, *q)
+        rows = quat_rows(*q)
         per_pose = dr.zeros(mi.Float, self.pose_count)
         surrogate = mi.Float(0.0)
         for k, shape in enumerate(self._pose_shape):

@@ -17,6 +17,7 @@ import numpy as np
 
 from sieve_mi.hole import Hole, build_hole
 from sieve_mi.meshes import Shape
+from sieve_mi.objective import OBJECTIVES, make_objective
 from sieve_mi.optim import (
     POSE_KEYS,
     QUAT_KEYS,
@@ -29,8 +30,6 @@ from sieve_mi.raster import Frame
 from sieve_mi.rotations import from_rotvec, normalize, random_uniform
 from sieve_mi.scoring import score_poses
 from sieve_mi.silhouettes import SilhouetteRenderer
-
-OBJECTIVES = ("clearance", "overlap")
 
 
 @dataclass
@@ -150,14 +149,7 @@ class PlayerB:
 
     def _loss_fn(self):
         if self._loss is None:
-            if self.objective == "clearance":
-                from sieve_mi.clearance import ClearanceObjective
-
-                self._loss = ClearanceObjective(self.shapes, self.frame, self._samples)
-            else:
-                from sieve_mi.overlap import OverlapObjective
-
-                self._loss = OverlapObjective(self.shapes, self.frame)
+            self._loss = make_objective(self.objective, self.shapes, self.frame, self._samples)
         return self._loss
 
     def attack(
@@ -255,7 +247,7 @@ class PlayerB:
         import drjit as dr
         import mitsuba as mi
 
-        from sieve_mi.clearance import HoleStack
+        from sieve_mi.hole import HoleStack
 
         k = len(q0)
         loss = self._loss_fn()

@@ -1,4 +1,4 @@
-"""Unit quaternions (w, x, y, z) and rotation matrices, in NumPy.
+"""Unit quaternions (w, x, y, z) and rotation matrices, in NumPy (and one Dr.Jit helper).
 
 Convention (also in ``report.json``): a rotation q acts on a mesh's points, p -> R(q) p, about the
 mesh's centre; the silhouette is the projection of the rotated points onto the xy-plane.
@@ -134,4 +134,35 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
             aw * bz + ax * by - ay * bx + az * bw,
         ],
         -1,
+    )
+
+
+def quat_rows(qw, qx, qy, qz) -> tuple:
+    """Rotation matrix entries of quaternions held in Dr.Jit arrays, same convention as
+    :func:`to_matrix`.
+
+    Parameters
+    ----------
+    qw, qx, qy, qz : Dr.Jit float arrays
+        Quaternion components, one entry per pose; normalised here (differentiably).
+
+    Returns
+    -------
+    tuple of 9 Dr.Jit arrays
+        R00, R01, R02, R10, ..., R22 (row-major).
+    """
+    import drjit as dr
+
+    n = dr.rsqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    w, x, y, z = qw * n, qx * n, qy * n, qz * n
+    return (
+        1 - 2 * (y * y + z * z),
+        2 * (x * y - w * z),
+        2 * (x * z + w * y),
+        2 * (x * y + w * z),
+        1 - 2 * (x * x + z * z),
+        2 * (y * z - w * x),
+        2 * (x * z - w * y),
+        2 * (y * z + w * x),
+        1 - 2 * (x * x + y * y),
     )

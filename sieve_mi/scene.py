@@ -27,12 +27,11 @@ from dataclasses import MISSING, asdict, dataclass, field, fields
 import numpy as np
 
 from sieve_mi.errors import SieveError
+from sieve_mi.objective import OBJECTIVES
 from sieve_mi.optim import NLOPT_METHODS
 
 #: Accepted ``units`` (a label for reports; meshes are not converted).
 UNITS = ("mm", "cm", "m", "in", "um")
-#: Accepted ``[solver] objective`` values: player B's loss.
-OBJECTIVES = ("clearance", "overlap")
 #: Accepted ``[solver] outer`` values: player A's optimiser (PSO or an nlopt global method).
 OUTERS = ("pso", *NLOPT_METHODS)
 #: Accepted ``[layout] mode`` values.

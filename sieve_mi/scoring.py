@@ -97,7 +97,7 @@ def score_poses(
     import drjit as dr
     import mitsuba as mi
 
-    from sieve_mi.clearance import HoleStack
+    from sieve_mi.hole import HoleStack
 
     holes = [holes] if isinstance(holes, Hole) else list(holes)
     frame = holes[0].frame
@@ -115,9 +115,7 @@ def score_poses(
         hit, pose, row, col = renderer.trace(quats[sl], trans[sl], frame, row0[sl], col0[sl], size)
         rc, cc = dr.clip(row, 0, n - 1), dr.clip(col, 0, n - 1)
         hole_of = dr.gather(mi.UInt32, mi.UInt32(pose_hole[sl].astype(np.uint32)), pose)
-        d = dr.gather(
-            mi.Float, stack.texture, hole_of * (n * n) + mi.UInt32(rc) * n + mi.UInt32(cc)
-        )
+        d = stack.gather(hole_of, mi.UInt32(rc), mi.UInt32(cc))
         inside = (row == rc) & (col == cc) & (d == 0)
         dist = (d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))) * frame.pixel_size
         out = hit & ~inside

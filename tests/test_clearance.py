@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from conftest import sphere
 
-from sieve_mi.clearance import ClearanceObjective, HoleStack
-from sieve_mi.hole import build_hole
+from sieve_mi.clearance import ClearanceObjective
+from sieve_mi.hole import HoleStack, build_hole
 from sieve_mi.raster import Frame
 from sieve_mi.silhouettes import SilhouetteRenderer
 

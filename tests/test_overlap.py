@@ -12,8 +12,7 @@ import pytest
 import trimesh
 from conftest import rng
 
-from sieve_mi.clearance import HoleStack
-from sieve_mi.hole import Hole
+from sieve_mi.hole import Hole, HoleStack
 from sieve_mi.meshes import shape_from_trimesh
 from sieve_mi.overlap import OverlapObjective
 from sieve_mi.raster import Frame

@@ -13,7 +13,8 @@ import pytest
 import trimesh
 from conftest import sphere
 
-from sieve_mi.clearance import ClearanceObjective, HoleStack
+from sieve_mi.clearance import ClearanceObjective
+from sieve_mi.hole import HoleStack
 from sieve_mi.players import PlayerA
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import random_uniform
