@@ -64,7 +64,7 @@ class CheckSettings:
 
 
 @dataclass
-class Verdict:
+class ShapeCheck:
     """One shape against one sieve at one scale."""
 
     scale: float
@@ -87,7 +87,7 @@ class CheckReport:
     units: str
     holes: list
     pixel_size: float
-    result: Verdict
+    result: ShapeCheck
     fit_scale: float | None = None
     fit_bracket: list | None = None
     evaluations: list = field(default_factory=list)
@@ -233,7 +233,7 @@ def attempt(
     settings: CheckSettings,
     s: float,
     outlines: list[manifold3d.CrossSection] | None = None,
-) -> Verdict:
+) -> ShapeCheck:
     """Player B's best attempt to pass ``shape`` scaled by ``s`` through any of ``holes``."""
     from sieve_mi.players import PlayerB
 
@@ -243,7 +243,7 @@ def attempt(
     att = player.attack(holes, settings.starts, settings.steps, settings.learning_rate, rng)
     order = np.lexsort((att.protrusion[:, 0], att.beta[:, 0]))
     k = int(order[0])
-    v = Verdict(
+    v = ShapeCheck(
         scale=float(s),
         passes=bool(att.beta[k, 0] == 0),
         beta=float(att.beta[k, 0]),
@@ -259,14 +259,14 @@ def attempt(
     return v
 
 
-def fit_scale(evaluate, first: Verdict, rel_tol: float, limit: int = 12) -> tuple[float, list]:
+def fit_scale(evaluate, first: ShapeCheck, rel_tol: float, limit: int = 12) -> tuple[float, list]:
     """Largest scale that passes, by bracketing (doubling or halving) and geometric bisection.
 
     Parameters
     ----------
     evaluate : callable
-        ``evaluate(s) -> Verdict``.
-    first : Verdict
+        ``evaluate(s) -> ShapeCheck``.
+    first : ShapeCheck
         The verdict at scale 1.
     rel_tol : float
         Stop when hi / lo - 1 is below this.
@@ -334,7 +334,7 @@ def check(
         Label for reports.
     settings : CheckSettings, optional
     progress : callable, optional
-        Called with each :class:`Verdict` as it is computed.
+        Called with each :class:`ShapeCheck` as it is computed.
 
     Returns
     -------
@@ -368,9 +368,9 @@ def check(
         outlines, centre, source = None, np.zeros(2), image
         info = [{"area": h.area} for h in holes]
     # Poses are reported in the sieve's own coordinates.
-    evaluations: list[Verdict] = []
+    evaluations: list[ShapeCheck] = []
 
-    def evaluate(s: float) -> Verdict:
+    def evaluate(s: float) -> ShapeCheck:
         v = attempt(shape, holes, settings, s, outlines)
         v.translation = [v.translation[0] + float(centre[0]), v.translation[1] + float(centre[1])]
         evaluations.append(v)

@@ -61,7 +61,8 @@ def report_dict(result: Result) -> dict:
         row = {
             "mesh": entry.mesh,
             "name": shape.name,
-            "loss": beta,
+            "beta": beta,
+            "loss": beta,  # the same β, under its old name (kept for compatibility)
             "blocked": bool(attack.blocked()[0, j]),
             "protrusion": float(attack.protrusion[0, j]),
             "rotation": [float(x) for x in attack.quats[0, j]],
@@ -71,7 +72,8 @@ def report_dict(result: Result) -> dict:
             "faces": shape.face_count,
         }
         if attack.margin_beta is not None:
-            row["margin_loss"] = float(attack.margin_beta[0, j])
+            row["margin_beta"] = float(attack.margin_beta[0, j])
+            row["margin_loss"] = row["margin_beta"]
             row["margin_protrusion"] = float(attack.margin_protrusion[0, j])
         blocks.append(row)
     hole = result.hole

@@ -1,10 +1,9 @@
-"""Shared fixtures: the CPU variant, simple shapes, and a scene writer."""
+"""Shared fixtures: the CPU variant, a 20 mm cube, and a scene writer (helpers: helpers.py)."""
 
 from __future__ import annotations
 
 import os
 
-import numpy as np
 import pytest
 import trimesh
 
@@ -27,10 +26,6 @@ def cube20():
     return shape_from_trimesh(trimesh.creation.box((20.0, 20.0, 20.0)), name="cube")
 
 
-def sphere(radius: float, subdivisions: int = 3):
-    return shape_from_trimesh(trimesh.creation.icosphere(subdivisions, radius), name="sphere")
-
-
 @pytest.fixture
 def write_scene(tmp_path):
     """Write meshes and a scene TOML into tmp_path; returns the scene path."""
@@ -44,7 +39,3 @@ def write_scene(tmp_path):
         return str(path)
 
     return write
-
-
-def rng(seed: int = 0) -> np.random.Generator:
-    return np.random.default_rng(seed)

@@ -22,13 +22,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from sieve_mi import shapes
 from sieve_mi.certify import cells, certify, read_svg_hole, replay, symmetry
 from sieve_mi.certify.bounds import OffsetCache, boundary_distance, contour_segments, width_test
 from sieve_mi.errors import SieveError
 from sieve_mi.meshes import shape_from_trimesh
 from sieve_mi.outline import hole_outline
 from sieve_mi.rotations import align
+from sieve_mi.testing import shapes
 
 
 def _shape(mesh, name="b"):

@@ -21,7 +21,7 @@ import pytest
 import trimesh
 from PIL import Image
 
-from sieve_mi.check import CheckSettings, Verdict, check, fit_scale, holes_from_mesh
+from sieve_mi.check import CheckSettings, ShapeCheck, check, fit_scale, holes_from_mesh
 from sieve_mi.errors import SieveError
 from sieve_mi.fabrication import to_trimesh
 from sieve_mi.meshes import shape_from_trimesh
@@ -153,7 +153,7 @@ def test_fit_scale_bisection_on_a_known_threshold():
 
     def evaluate(s):
         calls.append(s)
-        return Verdict(
+        return ShapeCheck(
             scale=s,
             passes=s <= 1.37,
             beta=0.0,
@@ -168,14 +168,14 @@ def test_fit_scale_bisection_on_a_known_threshold():
     assert lo <= 1.37 < hi and hi / lo - 1 <= 0.001 and s == lo
     calls.clear()
     s, (lo, hi) = fit_scale(
-        lambda x: Verdict(x, x <= 0.3, 0, 0, [], [], 0, 0),
-        Verdict(1.0, False, 0.1, 1, [], [], 0, 0),
+        lambda x: ShapeCheck(x, x <= 0.3, 0, 0, [], [], 0, 0),
+        ShapeCheck(1.0, False, 0.1, 1, [], [], 0, 0),
         0.01,
     )
     assert lo <= 0.3 < hi and s == lo
     s, (lo, hi) = fit_scale(
-        lambda x: Verdict(x, False, 0.1, 1, [], [], 0, 0),
-        Verdict(1.0, False, 0.1, 1, [], [], 0, 0),
+        lambda x: ShapeCheck(x, False, 0.1, 1, [], [], 0, 0),
+        ShapeCheck(1.0, False, 0.1, 1, [], [], 0, 0),
         0.01,
     )
     assert s == 0.0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import sphere
+from helpers import sphere
 
 from sieve_mi.clearance import ClearanceObjective
 from sieve_mi.hole import HoleStack, build_hole

@@ -19,7 +19,8 @@ from sieve_mi import outline
 from sieve_mi.meshes import shape_from_trimesh
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import align, from_axis_angle
-from sieve_mi.shapes import to_manifold
+from sieve_mi.testing.mesh_io import read_3mf
+from sieve_mi.testing.shapes import to_manifold
 
 
 def sym_diff(a: manifold3d.CrossSection, b: manifold3d.CrossSection) -> float:
@@ -170,7 +171,7 @@ def test_3mf_round_trip(tmp_path):
     mesh = fab.plate(outline, 4.0, 2.0).mesh
     path = str(tmp_path / "p.3mf")
     fab.write_3mf(path, mesh)
-    back = fab.read_3mf(path)
+    back = read_3mf(path)
     np.testing.assert_allclose(back.vertices, mesh.vertices, rtol=1e-8, atol=1e-8)
     np.testing.assert_array_equal(back.faces, mesh.faces)
     assert back.is_watertight

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from conftest import sphere
+from helpers import sphere
 from scipy.spatial import ConvexHull
 
 from sieve_mi.hole import build_hole

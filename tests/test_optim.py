@@ -99,7 +99,7 @@ def test_descend_compiles_no_kernel_after_its_third_step(mi, cube20):
     # Per-step scalars (learning rate, bias correction) are opaque: the kernels of step 3 are
     # reused by every later step instead of being compiled again.
     import drjit as dr
-    from conftest import sphere
+    from helpers import sphere
 
     from sieve_mi.players import PlayerA, PlayerB
     from sieve_mi.raster import Frame

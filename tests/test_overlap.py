@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from conftest import rng
+from helpers import rng
 
 from sieve_mi.hole import Hole, HoleStack
 from sieve_mi.meshes import shape_from_trimesh

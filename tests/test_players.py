@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import rng, sphere
+from helpers import rng, sphere
 
 from sieve_mi.optim import nlopt_maximise, particle_swarm
 from sieve_mi.players import PlayerA, PlayerB

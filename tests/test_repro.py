@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 import trimesh
-from conftest import sphere
+from helpers import sphere
 
 from sieve_mi.clearance import ClearanceObjective
 from sieve_mi.hole import HoleStack

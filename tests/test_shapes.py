@@ -1,4 +1,4 @@
-"""Known-answer tests for the generated test shapes (sieve_mi.shapes) and scenes/meshes/.
+"""Known-answer tests for the generated test shapes (sieve_mi.testing.shapes) and scenes/meshes/.
 
 Expected values are argued from geometry (volumes of prisms, spheres, trapezoids; Euler
 characteristic of closed surfaces), never copied from a run of the code.
@@ -15,7 +15,7 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-from sieve_mi import shapes
+from sieve_mi.testing import shapes
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MESH_DIR = os.path.join(REPO, "scenes", "meshes")

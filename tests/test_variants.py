@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import rng, sphere
+from helpers import rng, sphere
 
 from sieve_mi.backend import default_variant, find_llvm, gpu_available, use_variant
 from sieve_mi.errors import SieveError

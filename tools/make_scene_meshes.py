@@ -24,7 +24,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if REPO not in sys.path:
     sys.path.insert(0, REPO)
 
-from sieve_mi import shapes  # noqa: E402
+from sieve_mi.testing import shapes  # noqa: E402
 
 LETTERS = "SIGRAPH"
 LETTER_HEIGHT = 30.0  # mm, y-extent of each glyph

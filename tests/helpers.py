@@ -1,0 +1,18 @@
+"""Small helpers that several test files import (fixtures live in conftest.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from sieve_mi.meshes import Shape, shape_from_trimesh
+
+
+def sphere(radius: float, subdivisions: int = 3) -> Shape:
+    """An icosphere of ``radius`` as a Shape named "sphere"."""
+    return shape_from_trimesh(trimesh.creation.icosphere(subdivisions, radius), name="sphere")
+
+
+def rng(seed: int = 0) -> np.random.Generator:
+    """NumPy's default generator with ``seed``."""
+    return np.random.default_rng(seed)
