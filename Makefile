@@ -26,6 +26,7 @@ test: setup
 lint: setup
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
+	$(PY) tools/long_functions.py 80
 
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow" tests

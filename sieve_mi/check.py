@@ -343,28 +343,10 @@ def check(
     settings = settings or CheckSettings()
     t0 = time.perf_counter()
     if sieve is not None:
-        outlines = holes_from_mesh(sieve, axis)
-        frame, centre = frame_for_polygons(outlines, settings.resolution)
-        outlines = [o.translate([-centre[0], -centre[1]]) for o in outlines]
-        holes = [Hole.from_mask(rasterize(o, frame), frame) for o in outlines]
+        holes, outlines, centre, info, frame = _plate_holes(sieve, axis, settings.resolution)
         source = sieve
-        info = [
-            {
-                "area": float(o.area()),
-                "centre": [
-                    float(c)
-                    for c in (np.asarray(o.bounds()[:2]) + np.asarray(o.bounds()[2:])) / 2 + centre
-                ],
-            }
-            for o in outlines
-        ]
     else:
-        if pixel_size is None or not (pixel_size > 0 and math.isfinite(pixel_size)):
-            raise SieveError(
-                f"--pixel-size {pixel_size}: give the hole image's pixel size, a positive number in scene units"
-            )
-        frame, mask = frame_for_image(mask_from_image(image), pixel_size)
-        holes = [Hole.from_mask(m, frame) for m in split_pieces(mask)]
+        holes, frame = _image_holes(image, pixel_size)
         outlines, centre, source = None, np.zeros(2), image
         info = [{"area": h.area} for h in holes]
     # Poses are reported in the sieve's own coordinates.
@@ -392,6 +374,41 @@ def check(
     rep.evaluations = evaluations
     rep.seconds = time.perf_counter() - t0
     return rep
+
+
+def _plate_holes(sieve: str, axis: str, resolution: int):
+    """The through-holes of plate mesh ``sieve`` along ``axis``, centred on a common frame.
+
+    Returns
+    -------
+    holes : list of Hole
+    outlines : list of CrossSection
+        Exact hole outlines, shifted by ``-centre``.
+    centre : (2,) ndarray
+        The plate coordinates of the frame's centre.
+    info : list of dict
+        Per hole its area and centre (plate coordinates), for the report.
+    frame : Frame
+    """
+    outlines = holes_from_mesh(sieve, axis)
+    frame, centre = frame_for_polygons(outlines, resolution)
+    info = []
+    for o in outlines:
+        lo, hi = np.asarray(o.bounds()[:2]), np.asarray(o.bounds()[2:])
+        info.append({"area": float(o.area()), "centre": [float(c) for c in (lo + hi) / 2]})
+    outlines = [o.translate([-centre[0], -centre[1]]) for o in outlines]
+    holes = [Hole.from_mask(rasterize(o, frame), frame) for o in outlines]
+    return holes, outlines, centre, info, frame
+
+
+def _image_holes(image: str, pixel_size: float | None):
+    """The holes (8-connected white pieces) of a hole image with ``pixel_size``, and the frame."""
+    if pixel_size is None or not (pixel_size > 0 and math.isfinite(pixel_size)):
+        raise SieveError(
+            f"--pixel-size {pixel_size}: give the hole image's pixel size, a positive number in scene units"
+        )
+    frame, mask = frame_for_image(mask_from_image(image), pixel_size)
+    return [Hole.from_mask(m, frame) for m in split_pieces(mask)], frame
 
 
 def summary(rep: CheckReport) -> str:

@@ -310,7 +310,8 @@ def place(
         Player B's attack settings for every candidate hole.
     settings : sieve_mi.scene.Layout
         Eq. 14's tau, rho, eta, alpha and the swarm's accelerations.
-    rng : numpy.random.Generator
+    rng, progress :
+        Random generator; per-iteration callback of the swarm.
     recheck : (int, int), optional
         Starts and Adam steps of the attack that re-ranks the swarm's ``finalists`` best placements
         (the solver passes the verdict's settings, so the placement kept is the one that survives
@@ -331,81 +332,114 @@ def place(
     -------
     Placement
     """
-    frame = player.frame
-    reach = frame.half_extent / 2.0  # centres stay within the largest radius of the origin
-    # Candidate starts: in-plane rotations and translations of the shape's own best rotation that
-    # touch the current hole, most compact filled hole first (an exhaustive search by FFT
-    # cross-correlation, in place of the paper's gradient steps from random in-plane transforms).
+    reach = player.frame.half_extent / 2.0  # centres stay within the largest radius of the origin
+    if memory is None:
+        memory = AttackMemory.for_starts(len(player_b.shapes), starts)
+    game = _PlacementGame(player, player_b, base, reach, memory, settings, learning_rate, rng)
+    pool = _candidate_pool(player, base, quat, reach, screen * particles)
+    recheck = recheck if recheck is not None else (3 * starts, 3 * steps)
+    return game.play(
+        pool, particles, iterations, (starts, steps), recheck, finalists, rounds, progress
+    )
+
+
+@dataclass
+class _PlacementGame:
+    """Eq. 14 for placements of one A into a base hole, each scored by one batched attack of B."""
+
+    player: PlayerA
+    player_b: PlayerB
+    base: np.ndarray
+    reach: float
+    memory: AttackMemory
+    settings: Layout
+    learning_rate: float
+    rng: np.random.Generator
+
+    def energy(self, x: np.ndarray, starts: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """Eq. 14 energy and the weakest B's β of placements ``x`` (P, 6): (P,) and (P,)."""
+        holes = self.player.holes(x[:, :4], x[:, 4:] * self.reach, base=self.base)
+        attack = self.player_b.attack(
+            holes, starts, steps, self.learning_rate, self.rng, memory=self.memory
+        )
+        area = np.array([hh.mask.mean() for hh in holes])
+        n = np.array([pieces(hh.mask) for hh in holes])
+        return eq14(attack.value(), area, n, self.settings), attack.value()
+
+    def play(self, pool, particles, iterations, attack, recheck, finalists, rounds, progress):
+        """Rounds of screening, swarm and re-ranking over the candidate ``pool`` (see :func:`place`).
+
+        ``attack`` and ``recheck`` are (starts, steps) of the swarm's and the re-ranking's attacks.
+        """
+        reach, rng, settings = self.reach, self.rng, self.settings
+
+        def evaluate(x):
+            return self.energy(x, *attack)[0]
+
+        history = SwarmHistory()
+        best, value, best_beta = pool[0], -np.inf, -np.inf
+        for _ in range(rounds):
+            x0 = _swarm_starts(pool, evaluate, particles, self.player.frame.pixel_size / reach)
+            x, _, h = particle_swarm(
+                evaluate, _project(x0), iterations, rng, c_personal=settings.c_personal,
+                c_global=settings.c_global, project=_project, progress=progress,
+            )  # fmt: skip
+            history.extend(h)
+            history.finalists = h.finalists
+            # The swarm ranks placements with a short attack, which can miss a narrow passage.
+            # Re-rank its best few placements with a long attack and keep the best of those.
+            xs = np.stack([f for f, _ in h.finalists[:finalists]]) if h.finalists else x[None]
+            values, betas = self.energy(xs, *recheck)
+            i = int(np.argmax(values))
+            if values[i] > value:
+                best, value, best_beta = xs[i], float(values[i]), float(betas[i])
+            if best_beta > 0:
+                break
+            # Every finalist lets some B through. The memory now holds the passing poses, so
+            # another round of screening and swarming sees through the placements that looked
+            # safe before.
+        return Placement(normalize(best[:4]), best[4:] * reach, value, best_beta, history)
+
+
+def _project(x: np.ndarray) -> np.ndarray:
+    """Placements (P, 6) with unit quaternions and translations inside the unit disc."""
+    x = x.copy()
+    x[:, :4] = normalize(x[:, :4])
+    norm = np.linalg.norm(x[:, 4:], axis=1, keepdims=True)
+    x[:, 4:] = x[:, 4:] / np.maximum(norm, 1.0)
+    return x
+
+
+def _candidate_pool(
+    player: PlayerA, base: np.ndarray, quat: np.ndarray, reach: float, count: int
+) -> np.ndarray:
+    """``count`` distinct candidate placements (P, 6): quaternion, translation / ``reach``.
+
+    In-plane rotations and translations of the shape's own best rotation that touch the current
+    hole, most compact filled hole first (an exhaustive search by FFT cross-correlation, in place
+    of the paper's gradient steps from random in-plane transforms), thinned to distinct ones and
+    stratified (see :func:`candidate_placements`).
+    """
     qc, tc, _ = candidate_placements(player, base, quat, reach)
     distinct = _diverse(
         qc, tc, len(qc), min_angle=DISTINCT_ANGLE, min_distance=DISTINCT_SHIFT * reach
     )
-    pick = _stratified(len(distinct), screen * particles)
+    pick = _stratified(len(distinct), count)
     qc, tc = qc[distinct[pick]], tc[distinct[pick]]
-    x0 = np.concatenate([qc, tc / reach], axis=1)
+    return np.concatenate([qc, tc / reach], axis=1)
 
-    def project(x):
-        x = x.copy()
-        x[:, :4] = normalize(x[:, :4])
-        norm = np.linalg.norm(x[:, 4:], axis=1, keepdims=True)
-        x[:, 4:] = x[:, 4:] / np.maximum(norm, 1.0)
-        return x
 
-    if memory is None:
-        memory = AttackMemory.for_starts(len(player_b.shapes), starts)
+def _swarm_starts(pool: np.ndarray, evaluate, particles: int, nudge: float) -> np.ndarray:
+    """The swarm's first ``particles`` placements (P, 6): the pool's best by ``evaluate``.
 
-    def energy(x, n_starts: int, n_steps: int):
-        """Eq. 14 energy and the weakest B's beta of placements x (P, 6)."""
-        holes = player.holes(x[:, :4], x[:, 4:] * reach, base=base)
-        attack = player_b.attack(holes, n_starts, n_steps, learning_rate, rng, memory=memory)
-        area = np.array([hh.mask.mean() for hh in holes])
-        n = np.array([pieces(hh.mask) for hh in holes])
-        return eq14(attack.value(), area, n, settings), attack.value()
-
-    def evaluate(x):
-        return energy(x, starts, steps)[0]
-
-    r_starts, r_steps = recheck if recheck is not None else (3 * starts, 3 * steps)
-    pool = x0
-    history = SwarmHistory()
-    best, value, best_beta = pool[0], -np.inf, -np.inf
-    for _ in range(rounds):
-        # Screen the candidates with one short attack each (one batch); the best start the swarm.
-        if len(pool) > particles:
-            x0 = pool[np.argsort(evaluate(pool), kind="stable")[::-1][:particles]]
-        else:  # few candidates: repeat them, nudged by a pixel
-            extra = particles - len(pool)
-            x0 = np.concatenate(
-                [
-                    pool,
-                    pool[np.arange(extra) % len(pool)]
-                    + np.r_[0, 0, 0, 0, frame.pixel_size / reach, 0],
-                ]
-            )
-        x, v, h = particle_swarm(
-            evaluate,
-            project(x0),
-            iterations,
-            rng,
-            c_personal=settings.c_personal,
-            c_global=settings.c_global,
-            project=project,
-            progress=progress,
-        )
-        history.extend(h)
-        history.finalists = h.finalists
-        # The swarm ranks placements with a short attack, which can miss a narrow passage. Re-rank
-        # its best few placements with a long attack and keep the best of those.
-        xs = np.stack([f for f, _ in h.finalists[:finalists]]) if h.finalists else x[None]
-        values, betas = energy(xs, r_starts, r_steps)
-        i = int(np.argmax(values))
-        if values[i] > value:
-            best, value, best_beta = xs[i], float(values[i]), float(betas[i])
-        if best_beta > 0:
-            break
-        # Every finalist lets some B through. The memory now holds the passing poses, so another
-        # round of screening and swarming sees through the placements that looked safe before.
-    return Placement(normalize(best[:4]), best[4:] * reach, value, best_beta, history)
+    With no more candidates than particles, the pool is repeated, the copies moved by ``nudge``
+    along x (in units of the reach: a pixel).
+    """
+    if len(pool) > particles:
+        return pool[np.argsort(evaluate(pool), kind="stable")[::-1][:particles]]
+    extra = particles - len(pool)
+    shift = np.array([0, 0, 0, 0, nudge, 0])
+    return np.concatenate([pool, pool[np.arange(extra) % len(pool)] + shift])
 
 
 def alternative_rotations(
@@ -558,45 +592,62 @@ def merge(
             lost,
             len(placed) == 1,
         )
-        current = compose([players[j] for j in placed], quats[placed], trans[placed]).mask
-        kept, kept_base = None, quats[placed[0]]
-        for attempt, (base_q, q, rounds) in enumerate(tries):
-            base = current
-            if base_q is not None:  # the first pair, with another rotation of the base shape
-                base = compose([players[placed[0]]], base_q[None], trans[placed]).mask
-            got = place(
-                players[i],
-                player_b,
-                base,
-                q,
-                particles=solver.particles,
-                iterations=solver.iterations,
-                starts=solver.starts,
-                steps=solver.steps,
-                learning_rate=solver.learning_rate,
-                settings=layout,
-                rng=rng,
-                progress=None
-                if progress is None
-                else (lambda it, best, _n=name: progress(f"place {_n}", best)),
-                memory=memory,
-                recheck=recheck,
-                rounds=rounds,
-            )
-            history.extend(got.history)
-            stages.append(
-                (
-                    f"place {name}" + (f" (try {attempt + 1})" if attempt else ""),
-                    len(got.history.best),
-                )
-            )
-            if kept is None or (got.blocks, got.value) > (kept.blocks, kept.value):
-                kept, kept_base = got, (quats[placed[0]] if base_q is None else base_q).copy()
-            if kept.blocks:
-                break
+        label = (
+            None if progress is None else (lambda it, best, _n=name: progress(f"place {_n}", best))
+        )
+
+        def place_one(base, q, rounds, _i=i, _label=label):
+            return place(
+                players[_i], player_b, base, q, particles=solver.particles,
+                iterations=solver.iterations, starts=solver.starts, steps=solver.steps,
+                learning_rate=solver.learning_rate, settings=layout, rng=rng, progress=_label,
+                memory=memory, recheck=recheck, rounds=rounds,
+            )  # fmt: skip
+
+        kept, kept_base = _best_try(
+            players, placed, quats, trans, tries, place_one, history, stages, name
+        )
         quats[i], trans[i], value = kept.quat, kept.trans, kept.value
         quats[placed[0]] = kept_base
         lost = lost or not kept.blocks
         placed.append(i)
     trans -= trans[order[0]]  # the first (largest) shape sits at the origin
     return Merged(quats, trans, value, history, stages)
+
+
+def _best_try(players, placed, quats, trans, tries, place_one, history, stages, name):
+    """Run the ``tries`` of one placement until one blocks; the best placement and base rotation.
+
+    Parameters
+    ----------
+    players, placed, quats, trans :
+        All A, the indices already placed, and the current rotations and translations.
+    tries : list of (base_q or None, q, rounds)
+        From :func:`_tries`.
+    place_one : callable
+        ``place_one(base_mask, q, rounds) -> Placement``.
+    history, stages :
+        Appended to (swarm values; one stage per try).
+    name : str
+        The shape's name, for the stage labels.
+
+    Returns
+    -------
+    Placement, (4,) ndarray
+        The placement kept and the base shape's rotation it was made against.
+    """
+    current = compose([players[j] for j in placed], quats[placed], trans[placed]).mask
+    kept, kept_base = None, quats[placed[0]]
+    for attempt, (base_q, q, rounds) in enumerate(tries):
+        base = current
+        if base_q is not None:  # the first pair, with another rotation of the base shape
+            base = compose([players[placed[0]]], base_q[None], trans[placed]).mask
+        got = place_one(base, q, rounds)
+        history.extend(got.history)
+        suffix = f" (try {attempt + 1})" if attempt else ""
+        stages.append((f"place {name}{suffix}", len(got.history.best)))
+        if kept is None or (got.blocks, got.value) > (kept.blocks, kept.value):
+            kept, kept_base = got, (quats[placed[0]] if base_q is None else base_q).copy()
+        if kept.blocks:
+            break
+    return kept, kept_base

@@ -184,47 +184,8 @@ class OverlapObjective:
         self._complement = integrator == "direct_projective"
         plugin = _silhouette_plugin(mi) if integrator == "silhouette" else "direct_projective"
         self._scenes, self._params = [], []
-        for s in shapes:
-            mesh = mi.Mesh(
-                s.name or "shape", len(s.vertices), len(s.faces), has_vertex_normals=False
-            )
-            mp = mi.traverse(mesh)
-            mp["vertex_positions"] = mi.Float(s.vertices.astype(np.float32).ravel())
-            mp["faces"] = mi.UInt32(s.faces.astype(np.uint32).ravel())
-            mp.update()
-            desc = {
-                "type": "scene",
-                # sppc = 0: the radiance never depends on the vertices except through visibility, so the
-                # continuous-derivative pass would add zeros; sppi = 0 and no guiding: there are no
-                # indirectly observed discontinuities to sample.
-                "integrator": {"type": plugin, "guiding": "none", "sppi": 0, "sppc": 0},
-                "sensor": {
-                    "type": "perspective",
-                    "fov": fov,
-                    "fov_axis": "x",
-                    "near_clip": 0.5 * d,
-                    "far_clip": 2.0 * d,
-                    "to_world": mi.ScalarTransform4f().look_at(
-                        origin=[0, 0, d], target=[0, 0, 0], up=[0, 1, 0]
-                    ),
-                    "film": {
-                        "type": "hdrfilm",
-                        "width": self.size,
-                        "height": self.size,
-                        "rfilter": {"type": "box"},
-                        "pixel_format": "luminance",
-                        "sample_border": True,
-                    },
-                    "sampler": {"type": "independent", "sample_count": self.spp},
-                },
-                "shape": mesh,
-            }
-            if self._complement:
-                desc["background"] = {
-                    "type": "constant",
-                    "radiance": {"type": "uniform", "value": 1.0},
-                }
-            scene = mi.load_dict(desc)
+        for shape in shapes:
+            scene = mi.load_dict(self._scene_description(shape, plugin, fov))
             params = mi.traverse(scene)
             if self._complement:
                 params["shape.bsdf.reflectance.value"] = 0.0
@@ -241,6 +202,47 @@ class OverlapObjective:
         self._in_frame = mi.Bool(inside)
         self._pose_shape = None
         self.pose_count = 0
+
+    def _scene_description(self, shape: Shape, plugin: str, fov: float) -> dict:
+        """The Mitsuba scene dictionary that renders ``shape``'s silhouette on the film."""
+        mi, d = self.mi, self.distance
+        mesh = mi.Mesh(
+            shape.name or "shape", len(shape.vertices), len(shape.faces), has_vertex_normals=False
+        )
+        mp = mi.traverse(mesh)
+        mp["vertex_positions"] = mi.Float(shape.vertices.astype(np.float32).ravel())
+        mp["faces"] = mi.UInt32(shape.faces.astype(np.uint32).ravel())
+        mp.update()
+        desc = {
+            "type": "scene",
+            # sppc = 0: the radiance never depends on the vertices except through visibility, so
+            # the continuous-derivative pass would add zeros; sppi = 0 and no guiding: there are
+            # no indirectly observed discontinuities to sample.
+            "integrator": {"type": plugin, "guiding": "none", "sppi": 0, "sppc": 0},
+            "sensor": {
+                "type": "perspective",
+                "fov": fov,
+                "fov_axis": "x",
+                "near_clip": 0.5 * d,
+                "far_clip": 2.0 * d,
+                "to_world": mi.ScalarTransform4f().look_at(
+                    origin=[0, 0, d], target=[0, 0, 0], up=[0, 1, 0]
+                ),
+                "film": {
+                    "type": "hdrfilm",
+                    "width": self.size,
+                    "height": self.size,
+                    "rfilter": {"type": "box"},
+                    "pixel_format": "luminance",
+                    "sample_border": True,
+                },
+                "sampler": {"type": "independent", "sample_count": self.spp},
+            },
+            "shape": mesh,
+        }
+        if self._complement:
+            desc["background"] = {"type": "constant", "radiance": {"type": "uniform", "value": 1.0}}
+        return desc
 
     def bind(self, pose_shape: np.ndarray) -> None:
         """Fix which shape each pose belongs to.

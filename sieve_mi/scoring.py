@@ -127,7 +127,22 @@ def score_poses(
         prot[sl] = worst
         if return_masks:
             masks[sl] = np.asarray(hit, dtype=bool).reshape(-1, size, size)
-    # A projection larger than a capped window cannot fit: never call it a fit.
+    _score_clipped(renderer, holes, quats, trans, pose_hole, (row0, col0, size), beta, prot)
+    scores = PoseScores(beta=beta, protrusion=prot)
+    if return_masks:
+        return scores, (row0, col0, size, masks)
+    return scores
+
+
+def _score_clipped(renderer, holes, quats, trans, pose_hole, window, beta, prot) -> None:
+    """Poses whose projection leaves their (capped) window: never a fit.
+
+    Their protrusion is at least the hole's outside distance at the corners of the projection's
+    bounding box and their β at least one pixel's worth; ``beta`` and ``prot`` (K,) are updated
+    in place. ``window`` is :func:`window_for`'s (row0, col0, size).
+    """
+    row0, col0, size = window
+    frame = holes[0].frame
     lo, hi = renderer.projected_extent(quats, trans)
     h = frame.pixel_size
     x0 = -frame.half_extent + (col0 + 0.5) * h
@@ -143,11 +158,7 @@ def score_poses(
             [[lo[k, 0], lo[k, 1]], [lo[k, 0], hi[k, 1]], [hi[k, 0], lo[k, 1]], [hi[k, 0], hi[k, 1]]]
         )
         prot[k] = max(prot[k], float(holes[pose_hole[k]].outside_distance(corners).max()))
-        beta[k] = max(beta[k], 1.0 / npix)
-    scores = PoseScores(beta=beta, protrusion=prot)
-    if return_masks:
-        return scores, (row0, col0, size, masks)
-    return scores
+        beta[k] = max(beta[k], 1.0 / (size * size))
 
 
 def mask_window(
