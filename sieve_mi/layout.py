@@ -2,17 +2,27 @@
 
 The sequential scheme of the paper: solve each A_i alone against all of B (Sec. 5.2), sort the A_i
 by silhouette area (largest first), start with H = the first one's hole, and add the others one by
-one. Each new A_i starts from in-plane rigid transforms of its own best rotation that are pushed
-into the current hole by gradient steps (the clearance loss of A_i, dilated, against H), and is
-then placed by a particle swarm (accelerations 0.05) maximising eq. 14,
+one (:func:`merge`). Each placement (:func:`place`) maximises eq. 14,
 
     tau/2 * tanh(rho * (beta_H - eta)) - alpha * area(H),
 
 where beta_H is player B's best beta against the new hole and area(H) is the hole's area as a
-fraction of the frame. A placement that splits the hole into several pieces is penalised by tau,
-so the final hole stays one simply connected region.
-"""
+fraction of the frame; a placement that splits the hole into several pieces is penalised by tau,
+so the final hole stays one simply connected region. How a placement is found (where the paper
+pushes random in-plane transforms into H by gradient steps):
 
+1. *Candidates*: every in-plane rotation (:data:`ANGLES` of them) and translation of A_i's own
+   best rotation that touches the current hole, scored exactly by FFT cross-correlation of the
+   dilated silhouette with H; the most compact filled holes first (:func:`candidate_placements`).
+2. *Screening*: ``SCREEN x particles`` distinct candidates get one short attack of B each; the best
+   ``particles`` start a particle swarm (accelerations ``c_personal``, ``c_global``).
+3. *Re-ranking*: the swarm's :data:`FINALISTS` best placements are attacked as long as the verdict
+   will attack, and the best survivor is kept.
+4. *Rounds*: while every finalist still lets some B through, the round is repeated (at most
+   ``[layout] rounds``); B's attacks remember the passing poses found so far.
+5. *Alternatives*: if the placement still fails, the next-best rotations of A_i (and, for the
+   first pair, of the base shape) from their own searches are tried (``[layout] alternatives``).
+"""
 from __future__ import annotations
 
 from collections.abc import Callable

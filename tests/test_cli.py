@@ -57,10 +57,12 @@ def test_solve_writes_every_output(write_scene, tmp_path):
     report = json.loads((out / "report.json").read_text())
     for key in ("winner", "pass", "block", "settings", "timings", "pixel_size"):
         assert key in report
-    assert report["winner"] in ("A", "B")
     b = report["block"][0]
-    for key in ("mesh", "loss", "blocked", "protrusion", "rotation", "translation"):
+    for key in ("mesh", "beta", "loss", "blocked", "protrusion", "rotation", "translation"):
         assert key in b
+    # the winner follows from the blocks: A iff every B is blocked (β > 0 and no fitting start)
+    assert report["winner"] == ("A" if all(x["blocked"] for x in report["block"]) else "B")
+    assert b["blocked"] == (b["beta"] > 0) and b["beta"] == b["loss"]
     assert len(report["pass"][0]["rotation"]) == 4 and len(b["translation"]) == 2
     assert set(report["timings"]) >= {"search_s", "verdict_s"}
     for f in (

@@ -76,6 +76,7 @@ def test_nlopt_methods_maximise(method):
         seed=0,
     )
     assert v > -0.5 and history.evaluations <= 3000
+    assert v == pytest.approx(-np.sum((x - target) ** 2))  # the value is that of the point returned
 
 
 def test_player_a_search_prefers_the_face_on_cube(cube20):

@@ -7,7 +7,8 @@ import os
 import numpy as np
 import pytest
 
-from sieve_mi.rotations import align
+from sieve_mi.hole import pieces
+from sieve_mi.rotations import align, to_matrix
 from sieve_mi.scene import load_scene
 from sieve_mi.solve import solve
 
@@ -167,3 +168,86 @@ def test_separate_layout_blocks_only_if_every_hole_blocks(write_scene):
     # the sphere went through the big cube's hole
     big = int(np.argmax([s.radius for s in r.pass_shapes]))
     assert np.linalg.norm(r.attack.trans[0, 0] - r.pass_trans[big]) < 6.0
+
+
+@pytest.mark.slow
+def test_two_equal_cubes_merged_still_block_the_ball(write_scene):
+    # Two 20 mm cubes, tolerance 1 mm, against the 24 mm sphere, in one merged hole. Face-on one
+    # cube needs a 22 mm square, whose inscribed disk is narrower than the ball: A can win, and
+    # the search must find it. By Steiner's formula the hole holds at least one cube's dilated
+    # projection, area >= 20^2 + 80 * 1 + pi * 1^2 (any projection of the cube has area >= 400 and
+    # perimeter >= 80), and being one hole for both it is a single piece.
+    cube, sphere = _mesh_path("cube.stl"), _mesh_path("sphere.stl")
+    body = (
+        f'name = "t"\n[[pass]]\nmesh = "{cube}"\n[[pass]]\nmesh = "{cube}"\n'
+        f'[[block]]\nmesh = "{sphere}"\n[fabrication]\ntolerance = 1.0\n'
+    )
+    r = solve(_scene(write_scene, body), progress=False)
+    h = r.hole.frame.pixel_size
+    assert r.winner == "A" and r.attack.blocked()[0, 0]
+    assert r.attack.beta[0, 0] > 0 and r.attack.protrusion[0, 0] > 0
+    assert r.hole.area >= 400 + 80 + np.pi - 2 * 84 * h
+    assert pieces(r.hole.mask) == 1
+
+
+@pytest.mark.slow
+def test_merged_hole_lets_the_ball_through_the_bigger_cube(write_scene):
+    # The second cube scaled 1.3 (26 mm) needs a 28 mm square: the 24 mm ball passes through it
+    # however the two are merged, so B wins with β = 0.
+    cube, sphere = _mesh_path("cube.stl"), _mesh_path("sphere.stl")
+    body = (
+        f'name = "t"\n[[pass]]\nmesh = "{cube}"\n[[pass]]\nmesh = "{cube}"\nscale = 1.3\n'
+        f'[[block]]\nmesh = "{sphere}"\n[fabrication]\ntolerance = 1.0\n'
+    )
+    r = solve(_scene(write_scene, body), progress=False)
+    assert r.winner == "B" and not r.attack.blocked()[0, 0]
+    assert r.attack.beta[0, 0] == 0.0
+
+
+@pytest.mark.slow
+def test_an_open_box_plays_exactly_like_the_closed_cube(write_scene):
+    # A 20 mm cube with its top removed (an open mesh) casts the closed cube's shadow in every
+    # direction: a line along the view meets the closed surface twice, at most once on the top.
+    # With the same seed the game must then make the same hole and the same verdict.
+    import trimesh
+
+    box = trimesh.creation.box((20.0, 20.0, 20.0))
+    top = np.flatnonzero(box.face_normals[:, 2] > 0.5)
+    open_box = box.copy()
+    open_box.update_faces(np.setdiff1d(np.arange(len(box.faces)), top))
+    assert not open_box.is_watertight and box.is_watertight
+    results = []
+    for name, mesh in (("open.stl", open_box), ("closed.stl", box)):
+        body = (
+            f'name = "t"\n[[pass]]\nmesh = "meshes/{name}"\n'
+            f'[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n[fabrication]\ntolerance = 1.0\n'
+        )
+        results.append(solve(load_scene(write_scene(body + FAST, {name: mesh})), progress=False))
+    opened, closed = results
+    assert opened.winner == closed.winner == "A"
+    assert np.array_equal(opened.hole.mask, closed.hole.mask)
+    assert opened.attack.beta[0, 0] == pytest.approx(closed.attack.beta[0, 0], abs=0.01)
+
+
+@pytest.mark.slow
+def test_a_flat_sheet_turns_edge_on_to_block_a_smaller_ball(write_scene):
+    # A 20 x 20 mm sheet of zero thickness (flat, open) with tolerance 1 mm: face-on its hole is a
+    # 22 mm square that a 21 mm ball passes; tilted by more than 18 degrees (20 cos t + 2 < 21)
+    # it blocks it. A must find such a tilt and win, with a hole narrower than the ball.
+    import trimesh
+
+    sheet = trimesh.Trimesh(
+        [[-10, -10, 0], [10, -10, 0], [10, 10, 0], [-10, 10, 0]], [[0, 1, 2], [0, 2, 3]]
+    )
+    ball = trimesh.creation.icosphere(4, 10.5)
+    body = (
+        'name = "t"\n[[pass]]\nmesh = "meshes/sheet.stl"\n[[block]]\nmesh = "meshes/ball.stl"\n'
+        "[fabrication]\ntolerance = 1.0\n"
+    )
+    r = solve(
+        load_scene(write_scene(body + FAST, {"sheet.stl": sheet, "ball.stl": ball})), progress=False
+    )
+    assert r.winner == "A"
+    tilt = np.degrees(np.arccos(abs(to_matrix(r.pass_quats[0])[2, 2])))
+    assert tilt > 15.0  # face-on (tilt 0) would let the ball through
+    assert r.attack.protrusion[0, 0] > 0.0

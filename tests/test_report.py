@@ -1,0 +1,95 @@
+"""report.json, the console table and the written images, on one small solved scene."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from sieve_mi.report import report_dict, summary_table, write_outputs
+from sieve_mi.scene import load_scene
+from sieve_mi.solve import solve
+
+MESHES = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
+SCENE = f"""name = "report test"
+[[pass]]
+mesh = "{MESHES}/cube.stl"
+[[block]]
+mesh = "{MESHES}/sphere.stl"
+[[block]]
+mesh = "{MESHES}/small_sphere.stl"
+[solver]
+resolution = 64
+particles = 3
+iterations = 1
+starts = 4
+steps = 20
+[verdict]
+starts = 8
+steps = 60
+resolution = 96
+"""
+
+
+@pytest.fixture(scope="module")
+def solved(tmp_path_factory):
+    path = tmp_path_factory.mktemp("scene") / "scene.toml"
+    path.write_text(SCENE)
+    return solve(load_scene(str(path)), progress=False)
+
+
+def test_report_numbers_are_the_results(solved):
+    r = solved
+    rep = report_dict(r)
+    assert rep["winner"] == r.winner
+    assert rep["winner"] == ("A" if all(b["blocked"] for b in rep["block"]) else "B")
+    for j, b in enumerate(rep["block"]):
+        assert b["beta"] == b["loss"] == pytest.approx(float(r.attack.beta[0, j]))
+        assert b["protrusion"] == pytest.approx(float(r.attack.protrusion[0, j]))
+        assert np.linalg.norm(b["rotation"]) == pytest.approx(1.0, abs=1e-6)
+    h = r.hole.frame.pixel_size
+    assert rep["pixel_size"] == h
+    assert rep["hole"]["area"] == pytest.approx(r.hole.mask.sum() * h * h)
+    assert rep["provenance"]["seed"] == r.seed == 0
+    json.loads(json.dumps(rep))  # plain JSON, no NumPy scalars
+
+
+def test_small_sphere_passes_the_cube_hole(solved):
+    # The 12 mm ball fits through any 20 mm cube's hole (every projection of the cube contains
+    # the projection of its inscribed 20 mm ball): it must be reported as passing, with β = 0.
+    rep = report_dict(solved)
+    small = next(b for b in rep["block"] if b["name"] == "small_sphere")
+    assert not small["blocked"] and small["beta"] == 0.0 and rep["winner"] == "B"
+
+
+def test_summary_table_has_one_row_per_shape(solved):
+    rep = report_dict(solved)
+    text = summary_table(rep)
+    lines = text.splitlines()
+    assert lines[0].split()[:3] == ["role", "shape", "beta"]
+    rows = [ln.split() for ln in lines[2:] if ln.startswith(("pass", "block"))]
+    assert [r[1] for r in rows] == ["cube", "sphere", "small_sphere"]
+    small = rows[2]
+    assert small[2] == "0.0000" and small[-1] == "PASSES"
+    assert f"winner: {rep['winner']}" in text
+
+
+def test_written_images_are_the_hole(solved, tmp_path):
+    import mitsuba as mi
+    from PIL import Image
+
+    out = tmp_path / "out"
+    rep = write_outputs(solved, str(out), fabricate=False)
+    on_disk = json.loads((out / "report.json").read_text())
+    assert on_disk["winner"] == rep["winner"] and on_disk["block"] == rep["block"]
+    png = np.array(Image.open(out / "hole.png")) > 127
+    exr = np.array(mi.Bitmap(str(out / "hole.exr"))).reshape(png.shape) > 0.5
+    assert np.array_equal(png, solved.hole.mask) and np.array_equal(exr, solved.hole.mask)
+    assert (out / ".sieve-mi").is_file()
+    assert {p.name for p in (out / "masks").iterdir()} >= {
+        "a_silhouette.exr",
+        "block_0_sphere.exr",
+        "block_1_small_sphere.exr",
+    }
