@@ -18,7 +18,7 @@ import numpy as np
 import trimesh
 
 from sieve_mi.meshes import Shape
-from sieve_mi.outline import hole_outline, placed_vertices, raster_agreement
+from sieve_mi.outline import hole_outline, is_closed, placed_vertices, raster_agreement
 
 
 @dataclass
@@ -198,15 +198,6 @@ UNIT_NAMES = {
     "micron": "micron",
     "ft": "foot",
 }
-
-
-def is_closed(shape: Shape) -> bool:
-    """Whether the shape's mesh is watertight and consistently wound (enables the front-face shortcut)."""
-    try:
-        m = trimesh.Trimesh(shape.vertices, shape.faces, process=False)
-        return bool(m.is_watertight and m.is_winding_consistent and m.volume > 0)
-    except Exception:  # noqa: BLE001 - any doubt means: use every triangle
-        return False
 
 
 def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:

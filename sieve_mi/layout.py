@@ -23,6 +23,7 @@ pushes random in-plane transforms into H by gradient steps):
 5. *Alternatives*: if the placement still fails, the next-best rotations of A_i (and, for the
    first pair, of the base shape) from their own searches are tried (``[layout] alternatives``).
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable

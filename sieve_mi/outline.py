@@ -19,6 +19,7 @@ import math
 
 import manifold3d
 import numpy as np
+import trimesh
 
 from sieve_mi.meshes import Shape
 from sieve_mi.raster import Frame
@@ -52,6 +53,15 @@ def placed_vertices(
     """
     v = shape.vertices @ to_matrix(np.asarray(quat, dtype=np.float64)).T
     return v + np.array([trans_xy[0], trans_xy[1], z])
+
+
+def is_closed(shape: Shape) -> bool:
+    """Whether the shape's mesh is watertight and consistently wound (enables the front-face shortcut)."""
+    try:
+        m = trimesh.Trimesh(shape.vertices, shape.faces, process=False)
+        return bool(m.is_watertight and m.is_winding_consistent and m.volume > 0)
+    except Exception:  # noqa: BLE001 - any doubt means: use every triangle
+        return False
 
 
 def projection(

@@ -71,6 +71,12 @@ def report_dict(result: Result) -> dict:
             "centre": [float(x) for x in shape.centre],
             "faces": shape.face_count,
         }
+        c = result.certified[j] if j < len(result.certified) else None
+        if c is not None:
+            row["certified"] = c.status
+            row["certification"] = c.to_dict()
+            if c.status == "passage":  # the exact hole lets it through: not blocked after all
+                row["blocked"] = False
         if attack.margin_beta is not None:
             row["margin_beta"] = float(attack.margin_beta[0, j])
             row["margin_loss"] = row["margin_beta"]
@@ -253,20 +259,25 @@ def _write_images(result: Result, tmp: str) -> None:
 def summary_table(report: dict) -> str:
     """A short plain-text table of the result, one row per shape."""
     units = report["units"]
+    proofs = any("certified" in b for b in report["block"])
     rows = [("role", "shape", "beta", f"protrusion ({units})", "result")]
+    rows[0] += ("certified",) if proofs else ()
     for p in report["pass"]:
         rows.append(("pass", p["name"], "-", "-", "passes (part of the hole)"))
+        rows[-1] += ("-",) if proofs else ()
     for b in report["block"]:
         rows.append(
             (
                 "block",
                 b["name"],
-                f"{b['loss']:.4f}",
+                f"{b['beta']:.4f}",
                 f"{b['protrusion']:.3f}",
                 "blocked" if b["blocked"] else "PASSES",
             )
         )
-    widths = [max(len(r[i]) for r in rows) for i in range(5)]
+        if proofs:
+            rows[-1] += (_certified_cell(b),)
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
     t = report["timings"]
@@ -279,6 +290,16 @@ def summary_table(report: dict) -> str:
     if hint:
         lines.append(hint)
     return "\n".join(lines)
+
+
+def _certified_cell(block: dict) -> str:
+    """The console's 'certified' cell of one B: the status and what it rests on."""
+    c = block.get("certification")
+    if c is None:
+        return "-"
+    if c["status"] == "undecided":
+        return f"undecided ({100 * c['excluded_fraction']:.1f} % excluded, {c['seconds']:.0f} s)"
+    return f"{c['status']} ({c['seconds']:.1f} s)"
 
 
 def merge_hint(report: dict) -> str | None:

@@ -241,6 +241,12 @@ class Verdict:
     resolution: int = setting(
         256, "raster side in pixels for the final hole and scores", minimum=16, maximum=4096
     )
+    certify: bool = setting(
+        False, "after the verdict, try to prove that each blocked B cannot pass the exact hole"
+    )
+    certify_budget: float = setting(
+        30.0, "time budget of each proof, seconds", minimum=0, exclusive_min=True
+    )
 
 
 @_documented

@@ -7,6 +7,7 @@ re-runs player B for longer against the chosen hole and declares the winner.
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -60,6 +61,11 @@ class Result:
     alone : list of float or None
         Per pass shape: its own search's value (the weakest B's loss against that shape's hole
         alone, short attack), or None where its rotation was fixed in the scene.
+    seed : int
+        The seed the run used.
+    certified : list of Certification or None
+        With ``[verdict] certify``: per B, the proof attempt against the exact hole (None where
+        the verdict let it through); empty otherwise.
     """
 
     scene: Scene
@@ -81,6 +87,7 @@ class Result:
     alone: list = field(default_factory=list)
     #: The seed the run used (``[solver] seed`` or the ``seed`` argument that overrode it).
     seed: int | None = None
+    certified: list = field(default_factory=list)
 
     @property
     def a_mask(self) -> np.ndarray:
@@ -279,9 +286,16 @@ def solve(
     )
     bar.close()
     timings["verdict_s"] = time.perf_counter() - t1
+    certified, winner = [], v.winner
+    if scene.verdict.certify:
+        t2 = time.perf_counter()
+        certified = _certify(scene, passes, blocks, found.quats, v, progress)
+        timings["certify_s"] = time.perf_counter() - t2
+        if any(c is not None and c.status == "passage" for c in certified):
+            winner = "B"
     return Result(
         scene=scene,
-        winner=v.winner,
+        winner=winner,
         pass_shapes=passes,
         block_shapes=blocks,
         pass_quats=found.quats,
@@ -298,4 +312,28 @@ def solve(
         timings=timings,
         alone=found.alone,
         seed=seed,
+        certified=certified,
     )
+
+
+def _certify(scene, passes, blocks, quats, v, progress: bool) -> list:
+    """Certify the verdict's blocked B (:func:`sieve_mi.certify.blocks.certify_blocks`).
+
+    A passage found through the exact hole overrules the verdict: it is added to ``v.warnings``.
+    """
+    from sieve_mi.certify.blocks import certify_blocks
+
+    def say(line: str) -> None:
+        if progress:
+            print(line, file=sys.stderr, flush=True)
+
+    certified = certify_blocks(
+        scene, passes, blocks, quats, v.trans, v.attack.blocked()[0], progress=say
+    )
+    for shape, c in zip(blocks, certified):
+        if c is not None and c.status == "passage":
+            v.warnings.append(
+                f"{shape.name} passes the exact hole in a pose the verdict's attack missed "
+                "(found by certify; pose in report.json): B wins"
+            )
+    return certified

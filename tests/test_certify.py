@@ -27,7 +27,7 @@ from sieve_mi.certify.bounds import OffsetCache, boundary_distance, contour_segm
 from sieve_mi.errors import SieveError
 from sieve_mi.meshes import shape_from_trimesh
 from sieve_mi.outline import hole_outline
-from sieve_mi.rotations import align
+from sieve_mi.rotations import align, to_matrix
 from sieve_mi.testing import shapes
 
 
@@ -276,3 +276,54 @@ def test_cli_bad_input_one_line_exit_2(tmp_path, args, message):
     assert run.returncode == 2
     lines = run.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("sieve-mi: error:") and message in lines[0]
+
+
+@pytest.mark.slow
+def test_solve_certifies_its_blocks_and_a_passage_overrules_the_verdict(write_scene):
+    # A: a 20 mm cube held face-on, tolerance 1 mm: the printed hole is a 22 mm square with
+    # rounded corners. B: the 24 mm ball (no 24 mm disk fits in a 22 mm square: proved) and a
+    # 21 mm cube, which passes face-on and turned by less than about 2.6 degrees in the plane
+    # (21 (|cos a| + |sin a|) <= 22). A verdict of one start and no Adam steps misses that
+    # passage; certify must find it through the exact hole and hand the win to B.
+    from sieve_mi.report import report_dict, summary_table
+    from sieve_mi.scene import load_scene
+    from sieve_mi.solve import solve
+
+    body = """name = "t"
+[[pass]]
+mesh = "meshes/a.stl"
+rotation = [1, 0, 0, 0]
+[[block]]
+mesh = "meshes/ball.stl"
+[[block]]
+mesh = "meshes/b.stl"
+[fabrication]
+tolerance = 1.0
+[solver]
+resolution = 64
+[verdict]
+starts = 1
+steps = 0
+resolution = 128
+certify = true
+certify_budget = 60
+"""
+    meshes = {
+        "a.stl": trimesh.creation.box((20.0, 20.0, 20.0)),
+        "b.stl": trimesh.creation.box((21.0, 21.0, 21.0)),
+        "ball.stl": trimesh.creation.icosphere(4, 12.0),
+    }
+    r = solve(load_scene(write_scene(body, meshes)), progress=False)
+    assert r.attack.blocked()[0].all()  # the weak verdict saw no passage
+    ball, cube = r.certified
+    assert ball.status == "proved" and ball.method == "ball"
+    assert cube.status == "passage"
+    q = np.asarray(cube.passage["quaternion"])
+    # the passage holds the cube nearly face-on: one of its axes within a few degrees of z
+    axis_z = np.abs(to_matrix(q)[2]).max()
+    assert axis_z > np.cos(np.radians(5.0))
+    assert r.winner == "B" and any("certify" in w for w in r.warnings)
+    rep = report_dict(r)
+    assert [b["certified"] for b in rep["block"]] == ["proved", "passage"]
+    assert [b["blocked"] for b in rep["block"]] == [True, False]
+    assert "passage" in summary_table(rep) and "proved" in summary_table(rep)
