@@ -270,7 +270,7 @@ def summary_table(report: dict) -> str:
             (
                 "block",
                 b["name"],
-                f"{b['beta']:.4f}",
+                f"{b.get('beta', b.get('loss')):.4f}",  # reports before 'beta' say 'loss'
                 f"{b['protrusion']:.3f}",
                 "blocked" if b["blocked"] else "PASSES",
             )
