@@ -28,10 +28,12 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.errors import SieveError
+from sieve_mi.exact import CANDIDATES, exact_rescore, union
 from sieve_mi.hole import Hole, split_pieces
 from sieve_mi.meshes import Shape, load_trimesh
-from sieve_mi.outline import filled, placed_vertices, projection, rasterize
+from sieve_mi.outline import filled, placed_vertices, projection
 from sieve_mi.raster import Frame
+from sieve_mi.verdict import REACH
 
 AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -240,23 +242,55 @@ def attempt(
     b = scaled(shape, s)
     player = PlayerB([b], holes[0].frame)
     rng = np.random.default_rng(settings.seed)
-    att = player.attack(holes, settings.starts, settings.steps, settings.learning_rate, rng)
+    keep = CANDIDATES if outlines is not None else 0
+    att = player.attack(
+        holes,
+        settings.starts,
+        settings.steps,
+        settings.learning_rate,
+        rng,
+        centres=_centres(holes),
+        keep=keep,
+    )
     order = np.lexsort((att.protrusion[:, 0], att.beta[:, 0]))
     k = int(order[0])
+    fits = int(att.fits.sum()) if outlines is not None else int(att.fits[k, 0])
+    if outlines is not None:  # the plate's exact holes decide (any of them may let it through)
+        att = exact_rescore(att, [b], union(outlines), reach=REACH * holes[0].frame.pixel_size)
+        k = _hole_of(att.trans[0, 0], outlines)
+    row = 0 if outlines is not None else k
     v = ShapeCheck(
         scale=float(s),
-        passes=bool(att.beta[k, 0] == 0),
-        beta=float(att.beta[k, 0]),
-        protrusion=float(att.protrusion[k, 0]),
-        rotation=[float(x) for x in att.quats[k, 0]],
-        translation=[float(x) for x in att.trans[k, 0]],
+        passes=bool(att.beta[row, 0] == 0),
+        beta=float(att.beta[row, 0]),
+        protrusion=float(att.protrusion[row, 0]),
+        rotation=[float(x) for x in att.quats[row, 0]],
+        translation=[float(x) for x in att.trans[row, 0]],
         hole=k,
-        fitting_starts=int(att.fits[k, 0]),
+        fitting_starts=fits,
     )
     if outlines is not None:
-        proj = projection(placed_vertices(b, att.quats[k, 0], att.trans[k, 0]), b.faces)
-        v.exact_outside_area = float((proj - outlines[k]).area())
+        proj = projection(placed_vertices(b, att.quats[0, 0], att.trans[0, 0]), b.faces)
+        v.exact_outside_area = float((proj - union(outlines)).area())
     return v
+
+
+def _centres(holes: list[Hole]) -> np.ndarray:
+    """Each hole's starts centred on its own pixels (scene units), (H, 2)."""
+    out = []
+    for h in holes:
+        rows, cols = np.nonzero(h.mask)
+        x, y = h.frame.centres()
+        out.append([x[cols].mean(), y[rows].mean()] if len(rows) else [0.0, 0.0])
+    return np.array(out)
+
+
+def _hole_of(xy: np.ndarray, outlines: list) -> int:
+    """Index of the outline nearest to point ``xy`` (the hole a pose is in)."""
+    from sieve_mi.exact import Boundary
+
+    d = [Boundary(o).signed(np.atleast_2d(xy))[0] for o in outlines]
+    return int(np.argmin(d))
 
 
 def fit_scale(evaluate, first: ShapeCheck, rel_tol: float, limit: int = 12) -> tuple[float, list]:
@@ -397,7 +431,7 @@ def _plate_holes(sieve: str, axis: str, resolution: int):
         lo, hi = np.asarray(o.bounds()[:2]), np.asarray(o.bounds()[2:])
         info.append({"area": float(o.area()), "centre": [float(c) for c in (lo + hi) / 2]})
     outlines = [o.translate([-centre[0], -centre[1]]) for o in outlines]
-    holes = [Hole.from_mask(rasterize(o, frame), frame) for o in outlines]
+    holes = [Hole.from_outline(o, frame) for o in outlines]
     return holes, outlines, centre, info, frame
 
 

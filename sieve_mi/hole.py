@@ -50,6 +50,30 @@ class Hole:
             outside = (ndimage.distance_transform_edt(~mask) * frame.pixel_size).astype(np.float32)
         return cls(frame=frame, mask=mask, outside=outside)
 
+    @classmethod
+    def from_outline(cls, section, frame: Frame) -> Hole:
+        """The raster of an exact outline H (a manifold3d CrossSection) on ``frame``.
+
+        ``outside`` is the distance from each pixel centre to H itself (not to other pixel
+        centres), zero at centres inside H, so losses see sub-pixel detail; ``mask`` is
+        conservative: every pixel whose centre lies within half a pixel diagonal of H, so no
+        part of H (a slot thinner than a pixel) disappears from the raster.
+        """
+        from sieve_mi.exact import Boundary
+
+        x, y = frame.centres()
+        xx, yy = np.meshgrid(x, y)
+        pts = np.column_stack([xx.ravel(), yy.ravel()])
+        boundary = Boundary(section, spacing=frame.pixel_size / 16)
+        if len(boundary.a) == 0:
+            return cls.from_mask(np.zeros((frame.resolution,) * 2, dtype=bool), frame)
+        signed = boundary.approx_signed(pts, exact_sign=True).reshape(
+            frame.resolution, frame.resolution
+        )
+        mask = signed <= frame.pixel_size * np.sqrt(0.5)
+        outside = np.maximum(signed, 0.0).astype(np.float32)
+        return cls(frame=frame, mask=mask, outside=outside)
+
     def outside_distance(self, xy: np.ndarray) -> np.ndarray:
         """Distance from points ``xy`` (..., 2) to H, scene units, by bilinear lookup.
 

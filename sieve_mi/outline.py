@@ -9,7 +9,7 @@ polygons:
 2. that union is offset outward by the tolerance with round joins. Round joins are polygons whose
    chords fall inside the true arcs, so the offset distance is raised by the chord sagitta and by
    the simplification tolerance: the outline never comes inward of the exact dilation
-   proj(A) + disk(tolerance), and lies at most a few per cent of the tolerance outside it;
+   proj(A) + disk(tolerance), and lies at most 0.3 % of the tolerance outside it;
 3. enclosed gaps are filled (only outer contours kept) when ``fill_holes`` is set.
 """
 
@@ -27,9 +27,9 @@ from sieve_mi.rotations import to_matrix
 
 #: Largest distance by which a round join's chords may fall short of the true arc, as a fraction of
 #: the tolerance (the offset is raised by this much so the outline is never inside the exact one).
-ARC_ERROR = 0.01
+ARC_ERROR = 0.002
 #: Simplification tolerance as a fraction of the tolerance (the offset is raised by it too).
-SIMPLIFY = 0.01
+SIMPLIFY = 0.001
 
 
 def placed_vertices(
@@ -119,7 +119,7 @@ def round_segments(tolerance: float, arc_error: float = ARC_ERROR) -> int:
 
 
 def dilated(section: manifold3d.CrossSection, tolerance: float) -> manifold3d.CrossSection:
-    """Outward offset by ``tolerance`` that contains the exact dilation and stays within ~3 % of it.
+    """Outward offset by ``tolerance`` that contains the exact dilation and stays within 0.3 % of it.
 
     Parameters
     ----------

@@ -47,6 +47,11 @@ class Attack:
         The best pose per hole and shape (translation in scene units).
     fits : (H, B) ndarray of int
         How many starts ended in a pose that fits (beta == 0).
+    candidates : tuple of ((H, B, K, 4), (H, B, K, 2)) ndarrays, optional
+        The K best poses per hole and shape by raster score (best first), for exact rescoring
+        (:mod:`sieve_mi.exact`); set when the attack was asked to keep them.
+    margin_beta, margin_protrusion : (H, B) ndarrays, optional
+        Scores against the hole grown by the block margin (the ones that decide ``blocked``).
     """
 
     beta: np.ndarray
@@ -54,6 +59,7 @@ class Attack:
     quats: np.ndarray
     trans: np.ndarray
     fits: np.ndarray
+    candidates: tuple | None = None
     margin_beta: np.ndarray | None = None
     margin_protrusion: np.ndarray | None = None
 
@@ -162,6 +168,7 @@ class PlayerB:
         progress: Callable[[int], None] | None = None,
         centres: np.ndarray | None = None,
         memory: AttackMemory | None = None,
+        keep: int = 0,
     ) -> Attack:
         """Player B's best attempt on each hole, for each shape.
 
@@ -181,12 +188,15 @@ class PlayerB:
         rng : numpy.random.Generator
         progress : callable, optional
             Called with the number of steps done after each step.
-        centres : (H, 2) ndarray, optional
-            Where each hole's starts are centred (scene units); default the origin.
+        centres : (H, 2) or (H, C, 2) ndarray, optional
+            Where each hole's starts are centred (scene units); default the origin. With C
+            centres per hole, start ``s`` is centred on centre ``s % C``.
         memory : AttackMemory, optional
             B's remembered best poses replace the first random starts of every hole (at most
             ``starts - 1`` per shape, so at least one start stays random); the memory is then
             updated with this attack's results.
+        keep : int
+            Keep the ``keep`` best poses per hole and shape in ``Attack.candidates``.
         """
         n_h, n_b = len(holes), len(self.shapes)
         k = n_h * n_b * starts
@@ -195,7 +205,10 @@ class PlayerB:
         q0 = random_uniform(k, rng)
         t0 = rng.uniform(-0.1, 0.1, size=(k, 2)) * self.frame.half_extent
         if centres is not None:
-            t0 += np.asarray(centres, dtype=np.float64)[pose_hole]
+            c = np.asarray(centres, dtype=np.float64)
+            c = c[:, None, :] if c.ndim == 2 else c
+            which = np.tile(np.arange(starts) % c.shape[1], n_h * n_b)
+            t0 += c[pose_hole, which]
         if memory is not None:
             q0, t0 = q0.reshape(n_h, n_b, starts, 4), t0.reshape(n_h, n_b, starts, 2)
             for b in range(n_b):
@@ -206,7 +219,7 @@ class PlayerB:
         quats, trans = self.descend(
             holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress
         )
-        attack = self._score(holes, quats, trans, pose_hole, pose_shape, starts)
+        attack = self._score(holes, quats, trans, pose_hole, pose_shape, starts, keep)
         if memory is not None:
             memory.update(attack)
         return attack
@@ -283,7 +296,7 @@ class PlayerB:
         final = np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
         return normalize(final[:, :4]), final[:, 4:] * scale
 
-    def _score(self, holes, quats, trans, pose_hole, pose_shape, starts) -> Attack:
+    def _score(self, holes, quats, trans, pose_hole, pose_shape, starts, keep=0) -> Attack:
         n_h, n_b = len(holes), len(self.shapes)
         beta = np.ones(len(quats))
         prot = np.zeros(len(quats))
@@ -296,11 +309,20 @@ class PlayerB:
         beta = beta.reshape(n_h, n_b, starts)
         prot = prot.reshape(n_h, n_b, starts)
         # Best start: lowest beta, then lowest protrusion.
-        best = np.argmin(beta + 1e-9 * prot / (1.0 + prot), axis=-1)
+        key = beta + 1e-9 * prot / (1.0 + prot)
+        best = np.argmin(key, axis=-1)
         idx = np.arange(n_h)[:, None], np.arange(n_b)[None, :]
         qs = quats.reshape(n_h, n_b, starts, 4)
         ts = trans.reshape(n_h, n_b, starts, 2)
+        candidates = None
+        if keep > 0:
+            order = np.argsort(key, axis=-1, kind="stable")[..., : min(keep, starts)]
+            candidates = (
+                np.take_along_axis(qs, order[..., None], axis=2),
+                np.take_along_axis(ts, order[..., None], axis=2),
+            )
         return Attack(
+            candidates=candidates,
             beta=beta[idx + (best,)],
             protrusion=prot[idx + (best,)],
             quats=qs[idx + (best,)],

@@ -65,6 +65,7 @@ def report_dict(result: Result) -> dict:
             "loss": beta,  # the same β, under its old name (kept for compatibility)
             "blocked": bool(attack.blocked()[0, j]),
             "protrusion": float(attack.protrusion[0, j]),
+            "verdict": "exact-polygon",
             "rotation": [float(x) for x in attack.quats[0, j]],
             "translation": [float(x) for x in attack.trans[0, j]],
             "fitting_starts": int(attack.fits[0, j]),
@@ -89,7 +90,8 @@ def report_dict(result: Result) -> dict:
         "pass": passes,
         "block": blocks,
         "hole": {
-            "area": hole.area,
+            "area": float(result.outline.area()) if result.outline is not None else hole.area,
+            "raster_area": hole.area,
             "resolution": hole.frame.resolution,
             "half_extent": hole.frame.half_extent,
         },

@@ -39,7 +39,9 @@ class Result:
     pass_trans : (m, 2) ndarray
         Each A's translation in the hole's frame, scene units (the first is at the origin).
     hole : Hole
-        The verdict's hole (at the verdict resolution).
+        The verdict's hole raster (at the verdict resolution), made from ``outline``.
+    outline : manifold3d.CrossSection or None
+        The exact hole H that is printed and that decided the verdict (scene units).
     a_masks : list of (N, N) bool ndarrays
         Each A's undilated silhouette at its placement, on the hole's frame.
     attack : Attack
@@ -88,6 +90,7 @@ class Result:
     #: The seed the run used (``[solver] seed`` or the ``seed`` argument that overrode it).
     seed: int | None = None
     certified: list = field(default_factory=list)
+    outline: object = None
 
     @property
     def a_mask(self) -> np.ndarray:
@@ -313,6 +316,7 @@ def solve(
         alone=found.alone,
         seed=seed,
         certified=certified,
+        outline=v.outline,
     )
 
 

@@ -1,7 +1,9 @@
 """The verdict: a long re-run of player B against the hole player A chose, which names the winner.
 
 Player B attacks the final hole (paper Sec. 6.1: 100 starts x 500 Adam steps by default); A wins
-iff no shape of B fits in any of its attempts. With ``[fabrication] block_margin``, B must also fail
+iff no shape of B fits in any of its attempts. The attack runs on the raster; its best poses are
+then polished and scored exactly against the polygon H that gets printed (:mod:`sieve_mi.exact`),
+and only those exact scores decide. With ``[fabrication] block_margin``, B must also fail
 against the hole grown by that margin (paper Fig. 14). With ``[layout] mode = "separate"``, B is
 attacked on every hole and passes the sieve if it passes any one of them.
 """
@@ -13,12 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sieve_mi.hole import Hole, build_hole, pieces
+from sieve_mi.errors import SieveError
+from sieve_mi.exact import CANDIDATES, exact_rescore, union
+from sieve_mi.hole import Hole
 from sieve_mi.layout import frame_for, separate_layout
 from sieve_mi.meshes import Shape
+from sieve_mi.outline import dilated, hole_outline, is_closed
 from sieve_mi.players import Attack, PlayerA, PlayerB
 from sieve_mi.scene import Scene
-from sieve_mi.scoring import mask_window, score_poses
+from sieve_mi.scoring import mask_window
 
 
 @dataclass
@@ -29,13 +34,16 @@ class Judgement:
     ----------
     winner : {"A", "B"}
     hole : Hole
-        The final hole (all of A's holes together) at the verdict resolution.
+        The raster of the final hole (all of A's holes together) at the verdict resolution, made
+        from ``outline`` (:meth:`Hole.from_outline`).
+    outline : manifold3d.CrossSection
+        The exact hole H that gets printed; every score in ``attack`` is against it.
     trans : (m, 2) ndarray
         Each A's translation, scene units (the separate layout's places, or the search's).
     a_masks : list of (N, N) bool ndarrays
         Each A's undilated silhouette at its place on ``hole``'s frame.
     attack : Attack
-        One row: per B, its best attempt over the holes.
+        One row: per B, its best attempt over the holes, scored exactly against ``outline``.
     block_masks : list of MaskWindow
         Each B's silhouette in that attempt.
     warnings : list of str
@@ -43,11 +51,16 @@ class Judgement:
 
     winner: str
     hole: Hole
+    outline: object
     trans: np.ndarray
     a_masks: list
     attack: Attack
     block_masks: list
     warnings: list
+
+
+#: The exact polish is tried on poses that stick out by at most this many pixels.
+REACH = 3.0
 
 
 def weakest_hole(attack: Attack) -> Attack:
@@ -74,6 +87,56 @@ def _groups(count: int, separate: bool) -> list[list[int]]:
     return [[i] for i in range(count)] if separate else [list(range(count))]
 
 
+def exact_holes(
+    passes: list[Shape], quats: np.ndarray, trans: np.ndarray, groups: list[list[int]], fab
+) -> list:
+    """The exact outline of each hole (one per group of A), as manifold3d CrossSections.
+
+    Raises
+    ------
+    SieveError
+        When a hole has zero area (A seen edge-on with no tolerance): no hole, no verdict.
+    """
+    closed = [is_closed(p) for p in passes]
+    outlines = []
+    for g in groups:
+        o = hole_outline(
+            [passes[i] for i in g],
+            quats[g],
+            trans[g],
+            fab.tolerance,
+            fab.fill_holes,
+            closed=[closed[i] for i in g],
+        )
+        if o.is_empty() or o.area() <= 0:
+            names = ", ".join(passes[i].name for i in g)
+            raise SieveError(
+                f"the hole of {names} has zero area: the shape is seen edge-on and "
+                "[fabrication] tolerance is 0; set a positive tolerance or another rotation"
+            )
+        outlines.append(o)
+    return outlines
+
+
+def start_centres(outlines: list, trans: np.ndarray, groups: list[list[int]]) -> np.ndarray:
+    """Where each hole's verdict starts are centred: every piece of it and every A in it.
+
+    Returns
+    -------
+    (H, C, 2) ndarray
+        Scene units; holes with fewer than C places repeat theirs.
+    """
+    per_hole = []
+    for o, g in zip(outlines, groups):
+        places = [np.asarray(trans[i], dtype=np.float64) for i in g]
+        for piece in o.decompose():
+            lo, hi = np.asarray(piece.bounds()[:2]), np.asarray(piece.bounds()[2:])
+            places.append((lo + hi) / 2)
+        per_hole.append(np.array(places))
+    c = max(len(p) for p in per_hole)
+    return np.stack([np.resize(p, (c, 2)) for p in per_hole])
+
+
 def judge(
     scene: Scene,
     passes: list[Shape],
@@ -84,6 +147,11 @@ def judge(
     progress: Callable[[int], None] | None = None,
 ) -> Judgement:
     """Attack the hole made by A at its placements and declare the winner.
+
+    Player B's raster attack (Adam from ``[verdict] starts``, spread over every piece of the hole
+    and every placed A) proposes :data:`~sieve_mi.exact.CANDIDATES` poses per shape and hole;
+    each is polished and scored exactly against the polygon H (grown by the block margin), and
+    only those exact scores decide.
 
     Parameters
     ----------
@@ -112,46 +180,32 @@ def judge(
         frame = frame_for(passes, fab.tolerance, v.resolution, trans)
     players = [PlayerA(p, frame, fab.tolerance, fab.fill_holes) for p in passes]
     a_masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(players, quats, trans)]
-    hole = build_hole(a_masks, frame, fab.tolerance, fab.fill_holes)
-    warnings = []
-    if len(passes) > 1 and not separate and pieces(hole.mask) > 1:
-        warnings.append("the merged hole is not connected")
     groups = _groups(len(passes), separate)
-
-    def holes_grown_by(margin: float) -> list[Hole]:
-        if not separate and margin == 0:
-            return [hole]
-        return [
-            build_hole([a_masks[i] for i in g], frame, fab.tolerance + margin, fab.fill_holes)
-            for g in groups
-        ]
-
+    outlines = exact_holes(passes, np.asarray(quats), trans, groups, fab)
+    outline = union(outlines)
+    hole = Hole.from_outline(outline, frame)
+    warnings = []
+    if len(passes) > 1 and not separate and len(outline.decompose()) > 1:
+        warnings.append("the merged hole is not connected")
+    grown = [dilated(o, fab.block_margin) for o in outlines] if fab.block_margin > 0 else outlines
     player_b = PlayerB(blocks, frame, "clearance")
-    centres = np.array([trans[g].mean(axis=0) for g in groups]) if separate else None
     attack = player_b.attack(
-        holes_grown_by(fab.block_margin),
+        [Hole.from_outline(g, frame) for g in grown],
         v.starts,
         v.steps,
         scene.solver.learning_rate,
         rng,
         progress=progress,
-        centres=centres,
+        centres=start_centres(grown, trans, groups),
+        keep=CANDIDATES,
     )
-    attack = weakest_hole(attack)
-    if fab.block_margin > 0:
-        _rescore_against(attack, player_b, hole)
+    margin = fab.block_margin > 0
+    attack = exact_rescore(
+        attack, blocks, union(grown), outline if margin else None, reach=REACH * frame.pixel_size
+    )
     block_masks = [
         mask_window(r, hole, attack.quats[0, j], attack.trans[0, j])
         for j, r in enumerate(player_b.renderers)
     ]
     winner = "A" if bool(np.all(attack.blocked()[0])) else "B"
-    return Judgement(winner, hole, trans, a_masks, attack, block_masks, warnings)
-
-
-def _rescore_against(attack: Attack, player_b: PlayerB, hole: Hole) -> None:
-    """Keep the margin scores aside and score each best pose against the hole itself."""
-    attack.margin_beta = attack.beta.copy()
-    attack.margin_protrusion = attack.protrusion.copy()
-    for j, r in enumerate(player_b.renderers):
-        sc = score_poses(r, hole, attack.quats[0, j : j + 1], attack.trans[0, j : j + 1])
-        attack.beta[0, j], attack.protrusion[0, j] = sc.beta[0], sc.protrusion[0]
+    return Judgement(winner, hole, outline, trans, a_masks, attack, block_masks, warnings)

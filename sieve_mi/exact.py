@@ -1,0 +1,448 @@
+"""Exact verdicts: scoring and polishing poses of B against the polygon H that gets printed.
+
+The search works on rasters; everything that decides a result is computed here on polygons
+(manifold3d cross-sections, see :mod:`sieve_mi.outline`):
+
+* :func:`score` gives a pose's exact β = area(S \\ H) / area(S), with S the union of B's projected
+  triangles, and its protrusion: the largest distance from the boundary of S \\ H to H (the
+  boundary sampled finely; a pocket of S \\ H enclosed by H on all sides could hide a larger
+  interior value, so it is a lower bound there). A pose fits iff the protrusion is at most
+  :data:`FIT_EPS` times the hole's size, i.e. only floating-point noise sticks out.
+* :func:`polish` is player B's sub-pixel endgame: from a raster attack's pose it minimises the
+  squared outside distances of B's outline points to the exact boundary of H (scipy's
+  least-squares on rotation vector and translation). A slot whose margin is a small fraction of a
+  pixel is found this way; the raster alone cannot see it.
+* :func:`best_exact` polishes and scores a few candidate poses per shape and keeps the best;
+  :func:`exact_rescore` does it for every shape of a raster attack (the verdict and ``check``).
+
+Distances to H use its exact sign (even-odd point-in-polygon) and the distance to a dense sampling
+of its boundary (at most half the sample spacing off) while polishing, and exact point-to-segment
+distances when scoring.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import manifold3d
+import numpy as np
+
+from sieve_mi.meshes import Shape
+from sieve_mi.outline import is_closed, placed_vertices, projection
+from sieve_mi.rotations import from_rotvec, normalize, quat_multiply
+
+#: A pose fits when nothing sticks out by more than this fraction of the hole's size (float noise).
+FIT_EPS = 1e-7
+#: Raster candidates per shape that are polished and scored exactly.
+CANDIDATES = 8
+
+
+class Boundary:
+    """The exact outline of a region, for signed distances.
+
+    Parameters
+    ----------
+    section : manifold3d.CrossSection
+        The region (even-odd over its contours).
+    spacing : float, optional
+        Sample spacing along the boundary for :meth:`approx_signed`, scene units (default: 1/2000
+        of the region's size).
+
+    Attributes
+    ----------
+    a, b : (E, 2) ndarrays
+        Each boundary segment's end points, scene units.
+    size : float
+        The larger side of the region's bounding box, scene units.
+    """
+
+    def __init__(self, section: manifold3d.CrossSection, spacing: float | None = None):
+        from matplotlib.path import Path
+
+        self.contours = [np.asarray(c, dtype=np.float64) for c in section.to_polygons()]
+        self.paths = [Path(c) for c in self.contours]
+        if self.contours:
+            self.a = np.concatenate(self.contours)
+            self.b = np.concatenate([np.roll(c, -1, axis=0) for c in self.contours])
+            lo, hi = self.a.min(0), self.a.max(0)
+            self.size = float(max(hi - lo))
+        else:
+            self.a = self.b = np.zeros((0, 2))
+            self.size = 0.0
+        self.spacing = spacing if spacing is not None else max(self.size, 1e-12) / 2000
+        self._tree = None
+
+    def inside(self, xy: np.ndarray) -> np.ndarray:
+        """(P,) bool: points (P, 2) inside the region (even-odd over the contours)."""
+        xy = np.atleast_2d(xy)
+        count = np.zeros(len(xy), dtype=np.int32)
+        for p in self.paths:
+            count += p.contains_points(xy)
+        return count % 2 == 1
+
+    def distance(self, xy: np.ndarray, chunk: int = 1 << 22) -> np.ndarray:
+        """(P,) exact distances from points (P, 2) to the boundary, scene units."""
+        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
+        if len(self.a) == 0:
+            return np.full(len(xy), np.inf)
+        out = np.empty(len(xy))
+        d = self.b - self.a
+        dd = np.maximum((d * d).sum(1), 1e-300)
+        per = max(1, chunk // len(self.a))
+        for s in range(0, len(xy), per):
+            p = xy[s : s + per, None, :]
+            t = np.clip(((p - self.a) * d).sum(-1) / dd, 0.0, 1.0)
+            q = self.a + t[..., None] * d
+            out[s : s + per] = np.sqrt(((p - q) ** 2).sum(-1).min(1))
+        return out
+
+    def signed(self, xy: np.ndarray) -> np.ndarray:
+        """(P,) exact signed distances: positive outside the region, negative inside."""
+        dist = self.distance(xy)
+        return np.where(self.inside(xy), -dist, dist)
+
+    def approx_signed(self, xy: np.ndarray, exact_sign: bool = False) -> np.ndarray:
+        """Signed distances to a boundary sampled every ``spacing`` (fast: a k-d tree).
+
+        The magnitude is at most half the spacing off. The sign comes from the nearest sample's
+        outward normal (the mean of both edges' normals at a corner), which can be wrong only
+        within about a spacing of the boundary; ``exact_sign`` takes it from the exact
+        point-in-polygon test instead (slower on long outlines).
+        """
+        if self._tree is None:
+            self._build_tree()
+        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
+        dist, k = self._tree.query(xy)
+        if exact_sign:
+            return np.where(self.inside(xy), -dist, dist)
+        side = ((xy - self._samples[k]) * self._normals[k]).sum(-1)
+        return np.where(side < 0, -dist, dist)
+
+    def _build_tree(self) -> None:
+        from scipy.spatial import cKDTree
+
+        seg = self.b - self.a
+        # Region on the left of every edge (manifold3d: outer contours CCW, holes CW).
+        normal = np.column_stack([seg[:, 1], -seg[:, 0]])
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        prev = np.concatenate([np.roll(np.arange(len(c)), 1) for c in self.contours])
+        prev += np.repeat(
+            np.cumsum([0] + [len(c) for c in self.contours[:-1]]), [len(c) for c in self.contours]
+        )
+        n = np.maximum(1, np.ceil(np.linalg.norm(seg, axis=1) / self.spacing)).astype(int)
+        idx = np.repeat(np.arange(len(seg)), n)
+        first = np.repeat(np.cumsum(n) - n, n)
+        t = (np.arange(n.sum()) - first) / np.repeat(n, n)
+        normals = normal[idx].copy()
+        corner = np.arange(n.sum()) == first  # the sample at a segment's start is a corner
+        normals[corner] += normal[prev[idx[corner]]]
+        self._samples = self.a[idx] + t[:, None] * seg[idx]
+        self._normals = normals
+        self._tree = cKDTree(self._samples)
+
+
+@dataclass
+class ExactScore:
+    """A pose's exact score against H.
+
+    Attributes
+    ----------
+    beta : float
+        area(S \\ H) / area(S); 0 when the pose fits.
+    protrusion : float
+        Largest distance from S \\ H to H, scene units; 0 when the pose fits.
+    outside_area : float
+        area(S \\ H), square scene units.
+    """
+
+    beta: float
+    protrusion: float
+    outside_area: float
+
+    @property
+    def fits(self) -> bool:
+        return self.protrusion == 0.0
+
+
+def silhouette(shape: Shape, quat, trans, closed: bool = False) -> manifold3d.CrossSection:
+    """B's exact silhouette S at a pose: the union of its projected triangles."""
+    return projection(placed_vertices(shape, quat, trans), shape.faces, closed=closed)
+
+
+def _samples_on(section: manifold3d.CrossSection, spacing: float) -> np.ndarray:
+    """Points along every contour of ``section``, at most ``spacing`` apart, (P, 2)."""
+    pts = []
+    for c in section.to_polygons():
+        c = np.asarray(c, dtype=np.float64)
+        seg = np.roll(c, -1, axis=0) - c
+        n = np.maximum(1, np.ceil(np.linalg.norm(seg, axis=1) / spacing)).astype(int)
+        idx = np.repeat(np.arange(len(c)), n)
+        t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+        pts.append(c[idx] + t[:, None] * seg[idx])
+    return np.concatenate(pts) if pts else np.zeros((0, 2))
+
+
+def score(
+    shape: Shape,
+    quat,
+    trans,
+    hole: manifold3d.CrossSection,
+    boundary: Boundary,
+    closed: bool = False,
+) -> ExactScore:
+    """Exact β and protrusion of one pose of ``shape`` against the polygon ``hole``.
+
+    Parameters
+    ----------
+    shape : Shape
+    quat : (4,) array_like
+        Rotation (w, x, y, z).
+    trans : (2,) array_like
+        Translation in the hole's plane, scene units.
+    hole : manifold3d.CrossSection
+        H.
+    boundary : Boundary
+        ``Boundary(hole)``.
+    closed : bool
+        The mesh is watertight (projection shortcut, see :func:`sieve_mi.outline.projection`).
+
+    Returns
+    -------
+    ExactScore
+
+    Examples
+    --------
+    A 1 x 1 square peg turned 45° in a 1.2 x 1.2 square hole sticks out at its four corners by
+    sqrt(2)/2 - 0.6 each (see ``tests/test_exact.py``).
+    """
+    s = silhouette(shape, quat, trans, closed)
+    eps = FIT_EPS * max(boundary.size, shape.radius)
+    area = float(s.area())
+    if area <= 0.0:  # seen edge-on: a flat shape's silhouette is a segment; use its vertices
+        v = placed_vertices(shape, quat, trans)[:, :2]
+        prot = float(max(0.0, boundary.signed(v).max()))
+        prot = 0.0 if prot <= eps else prot
+        return ExactScore(beta=0.0 if prot == 0 else 1.0, protrusion=prot, outside_area=0.0)
+    out = s - hole
+    out_area = float(out.area())
+    prot = 0.0
+    if not out.is_empty():
+        pts = _samples_on(out, boundary.spacing)
+        prot = float(max(0.0, boundary.signed(pts).max())) if len(pts) else 0.0
+    if prot <= eps:
+        return ExactScore(beta=0.0, protrusion=0.0, outside_area=out_area)
+    return ExactScore(beta=out_area / area, protrusion=prot, outside_area=out_area)
+
+
+def outline_points(shape: Shape, quat, trans, spacing: float, closed: bool = False) -> np.ndarray:
+    """Body-frame points (P, 3) whose projections trace B's silhouette outline at a pose.
+
+    Mesh vertices and edge samples (``spacing`` apart) that project within two spacings of the
+    outline of S; for a small change of pose they still trace it, which is what :func:`polish`
+    needs.
+    """
+    from sieve_mi.meshes import edge_topology
+    from sieve_mi.rotations import to_matrix
+
+    v = shape.vertices
+    edges = edge_topology(v, shape.faces)[0]
+    seg = v[edges[:, 1]] - v[edges[:, 0]]
+    n = np.maximum(1, np.ceil(np.linalg.norm(seg, axis=1) / spacing)).astype(int)
+    n = np.minimum(n, 64)
+    idx = np.repeat(np.arange(len(edges)), n)
+    t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+    body = np.concatenate([v, v[edges[idx, 0]] + t[:, None] * seg[idx]])
+    xy = (body @ to_matrix(np.asarray(quat, dtype=np.float64)).T)[:, :2] + np.asarray(trans)
+    outline = Boundary(silhouette(shape, quat, trans, closed), spacing)
+    if len(outline.a) == 0:
+        return body
+    near = outline.approx_signed(xy) > -2 * spacing
+    return body[near]
+
+
+def polish(
+    shape: Shape,
+    quat,
+    trans,
+    boundary: Boundary,
+    *,
+    closed: bool = False,
+    spacing: float | None = None,
+    max_nfev: int = 100,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Slide one pose of ``shape`` into H using exact distances (player B's sub-pixel endgame).
+
+    Minimises the sum over B's outline points of max(0, d_H(p) + m)^2, with d_H the signed
+    distance to H and m a small clearance target (a thousandth of the sample spacing), over a
+    rotation vector applied before ``quat`` and a translation.
+
+    Parameters
+    ----------
+    shape : Shape
+    quat : (4,) ndarray
+    trans : (2,) ndarray
+        Starting pose (scene units).
+    boundary : Boundary
+        H's boundary.
+    closed : bool
+    spacing : float, optional
+        Spacing of B's outline points, scene units (default: 1/200 of B's diameter).
+    max_nfev : int
+        Most residual evaluations.
+
+    Returns
+    -------
+    quat : (4,) ndarray
+    trans : (2,) ndarray
+        The polished pose (the start when nothing improved).
+    """
+    from scipy.optimize import least_squares
+
+    from sieve_mi.rotations import to_matrix
+
+    quat = normalize(np.asarray(quat, dtype=np.float64))
+    trans = np.asarray(trans, dtype=np.float64)
+    spacing = spacing if spacing is not None else shape.radius / 100
+    body = outline_points(shape, quat, trans, spacing, closed)
+    margin = 1e-3 * boundary.spacing
+    scale = max(shape.radius, 1e-12)
+
+    def pose(x):
+        q = normalize(quat_multiply(quat, from_rotvec(x[:3])))
+        return q, trans + x[3:] * scale
+
+    def residual(x):
+        q, t = pose(x)
+        xy = (body @ to_matrix(q).T)[:, :2] + t
+        return np.maximum(0.0, boundary.approx_signed(xy) + margin) / scale
+
+    r0 = residual(np.zeros(5))
+    if not np.any(r0 > 0):
+        return quat, trans
+    fit = least_squares(
+        residual, np.zeros(5), method="trf", diff_step=1e-6, max_nfev=max_nfev, x_scale=1.0
+    )
+    if fit.cost >= 0.5 * float(r0 @ r0):
+        return quat, trans
+    return pose(fit.x)
+
+
+def _same_pose(q1, t1, q2, t2, radius: float, rel: float = 1e-3) -> bool:
+    """Two poses move no point of a shape of ``radius`` by more than ``rel * radius``."""
+    angle = 2.0 * np.arccos(min(1.0, abs(float(np.dot(q1, q2)))))
+    return angle * radius + float(np.linalg.norm(np.subtract(t1, t2))) <= rel * radius
+
+
+@dataclass
+class ExactAttempt:
+    """The best exactly scored pose of one shape."""
+
+    quat: np.ndarray
+    trans: np.ndarray
+    score: ExactScore
+
+
+def best_exact(
+    shape: Shape,
+    quats: np.ndarray,
+    trans: np.ndarray,
+    hole: manifold3d.CrossSection,
+    boundary: Boundary,
+    *,
+    closed: bool = False,
+    reach: float = np.inf,
+) -> ExactAttempt:
+    """Polish every candidate pose and keep the best by exact (β, protrusion).
+
+    Parameters
+    ----------
+    shape : Shape
+    quats : (K, 4) ndarray
+    trans : (K, 2) ndarray
+        Candidate poses (e.g. a raster attack's best starts), scene units.
+    hole : manifold3d.CrossSection
+    boundary : Boundary
+        ``Boundary(hole)``.
+    closed : bool
+    reach : float
+        Polish only poses that stick out by at most this much (scene units); the raster attack
+        already resolved larger protrusions, the polish is for what a pixel cannot show.
+
+    Returns
+    -------
+    ExactAttempt
+    """
+    best, seen = None, []
+    for q, t in zip(np.atleast_2d(quats), np.atleast_2d(trans)):
+        if any(_same_pose(q, t, q2, t2, shape.radius) for q2, t2 in seen):
+            continue  # starts that converged to one pose are polished once
+        seen.append((q, t))
+        tries = [(q, t)]
+        first = score(shape, q, t, hole, boundary, closed)
+        if not first.fits and first.protrusion <= reach:
+            tries.append(polish(shape, q, t, boundary, closed=closed))
+        for k, (qq, tt) in enumerate(tries):
+            sc = first if k == 0 else score(shape, qq, tt, hole, boundary, closed)
+            key = (sc.beta, sc.protrusion)
+            if best is None or key < (best.score.beta, best.score.protrusion):
+                best = ExactAttempt(np.asarray(qq, float), np.asarray(tt, float), sc)
+        if best.score.fits:
+            break
+    return best
+
+
+def union(sections: list):
+    """The union of several CrossSections."""
+    if len(sections) == 1:
+        return sections[0]
+    return manifold3d.CrossSection.batch_boolean(sections, manifold3d.OpType.Add)
+
+
+def exact_rescore(attack, blocks: list[Shape], target, report_against=None, reach=np.inf):
+    """Polish and score every candidate pose of ``attack`` exactly; one row per shape.
+
+    Parameters
+    ----------
+    attack : Attack
+        A raster attack that kept candidates (``keep > 0``), on any number of holes.
+    blocks : list of Shape
+    target : manifold3d.CrossSection
+        The polygon that decides (H, or H grown by the block margin).
+    report_against : manifold3d.CrossSection, optional
+        H itself when ``target`` is grown: the best pose is scored against it too, and the
+        target's scores go to ``margin_beta`` / ``margin_protrusion``.
+
+    Returns
+    -------
+    Attack
+        One row: per shape, its best exact attempt over all holes and candidates.
+    """
+    from sieve_mi.players import Attack
+
+    cq, ct = attack.candidates
+    boundary = Boundary(target)
+    n_b = len(blocks)
+    beta, prot = np.ones((1, n_b)), np.zeros((1, n_b))
+    quats, trans = np.zeros((1, n_b, 4)), np.zeros((1, n_b, 2))
+    for j, shape in enumerate(blocks):
+        best = best_exact(
+            shape,
+            cq[:, j].reshape(-1, 4),
+            ct[:, j].reshape(-1, 2),
+            target,
+            boundary,
+            closed=is_closed(shape),
+            reach=reach,
+        )
+        beta[0, j], prot[0, j] = best.score.beta, best.score.protrusion
+        quats[0, j], trans[0, j] = best.quat, best.trans
+    out = Attack(beta, prot, quats, trans, fits=attack.fits.sum(axis=0)[None])
+    if report_against is not None:
+        out.margin_beta, out.margin_protrusion = beta.copy(), prot.copy()
+        hole_boundary = Boundary(report_against)
+        for j, shape in enumerate(blocks):
+            sc = score(
+                shape, quats[0, j], trans[0, j], report_against, hole_boundary, is_closed(shape)
+            )
+            out.beta[0, j], out.protrusion[0, j] = sc.beta, sc.protrusion
+    return out
