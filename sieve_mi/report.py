@@ -143,15 +143,50 @@ def _convergence_png(path: str, history: list[float]) -> None:
     plt.close(fig)
 
 
+def _draw_section(ax, section, **style) -> None:
+    """Draw a manifold3d CrossSection (all its contours as one compound path) on an axis."""
+    from matplotlib.patches import PathPatch
+    from matplotlib.path import Path
+
+    verts, codes = [], []
+    for c in section.to_polygons():
+        c = np.asarray(c, dtype=np.float64)
+        verts += [*c, c[0]]
+        codes += [Path.MOVETO] + [Path.LINETO] * (len(c) - 1) + [Path.CLOSEPOLY]
+    if verts:
+        ax.add_patch(PathPatch(Path(np.array(verts), codes), **style))
+
+
+def _overlay_sections(result: Result):
+    """The exact polygons of the overlay: H, each A's projection and each B's best attempt."""
+    from sieve_mi.exact import silhouette
+    from sieve_mi.fabrication import result_outline
+    from sieve_mi.outline import is_closed
+
+    hole = result_outline(result)
+    a = [
+        silhouette(s, q, t, is_closed(s))
+        for s, q, t in zip(result.pass_shapes, result.pass_quats, result.pass_trans)
+    ]
+    b = [
+        silhouette(s, result.attack.quats[0, j], result.attack.trans[0, j], is_closed(s))
+        for j, s in enumerate(result.block_shapes)
+    ]
+    return hole, a, b
+
+
 def _overlay_png(path: str, result: Result) -> None:
-    """The hole with A's silhouette and each B's best attempt drawn over it."""
+    """The exact hole H with A's projection (dashed) and each B's best attempt drawn over it."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    frame = result.hole.frame
-    r = frame.half_extent
+    hole, a_sections, b_sections = _overlay_sections(result)
+    lim = max(
+        [result.hole.frame.half_extent]
+        + [float(np.abs(s.bounds()).max()) for s in [hole, *b_sections] if not s.is_empty()]
+    )
     n_b = len(result.block_shapes)
     cols = max(1, n_b)
     fig, axes = plt.subplots(1, cols, figsize=(4.2 * cols, 4.4), dpi=120, squeeze=False)
@@ -159,46 +194,24 @@ def _overlay_png(path: str, result: Result) -> None:
     for j in range(cols):
         ax = axes[0, j]
         ax.set_facecolor("#d8d8d8")
-        ax.imshow(
-            np.where(result.hole.mask, 1.0, np.nan),
-            extent=(-r, r, -r, r),
-            cmap="Greys",
-            vmin=0,
-            vmax=1.6,
-            alpha=0.9,
-        )
-        for a_mask in result.a_masks:
-            ax.contour(
-                *frame.centres(),
-                a_mask.astype(float),
-                levels=[0.5],
-                colors="k",
-                linewidths=0.8,
-                linestyles="--",
-            )
+        _draw_section(ax, hole, facecolor="white", edgecolor="#555555", linewidth=0.6)
+        for sec in a_sections:
+            _draw_section(ax, sec, fill=False, edgecolor="k", linewidth=0.8, linestyle="--")
         if j < n_b:
-            (x0, x1, y0, y1), m = result.block_masks[j]
-            colour = colours[j % 10]
-            rgba = np.zeros(m.shape + (4,))
-            rgba[m] = colour
-            rgba[m, 3] = 0.55
-            ax.imshow(rgba, extent=(x0, x1, y0, y1))
-            beta = result.attack.beta[0, j]
+            _draw_section(ax, b_sections[j], facecolor=colours[j % 10], alpha=0.55, linewidth=0)
             status = "blocked" if result.attack.blocked()[0, j] else "PASSES"
             ax.set_title(
-                f"{result.block_shapes[j].name}: {status}\nbeta={beta:.4f}, protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}",
+                f"{result.block_shapes[j].name}: {status}\nbeta={result.attack.beta[0, j]:.4f}, "
+                f"protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}",
                 fontsize=9,
             )
-        lim = (
-            max(r, *(max(abs(v) for v in result.block_masks[j].extent) for j in range(n_b)))
-            if n_b
-            else r
-        )
         ax.set_xlim(-lim, lim)
         ax.set_ylim(-lim, lim)
         ax.set_aspect("equal")
         ax.set_xlabel(result.scene.units)
-    fig.suptitle(f"{result.scene.name}: winner {result.winner} (hole grey, A dashed)", fontsize=10)
+    fig.suptitle(
+        f"{result.scene.name}: winner {result.winner} (exact hole white, A dashed)", fontsize=10
+    )
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

@@ -51,7 +51,9 @@ def test_report_numbers_are_the_results(solved):
         assert np.linalg.norm(b["rotation"]) == pytest.approx(1.0, abs=1e-6)
     h = r.hole.frame.pixel_size
     assert rep["pixel_size"] == h
-    assert rep["hole"]["area"] == pytest.approx(r.hole.mask.sum() * h * h)
+    assert rep["hole"]["raster_area"] == pytest.approx(r.hole.mask.sum() * h * h)
+    assert rep["hole"]["area"] == pytest.approx(r.outline.area())  # the printed polygon's
+    assert all(b["verdict"] == "exact-polygon" for b in rep["block"])
     assert rep["provenance"]["seed"] == r.seed == 0
     json.loads(json.dumps(rep))  # plain JSON, no NumPy scalars
 
