@@ -526,6 +526,9 @@ class Merged:
         Best value per swarm iteration, all placements one after another.
     stages : list of (str, int)
         Label and number of iterations of every placement try.
+    memory : AttackMemory or None
+        Player B's best poses over all the placement attacks, in the same coordinates as
+        ``trans`` (the verdict starts from them too).
     """
 
     quats: np.ndarray
@@ -533,6 +536,7 @@ class Merged:
     value: float
     history: SwarmHistory
     stages: list
+    memory: AttackMemory | None = None
 
 
 def _tries(quat, own_alternatives, base_alternatives, rounds: int, lost: bool, first: bool):
@@ -622,8 +626,9 @@ def merge(
         quats[placed[0]] = kept_base
         lost = lost or not kept.blocks
         placed.append(i)
-    trans -= trans[order[0]]  # the first (largest) shape sits at the origin
-    return Merged(quats, trans, value, history, stages)
+    origin = trans[order[0]].copy()
+    trans -= origin  # the first (largest) shape sits at the origin
+    return Merged(quats, trans, value, history, stages, memory.shifted(-origin))
 
 
 def _best_try(players, placed, quats, trans, tries, place_one, history, stages, name):

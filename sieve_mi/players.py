@@ -114,6 +114,15 @@ class AttackMemory:
             kept.sort(key=lambda e: (e[0], e[1]))
             del kept[self.size :]
 
+    def shifted(self, offset: np.ndarray) -> AttackMemory:
+        """A copy whose remembered translations are moved by ``offset`` (2,), scene units."""
+        out = AttackMemory(len(self._poses), self.size)
+        out._poses = [
+            [(b, p, q.copy(), t + np.asarray(offset, dtype=np.float64)) for b, p, q, t in kept]
+            for kept in self._poses
+        ]
+        return out
+
     def poses(self, shape: int) -> tuple[np.ndarray, np.ndarray]:
         """The remembered rotations (W, 4) and translations (W, 2, scene units) of one shape."""
         kept = self._poses[shape]

@@ -17,7 +17,7 @@ from sieve_mi.hole import Hole
 from sieve_mi.layout import alternative_rotations, hole_frame, merge, union_frame
 from sieve_mi.meshes import Shape, load_shape
 from sieve_mi.optim import SwarmHistory
-from sieve_mi.players import Attack, PlayerA, PlayerB
+from sieve_mi.players import Attack, AttackMemory, PlayerA, PlayerB
 from sieve_mi.rotations import normalize
 from sieve_mi.scene import Scene
 from sieve_mi.scoring import MaskWindow
@@ -114,6 +114,8 @@ class Search:
     stages : list of (str, int)
     alone : list of float or None
         Each A's own search value (None where fixed).
+    memory : AttackMemory or None
+        Player B's best poses remembered by the many-A placement (None otherwise).
     """
 
     quats: np.ndarray
@@ -122,6 +124,7 @@ class Search:
     history: SwarmHistory
     stages: list
     alone: list
+    memory: AttackMemory | None = None
 
 
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
@@ -224,7 +227,7 @@ def search(
         out.stages.append((f"rotate {passes[i].name}", len(h.best)))
     if merged:
         got = _merge(scene, passes, blocks, out.quats, alternatives, rng, bar)
-        out.quats, out.trans, out.value = got.quats, got.trans, got.value
+        out.quats, out.trans, out.value, out.memory = got.quats, got.trans, got.value, got.memory
         out.history.extend(got.history)
         out.stages += got.stages
     bar.close()
@@ -285,7 +288,14 @@ def solve(
     t1 = time.perf_counter()
     bar = _Bar(progress, scene.verdict.steps, "verdict")
     v = judge(
-        scene, passes, blocks, found.quats, found.trans, rng, progress=lambda n: bar.update(1)
+        scene,
+        passes,
+        blocks,
+        found.quats,
+        found.trans,
+        rng,
+        progress=lambda n: bar.update(1),
+        memory=found.memory,
     )
     bar.close()
     timings["verdict_s"] = time.perf_counter() - t1

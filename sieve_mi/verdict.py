@@ -21,7 +21,7 @@ from sieve_mi.hole import Hole
 from sieve_mi.layout import frame_for, separate_layout
 from sieve_mi.meshes import Shape
 from sieve_mi.outline import dilated, hole_outline, is_closed
-from sieve_mi.players import Attack, PlayerA, PlayerB
+from sieve_mi.players import Attack, AttackMemory, PlayerA, PlayerB
 from sieve_mi.scene import Scene
 from sieve_mi.scoring import mask_window
 
@@ -145,6 +145,7 @@ def judge(
     trans: np.ndarray,
     rng: np.random.Generator,
     progress: Callable[[int], None] | None = None,
+    memory: AttackMemory | None = None,
 ) -> Judgement:
     """Attack the hole made by A at its placements and declare the winner.
 
@@ -165,6 +166,9 @@ def judge(
     rng : numpy.random.Generator
     progress : callable, optional
         Called with the number of Adam steps done.
+    memory : AttackMemory, optional
+        Player B's best poses from the search (merged holes); the first starts begin there.
+        Ignored for separate holes, whose places the verdict chooses anew.
 
     Returns
     -------
@@ -197,6 +201,7 @@ def judge(
         rng,
         progress=progress,
         centres=start_centres(grown, trans, groups),
+        memory=None if separate else memory,
         keep=CANDIDATES,
     )
     margin = fab.block_margin > 0

@@ -168,3 +168,60 @@ steps = 2
     scene = load_scene(write_scene(body, {"a.stl": sheet, "b.stl": box(1.0, 1.0, 1.0)}))
     with pytest.raises(SieveError, match="zero area"):
         solve(scene, progress=False)
+
+
+def test_verdict_starts_from_the_search_memory(write_scene):
+    # A 20 mm cube face-on with tolerance 1 makes a 22 mm square hole; a 21 x 21 x 1 plate
+    # fits only when it lies almost flat. Two starts and no Adam steps: a random rotation does not
+    # fit, the remembered flat pose does.
+    from sieve_mi.players import Attack, AttackMemory
+    from sieve_mi.solve import load_shapes
+    from sieve_mi.verdict import judge
+
+    body = """
+[[pass]]
+mesh = "meshes/a.stl"
+rotation = [1, 0, 0, 0]
+[[block]]
+mesh = "meshes/b.stl"
+[verdict]
+starts = 2
+steps = 0
+"""
+    scene = load_scene(write_scene(body, {"a.stl": box(20, 20, 20), "b.stl": box(21, 21, 1)}))
+    passes, blocks = load_shapes(scene)
+    q, t = np.array([[1.0, 0, 0, 0]]), np.zeros((1, 2))
+
+    def verdict(memory):
+        return judge(scene, passes, blocks, q, t, np.random.default_rng(0), memory=memory)
+
+    assert verdict(None).winner == "A"
+    memory = AttackMemory(1, size=1)
+    flat = Attack(
+        beta=np.zeros((1, 1)),
+        protrusion=np.zeros((1, 1)),
+        quats=np.array([[[1.0, 0, 0, 0]]]),
+        trans=np.array([[[0.1, -0.2]]]),
+        fits=np.ones((1, 1), int),
+    )
+    memory.update(flat)
+    v = verdict(memory)
+    assert v.winner == "B" and v.attack.beta[0, 0] == 0.0
+
+
+def test_square_plate_sticks_out_of_the_rounded_corners_of_a_cube_hole():
+    # The 20 mm cube's hole grown by 1 mm has corner arcs of radius 1 about (±10, ±10). A centred
+    # 21.5 mm square's corner (10.75, 10.75) is 0.75 sqrt(2) from the arc's centre: it sticks out
+    # by 0.75 sqrt(2) - 1 = 0.061 mm although the hole is 22 mm wide.
+    from sieve_mi.outline import hole_outline
+
+    cube = shape_from_trimesh(box(20, 20, 20), name="cube")
+    hole = hole_outline([cube], np.array([[1.0, 0, 0, 0]]), np.zeros((1, 2)), 1.0, closed=[True])
+    b = exact.Boundary(hole)
+    plate = shape_from_trimesh(box(21.5, 21.5, 1), name="plate")
+    sc = exact.score(plate, [1.0, 0, 0, 0], [0.0, 0.0], hole, b, closed=True)
+    # the outline lies at most 0.3 % of the tolerance outside the exact dilation
+    assert 0.75 * np.sqrt(2) - 1 - 0.003 <= sc.protrusion <= 0.75 * np.sqrt(2) - 1 + 1e-6
+    assert exact.score(
+        shape_from_trimesh(box(21, 21, 1), name="p"), [1.0, 0, 0, 0], [0, 0], hole, b
+    ).fits
