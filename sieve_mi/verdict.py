@@ -193,8 +193,9 @@ def judge(
         warnings.append("the merged hole is not connected")
     grown = [dilated(o, fab.block_margin) for o in outlines] if fab.block_margin > 0 else outlines
     player_b = PlayerB(blocks, frame, "clearance")
+    targets = [hole] if len(grown) == 1 and grown[0] is outline else None
     attack = player_b.attack(
-        [Hole.from_outline(g, frame) for g in grown],
+        targets or [Hole.from_outline(g, frame) for g in grown],
         v.starts,
         v.steps,
         scene.solver.learning_rate,

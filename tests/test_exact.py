@@ -105,20 +105,29 @@ resolution = {resolution}
     return load_scene(write_scene(body, {"a.stl": a_mesh, "b.stl": b_mesh}))
 
 
+COIN_CASES = [
+    (res, 1.77 + sign * margin, "A" if sign > 0 else "B")
+    for res, margins in ((64, (0.02, 0.05)), (128, (0.05,)), (256, (0.05,)), (512, (0.02, 0.05)))
+    for margin in margins
+    for sign in (-1, 1)
+]
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("resolution", [64, 128, 256, 512])
-@pytest.mark.parametrize("thickness, winner", [(1.72, "B"), (1.82, "A")])
-def test_coin_slot_decides_by_five_hundredths(write_scene, resolution, thickness, winner):
+@pytest.mark.parametrize("resolution, thickness, winner", COIN_CASES)
+def test_coin_slot_decides_by_hundredths(write_scene, resolution, thickness, winner):
     # A 5-cent coin (21.25 x 1.67 mm) edge-on, tolerance 0.05: the printed slot is 1.77 mm wide.
-    # A 19.75 mm disk 0.05 thinner than the slot passes; 0.05 thicker is blocked.
+    # A 19.75 mm disk 0.02 or 0.05 thinner than the slot passes; as much thicker is blocked, at
+    # every resolution from 64 to 512 (a pixel is 0.35 mm at 64, 0.045 mm at 512).
     scene = _edge_on_scene(
         write_scene, _coin(21.25, 1.67), _coin(19.75, thickness), 0.05, resolution
     )
     r = solve(scene, progress=False)
     assert r.winner == winner
     if winner == "A":
-        # Its smallest width is its thickness: it sticks out of the slot by at least half the excess.
-        assert r.attack.protrusion[0, 0] >= (thickness - 1.77) / 2 - 1e-3
+        # Its smallest width is its thickness: it sticks out of the slot by at least half the excess
+        # (less the outline's 0.3 % of the tolerance).
+        assert r.attack.protrusion[0, 0] >= (thickness - 1.77) / 2 - 2e-4
     else:
         assert r.attack.protrusion[0, 0] == 0.0
 
