@@ -27,7 +27,7 @@ from sieve_mi.optim import (
     renormalise_quaternions,
 )
 from sieve_mi.raster import Frame
-from sieve_mi.rotations import from_rotvec, normalize, random_uniform
+from sieve_mi.rotations import from_rotvec, normalize, quat_multiply, random_uniform, to_rotvec
 from sieve_mi.scoring import score_poses
 from sieve_mi.silhouettes import SilhouetteRenderer
 
@@ -425,8 +425,20 @@ class PlayerA:
         c_personal: float = 0.25,
         c_global: float = 0.25,
         progress: Callable[[int, float], None] | None = None,
+        canonical: int = 0,
+        polish: int = 0,
     ):
-        """Global search over A's rotation.
+        """Global search over A's rotation: canonical views, then the swarm, then a local polish.
+
+        Parameters
+        ----------
+        canonical : int
+            Canonical views to evaluate first (:mod:`sieve_mi.canonical`); the best of them start
+            half of the swarm's particles (nlopt: the best one is its starting point).
+        polish : int
+            Rounds of :meth:`polish` after the global method (0: none).
+
+        Other parameters are the ``[solver]`` settings of the same names.
 
         Returns
         -------
@@ -435,15 +447,44 @@ class PlayerA:
         value : float
             Its game value (min over B of beta).
         history : SwarmHistory
-            Best value after each iteration (PSO) or evaluation (nlopt).
+            Best value after each iteration (PSO) or evaluation (nlopt); ``history.polish`` holds
+            the polish's record.
         """
 
         def evaluate(qs: np.ndarray) -> np.ndarray:
             attack = player_b.attack(self.holes(qs), starts, steps, learning_rate, rng)
             return attack.value()
 
+        seeds = self._canonical_seeds(evaluate, canonical, max(1, particles // 2))
+        q, f, history = self._global(
+            evaluate, seeds, method, particles, iterations, rng, seed,
+            (inertia, c_personal, c_global), progress,
+        )  # fmt: skip
+        history.evaluations += len(self._canonical)
+        if polish > 0:
+            q, f, history.polish = self.polish(
+                player_b, q, f, starts=starts, steps=steps, learning_rate=learning_rate,
+                seed=seed, rounds=polish,
+            )  # fmt: skip
+        return q, f, history
+
+    def _canonical_seeds(self, evaluate, count: int, keep: int) -> np.ndarray:
+        """The ``keep`` best of ``count`` canonical orientations, evaluated in one batch, (k, 4)."""
+        from sieve_mi.canonical import canonical_orientations
+
+        self._canonical = np.zeros((0, 4))
+        if count <= 0:
+            return self._canonical
+        self._canonical = canonical_orientations(self.shape, count)
+        values = evaluate(self._canonical)
+        return self._canonical[np.argsort(-values, kind="stable")[:keep]]
+
+    def _global(self, evaluate, seeds, method, particles, iterations, rng, seed, pso, progress):
+        """The swarm (or nlopt) over A's rotation, started from ``seeds`` where given."""
         if method == "pso":
             x0 = random_uniform(particles, rng)
+            x0[: len(seeds)] = seeds[:particles]
+            inertia, c_personal, c_global = pso
             return particle_swarm(
                 evaluate,
                 x0,
@@ -457,6 +498,8 @@ class PlayerA:
             )
         lower, upper = -np.pi * np.ones(3), np.pi * np.ones(3)
         x0 = rng.uniform(-np.pi, np.pi, 3)
+        if len(seeds):
+            x0 = np.clip(to_rotvec(seeds[0]), lower, upper)
         x, f, history = nlopt_maximise(
             lambda v: float(evaluate(from_rotvec(v)[None])[0]),
             lower,
@@ -468,3 +511,58 @@ class PlayerA:
             progress,
         )
         return from_rotvec(x), f, history
+
+    def polish(
+        self,
+        player_b: PlayerB,
+        quat: np.ndarray,
+        value: float,
+        *,
+        starts: int,
+        steps: int,
+        learning_rate: float,
+        seed: int,
+        rounds: int,
+        first: float = 1.0,
+        last: float = 0.05,
+    ) -> tuple[np.ndarray, float, dict]:
+        """Refine A's rotation locally: a batched compass search on the view direction.
+
+        Each round tilts the rotation by ``step`` about the x and y axes, both ways (turning about
+        z only turns the hole), and evaluates the four holes and the current one in one attack
+        whose B starts are the same every round (common random numbers, so differences come from
+        the holes, not from luck). A better tilt is taken; otherwise the step is halved, from
+        ``first`` down to ``last`` degrees.
+
+        Returns
+        -------
+        quat : (4,) ndarray
+        value : float
+            The value of ``quat`` with the common starts (comparable with ``record["before"]``).
+        record : dict
+            ``before`` and ``after`` values with the common starts, the rotation's ``moved``
+            angle (degrees) and the ``rounds`` run.
+        """
+        tilts = np.array([[1.0, 0, 0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0]])
+
+        def values(qs):
+            common = np.random.default_rng([int(seed), 0x501])
+            holes = self.holes(qs)
+            return player_b.attack(holes, starts, steps, learning_rate, common).value()
+
+        start = normalize(np.asarray(quat, dtype=np.float64))
+        best, step, done = start, np.radians(first), 0
+        current = float(values(best[None])[0])
+        before = current
+        while done < rounds and step >= np.radians(last) * (1 - 1e-9):
+            tried = normalize(quat_multiply(from_rotvec(tilts * step), best))
+            v = values(tried)
+            done += 1
+            k = int(np.argmax(v))
+            if v[k] > current:
+                best, current = tried[k], float(v[k])
+            else:
+                step /= 2
+        moved = float(np.degrees(2 * np.arccos(min(1.0, abs(float(np.dot(best, start)))))))
+        record = {"before": before, "after": current, "moved": moved, "rounds": done}
+        return best, current, record

@@ -106,6 +106,7 @@ def report_dict(result: Result) -> dict:
         "search_value": None if np.isnan(result.search_value) else float(result.search_value),
         "convergence": [float(x) for x in result.history.best],
         "stages": [{"stage": label, "iterations": n} for label, n in result.stages],
+        "polish": list(result.polish),
         "warnings": list(result.warnings),
         "timings": {k: round(float(v), 4) for k, v in result.timings.items()},
         "pixel_size": hole.frame.pixel_size,

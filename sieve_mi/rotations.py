@@ -86,6 +86,16 @@ def from_rotvec(v: np.ndarray) -> np.ndarray:
     return normalize(np.concatenate([np.cos(half), scale * v], axis=-1))
 
 
+def to_rotvec(q: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis times angle in [0, pi], radians) of a unit quaternion (4,) -> (3,)."""
+    q = normalize(np.asarray(q, dtype=np.float64))
+    q = -q if q[0] < 0 else q
+    s = float(np.linalg.norm(q[1:]))
+    if s < 1e-12:
+        return 2.0 * q[1:]
+    return q[1:] / s * 2.0 * np.arctan2(s, q[0])
+
+
 def align(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Unit quaternion of the shortest rotation taking direction ``u`` to direction ``v``."""
     u = np.asarray(u, float) / np.linalg.norm(u)

@@ -229,6 +229,12 @@ class Solver:
     inertia: float = setting(0.25, "PSO inertia", minimum=0)
     c_personal: float = setting(0.25, "PSO acceleration towards a particle's best", minimum=0)
     c_global: float = setting(0.25, "PSO acceleration towards the swarm's best", minimum=0)
+    canonical: int = setting(
+        20, "canonical views of each A evaluated before the swarm (0: none)", minimum=0
+    )
+    polish: int = setting(
+        10, "rounds of the local polish of A's best rotation (0: none)", minimum=0
+    )
 
 
 @_documented

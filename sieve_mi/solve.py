@@ -65,6 +65,8 @@ class Result:
         alone, short attack), or None where its rotation was fixed in the scene.
     seed : int
         The seed the run used.
+    polish : list of dict
+        Per searched A, the local polish of its rotation (see :class:`Search`).
     certified : list of Certification or None
         With ``[verdict] certify``: per B, the proof attempt against the exact hole (None where
         the verdict let it through); empty otherwise.
@@ -91,6 +93,7 @@ class Result:
     seed: int | None = None
     certified: list = field(default_factory=list)
     outline: object = None
+    polish: list = field(default_factory=list)
 
     @property
     def a_mask(self) -> np.ndarray:
@@ -116,6 +119,8 @@ class Search:
         Each A's own search value (None where fixed).
     memory : AttackMemory or None
         Player B's best poses remembered by the many-A placement (None otherwise).
+    polish : list of dict
+        Per searched A, the local polish's record (shape, before, after, moved degrees, rounds).
     """
 
     quats: np.ndarray
@@ -125,6 +130,7 @@ class Search:
     stages: list
     alone: list
     memory: AttackMemory | None = None
+    polish: list = field(default_factory=list)
 
 
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
@@ -182,6 +188,8 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Ba
         c_personal=s.c_personal,
         c_global=s.c_global,
         progress=report,
+        canonical=s.canonical,
+        polish=s.polish,
     )
 
 
@@ -225,6 +233,8 @@ def search(
         alternatives[i] = alternative_rotations(h.finalists, out.quats[i], lay.alternatives)
         out.history.extend(h)
         out.stages.append((f"rotate {passes[i].name}", len(h.best)))
+        if h.polish is not None:
+            out.polish.append({"shape": passes[i].name, **h.polish})
     if merged:
         got = _merge(scene, passes, blocks, out.quats, alternatives, rng, bar)
         out.quats, out.trans, out.value, out.memory = got.quats, got.trans, got.value, got.memory
@@ -327,6 +337,7 @@ def solve(
         seed=seed,
         certified=certified,
         outline=v.outline,
+        polish=found.polish,
     )
 
 
