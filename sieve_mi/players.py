@@ -455,12 +455,12 @@ class PlayerA:
             attack = player_b.attack(self.holes(qs), starts, steps, learning_rate, rng)
             return attack.value()
 
-        seeds = self._canonical_seeds(evaluate, canonical, max(1, particles // 2))
+        seeds, evaluated = self._canonical_seeds(evaluate, canonical, max(1, particles // 2))
         q, f, history = self._global(
             evaluate, seeds, method, particles, iterations, rng, seed,
             (inertia, c_personal, c_global), progress,
         )  # fmt: skip
-        history.evaluations += len(self._canonical)
+        history.evaluations += evaluated
         if polish > 0:
             q, f, history.polish = self.polish(
                 player_b, q, f, starts=starts, steps=steps, learning_rate=learning_rate,
@@ -468,16 +468,16 @@ class PlayerA:
             )  # fmt: skip
         return q, f, history
 
-    def _canonical_seeds(self, evaluate, count: int, keep: int) -> np.ndarray:
-        """The ``keep`` best of ``count`` canonical orientations, evaluated in one batch, (k, 4)."""
+    def _canonical_seeds(self, evaluate, count: int, keep: int) -> tuple[np.ndarray, int]:
+        """The ``keep`` best of ``count`` canonical orientations (k, 4), evaluated in one batch,
+        and how many were evaluated."""
         from sieve_mi.canonical import canonical_orientations
 
-        self._canonical = np.zeros((0, 4))
         if count <= 0:
-            return self._canonical
-        self._canonical = canonical_orientations(self.shape, count)
-        values = evaluate(self._canonical)
-        return self._canonical[np.argsort(-values, kind="stable")[:keep]]
+            return np.zeros((0, 4)), 0
+        views = canonical_orientations(self.shape, count)
+        values = evaluate(views)
+        return views[np.argsort(-values, kind="stable")[:keep]], len(views)
 
     def _global(self, evaluate, seeds, method, particles, iterations, rng, seed, pso, progress):
         """The swarm (or nlopt) over A's rotation, started from ``seeds`` where given."""
