@@ -272,7 +272,7 @@ def polish(
     *,
     closed: bool = False,
     spacing: float | None = None,
-    max_nfev: int = 60,
+    max_nfev: int = 30,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Slide one pose of ``shape`` into H using exact distances (player B's sub-pixel endgame).
 
@@ -355,8 +355,9 @@ def best_exact(
     *,
     closed: bool = False,
     reach: float = np.inf,
+    polished: int = 3,
 ) -> ExactAttempt:
-    """Polish every candidate pose and keep the best by exact (β, protrusion).
+    """Score every candidate pose exactly, polish the best few, keep the best by (β, protrusion).
 
     Parameters
     ----------
@@ -371,26 +372,29 @@ def best_exact(
     reach : float
         Polish only poses that stick out by at most this much (scene units); the raster attack
         already resolved larger protrusions, the polish is for what a pixel cannot show.
+    polished : int
+        Polish at most this many distinct candidates, best exact score first.
 
     Returns
     -------
     ExactAttempt
     """
-    best, seen = None, []
+    poses: list[tuple[np.ndarray, np.ndarray, ExactScore]] = []
     for q, t in zip(np.atleast_2d(quats), np.atleast_2d(trans)):
-        if any(_same_pose(q, t, q2, t2, shape.radius) for q2, t2 in seen):
-            continue  # starts that converged to one pose are polished once
-        seen.append((q, t))
-        tries = [(q, t)]
-        first = score(shape, q, t, hole, boundary, closed)
-        if not first.fits and first.protrusion <= reach:
-            tries.append(polish(shape, q, t, boundary, closed=closed))
-        for k, (qq, tt) in enumerate(tries):
-            sc = first if k == 0 else score(shape, qq, tt, hole, boundary, closed)
-            key = (sc.beta, sc.protrusion)
-            if best is None or key < (best.score.beta, best.score.protrusion):
-                best = ExactAttempt(np.asarray(qq, float), np.asarray(tt, float), sc)
-        if best.score.fits:
+        if any(_same_pose(q, t, p[0], p[1], shape.radius) for p in poses):
+            continue  # starts that converged to one pose are scored once
+        sc = score(shape, q, t, hole, boundary, closed)
+        if sc.fits:
+            return ExactAttempt(np.asarray(q, float), np.asarray(t, float), sc)
+        poses.append((q, t, sc))
+    poses.sort(key=lambda p: (p[2].beta, p[2].protrusion))
+    best = ExactAttempt(np.asarray(poses[0][0], float), np.asarray(poses[0][1], float), poses[0][2])
+    for q, t, _sc in [p for p in poses if p[2].protrusion <= reach][:polished]:
+        qq, tt = polish(shape, q, t, boundary, closed=closed)
+        got = score(shape, qq, tt, hole, boundary, closed)
+        if (got.beta, got.protrusion) < (best.score.beta, best.score.protrusion):
+            best = ExactAttempt(np.asarray(qq, float), np.asarray(tt, float), got)
+        if got.fits:
             break
     return best
 
