@@ -22,6 +22,7 @@ upside down). Directions are therefore de-duplicated up to sign.
 from __future__ import annotations
 
 import itertools
+import warnings
 
 import numpy as np
 
@@ -37,8 +38,10 @@ def _hull(shape: Shape):
     import trimesh
 
     try:
-        hull = trimesh.convex.convex_hull(shape.hull)
-        return hull if hull.volume > 1e-12 * shape.radius**3 else None
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")  # trimesh warns about flat hulls; we check below
+            hull = trimesh.convex.convex_hull(shape.hull)
+            return hull if hull.volume > 1e-12 * shape.radius**3 else None
     except Exception:  # noqa: BLE001 - a flat or degenerate point set has no 3D hull
         return None
 

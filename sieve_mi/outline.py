@@ -138,6 +138,40 @@ def dilated(section: manifold3d.CrossSection, tolerance: float) -> manifold3d.Cr
     return grown.simplify(eps)
 
 
+def edge_on_segments(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Projections of the triangles seen exactly edge-on: each its longest projected edge, (S, 2, 2).
+
+    :func:`projection` drops them (they have no area), but a flat part seen edge-on still makes a
+    slot once the tolerance dilates these segments.
+    """
+    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)][:, :, :2]
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    signed = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    scale = float(np.abs(tri).max()) if len(tri) else 1.0
+    flat = tri[np.abs(signed) <= 1e-14 * max(scale, 1e-300) ** 2]
+    if len(flat) == 0:
+        return np.zeros((0, 2, 2))
+    ends = np.stack([flat[:, [0, 1]], flat[:, [1, 2]], flat[:, [2, 0]]], axis=1)  # (T, 3, 2, 2)
+    length = np.linalg.norm(ends[:, :, 1] - ends[:, :, 0], axis=-1)
+    segs = ends[np.arange(len(flat)), np.argmax(length, axis=1)]
+    key = np.round(np.sort(segs.reshape(-1, 4), axis=1), 12)
+    return segs[np.unique(key, axis=0, return_index=True)[1]]
+
+
+def dilated_segments(segments: np.ndarray, tolerance: float) -> manifold3d.CrossSection:
+    """The union of ``segments`` (S, 2, 2) dilated by ``tolerance``, as :func:`dilated` would."""
+    if tolerance <= 0 or len(segments) == 0:
+        return manifold3d.CrossSection()
+    n = round_segments(tolerance)
+    radius = tolerance / math.cos(math.pi / n) + SIMPLIFY * tolerance
+    disk = manifold3d.CrossSection.circle(radius, n)
+    stadiums = [
+        manifold3d.CrossSection.batch_hull([disk.translate(list(a)), disk.translate(list(b))])
+        for a, b in segments
+    ]
+    return manifold3d.CrossSection.batch_boolean(stadiums, manifold3d.OpType.Add)
+
+
 def hole_outline(
     shapes: list[Shape],
     quats: np.ndarray,
@@ -163,16 +197,21 @@ def hole_outline(
     closed : list of bool, optional
         Per shape, whether it is watertight (see :func:`projection`); default False.
     """
-    parts = []
+    parts, flat = [], []
     for i, shape in enumerate(shapes):
         v = placed_vertices(shape, quats[i], trans[i])
-        parts.append(projection(v, shape.faces, closed=bool(closed[i]) if closed else False))
+        is_closed_i = bool(closed[i]) if closed else False
+        parts.append(projection(v, shape.faces, closed=is_closed_i))
+        if not is_closed_i:  # a closed mesh's edge-on triangles lie inside its projection
+            flat.append(edge_on_segments(v, shape.faces))
     union = (
         manifold3d.CrossSection.batch_boolean(parts, manifold3d.OpType.Add)
         if len(parts) > 1
         else parts[0]
     )
     out = dilated(union, tolerance)
+    if flat and sum(len(f) for f in flat) and tolerance > 0:
+        out = out + dilated_segments(np.concatenate(flat), tolerance)
     return filled(out) if fill_holes else out
 
 

@@ -452,8 +452,7 @@ class PlayerA:
         """
 
         def evaluate(qs: np.ndarray) -> np.ndarray:
-            attack = player_b.attack(self.holes(qs), starts, steps, learning_rate, rng)
-            return attack.value()
+            return self.values(player_b, qs, starts, steps, learning_rate, rng)
 
         seeds, evaluated = self._canonical_seeds(evaluate, canonical, max(1, particles // 2))
         q, f, history = self._global(
@@ -467,6 +466,16 @@ class PlayerA:
                 seed=seed, rounds=polish,
             )  # fmt: skip
         return q, f, history
+
+    def values(self, player_b: PlayerB, quats, starts, steps, learning_rate, rng) -> np.ndarray:
+        """The game value (min over B of β, eq. 10) of the holes of rotations (K, 4), one attack.
+
+        An empty raster hole (A seen edge-on, thinner than a pixel) blocks everything on the
+        raster but not on the plate: it gets -1, below every real hole.
+        """
+        holes = self.holes(quats)
+        values = player_b.attack(holes, starts, steps, learning_rate, rng).value()
+        return np.where([h.mask.any() for h in holes], values, -1.0)
 
     def _canonical_seeds(self, evaluate, count: int, keep: int) -> tuple[np.ndarray, int]:
         """The ``keep`` best of ``count`` canonical orientations (k, 4), evaluated in one batch,
@@ -547,8 +556,7 @@ class PlayerA:
 
         def values(qs):
             common = np.random.default_rng([int(seed), 0x501])
-            holes = self.holes(qs)
-            return player_b.attack(holes, starts, steps, learning_rate, common).value()
+            return self.values(player_b, qs, starts, steps, learning_rate, common)
 
         start = normalize(np.asarray(quat, dtype=np.float64))
         best, step, done = start, np.radians(first), 0

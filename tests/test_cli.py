@@ -94,7 +94,9 @@ def test_solve_writes_every_output(write_scene, tmp_path):
         and fab["thickness"] == fab["required_thickness"]
     )
     assert plate.extents[2] == pytest.approx(fab["thickness"], rel=1e-6)
-    assert abs(fab["outline"]["area_difference"]) < 0.05  # exact outline vs the coarse 96 px raster
+    # exact outline vs the coarse 96 px raster, which is conservative (it covers every pixel
+    # within half a pixel diagonal of H): never smaller, at most a thin ring larger
+    assert -0.1 < fab["outline"]["area_difference"] <= 0
     assert fab["warnings"] == [] and "warning" not in p.stderr
     cube = trimesh.load(str(out / "pass_0.stl"))
     assert (

@@ -234,3 +234,18 @@ def test_square_plate_sticks_out_of_the_rounded_corners_of_a_cube_hole():
     assert exact.score(
         shape_from_trimesh(box(21, 21, 1), name="p"), [1.0, 0, 0, 0], [0, 0], hole, b
     ).fits
+
+
+def test_a_sheet_seen_edge_on_makes_a_stadium_slot():
+    # A 20 x 20 sheet of zero thickness seen edge-on projects to a 20 mm segment; grown by 1 mm
+    # it is a stadium 22 x 2 mm of area 20 * 2 + pi (not "zero area").
+    from sieve_mi.outline import hole_outline
+
+    sheet = trimesh.Trimesh(
+        [[-10, 0, -10], [10, 0, -10], [10, 0, 10], [-10, 0, 10]], [[0, 1, 2], [0, 2, 3]]
+    )
+    s = shape_from_trimesh(sheet, name="sheet")
+    hole = hole_outline([s], np.array([[1.0, 0, 0, 0]]), np.zeros((1, 2)), 1.0)
+    assert hole.area() == pytest.approx(40 + np.pi, rel=0.004)
+    lo, hi = np.asarray(hole.bounds()[:2]), np.asarray(hole.bounds()[2:])
+    np.testing.assert_allclose(hi - lo, [22.0, 2.0], rtol=0.003)
