@@ -427,6 +427,7 @@ class PlayerA:
         progress: Callable[[int, float], None] | None = None,
         canonical: int = 0,
         polish: int = 0,
+        stage: Callable[[str], None] | None = None,
     ):
         """Global search over A's rotation: canonical views, then the swarm, then a local polish.
 
@@ -437,6 +438,8 @@ class PlayerA:
             half of the swarm's particles (nlopt: the best one is its starting point).
         polish : int
             Rounds of :meth:`polish` after the global method (0: none).
+        stage : callable, optional
+            Called with "canonical", "swarm" and "polish" as each stage starts (progress bars).
 
         Other parameters are the ``[solver]`` settings of the same names.
 
@@ -454,13 +457,21 @@ class PlayerA:
         def evaluate(qs: np.ndarray) -> np.ndarray:
             return self.values(player_b, qs, starts, steps, learning_rate, rng)
 
+        def say(name: str) -> None:
+            if stage is not None:
+                stage(name)
+
+        if canonical > 0:
+            say("canonical")
         seeds, evaluated = self._canonical_seeds(evaluate, canonical, max(1, particles // 2))
+        say("swarm" if method == "pso" else method)
         q, f, history = self._global(
             evaluate, seeds, method, particles, iterations, rng, seed,
             (inertia, c_personal, c_global), progress,
         )  # fmt: skip
         history.evaluations += evaluated
         if polish > 0:
+            say("polish")
             q, f, history.polish = self.polish(
                 player_b, q, f, starts=starts, steps=steps, learning_rate=learning_rate,
                 seed=seed, rounds=polish,

@@ -158,6 +158,8 @@ class _Bar:
             if postfix:
                 self.bar.set_postfix(postfix, refresh=False)
             self.bar.update(n)
+            if n == 0:
+                self.bar.refresh()
 
     def close(self):
         if self.bar is not None:
@@ -172,7 +174,10 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Ba
     player_b = PlayerB(blocks, frame, s.objective)
 
     def report(it, best):
-        bar.update(s.particles if s.outer == "pso" else 1, best=f"{best:.4f}", stage=label)
+        step = "swarm" if s.outer == "pso" else s.outer
+        bar.update(
+            s.particles if s.outer == "pso" else 1, best=f"{best:.4f}", stage=f"{label}: {step}"
+        )
 
     return player_a.search(
         player_b,
@@ -190,6 +195,7 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Ba
         progress=report,
         canonical=s.canonical,
         polish=s.polish,
+        stage=lambda name: bar.update(0, stage=f"{label}: {name}"),
     )
 
 

@@ -125,3 +125,21 @@ def test_polish_turns_a_tilted_cube_face_on():
     assert tilt < 0.75
     assert record["after"] > record["before"]
     assert record["moved"] > 1.75
+
+
+def test_search_announces_its_stages_and_counts_canonical_evaluations():
+    from sieve_mi.layout import hole_frame
+    from sieve_mi.players import PlayerA, PlayerB
+
+    cube = shape_from_trimesh(box(20, 20, 20), name="cube")
+    ball = shape_from_trimesh(trimesh.creation.icosphere(2, radius=12.0), name="ball")
+    frame = hole_frame(cube, 1.0, 48)
+    seen = []
+    q, value, history = PlayerA(cube, frame, 1.0).search(
+        PlayerB([ball], frame), method="pso", particles=2, iterations=1, starts=2, steps=3,
+        learning_rate=0.05, rng=np.random.default_rng(0), seed=0, canonical=20, polish=1,
+        stage=seen.append,
+    )  # fmt: skip
+    assert seen == ["canonical", "swarm", "polish"]
+    assert history.evaluations == 2 * 2 + 3  # the swarm's budget and the cube's three views
+    assert history.polish["rounds"] == 1 and value == history.polish["after"]
