@@ -12,12 +12,13 @@ The search works on rasters; everything that decides a result is computed here o
   squared outside distances of B's outline points to the exact boundary of H (scipy's
   least-squares on rotation vector and translation). A slot whose margin is a small fraction of a
   pixel is found this way; the raster alone cannot see it.
-* :func:`best_exact` polishes and scores a few candidate poses per shape and keeps the best;
+* :func:`best_exact` scores a shape's candidate poses, polishes the best few and keeps the best;
   :func:`exact_rescore` does it for every shape of a raster attack (the verdict and ``check``).
 
-Distances to H use its exact sign (even-odd point-in-polygon) and the distance to a dense sampling
-of its boundary (at most half the sample spacing off) while polishing, and exact point-to-segment
-distances when scoring.
+Scores use exact point-in-polygon tests and exact point-to-segment distances. The polish, which
+evaluates its residual hundreds of times, uses a dense sampling of H's boundary instead (a k-d
+tree; at most half the sample spacing off, the sign from the nearest sample's outward normal); its
+result is then scored exactly, so the approximation can cost a passage found, never a wrong score.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from sieve_mi.rotations import from_rotvec, normalize, quat_multiply
 
 #: A pose fits when nothing sticks out by more than this fraction of the hole's size (float noise).
 FIT_EPS = 1e-7
-#: Raster candidates per shape that are polished and scored exactly.
+#: Raster candidates kept per shape and hole for exact scoring (the best three are polished).
 CANDIDATES = 8
 
 
