@@ -529,6 +529,8 @@ class Merged:
     memory : AttackMemory or None
         Player B's best poses over all the placement attacks, in the same coordinates as
         ``trans`` (the verdict starts from them too).
+    blocks : bool
+        Every placement kept blocked all of B in its re-ranking attack.
     """
 
     quats: np.ndarray
@@ -537,6 +539,7 @@ class Merged:
     history: SwarmHistory
     stages: list
     memory: AttackMemory | None = None
+    blocks: bool = True
 
 
 def _tries(quat, own_alternatives, base_alternatives, rounds: int, lost: bool, first: bool):
@@ -628,7 +631,7 @@ def merge(
         placed.append(i)
     origin = trans[order[0]].copy()
     trans -= origin  # the first (largest) shape sits at the origin
-    return Merged(quats, trans, value, history, stages, memory.shifted(-origin))
+    return Merged(quats, trans, value, history, stages, memory.shifted(-origin), not lost)
 
 
 def _best_try(players, placed, quats, trans, tries, place_one, history, stages, name):

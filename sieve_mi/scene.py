@@ -277,6 +277,12 @@ class Layout:
     alternatives: int = setting(
         2, "next-best rotations of a shape tried after that", minimum=0, maximum=100
     )
+    restarts: int = setting(
+        1,
+        "when the merged hole still lets some B through, search every A again from another seed",
+        minimum=0,
+        maximum=100,
+    )
 
 
 @_documented

@@ -121,6 +121,10 @@ class Search:
         Player B's best poses remembered by the many-A placement (None otherwise).
     polish : list of dict
         Per searched A, the local polish's record (shape, before, after, moved degrees, rounds).
+    alternatives : dict of int to list of (4,) ndarray
+        Per searched A, other good rotations from its own search.
+    merged_blocks : bool
+        For a merged hole: every placement blocked all of B (else ``[layout] restarts`` apply).
     """
 
     quats: np.ndarray
@@ -131,6 +135,8 @@ class Search:
     alone: list
     memory: AttackMemory | None = None
     polish: list = field(default_factory=list)
+    alternatives: dict = field(default_factory=dict)
+    merged_blocks: bool = True
 
 
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
@@ -226,27 +232,51 @@ def search(
     per_stage = s.particles * (s.iterations + 1)
     stages_planned = sum(q is None for q in fixed) + (m - 1 if merged else 0)
     bar = _Bar(progress, per_stage * stages_planned, "search", grow_by=per_stage)
+    out = _rotate_each(scene, passes, blocks, rng, seed, bar)
+    if merged:
+        for restart in range(lay.restarts + 1):
+            if restart:  # an independent search of every A's rotation from another seed
+                again = _rotate_each(scene, passes, blocks, np.random.default_rng([seed, restart]),
+                                     seed + restart, bar, f" (restart {restart})")  # fmt: skip
+                out.history.extend(again.history)
+                out.stages += again.stages
+                out.polish += again.polish
+            else:
+                again = out
+            got = _merge(scene, passes, blocks, again.quats, again.alternatives, rng, bar)
+            out.history.extend(got.history)
+            out.stages += got.stages
+            if restart == 0 or (got.blocks, got.value) > (out.merged_blocks, out.value):
+                out.quats, out.trans, out.value, out.memory = (
+                    got.quats,
+                    got.trans,
+                    got.value,
+                    got.memory,
+                )
+                out.alone, out.merged_blocks = again.alone, got.blocks
+            if got.blocks or all(q is not None for q in fixed):
+                break
+    bar.close()
+    return out
+
+
+def _rotate_each(scene: Scene, passes, blocks, rng, seed: int, bar: _Bar, tag: str = "") -> Search:
+    """Every A's rotation searched alone against all of B (fixed ones taken from the scene)."""
+    lay, m = scene.layout, len(passes)
     out = Search(np.zeros((m, 4)), np.zeros((m, 2)), float("nan"), SwarmHistory(), [], [None] * m)
-    alternatives: dict[int, list[np.ndarray]] = {}
-    for i in range(m):
-        if fixed[i] is not None:
-            out.quats[i] = normalize(np.asarray(fixed[i]))
+    for i, entry in enumerate(scene.passes):
+        if entry.rotation is not None:
+            out.quats[i] = normalize(np.asarray(entry.rotation))
             continue
         out.quats[i], out.value, h = _search_one(
             passes[i], blocks, scene, rng, seed, bar, passes[i].name
         )
         out.alone[i] = float(out.value)
-        alternatives[i] = alternative_rotations(h.finalists, out.quats[i], lay.alternatives)
+        out.alternatives[i] = alternative_rotations(h.finalists, out.quats[i], lay.alternatives)
         out.history.extend(h)
-        out.stages.append((f"rotate {passes[i].name}", len(h.best)))
+        out.stages.append((f"rotate {passes[i].name}{tag}", len(h.best)))
         if h.polish is not None:
             out.polish.append({"shape": passes[i].name, **h.polish})
-    if merged:
-        got = _merge(scene, passes, blocks, out.quats, alternatives, rng, bar)
-        out.quats, out.trans, out.value, out.memory = got.quats, got.trans, got.value, got.memory
-        out.history.extend(got.history)
-        out.stages += got.stages
-    bar.close()
     return out
 
 

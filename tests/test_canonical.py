@@ -143,3 +143,22 @@ def test_search_announces_its_stages_and_counts_canonical_evaluations():
     assert seen == ["canonical", "swarm", "polish"]
     assert history.evaluations == 2 * 2 + 3  # the swarm's budget and the cube's three views
     assert history.polish["rounds"] == 1 and value == history.polish["after"]
+
+
+@pytest.mark.slow
+def test_letters_win_at_reduced_settings():
+    # The paper's letters (S, I, G pass; R, A, P, H blocked), a third of the search budget and a
+    # coarser raster: the canonical views give each letter its face-on rotation, the merged hole
+    # blocks all four.
+    import os
+
+    from sieve_mi.scene import load_scene
+    from sieve_mi.solve import solve
+
+    scene = load_scene(os.path.join(os.path.dirname(__file__), "..", "scenes", "letters.toml"))
+    s, v = scene.solver, scene.verdict
+    s.resolution, s.particles, s.iterations, s.starts, s.steps = 128, 6, 4, 8, 80
+    v.starts, v.steps, v.resolution = 40, 250, 192
+    r = solve(scene, seed=0, progress=False)
+    assert r.winner == "A"
+    assert (r.attack.protrusion[0] > 0.1).all()  # each blocked letter sticks out by > 0.1 mm

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import trimesh
 from scipy import ndimage
 
@@ -115,3 +116,43 @@ def test_merge_hint_only_when_each_shape_alone_blocked():
     )
     assert merge_hint({**report, "settings": {"layout": {"mode": "separate"}}}) is None
     assert merge_hint({**report, "pass": report["pass"][:1]}) is None
+
+
+@pytest.mark.parametrize(
+    "restarts, seeds, kept", [(0, [7], 0.0), (1, [7, 8], 1.0), (3, [7, 8], 1.0)]
+)
+def test_a_lost_merge_restarts_from_another_seed(write_scene, monkeypatch, restarts, seeds, kept):
+    # The first merge loses (some B passes); with restarts, every A is searched again from
+    # another seed and merged again, the blocking merge is kept and no further restart runs.
+    import sieve_mi.solve as solve_mod
+    from sieve_mi.layout import Merged
+    from sieve_mi.optim import SwarmHistory
+    from sieve_mi.scene import load_scene
+
+    cube = trimesh.creation.box((10.0, 10.0, 10.0))
+    body = (
+        '[[pass]]\nmesh = "meshes/a.stl"\n[[pass]]\nmesh = "meshes/a.stl"\n'
+        f'[[block]]\nmesh = "meshes/a.stl"\n[layout]\nrestarts = {restarts}\n'
+    )
+    scene = load_scene(write_scene(body, {"a.stl": cube}))
+    rotated, merges = [], []
+
+    def fake_rotate(scene, passes, blocks, rng, seed, bar, tag=""):
+        rotated.append(seed)
+        out = solve_mod.Search(
+            np.tile([1.0, 0, 0, 0], (2, 1)), np.zeros((2, 2)), 0.0, SwarmHistory(), [], [0.5] * 2
+        )
+        return out
+
+    def fake_merge(scene, passes, blocks, quats, alternatives, rng, bar):
+        k = len(merges)
+        merges.append(k)
+        return Merged(quats, np.zeros((2, 2)), float(k), SwarmHistory(), [(f"merge {k}", 1)],
+                      None, blocks=k >= 1)  # fmt: skip
+
+    monkeypatch.setattr(solve_mod, "_rotate_each", fake_rotate)
+    monkeypatch.setattr(solve_mod, "_merge", fake_merge)
+    out = solve_mod.search(scene, [None, None], [None], np.random.default_rng(0), 7, False)
+    assert rotated == seeds
+    assert out.value == kept and out.merged_blocks == (kept == 1.0)
+    assert [label for label, _ in out.stages] == [f"merge {k}" for k in range(len(seeds))]
