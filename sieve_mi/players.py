@@ -545,14 +545,16 @@ class PlayerA:
         rounds: int,
         first: float = 1.0,
         last: float = 0.05,
+        gain: float = 0.01,
     ) -> tuple[np.ndarray, float, dict]:
         """Refine A's rotation locally: a batched compass search on the view direction.
 
         Each round tilts the rotation by ``step`` about the x and y axes, both ways (turning about
         z only turns the hole), and evaluates the four holes and the current one in one attack
         whose B starts are the same every round (common random numbers, so differences come from
-        the holes, not from luck). A better tilt is taken; otherwise the step is halved, from
-        ``first`` down to ``last`` degrees.
+        the holes, not from luck). A tilt that is better by more than ``gain`` (relative, and at
+        least 1e-3: less is a pixel's worth of raster noise) is taken; otherwise the step is
+        halved, from ``first`` down to ``last`` degrees.
 
         Returns
         -------
@@ -578,7 +580,7 @@ class PlayerA:
             v = values(tried)
             done += 1
             k = int(np.argmax(v))
-            if v[k] > current:
+            if v[k] > current + max(1e-3, gain * abs(current)):
                 best, current = tried[k], float(v[k])
             else:
                 step /= 2
