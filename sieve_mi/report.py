@@ -30,6 +30,70 @@ def write_exr(path: str, image: np.ndarray) -> None:
     mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32)).write(path)
 
 
+def write_layers(path: str, layers: dict, metadata: dict) -> None:
+    """Write a multi-layer OpenEXR: one named float32 channel per (N, N) array, plus metadata.
+
+    Parameters
+    ----------
+    path : str
+    layers : dict of str to (N, N) ndarray
+        Channel name to image (row 0 at the top); all of one size.
+    metadata : dict of str to float or str
+        Header attributes (e.g. the pixel size), shown by viewers such as tev.
+    """
+    import mitsuba as mi
+
+    names = list(layers)
+    stack = np.stack([np.asarray(layers[n], dtype=np.float32) for n in names], axis=-1)
+    bitmap = mi.Bitmap(
+        np.ascontiguousarray(stack),
+        pixel_format=mi.Bitmap.PixelFormat.MultiChannel,
+        channel_names=names,
+    )
+    header = bitmap.metadata()
+    for key, value in metadata.items():
+        header[key] = value
+    bitmap.write(path)
+
+
+def paste_window(window, frame) -> np.ndarray:
+    """A B attempt's mask window (:class:`~sieve_mi.scoring.MaskWindow`) on the frame's lattice.
+
+    The window is a piece of the same pixel lattice, possibly reaching beyond the frame; what lies
+    beyond is cut off. Returns an (N, N) bool array.
+    """
+    (x0, _, _, y1), mask = window
+    h, n = frame.pixel_size, frame.resolution
+    col0 = int(round((x0 + frame.half_extent) / h))
+    row0 = int(round((frame.half_extent - y1) / h))
+    out = np.zeros((n, n), dtype=bool)
+    r0, c0 = max(row0, 0), max(col0, 0)
+    r1, c1 = min(row0 + mask.shape[0], n), min(col0 + mask.shape[1], n)
+    if r1 > r0 and c1 > c0:
+        out[r0:r1, c0:c1] = mask[r0 - row0 : r1 - row0, c0 - col0 : c1 - col0]
+    return out
+
+
+def mask_layers(result: Result) -> dict:
+    """The layers of ``masks.exr``: the exact hole at pixel centres, the conservative raster the
+    attack used, player B's distance field (scene units), every A's silhouette and every B's best
+    attempt, all on the hole's lattice."""
+    from sieve_mi.fabrication import result_outline
+    from sieve_mi.outline import rasterize
+
+    hole = result.hole
+    layers = {
+        "hole": rasterize(result_outline(result), hole.frame),
+        "hole.cover": hole.mask,
+        "distance": hole.outside,
+    }
+    for i, (m, shape) in enumerate(zip(result.a_masks, result.pass_shapes)):
+        layers[f"a.{i}.{_safe(shape.name)}"] = m
+    for j, (shape, window) in enumerate(zip(result.block_shapes, result.block_masks)):
+        layers[f"b.{j}.{_safe(shape.name)}"] = paste_window(window, hole.frame)
+    return layers
+
+
 def write_png(path: str, mask: np.ndarray) -> None:
     """Write a binary mask as an 8-bit grey PNG (white = inside)."""
     from PIL import Image
@@ -268,6 +332,17 @@ def _write_images(result: Result, tmp: str) -> None:
             os.path.join(tmp, "masks", f"block_{j}_{_safe(shape.name)}.exr"),
             window.mask.astype(np.float32),
         )
+    frame = hole.frame
+    write_layers(
+        os.path.join(tmp, "masks.exr"),
+        mask_layers(result),
+        {
+            "pixel_size": float(frame.pixel_size),
+            "frame_origin": f"{-frame.half_extent!r} {frame.half_extent!r}",
+            "frame_note": "frame_origin is the top-left corner (x y); row 0 at the top, +y up",
+            "units": result.scene.units,
+        },
+    )
     _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best)
     _overlay_png(os.path.join(tmp, "overlay.png"), result)
 

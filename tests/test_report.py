@@ -95,3 +95,48 @@ def test_written_images_are_the_hole(solved, tmp_path):
         "block_0_sphere.exr",
         "block_1_small_sphere.exr",
     }
+
+
+def test_layered_exr_has_every_layer_on_one_lattice(solved, tmp_path):
+    import manifold3d
+    import mitsuba as mi
+
+    from sieve_mi.exact import Boundary, silhouette
+
+    out = tmp_path / "out"
+    write_outputs(solved, str(out), fabricate=False)
+    bitmap = mi.Bitmap(str(out / "masks.exr"))
+    names = [f.name for f in bitmap.struct_()]
+    data = np.array(bitmap)
+    layer = {n: data[..., k] for k, n in enumerate(names)}
+    assert set(names) == {
+        "hole", "hole.cover", "distance", "a.0.cube", "b.0.sphere", "b.1.small_sphere",
+    }  # fmt: skip
+    meta = bitmap.metadata()
+    frame = solved.hole.frame
+    assert meta["pixel_size"] == pytest.approx(frame.pixel_size)
+    assert [float(v) for v in meta["frame_origin"].split()] == [
+        -frame.half_extent,
+        frame.half_extent,
+    ]
+    h = frame.pixel_size
+    hole, cover = layer["hole"] > 0.5, layer["hole.cover"] > 0.5
+    # pixel centres inside the exact polygon: its area to within a ring of one pixel
+    area = solved.outline.area()
+    assert abs(hole.sum() * h * h - area) < 0.1 * area
+    assert (cover >= hole).all() and np.array_equal(cover, solved.hole.mask)
+    assert (layer["distance"][hole] == 0).all() and layer["distance"][~cover].min() > 0
+    assert np.array_equal(layer["a.0.cube"] > 0.5, solved.a_masks[0])
+    # each B's layer is its best attempt: its pixel centres lie on B's exact silhouette at the
+    # reported pose (up to the ray caster's rounding), and that silhouette's area inside the frame
+    # is covered to within a ring of one pixel
+    x, y = frame.centres()
+    for j, name in enumerate(["b.0.sphere", "b.1.small_sphere"]):
+        shape = solved.block_shapes[j]
+        sil = silhouette(shape, solved.attack.quats[0, j], solved.attack.trans[0, j])
+        rows, cols = np.nonzero(layer[name] > 0.5)
+        pts = np.column_stack([x[cols], y[rows]])
+        assert len(pts) > 0 and Boundary(sil).signed(pts).max() <= 1e-6 * h
+        box = manifold3d.CrossSection.square([2 * frame.half_extent] * 2, center=True)
+        inside = (sil ^ box).area()
+        assert abs(len(pts) * h * h - inside) <= 0.1 * inside
