@@ -25,6 +25,32 @@ from sieve_mi.verdict import judge
 
 
 @dataclass
+class BlockAttempt:
+    """One shape of B in the verdict: its best attempt against the exact hole.
+
+    Attributes
+    ----------
+    name : str
+    blocked : bool
+    beta : float
+        area(S \\ H) / area(S) of its best pose (0: it fits).
+    protrusion : float
+        Largest distance by which that pose sticks out of H, scene units.
+    rotation : (4,) ndarray
+        (w, x, y, z).
+    translation : (2,) ndarray
+        Scene units, in the hole's frame.
+    """
+
+    name: str
+    blocked: bool
+    beta: float
+    protrusion: float
+    rotation: np.ndarray
+    translation: np.ndarray
+
+
+@dataclass
 class Result:
     """What a solve produced.
 
@@ -94,6 +120,34 @@ class Result:
     certified: list = field(default_factory=list)
     outline: object = None
     polish: list = field(default_factory=list)
+
+    @property
+    def blocks(self) -> list[BlockAttempt]:
+        """Per shape of B, its best attempt in the verdict (exact β and protrusion)."""
+        blocked = self.attack.blocked()[0]
+        out = []
+        for j, shape in enumerate(self.block_shapes):
+            c = self.certified[j] if j < len(self.certified) else None
+            out.append(
+                BlockAttempt(
+                    name=shape.name,
+                    blocked=bool(blocked[j]) and not (c is not None and c.status == "passage"),
+                    beta=float(self.attack.beta[0, j]),
+                    protrusion=float(self.attack.protrusion[0, j]),
+                    rotation=self.attack.quats[0, j].copy(),
+                    translation=self.attack.trans[0, j].copy(),
+                )
+            )
+        return out
+
+    def save(self, out_dir: str, *, fabricate: bool = True, figure: bool = True) -> dict:
+        """Write every output into ``out_dir`` (as ``sieve-mi solve --out``); returns report.json's dict.
+
+        A folder that sieve-mi did not write is refused, never replaced (:mod:`sieve_mi.outdir`).
+        """
+        from sieve_mi.report import write_outputs
+
+        return write_outputs(self, out_dir, fabricate=fabricate, figure=figure)
 
     @property
     def a_mask(self) -> np.ndarray:
