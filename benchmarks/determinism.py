@@ -106,7 +106,7 @@ def setup(path, scale, poses, rng):
     from sieve_mi.meshes import load_shape, shape_from_trimesh
     from sieve_mi.players import PlayerA, PlayerB
     from sieve_mi.rotations import random_uniform
-    from sieve_mi.solve import hole_frame
+    from sieve_mi.solver import hole_frame
 
     cube = shape_from_trimesh(trimesh.creation.box((20.0, 20.0, 20.0)), name="cube")
     frame = hole_frame(cube, 1.0, 256)

@@ -100,7 +100,7 @@ def run_one(name: str, variant: str, objective: str, quick: bool) -> dict:
     """Run one scene in this process and return its row (called in a child process)."""
     import sieve_mi  # noqa: F401
     from sieve_mi.scene import load_scene
-    from sieve_mi.solve import solve
+    from sieve_mi.solver import solve
 
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "scene.toml")

@@ -26,7 +26,7 @@ def main() -> None:
 
     use_variant(None)
     from sieve_mi.scene import load_scene
-    from sieve_mi.solve import load_shapes
+    from sieve_mi.solver import load_shapes
     from sieve_mi.verdict import judge
 
     scene = load_scene(args.scene)

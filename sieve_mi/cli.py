@@ -116,7 +116,7 @@ def cmd_solve(args) -> int:
     from sieve_mi.outdir import validate
     from sieve_mi.report import input_paths, summary_table, write_outputs
     from sieve_mi.scene import load_scene
-    from sieve_mi.solve import solve
+    from sieve_mi.solver import solve
 
     scene = load_scene(args.scene)
     out_dir = args.out or os.path.join("out", scene.name)
@@ -137,7 +137,7 @@ def cmd_check(args) -> int:
 
     from sieve_mi import outdir
     from sieve_mi.backend import use_variant
-    from sieve_mi.check import CheckSettings, check, summary
+    from sieve_mi.checker import CheckSettings, check, summary
     from sieve_mi.meshes import load_shape
 
     if args.hole is not None and args.pixel_size is None:
@@ -249,7 +249,7 @@ def cmd_certify(args) -> int:
         raise SieveError(f"--budget {args.budget}: must be a positive number of seconds")
     if args.certificate and not os.path.isdir(os.path.dirname(os.path.abspath(args.certificate))):
         raise SieveError(f"--certificate {args.certificate}: its folder does not exist")
-    from sieve_mi.check import holes_from_mesh
+    from sieve_mi.checker import holes_from_mesh
     from sieve_mi.meshes import load_shape
 
     shape = load_shape(args.shape, scale=args.scale)

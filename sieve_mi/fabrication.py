@@ -224,7 +224,7 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
 
     Parameters
     ----------
-    result : sieve_mi.solve.Result
+    result : sieve_mi.solver.Result
     out_dir : str
         An existing folder.
     figure : bool

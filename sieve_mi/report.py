@@ -15,7 +15,7 @@ import numpy as np
 
 from sieve_mi import outdir
 from sieve_mi.provenance import provenance
-from sieve_mi.solve import Result
+from sieve_mi.solver import Result
 
 
 def _safe(name: str) -> str:

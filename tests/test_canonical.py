@@ -92,7 +92,7 @@ polish = {polish}
 def test_the_search_finds_the_coin_slot(write_scene):
     # A 5-cent coin's edge-on slot (1.77 mm) blocks a 10-cent coin (1.93 mm thick) only within a
     # fraction of a degree of edge-on; the swarm alone lands 1.4° off on seed 1 and B wins.
-    from sieve_mi.solve import solve
+    from sieve_mi.solver import solve
 
     r = solve(_coin_scene(write_scene, 1, 20, 10), progress=False)
     tilt = np.degrees(np.arcsin(abs(_view(r.pass_quats[0])[2])))
@@ -153,7 +153,7 @@ def test_letters_win_at_reduced_settings():
     import os
 
     from sieve_mi.scene import load_scene
-    from sieve_mi.solve import solve
+    from sieve_mi.solver import solve
 
     scene = load_scene(os.path.join(os.path.dirname(__file__), "..", "scenes", "letters.toml"))
     s, v = scene.solver, scene.verdict

@@ -287,7 +287,7 @@ def test_solve_certifies_its_blocks_and_a_passage_overrules_the_verdict(write_sc
     # passage; certify must find it through the exact hole and hand the win to B.
     from sieve_mi.report import report_dict, summary_table
     from sieve_mi.scene import load_scene
-    from sieve_mi.solve import solve
+    from sieve_mi.solver import solve
 
     body = """name = "t"
 [[pass]]

@@ -21,7 +21,7 @@ import pytest
 import trimesh
 from PIL import Image
 
-from sieve_mi.check import CheckSettings, ShapeCheck, check, fit_scale, holes_from_mesh
+from sieve_mi.checker import CheckSettings, ShapeCheck, check, fit_scale, holes_from_mesh
 from sieve_mi.errors import SieveError
 from sieve_mi.fabrication import to_trimesh
 from sieve_mi.meshes import shape_from_trimesh

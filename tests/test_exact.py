@@ -14,7 +14,7 @@ from sieve_mi.meshes import shape_from_trimesh
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import from_axis_angle
 from sieve_mi.scene import load_scene
-from sieve_mi.solve import solve
+from sieve_mi.solver import solve
 from sieve_mi.testing.shapes import box
 
 EDGE_ON = "[1, 0, 0, 0]"
@@ -184,7 +184,7 @@ def test_verdict_starts_from_the_search_memory(write_scene):
     # fits only when it lies almost flat. Two starts and no Adam steps: a random rotation does not
     # fit, the remembered flat pose does.
     from sieve_mi.players import Attack, AttackMemory
-    from sieve_mi.solve import load_shapes
+    from sieve_mi.solver import load_shapes
     from sieve_mi.verdict import judge
 
     body = """

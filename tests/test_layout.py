@@ -124,7 +124,7 @@ def test_merge_hint_only_when_each_shape_alone_blocked():
 def test_a_lost_merge_restarts_from_another_seed(write_scene, monkeypatch, restarts, seeds, kept):
     # The first merge loses (some B passes); with restarts, every A is searched again from
     # another seed and merged again, the blocking merge is kept and no further restart runs.
-    import sieve_mi.solve as solve_mod
+    import sieve_mi.solver as solve_mod
     from sieve_mi.layout import Merged
     from sieve_mi.optim import SwarmHistory
     from sieve_mi.scene import load_scene

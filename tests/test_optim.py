@@ -139,7 +139,7 @@ def test_every_outer_method_solves_end_to_end(write_scene, outer):
     # exactly its budget of particles x (iterations + 1) = 3 x 2 evaluations plus the cube's
     # three canonical (face-on) views; the search's value is the polish's final one.
     from sieve_mi.scene import load_scene
-    from sieve_mi.solve import solve
+    from sieve_mi.solver import solve
 
     ball = trimesh.creation.icosphere(2, 16.0)
     cube = trimesh.creation.box((20.0, 20.0, 20.0))

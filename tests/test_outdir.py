@@ -300,7 +300,7 @@ def test_solve_refuses_protected_folders(scene_dir, tmp_path, tmp_path_factory, 
 @pytest.fixture(scope="module")
 def tiny_result(tmp_path_factory):
     from sieve_mi.scene import load_scene
-    from sieve_mi.solve import solve
+    from sieve_mi.solver import solve
 
     d = tmp_path_factory.mktemp("tiny")
     (d / "meshes").mkdir()

@@ -10,7 +10,7 @@ import pytest
 
 from sieve_mi.report import report_dict, summary_table, write_outputs
 from sieve_mi.scene import load_scene
-from sieve_mi.solve import solve
+from sieve_mi.solver import solve
 
 MESHES = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
 SCENE = f"""name = "report test"

@@ -10,7 +10,7 @@ import pytest
 from sieve_mi.hole import pieces
 from sieve_mi.rotations import align, to_matrix
 from sieve_mi.scene import load_scene
-from sieve_mi.solve import solve
+from sieve_mi.solver import solve
 
 SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
 FAST = """

@@ -21,6 +21,7 @@ much margin a block has.
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import asdict, dataclass, field
 
@@ -94,6 +95,11 @@ class CheckReport:
     fit_bracket: list | None = None
     evaluations: list = field(default_factory=list)
     seconds: float = 0.0
+
+    @property
+    def passes(self) -> bool:
+        """Whether the part passes at scale 1 (the exact verdict on a plate's holes)."""
+        return self.result.passes
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -344,7 +350,7 @@ def fit_scale(evaluate, first: ShapeCheck, rel_tol: float, limit: int = 12) -> t
 
 
 def check(
-    shape: Shape,
+    shape,
     *,
     sieve: str | None = None,
     axis: str = "z",
@@ -358,8 +364,8 @@ def check(
 
     Parameters
     ----------
-    shape : Shape
-        Already scaled to scene units.
+    shape : Shape, trimesh.Trimesh or str
+        The part, in scene units: a loaded Shape, a trimesh mesh, or a mesh file's path.
     sieve : str, optional
         Plate mesh file; its holes are taken along ``axis``.
     image : str, optional
@@ -374,6 +380,7 @@ def check(
     -------
     CheckReport
     """
+    shape = as_shape(shape)
     settings = settings or CheckSettings()
     t0 = time.perf_counter()
     if sieve is not None:
@@ -408,6 +415,17 @@ def check(
     rep.evaluations = evaluations
     rep.seconds = time.perf_counter() - t0
     return rep
+
+
+def as_shape(part) -> Shape:
+    """A Shape from a Shape, a trimesh mesh or a mesh file's path (scene units)."""
+    from sieve_mi.meshes import load_shape, shape_from_trimesh
+
+    if isinstance(part, Shape):
+        return part
+    if isinstance(part, (str, os.PathLike)):
+        return load_shape(os.fspath(part))
+    return shape_from_trimesh(part, name=getattr(part, "metadata", {}).get("name", "part"))
 
 
 def _plate_holes(sieve: str, axis: str, resolution: int):
