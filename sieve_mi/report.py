@@ -161,12 +161,7 @@ def report_dict(result: Result) -> dict:
         },
         "settings": scene.settings(),
         "variant": result.variant,
-        "provenance": provenance(
-            scene.path,
-            [(e.mesh, scene.resolve(e.mesh)) for e in scene.passes + scene.blocks],
-            result.variant,
-            result.seed,
-        ),
+        "provenance": _provenance(result),
         "search_value": None if np.isnan(result.search_value) else float(result.search_value),
         "convergence": [float(x) for x in result.history.best],
         "stages": [{"stage": label, "iterations": n} for label, n in result.stages],
@@ -179,6 +174,27 @@ def report_dict(result: Result) -> dict:
         "given in file units times scale); the silhouette is the projection onto the xy-plane; "
         "translations are in the xy-plane in scene units, relative to the hole's centre",
     }
+
+
+def _provenance(result: Result) -> dict:
+    """report.json's provenance; a mesh built in code is hashed by its vertex and face bytes."""
+    import hashlib
+
+    scene = result.scene
+    entries = scene.passes + scene.blocks
+    files = [(e.mesh, scene.resolve(e.mesh)) for e in entries if e.data is None]
+    out = provenance(scene.path, files, result.variant, result.seed)
+    from_files = iter(out["meshes"])
+    meshes = []
+    for e in entries:
+        if e.data is None:
+            meshes.append(next(from_files))
+        else:
+            v = np.ascontiguousarray(e.data.vertices, dtype=np.float64).tobytes()
+            f = np.ascontiguousarray(e.data.faces, dtype=np.int64).tobytes()
+            meshes.append({"mesh": e.mesh, "sha256": hashlib.sha256(v + f).hexdigest()})
+    out["meshes"] = meshes
+    return out
 
 
 def _convergence_png(path: str, history: list[float]) -> None:
@@ -284,7 +300,8 @@ def _overlay_png(path: str, result: Result) -> None:
 
 def input_paths(scene) -> list[str]:
     """The scene file and every mesh it names (absolute): an output folder may not hold them."""
-    return [scene.path] + [scene.resolve(e.mesh) for e in (*scene.passes, *scene.blocks)]
+    files = [scene.resolve(e.mesh) for e in (*scene.passes, *scene.blocks) if e.data is None]
+    return [scene.path, *files]
 
 
 def write_outputs(

@@ -168,7 +168,14 @@ def _documented(cls: type) -> type:
 @_documented
 @dataclass
 class ShapeEntry:
-    """One ``[[pass]]`` or ``[[block]]`` table."""
+    """One ``[[pass]]`` or ``[[block]]`` table, or a mesh given in code (:meth:`Scene.from_meshes`).
+
+    Other Attributes
+    ----------------
+    data : trimesh.Trimesh or None
+        The mesh itself for a scene built in code (``mesh`` is then only a label); None when the
+        mesh is read from the file ``mesh``.
+    """
 
     mesh: str = setting(doc="mesh file, relative to the scene file (anything trimesh reads)")
     scale: float = setting(
@@ -180,6 +187,7 @@ class ShapeEntry:
         default_doc="none",
     )
     name: str | None = setting(None, "label in reports and file names", default_doc="file stem")
+    data: object = field(default=None, repr=False, compare=False)
 
 
 @_documented
@@ -306,6 +314,58 @@ class Scene:
 
     def __post_init__(self):
         self.directory = os.path.dirname(os.path.abspath(self.path))
+
+    @classmethod
+    def from_meshes(
+        cls, passes: list, blocks: list, *, name: str = "scene", directory: str | None = None
+    ) -> Scene:
+        """A scene built in code from in-memory meshes, with every setting at its default.
+
+        Parameters
+        ----------
+        passes, blocks : list
+            Each a ``trimesh.Trimesh`` or a dict with ``"mesh"`` (the Trimesh) and optional
+            ``"name"``, ``"scale"`` and (``passes`` only) ``"rotation"`` (w, x, y, z).
+        name : str
+            The scene's name (output folder ``out/<name>``).
+        directory : str, optional
+            Folder that relative paths refer to (default: the working directory).
+
+        Settings are attributes afterwards (``scene.fabrication.tolerance = 0.5``); unlike a
+        TOML file they are not checked when set.
+
+        Examples
+        --------
+        >>> import trimesh
+        >>> scene = Scene.from_meshes(
+        ...     [trimesh.creation.box((20, 20, 20))],
+        ...     [{"mesh": trimesh.creation.icosphere(3, 12.0), "name": "ball"}],
+        ...     name="cube-vs-ball",
+        ... )
+        >>> [e.name for e in scene.passes + scene.blocks]
+        ['pass_0', 'ball']
+        """
+
+        def entries(items, role):
+            out = []
+            for i, item in enumerate(items):
+                spec = item if isinstance(item, dict) else {"mesh": item}
+                label = spec.get("name") or f"{role}_{i}"
+                out.append(
+                    ShapeEntry(
+                        mesh=f"<in memory: {label}>",
+                        scale=float(spec.get("scale", 1.0)),
+                        rotation=spec.get("rotation"),
+                        name=label,
+                        data=spec["mesh"],
+                    )
+                )
+            return out
+
+        path = os.path.join(os.path.abspath(directory or os.getcwd()), f"{name}.toml")
+        return cls(
+            path=path, name=name, passes=entries(passes, "pass"), blocks=entries(blocks, "block")
+        )
 
     def resolve(self, mesh: str) -> str:
         """A mesh path relative to the scene file, made absolute."""

@@ -15,7 +15,7 @@ import numpy as np
 
 from sieve_mi.hole import Hole
 from sieve_mi.layout import alternative_rotations, hole_frame, merge, union_frame
-from sieve_mi.meshes import Shape, load_shape
+from sieve_mi.meshes import Shape, load_shape, shape_from_trimesh
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.players import Attack, AttackMemory, PlayerA, PlayerB
 from sieve_mi.rotations import normalize
@@ -195,8 +195,14 @@ class Search:
 
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
     """Read every mesh of the scene (raises SieveError on the first bad one)."""
-    passes = [load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name) for e in scene.passes]
-    blocks = [load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name) for e in scene.blocks]
+
+    def load(e):
+        if e.data is not None:  # a scene built in code (Scene.from_meshes)
+            return shape_from_trimesh(e.data, name=e.name, scale=e.scale)
+        return load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name)
+
+    passes = [load(e) for e in scene.passes]
+    blocks = [load(e) for e in scene.blocks]
     return passes, blocks
 
 
