@@ -14,6 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Orthographic sensors by (resolution, half extent): :meth:`Frame.sensor`.
+_SENSORS: dict = {}
+
 
 @dataclass(frozen=True)
 class Frame:
@@ -34,6 +37,39 @@ class Frame:
     def pixel_size(self) -> float:
         """Side length h of one pixel, in scene units."""
         return 2.0 * self.half_extent / self.resolution
+
+    def sensor(self):
+        """Mitsuba's orthographic sensor that frames this raster (cached per frame).
+
+        It looks down the z-axis (from +z, so +x is to the image's right and +y up, row 0 at
+        the top) and its N x N film covers the frame: ``sensor.sample_ray`` at film position
+        ((i + 0.5) / N, (j + 0.5) / N) gives the ray through pixel (row j, column i)'s centre,
+        also for indices beyond the frame (the lattice extends). The silhouettes' rays come
+        from it (:meth:`sieve_mi.silhouettes.SilhouetteRenderer.trace`).
+        """
+        key = (self.resolution, self.half_extent)
+        if key not in _SENSORS:
+            import mitsuba as mi
+
+            t = mi.ScalarTransform4f()
+            to_world = t.look_at(origin=[0, 0, 1], target=[0, 0, 0], up=[0, 1, 0]) @ t.scale(
+                [self.half_extent, self.half_extent, 1.0]
+            )
+            _SENSORS[key] = mi.load_dict(
+                {
+                    "type": "orthographic",
+                    "to_world": to_world,
+                    "near_clip": 1e-3,
+                    "film": {
+                        "type": "hdrfilm",
+                        "width": self.resolution,
+                        "height": self.resolution,
+                        "pixel_format": "luminance",
+                        "rfilter": {"type": "box"},
+                    },
+                }
+            )
+        return _SENSORS[key]
 
     def centres(self) -> tuple[np.ndarray, np.ndarray]:
         """Pixel-centre coordinates: x per column (N,) and y per row (N,), scene units."""

@@ -1,7 +1,8 @@
 """Exact binary silhouettes by ray casting in Mitsuba 3.
 
-A silhouette is sampled by one ray per pixel centre along +z, exactly what an orthographic sensor
-looking down the z-axis with pixel-centre sampling produces. Instead of moving the mesh for every
+A silhouette is sampled by one ray per pixel centre along z: the rays of Mitsuba's orthographic
+sensor that frames the raster (:meth:`sieve_mi.raster.Frame.sensor`), sampled at its film's pixel
+centres (``sensor.sample_ray``). Instead of moving the mesh for every
 pose (a new BVH each time), the rays are moved into the mesh's frame: for a pose (R, t) the ray
 through world point P starts at R^T (P - t) and runs along R^T e_z. One scene (one BVH) per shape
 then serves any number of poses in a single batched ``ray_test`` call; the rays are generated in
@@ -85,9 +86,11 @@ class SilhouetteRenderer:
         p = idx % n_pix
         row = dr.gather(mi.Int32, r0, pose) + mi.Int32(p // size)
         col = dr.gather(mi.Int32, c0, pose) + mi.Int32(p % size)
-        h, half = frame.pixel_size, frame.half_extent
-        x = (mi.Float(col) + 0.5) * h - half - dr.gather(mi.Float, tx, pose)
-        y = half - (mi.Float(row) + 0.5) * h - dr.gather(mi.Float, ty, pose)
+        h, n = frame.pixel_size, frame.resolution
+        film = mi.Point2f((mi.Float(col) + 0.5) / n, (mi.Float(row) + 0.5) / n)
+        world, _ = frame.sensor().sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
+        x = world.o.x - dr.gather(mi.Float, tx, pose)
+        y = world.o.y - dr.gather(mi.Float, ty, pose)
         reach = self.shape.radius * 1.01 + h
         g = [dr.gather(mi.Float, c, pose) for c in cols]
         origin = mi.Point3f(
