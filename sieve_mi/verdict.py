@@ -63,25 +63,6 @@ class Judgement:
 REACH = 3.0
 
 
-def weakest_hole(attack: Attack) -> Attack:
-    """Collapse an attack on several separate holes to one row: per shape, its best hole.
-
-    A shape passes a sieve with several holes if it passes any of them, so per shape the hole with
-    the lowest beta (then protrusion) is kept.
-    """
-    if attack.beta.shape[0] == 1:
-        return attack
-    order = np.lexsort((attack.protrusion, attack.beta), axis=0)[0]
-    cols = np.arange(attack.beta.shape[1])
-    return Attack(
-        beta=attack.beta[order, cols][None],
-        protrusion=attack.protrusion[order, cols][None],
-        quats=attack.quats[order, cols][None],
-        trans=attack.trans[order, cols][None],
-        fits=attack.fits.sum(axis=0)[None],
-    )
-
-
 def _groups(count: int, separate: bool) -> list[list[int]]:
     """Which A shapes make each hole: one each (separate) or all in one."""
     return [[i] for i in range(count)] if separate else [list(range(count))]
@@ -193,9 +174,10 @@ def judge(
         warnings.append("the merged hole is not connected")
     grown = [dilated(o, fab.block_margin) for o in outlines] if fab.block_margin > 0 else outlines
     player_b = PlayerB(blocks, frame, "clearance")
-    targets = [hole] if len(grown) == 1 and grown[0] is outline else None
+    # without a margin, one merged hole's raster is the one already built
+    same = fab.block_margin == 0 and not separate
     attack = player_b.attack(
-        targets or [Hole.from_outline(g, frame) for g in grown],
+        [hole] if same else [Hole.from_outline(g, frame) for g in grown],
         v.starts,
         v.steps,
         scene.solver.learning_rate,
