@@ -38,6 +38,30 @@ FIT_EPS = 1e-7
 CANDIDATES = 8
 
 
+def along(a: np.ndarray, b: np.ndarray, spacing: float, most: int | None = None):
+    """Points along segments a -> b (E, D), at most ``spacing`` apart (at most ``most`` per segment).
+
+    Each segment contributes its start and evenly spaced points up to (not including) its end.
+
+    Returns
+    -------
+    points : (P, D) ndarray
+    segment : (P,) ndarray of int
+        The segment each point lies on.
+    start : (P,) ndarray of bool
+        The point is its segment's start.
+    """
+    seg = b - a
+    n = np.maximum(1, np.ceil(np.linalg.norm(seg, axis=1) / spacing)).astype(int)
+    if most is not None:
+        n = np.minimum(n, most)
+    idx = np.repeat(np.arange(len(seg)), n)
+    first = np.repeat(np.cumsum(n) - n, n)
+    k = np.arange(n.sum())
+    t = (k - first) / np.repeat(n, n)
+    return a[idx] + t[:, None] * seg[idx], idx, k == first
+
+
 class Boundary:
     """The exact outline of a region, for signed distances.
 
@@ -102,20 +126,25 @@ class Boundary:
         dist = self.distance(xy)
         return np.where(self.inside(xy), -dist, dist)
 
-    def approx_signed(self, xy: np.ndarray, exact_sign: bool = False) -> np.ndarray:
-        """Signed distances to a boundary sampled every ``spacing`` (fast: a k-d tree).
+    def _nearest(self, xy: np.ndarray):
+        """Distance to the nearest boundary sample and its index, for points (P, 2)."""
+        if self._tree is None:
+            self._build_tree()
+        return self._tree.query(np.atleast_2d(np.asarray(xy, dtype=np.float64)))
+
+    def approx_distance(self, xy: np.ndarray) -> np.ndarray:
+        """(P,) distances to the boundary sampled every ``spacing``: at most half of it off."""
+        return self._nearest(xy)[0]
+
+    def approx_signed(self, xy: np.ndarray) -> np.ndarray:
+        """Signed distances to the boundary sampled every ``spacing`` (fast: a k-d tree).
 
         The magnitude is at most half the spacing off. The sign comes from the nearest sample's
         outward normal (the mean of both edges' normals at a corner), which can be wrong only
-        within about a spacing of the boundary; ``exact_sign`` takes it from the exact
-        point-in-polygon test instead (slower on long outlines).
+        within about a spacing of the boundary.
         """
-        if self._tree is None:
-            self._build_tree()
         xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
-        dist, k = self._tree.query(xy)
-        if exact_sign:
-            return np.where(self.inside(xy), -dist, dist)
+        dist, k = self._nearest(xy)
         side = ((xy - self._samples[k]) * self._normals[k]).sum(-1)
         return np.where(side < 0, -dist, dist)
 
@@ -130,14 +159,9 @@ class Boundary:
         prev += np.repeat(
             np.cumsum([0] + [len(c) for c in self.contours[:-1]]), [len(c) for c in self.contours]
         )
-        n = np.maximum(1, np.ceil(np.linalg.norm(seg, axis=1) / self.spacing)).astype(int)
-        idx = np.repeat(np.arange(len(seg)), n)
-        first = np.repeat(np.cumsum(n) - n, n)
-        t = (np.arange(n.sum()) - first) / np.repeat(n, n)
+        self._samples, idx, corner = along(self.a, self.b, self.spacing)
         normals = normal[idx].copy()
-        corner = np.arange(n.sum()) == first  # the sample at a segment's start is a corner
-        normals[corner] += normal[prev[idx[corner]]]
-        self._samples = self.a[idx] + t[:, None] * seg[idx]
+        normals[corner] += normal[prev[idx[corner]]]  # a segment's start is a corner
         self._normals = normals
         self._tree = cKDTree(self._samples)
 
@@ -168,19 +192,6 @@ class ExactScore:
 def silhouette(shape: Shape, quat, trans, closed: bool = False) -> manifold3d.CrossSection:
     """B's exact silhouette S at a pose: the union of its projected triangles."""
     return projection(placed_vertices(shape, quat, trans), shape.faces, closed=closed)
-
-
-def _samples_on(section: manifold3d.CrossSection, spacing: float) -> np.ndarray:
-    """Points along every contour of ``section``, at most ``spacing`` apart, (P, 2)."""
-    pts = []
-    for c in section.to_polygons():
-        c = np.asarray(c, dtype=np.float64)
-        seg = np.roll(c, -1, axis=0) - c
-        n = np.maximum(1, np.ceil(np.linalg.norm(seg, axis=1) / spacing)).astype(int)
-        idx = np.repeat(np.arange(len(c)), n)
-        t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
-        pts.append(c[idx] + t[:, None] * seg[idx])
-    return np.concatenate(pts) if pts else np.zeros((0, 2))
 
 
 def score(
@@ -228,7 +239,8 @@ def score(
     out_area = float(out.area())
     prot = 0.0
     if not out.is_empty():
-        pts = _samples_on(out, boundary.spacing)
+        edges = Boundary(out)
+        pts = along(edges.a, edges.b, boundary.spacing)[0]
         prot = float(max(0.0, boundary.signed(pts).max())) if len(pts) else 0.0
     if prot <= eps:
         return ExactScore(beta=0.0, protrusion=0.0, outside_area=out_area)
@@ -249,12 +261,8 @@ def outline_points(
 
     v = shape.vertices
     edges = edge_topology(v, shape.faces)[0]
-    seg = v[edges[:, 1]] - v[edges[:, 0]]
-    n = np.maximum(1, np.ceil(np.linalg.norm(seg, axis=1) / spacing)).astype(int)
-    n = np.minimum(n, 64)
-    idx = np.repeat(np.arange(len(edges)), n)
-    t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
-    body = np.concatenate([v, v[edges[idx, 0]] + t[:, None] * seg[idx]])
+    samples = along(v[edges[:, 0]], v[edges[:, 1]], spacing, most=64)[0]
+    body = np.concatenate([v, samples])
     xy = (body @ to_matrix(np.asarray(quat, dtype=np.float64)).T)[:, :2] + np.asarray(trans)
     outline = Boundary(silhouette(shape, quat, trans, closed), spacing)
     if len(outline.a) == 0:

@@ -79,7 +79,7 @@ class Hole:
         else:  # H thinner than a pixel, or covering the frame: measure everywhere
             signed = np.zeros((n, n))
             band = np.ones((n, n), dtype=bool)
-        near = np.abs(boundary.approx_signed(pts[band.ravel()]))
+        near = boundary.approx_distance(pts[band.ravel()])
         signed[band] = np.where(inside[band], -near, near)
         mask = signed <= h * np.sqrt(0.5)
         outside = np.maximum(signed, 0.0).astype(np.float32)
