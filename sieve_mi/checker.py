@@ -258,26 +258,27 @@ def attempt(
         centres=_centres(holes),
         keep=keep,
     )
-    order = np.lexsort((att.protrusion[:, 0], att.beta[:, 0]))
-    k = int(order[0])
-    fits = int(att.fits.sum()) if outlines is not None else int(att.fits[k, 0])
-    if outlines is not None:  # the plate's exact holes decide (any of them may let it through)
-        att = exact_rescore(att, [b], union(outlines), reach=REACH * holes[0].frame.pixel_size)
-        k = _hole_of(att.trans[0, 0], outlines)
-    row = 0 if outlines is not None else k
+    if outlines is None:  # a hole image: its pixels are the truth
+        k = int(np.lexsort((att.protrusion[:, 0], att.beta[:, 0]))[0])
+        best, row, fits = att, k, int(att.fits[k, 0])
+    else:  # the plate's exact holes decide (any of them may let it through)
+        hole = union(outlines)
+        best = exact_rescore(att, [b], hole, reach=REACH * holes[0].frame.pixel_size)
+        row, fits = 0, int(att.fits.sum())
+        k = _hole_of(best.trans[0, 0], outlines)
     v = ShapeCheck(
         scale=float(s),
-        passes=bool(att.beta[row, 0] == 0),
-        beta=float(att.beta[row, 0]),
-        protrusion=float(att.protrusion[row, 0]),
-        rotation=[float(x) for x in att.quats[row, 0]],
-        translation=[float(x) for x in att.trans[row, 0]],
+        passes=bool(best.beta[row, 0] == 0),
+        beta=float(best.beta[row, 0]),
+        protrusion=float(best.protrusion[row, 0]),
+        rotation=[float(x) for x in best.quats[row, 0]],
+        translation=[float(x) for x in best.trans[row, 0]],
         hole=k,
         fitting_starts=fits,
     )
     if outlines is not None:
-        proj = projection(placed_vertices(b, att.quats[0, 0], att.trans[0, 0]), b.faces)
-        v.exact_outside_area = float((proj - union(outlines)).area())
+        proj = projection(placed_vertices(b, best.quats[0, 0], best.trans[0, 0]), b.faces)
+        v.exact_outside_area = float((proj - hole).area())
     return v
 
 
