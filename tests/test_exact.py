@@ -84,7 +84,9 @@ def _coin(diameter: float, thickness: float) -> trimesh.Trimesh:
     return trimesh.creation.cylinder(radius=diameter / 2, height=thickness, sections=96)
 
 
-def _edge_on_scene(write_scene, a_mesh, b_mesh, tolerance, resolution=160, margin=0.0):
+def _edge_on_scene(
+    write_scene, a_mesh, b_mesh, tolerance, resolution=160, margin=0.0, starts=24, steps=200
+):
     body = f"""
 [[pass]]
 mesh = "meshes/a.stl"
@@ -95,8 +97,8 @@ mesh = "meshes/b.stl"
 tolerance = {tolerance}
 block_margin = {margin}
 [verdict]
-starts = 24
-steps = 200
+starts = {starts}
+steps = {steps}
 resolution = {resolution}
 """
     # Turn the coin so that it is seen edge-on along z: its axis along y.
@@ -160,21 +162,9 @@ def test_needle_thinner_than_a_pixel_passes_a_wide_hole(write_scene):
 
 def test_zero_area_hole_is_an_error(write_scene):
     sheet = trimesh.Trimesh(
-        vertices=[[-5, 0, -5], [5, 0, -5], [5, 0, 5], [-5, 0, 5]], faces=[[0, 1, 2], [0, 2, 3]]
+        vertices=[[-5, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]], faces=[[0, 1, 2], [0, 2, 3]]
     )
-    body = f"""
-[[pass]]
-mesh = "meshes/a.stl"
-rotation = {EDGE_ON}
-[[block]]
-mesh = "meshes/b.stl"
-[fabrication]
-tolerance = 0
-[verdict]
-starts = 2
-steps = 2
-"""
-    scene = load_scene(write_scene(body, {"a.stl": sheet, "b.stl": box(1.0, 1.0, 1.0)}))
+    scene = _edge_on_scene(write_scene, sheet, box(1.0, 1.0, 1.0), 0, starts=2, steps=2)
     with pytest.raises(SieveError, match="zero area"):
         solve(scene, progress=False)
 
