@@ -294,30 +294,40 @@ def search(
     bar = _Bar(progress, per_stage * stages_planned, "search", grow_by=per_stage)
     out = _rotate_each(scene, passes, blocks, rng, seed, bar)
     if merged:
-        for restart in range(lay.restarts + 1):
-            if restart:  # an independent search of every A's rotation from another seed
-                again = _rotate_each(scene, passes, blocks, np.random.default_rng([seed, restart]),
-                                     seed + restart, bar, f" (restart {restart})")  # fmt: skip
-                out.history.extend(again.history)
-                out.stages += again.stages
-                out.polish += again.polish
-            else:
-                again = out
-            got = _merge(scene, passes, blocks, again.quats, again.alternatives, rng, bar)
-            out.history.extend(got.history)
-            out.stages += got.stages
-            if restart == 0 or (got.blocks, got.value) > (out.merged_blocks, out.value):
-                out.quats, out.trans, out.value, out.memory = (
-                    got.quats,
-                    got.trans,
-                    got.value,
-                    got.memory,
-                )
-                out.alone, out.merged_blocks = again.alone, got.blocks
-            if got.blocks or all(q is not None for q in fixed):
-                break
+        _merge_with_restarts(scene, passes, blocks, out, rng, seed, bar)
     bar.close()
     return out
+
+
+def _merge_with_restarts(scene: Scene, passes, blocks, out: Search, rng, seed: int, bar) -> None:
+    """Merge every A into one hole (``out`` holds their rotations and receives the result).
+
+    While the merge still lets some B through, every A's rotation is searched again from another
+    seed (``[layout] restarts``) and merged again; the better merge is kept (blocking first, then
+    the game value).
+    """
+    searchable = any(e.rotation is None for e in scene.passes)
+    rotations = out
+    for restart in range(scene.layout.restarts + 1):
+        if restart:  # an independent search of every A's rotation from another seed
+            rotations = _rotate_each(scene, passes, blocks, np.random.default_rng([seed, restart]),
+                                     seed + restart, bar, f" (restart {restart})")  # fmt: skip
+            out.history.extend(rotations.history)
+            out.stages += rotations.stages
+            out.polish += rotations.polish
+        got = _merge(scene, passes, blocks, rotations.quats, rotations.alternatives, rng, bar)
+        out.history.extend(got.history)
+        out.stages += got.stages
+        if restart == 0 or (got.blocks, got.value) > (out.merged_blocks, out.value):
+            out.quats, out.trans, out.value, out.memory = (
+                got.quats,
+                got.trans,
+                got.value,
+                got.memory,
+            )
+            out.alone, out.merged_blocks = rotations.alone, got.blocks
+        if got.blocks or not searchable:
+            return
 
 
 def _rotate_each(scene: Scene, passes, blocks, rng, seed: int, bar: _Bar, tag: str = "") -> Search:
