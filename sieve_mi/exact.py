@@ -30,7 +30,7 @@ import numpy as np
 
 from sieve_mi.meshes import Shape
 from sieve_mi.outline import is_closed, placed_vertices, projection
-from sieve_mi.rotations import from_rotvec, normalize, quat_multiply
+from sieve_mi.rotations import angle_between, from_rotvec, normalize, quat_multiply
 
 #: A pose fits when nothing sticks out by more than this fraction of the hole's size (float noise).
 FIT_EPS = 1e-7
@@ -342,7 +342,7 @@ def polish(
 
 def _same_pose(q1, t1, q2, t2, radius: float, rel: float = 1e-3) -> bool:
     """Two poses move no point of a shape of ``radius`` by more than ``rel * radius``."""
-    angle = 2.0 * np.arccos(min(1.0, abs(float(np.dot(q1, q2)))))
+    angle = angle_between(q1, q2)
     return angle * radius + float(np.linalg.norm(np.subtract(t1, t2))) <= rel * radius
 
 

@@ -27,7 +27,14 @@ from sieve_mi.optim import (
     renormalise_quaternions,
 )
 from sieve_mi.raster import Frame
-from sieve_mi.rotations import from_rotvec, normalize, quat_multiply, random_uniform, to_rotvec
+from sieve_mi.rotations import (
+    angle_between,
+    from_rotvec,
+    normalize,
+    quat_multiply,
+    random_uniform,
+    to_rotvec,
+)
 from sieve_mi.scoring import score_poses
 from sieve_mi.silhouettes import SilhouetteRenderer
 
@@ -473,7 +480,7 @@ class PlayerA:
         if polish > 0:
             say("polish")
             q, f, history.polish = self.polish(
-                player_b, q, f, starts=starts, steps=steps, learning_rate=learning_rate,
+                player_b, q, starts=starts, steps=steps, learning_rate=learning_rate,
                 seed=seed, rounds=polish,
             )  # fmt: skip
         return q, f, history
@@ -536,7 +543,6 @@ class PlayerA:
         self,
         player_b: PlayerB,
         quat: np.ndarray,
-        value: float,
         *,
         starts: int,
         steps: int,
@@ -549,9 +555,9 @@ class PlayerA:
     ) -> tuple[np.ndarray, float, dict]:
         """Refine A's rotation locally: a batched compass search on the view direction.
 
-        Each round tilts the rotation by ``step`` about the x and y axes, both ways (turning about
-        z only turns the hole), and evaluates the four holes and the current one in one attack
-        whose B starts are the same every round (common random numbers, so differences come from
+        The starting rotation is evaluated once; then each round tilts the current one by ``step``
+        about the x and y axes, both ways (turning about z only turns the hole), and evaluates the
+        four holes in one attack whose B starts are the same every time (common random numbers, so differences come from
         the holes, not from luck). A tilt that is better by more than ``gain`` (relative, and at
         least 1e-3: less is a pixel's worth of raster noise) is taken; otherwise the step is
         halved, from ``first`` down to ``last`` degrees.
@@ -584,6 +590,6 @@ class PlayerA:
                 best, current = tried[k], float(v[k])
             else:
                 step /= 2
-        moved = float(np.degrees(2 * np.arccos(min(1.0, abs(float(np.dot(best, start)))))))
+        moved = float(np.degrees(angle_between(best, start)))
         record = {"before": before, "after": current, "moved": moved, "rounds": done}
         return best, current, record
