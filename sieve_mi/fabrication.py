@@ -18,7 +18,7 @@ import numpy as np
 import trimesh
 
 from sieve_mi.meshes import Shape
-from sieve_mi.outline import hole_outline, is_closed, placed_vertices, raster_agreement
+from sieve_mi.outline import placed_vertices, raster_agreement
 
 
 @dataclass
@@ -200,21 +200,6 @@ UNIT_NAMES = {
 }
 
 
-def result_outline(result):
-    """The exact hole of a solve: the verdict's, or (for a Result built by hand) made the same way."""
-    if result.outline is not None:
-        return result.outline
-    fab = result.scene.fabrication
-    return hole_outline(
-        result.pass_shapes,
-        result.pass_quats,
-        result.pass_trans,
-        fab.tolerance,
-        fill_holes=fab.fill_holes,
-        closed=[is_closed(s) for s in result.pass_shapes],
-    )
-
-
 def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
     """Write the printable sieve and the placed shapes of a solve into ``out_dir``.
 
@@ -238,7 +223,7 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
     """
     scene = result.scene
     fab = scene.fabrication
-    outline = result_outline(result)
+    outline = result.outline
     required = default_thickness(result.pass_shapes + result.block_shapes)
     thickness = fab.thickness if fab.thickness is not None else required
     sieve = plate(outline, thickness, fab.border, required_thickness=required)

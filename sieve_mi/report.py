@@ -78,12 +78,11 @@ def mask_layers(result: Result) -> dict:
     """The layers of ``masks.exr``: the exact hole at pixel centres, the conservative raster the
     attack used, player B's distance field (scene units), every A's silhouette and every B's best
     attempt, all on the hole's lattice."""
-    from sieve_mi.fabrication import result_outline
     from sieve_mi.outline import rasterize
 
     hole = result.hole
     layers = {
-        "hole": rasterize(result_outline(result), hole.frame),
+        "hole": rasterize(result.outline, hole.frame),
         "hole.cover": hole.mask,
         "distance": hole.outside,
     }
@@ -154,7 +153,7 @@ def report_dict(result: Result) -> dict:
         "pass": passes,
         "block": blocks,
         "hole": {
-            "area": float(result.outline.area()) if result.outline is not None else hole.area,
+            "area": float(result.outline.area()),
             "raster_area": hole.area,
             "resolution": hole.frame.resolution,
             "half_extent": hole.frame.half_extent,
@@ -241,10 +240,9 @@ def _draw_section(ax, section, **style) -> None:
 def _overlay_sections(result: Result):
     """The exact polygons of the overlay: H, each A's projection and each B's best attempt."""
     from sieve_mi.exact import silhouette
-    from sieve_mi.fabrication import result_outline
     from sieve_mi.outline import is_closed
 
-    hole = result_outline(result)
+    hole = result.outline
     a = [
         silhouette(s, q, t, is_closed(s))
         for s, q, t in zip(result.pass_shapes, result.pass_quats, result.pass_trans)

@@ -66,7 +66,7 @@ class Result:
         Each A's translation in the hole's frame, scene units (the first is at the origin).
     hole : Hole
         The verdict's hole raster (at the verdict resolution), made from ``outline``.
-    outline : manifold3d.CrossSection or None
+    outline : manifold3d.CrossSection
         The exact hole H that is printed and that decided the verdict (scene units).
     a_masks : list of (N, N) bool ndarrays
         Each A's undilated silhouette at its placement, on the hole's frame.
