@@ -62,10 +62,8 @@ def paste_window(window, frame) -> np.ndarray:
     The window is a piece of the same pixel lattice, possibly reaching beyond the frame; what lies
     beyond is cut off. Returns an (N, N) bool array.
     """
-    (x0, _, _, y1), mask = window
-    h, n = frame.pixel_size, frame.resolution
-    col0 = int(round((x0 + frame.half_extent) / h))
-    row0 = int(round((frame.half_extent - y1) / h))
+    mask, n = window.mask, frame.resolution
+    row0, col0 = window_origin(window, frame)
     out = np.zeros((n, n), dtype=bool)
     r0, c0 = max(row0, 0), max(col0, 0)
     r1, c1 = min(row0 + mask.shape[0], n), min(col0 + mask.shape[1], n)
@@ -74,21 +72,60 @@ def paste_window(window, frame) -> np.ndarray:
     return out
 
 
-def mask_layers(result: Result) -> dict:
+def window_origin(window, frame) -> tuple[int, int]:
+    """Lattice (row, column) of a :class:`~sieve_mi.scoring.MaskWindow`'s top-left pixel."""
+    x0, _, _, y1 = window.extent
+    h = frame.pixel_size
+    return int(round((frame.half_extent - y1) / h)), int(round((x0 + frame.half_extent) / h))
+
+
+def rendered_masks(result: Result) -> tuple[list, list]:
+    """The silhouettes that get written, rendered by Mitsuba (``mi.render`` under the lattice's
+    orthographic sensors, :meth:`~sieve_mi.silhouettes.SilhouetteRenderer.render`).
+
+    Returns
+    -------
+    a : list of (N, N) bool ndarrays
+        Each A at its pass pose, on the hole's frame (equal to ``result.a_masks``).
+    b : list of MaskWindow
+        Each B in its best attempt, on the window of ``result.block_masks`` (equal to it).
+    """
+    from sieve_mi.scoring import MaskWindow
+    from sieve_mi.silhouettes import SilhouetteRenderer
+
+    frame = result.hole.frame
+    a = [
+        SilhouetteRenderer(shape).render(q, t, frame)
+        for shape, q, t in zip(result.pass_shapes, result.pass_quats, result.pass_trans)
+    ]
+    b = []
+    for j, (shape, window) in enumerate(zip(result.block_shapes, result.block_masks)):
+        row0, col0 = window_origin(window, frame)
+        q, t = result.attack.quats[0, j], result.attack.trans[0, j]
+        mask = SilhouetteRenderer(shape).render(q, t, frame, row0, col0, window.mask.shape[0])
+        b.append(MaskWindow(window.extent, mask))
+    return a, b
+
+
+def mask_layers(result: Result, rendered: tuple | None = None) -> dict:
     """The layers of ``masks.exr``: the exact hole at pixel centres, the conservative raster the
     attack used, player B's distance field (scene units), every A's silhouette and every B's best
-    attempt, all on the hole's lattice."""
+    attempt, all on the hole's lattice.
+
+    ``rendered`` is :func:`rendered_masks`'s answer (computed when not given).
+    """
     from sieve_mi.outline import rasterize
 
     hole = result.hole
+    a_masks, b_windows = rendered_masks(result) if rendered is None else rendered
     layers = {
         "hole": rasterize(result.outline, hole.frame),
         "hole.cover": hole.mask,
         "distance": hole.outside,
     }
-    for i, (m, shape) in enumerate(zip(result.a_masks, result.pass_shapes)):
+    for i, (m, shape) in enumerate(zip(a_masks, result.pass_shapes)):
         layers[f"a.{i}.{_safe(shape.name)}"] = m
-    for j, (shape, window) in enumerate(zip(result.block_shapes, result.block_masks)):
+    for j, (shape, window) in enumerate(zip(result.block_shapes, b_windows)):
         layers[f"b.{j}.{_safe(shape.name)}"] = paste_window(window, hole.frame)
     return layers
 
@@ -335,14 +372,16 @@ def _write_images(result: Result, tmp: str) -> None:
     hole = result.hole
     write_png(os.path.join(tmp, "hole.png"), hole.mask)
     write_exr(os.path.join(tmp, "hole.exr"), hole.mask.astype(np.float32))
-    write_exr(os.path.join(tmp, "masks", "a_silhouette.exr"), result.a_mask.astype(np.float32))
-    if len(result.a_masks) > 1:
-        for i, (m, shape) in enumerate(zip(result.a_masks, result.pass_shapes)):
+    rendered = a_masks, b_windows = rendered_masks(result)
+    a_union = np.logical_or.reduce(a_masks)
+    write_exr(os.path.join(tmp, "masks", "a_silhouette.exr"), a_union.astype(np.float32))
+    if len(a_masks) > 1:
+        for i, (m, shape) in enumerate(zip(a_masks, result.pass_shapes)):
             write_exr(
                 os.path.join(tmp, "masks", f"pass_{i}_{_safe(shape.name)}.exr"),
                 m.astype(np.float32),
             )
-    for j, (shape, window) in enumerate(zip(result.block_shapes, result.block_masks)):
+    for j, (shape, window) in enumerate(zip(result.block_shapes, b_windows)):
         write_exr(
             os.path.join(tmp, "masks", f"block_{j}_{_safe(shape.name)}.exr"),
             window.mask.astype(np.float32),
@@ -350,7 +389,7 @@ def _write_images(result: Result, tmp: str) -> None:
     frame = hole.frame
     write_layers(
         os.path.join(tmp, "masks.exr"),
-        mask_layers(result),
+        mask_layers(result, rendered),
         {
             "pixel_size": float(frame.pixel_size),
             "frame_origin": f"{-frame.half_extent!r} {frame.half_extent!r}",

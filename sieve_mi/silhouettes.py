@@ -7,6 +7,11 @@ pose (a new BVH each time), the rays are moved into the mesh's frame: for a pose
 through world point P starts at R^T (P - t) and runs along R^T e_z. One scene (one BVH) per shape
 then serves any number of poses in a single batched ``ray_test`` call; the rays are generated in
 Dr.Jit, in the same kernel as the intersection test.
+
+The masks that are written to disk are rendered by Mitsuba itself: ``mi.render`` with the
+:class:`silhouette <SilhouetteIntegrator>` integrator under the same kind of orthographic sensor
+(:meth:`SilhouetteRenderer.render`), one sample at each pixel centre. They equal the traced masks
+pixel for pixel (a test holds them together).
 """
 
 from __future__ import annotations
@@ -16,6 +21,41 @@ import numpy as np
 from sieve_mi.meshes import Shape
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import to_matrix
+
+#: Variants in which the ``silhouette`` integrator has been registered with Mitsuba.
+_REGISTERED: set = set()
+
+
+def register_integrator() -> None:
+    """Register the ``silhouette`` integrator with Mitsuba for the current variant (idempotent).
+
+    After this, ``mi.load_dict({"type": "silhouette"})`` gives a :class:`SilhouetteIntegrator`.
+    """
+    import mitsuba as mi
+
+    if mi.variant() in _REGISTERED:
+        return
+
+    class SilhouetteIntegrator(mi.SamplingIntegrator):
+        """Binary coverage: 1 where the camera ray hits any shape, 0 elsewhere.
+
+        One shadow-ray test per sample (``scene.ray_test``): no shading, no emitters, no
+        bounces. Rendered with one centred sample per pixel (the sensors of
+        :meth:`sieve_mi.raster.Frame.window_sensor`), the image is the exact silhouette at the
+        pixel centres.
+        """
+
+        def sample(self, scene, sampler, ray, medium=None, active=True):
+            import drjit as dr
+
+            hit = scene.ray_test(ray, active)
+            return mi.Spectrum(dr.select(hit, 1.0, 0.0)), mi.Bool(True), []
+
+        def aov_names(self):
+            return []
+
+    mi.register_integrator("silhouette", lambda props: SilhouetteIntegrator(props))
+    _REGISTERED.add(mi.variant())
 
 
 class SilhouetteRenderer:
@@ -142,6 +182,54 @@ class SilhouetteRenderer:
             np.zeros(1, int),
             n,
         )[0]
+
+    def render(
+        self,
+        quat: np.ndarray,
+        trans: np.ndarray,
+        frame: Frame,
+        row0: int = 0,
+        col0: int = 0,
+        size: int | None = None,
+    ) -> np.ndarray:
+        """One pose's silhouette rendered by ``mi.render``, on a window of the frame's lattice.
+
+        The mesh is moved into the pose (its top at z = -max(1, radius)) and rendered with the
+        ``silhouette`` integrator under :meth:`~sieve_mi.raster.Frame.window_sensor`. This builds a BVH per call, so it serves
+        the masks that are written, not the search (use :meth:`masks` for many poses).
+
+        Parameters
+        ----------
+        quat : (4,) ndarray
+            Rotation (w, x, y, z) about the shape's centre.
+        trans : (2,) ndarray
+            Translation in the xy-plane, scene units.
+        frame : Frame
+        row0, col0 : int
+            Lattice index of the window's top-left pixel (default: the frame's).
+        size : int, optional
+            Window side in pixels (default: the frame's resolution).
+
+        Returns
+        -------
+        (size, size) ndarray of bool
+            True where the pixel centre is covered; row 0 at the top.
+        """
+        import mitsuba as mi
+
+        register_integrator()
+        size = frame.resolution if size is None else size
+        v = self.shape.vertices @ to_matrix(np.asarray(quat)[None])[0].T
+        v[:, :2] += np.asarray(trans, dtype=np.float64)
+        v[:, 2] -= v[:, 2].max() + max(1.0, self.shape.radius)
+        mesh = mi.Mesh("posed", len(v), len(self.shape.faces), has_vertex_normals=False)
+        params = mi.traverse(mesh)
+        params["vertex_positions"] = mi.Float(v.astype(np.float32).ravel())
+        params["faces"] = mi.UInt32(self.shape.faces.astype(np.uint32).ravel())
+        params.update()
+        scene = mi.load_dict({"type": "scene", "shape": mesh, "integrator": {"type": "silhouette"}})
+        image = mi.render(scene, sensor=frame.window_sensor(row0, col0, size), spp=1)
+        return np.asarray(image, dtype=np.float32).reshape(size, size) > 0.5
 
     def projected_extent(
         self, quats: np.ndarray, trans: np.ndarray

@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from sieve_mi.report import report_dict, summary_table, write_outputs
+from sieve_mi.report import paste_window, report_dict, summary_table, write_outputs
 from sieve_mi.scene import load_scene
 from sieve_mi.solver import solve
 
@@ -127,6 +127,13 @@ def test_layered_exr_has_every_layer_on_one_lattice(solved, tmp_path):
     assert (cover >= hole).all() and np.array_equal(cover, solved.hole.mask)
     assert (layer["distance"][hole] == 0).all() and layer["distance"][~cover].min() > 0
     assert np.array_equal(layer["a.0.cube"] > 0.5, solved.a_masks[0])
+    # the written B layers and files are Mitsuba renders of the verdict's attempts: the same
+    # pixels as the verdict's ray-traced windows
+    for j, name in enumerate(["b.0.sphere", "b.1.small_sphere"]):
+        window = solved.block_masks[j]
+        assert np.array_equal(layer[name] > 0.5, paste_window(window, frame))
+        single = np.array(mi.Bitmap(str(out / "masks" / f"block_{j}_{name[4:]}.exr")))
+        assert np.array_equal(single.reshape(window.mask.shape) > 0.5, window.mask)
     # each B's layer is its best attempt: its pixel centres lie on B's exact silhouette at the
     # reported pose (up to the ray caster's rounding), and that silhouette's area inside the frame
     # is covered to within a ring of one pixel
