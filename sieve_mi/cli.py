@@ -113,18 +113,17 @@ def _certify_parser(sub) -> None:
 
 
 def cmd_solve(args) -> int:
+    import sieve_mi as sm
     from sieve_mi.outdir import validate
-    from sieve_mi.report import input_paths, summary_table, write_outputs
-    from sieve_mi.scene import load_scene
-    from sieve_mi.solver import solve
+    from sieve_mi.report import input_paths, summary_table
 
-    scene = load_scene(args.scene)
+    scene = sm.load_scene(args.scene)
     out_dir = args.out or os.path.join("out", scene.name)
     validate(out_dir, inputs=input_paths(scene))  # again just before the swap
     if args.seed is not None and args.seed < 0:
         raise SieveError(f"--seed {args.seed}: must be >= 0")
-    result = solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
-    report = write_outputs(result, out_dir, figure=not args.no_figure)
+    result = sm.solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
+    report = result.save(out_dir, figure=not args.no_figure)
     print(summary_table(report))
     for w in report["warnings"] + report.get("fabrication", {}).get("warnings", []):
         print(f"sieve-mi: warning: {w}", file=sys.stderr)
