@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml tools/ensure_llvm.sh
 	bash tools/ensure_llvm.sh
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test]'
+	$(PY) -m pip install -q -e '.[test,cluster]'
 	touch $(STAMP)
 
 demo: setup

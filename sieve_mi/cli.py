@@ -87,6 +87,9 @@ def _parser() -> argparse.ArgumentParser:
         "empty or earlier sieve-mi output folder is used)",
     )
     _certify_parser(sub)
+    from sieve_mi.cascade.commands import add_parsers
+
+    add_parsers(sub)
     return p
 
 
@@ -285,6 +288,10 @@ def main(argv: list[str] | None = None) -> int:
                 return cmd_check(args)
             if args.command == "certify":
                 return cmd_certify(args)
+            if args.command in ("sort", "sweep"):
+                from sieve_mi.cascade.commands import COMMANDS
+
+                return COMMANDS[args.command](args)
     except SieveError as exc:
         print(f"sieve-mi: error: {exc}", file=sys.stderr)
         return 2
