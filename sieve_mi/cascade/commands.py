@@ -141,9 +141,9 @@ def cmd_sweep(args) -> int:
     from sieve_mi.cascade.sweep import sweep_scene, sweep_table
     from sieve_mi.scene import load_scene
 
-    scene = load_scene(args.scene)
     seeds = parse_seeds(args.seeds) if args.seed is None else [args.seed]
     tolerances = parse_tolerances(args.tolerance)
+    scene = load_scene(args.scene)
     engine = _engine(args)
     engine.pop("seed")
     out = args.out or os.path.join("out", scene.name + "-sweep")

@@ -13,6 +13,7 @@ import base64
 import hashlib
 import json
 import os
+import shutil
 import socket
 import sys
 import tempfile
@@ -298,3 +299,106 @@ def _first_line(exc: BaseException) -> str:
 def spec_dict(spec: GameSpec) -> dict:
     """A spec as JSON-able data (for tables)."""
     return {"key": spec.key, "seed": spec.seed, "variant": spec.variant, **spec.label}
+
+
+def cache_folder(out_dir: str) -> str:
+    """Where finished games wait until the whole run is written: ``<out>.games`` beside it."""
+    return os.path.normpath(out_dir) + ".games"
+
+
+class Progress:
+    """One bar for the games (done / known so far) and a line per finished game (stderr)."""
+
+    def __init__(self, enabled: bool):
+        self.enabled, self.bar = enabled, None
+        if enabled:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=0, desc="games", unit="game", dynamic_ncols=True, file=sys.stderr)
+
+    def add(self, n: int) -> None:
+        if self.bar is not None:
+            self.bar.total += n
+            self.bar.refresh()
+
+    def done(self, record: dict, reused: bool) -> None:
+        if self.bar is None:
+            return
+        s, label = record["summary"], record["label"]
+        weakest = min(s["block"], key=lambda b: (b["blocked"], b["beta"]))
+        self.bar.write(
+            f"  hold {'+'.join(label.get('holds', [])) or '-':<20} pass "
+            f"{'+'.join(label.get('passes', [])) or '-':<28} winner {s['winner']}  "
+            f"weakest {weakest['name']} beta {weakest['beta']:.4f}  "
+            + ("reused" if reused else f"{s.get('game_s', 0):.1f} s")
+        )
+        self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _clear_cache(folder: str, keys) -> None:
+    """Remove the cached games that the written folder now holds; the cache folder if empty."""
+    for key in keys:
+        path = os.path.join(folder, key)
+        if os.path.isdir(path) and outdir.is_replaceable(path):
+            shutil.rmtree(path, ignore_errors=True)
+    try:
+        os.rmdir(folder)
+    except OSError:
+        pass
+
+
+class Engine:
+    """The game engine of ``sort`` and ``sweep``: cache, runner and progress together.
+
+    Use as a context manager (it shuts down a local Ray at the end). Finished games wait in
+    :func:`cache_folder` (beside ``out_dir``) and in a previous run's ``out_dir/games``.
+
+    Parameters
+    ----------
+    out_dir : str
+        The command's output folder.
+    use_ray, address, workers
+        As :class:`Runner`.
+    progress : bool
+    """
+
+    def __init__(self, out_dir: str, *, use_ray, address=None, workers=None, progress=True):
+        self.cache = GameCache(cache_folder(out_dir), also=(os.path.join(out_dir, "games"),))
+        self.bar = Progress(progress)
+        self.runner = Runner(
+            self.cache, use_ray=use_ray, address=address, workers=workers, on_done=self.bar.done
+        )
+        self.records: dict = {}
+
+    def play(self, specs: list) -> dict:
+        """Play (or reuse) ``specs``; returns ``{key: record}``."""
+        self.bar.add(len({s.key for s in specs}))
+        records = self.runner.run(specs)
+        self.records.update(records)
+        return records
+
+    def info(self) -> dict:
+        """How the games ran: mode, address, games played and reused."""
+        r = self.runner
+        mode = "ray" if r.use_ray else "serial"
+        return {"mode": mode, "address": r.address, "played": r.played, "reused": r.reused}
+
+    def folders(self) -> dict:
+        """``{key: folder}`` of every game played or reused."""
+        return {k: self.cache.find(k) for k in self.records}
+
+    def clear_cache(self) -> None:
+        """Remove the waiting games (after the output folder that copies them is written)."""
+        _clear_cache(self.cache.folder, self.records)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.bar.close()
+        self.runner.close()
+        return False

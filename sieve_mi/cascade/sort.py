@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import os
-import shutil
-import sys
 import time
 
 from sieve_mi import outdir
-from sieve_mi.cascade.games import GameCache, GameSpec, Runner, game_key, mesh_digest, ray_module
+from sieve_mi.cascade.games import Engine, GameSpec, game_key, mesh_digest, ray_module
 from sieve_mi.cascade.mixture import Mixture
 from sieve_mi.cascade.outputs import (
     cascade_dict,
@@ -19,44 +17,6 @@ from sieve_mi.cascade.outputs import (
 )
 from sieve_mi.cascade.plan import plan_cascade
 from sieve_mi.cascade.size import passage_radius
-
-
-def cache_folder(out_dir: str) -> str:
-    """Where finished games wait until the whole run is written: ``<out>.games`` beside it."""
-    return os.path.normpath(out_dir) + ".games"
-
-
-class Progress:
-    """One bar for the games (done / known so far) and a line per finished game (stderr)."""
-
-    def __init__(self, enabled: bool):
-        self.enabled, self.bar = enabled, None
-        if enabled:
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=0, desc="games", unit="game", dynamic_ncols=True, file=sys.stderr)
-
-    def add(self, n: int) -> None:
-        if self.bar is not None:
-            self.bar.total += n
-            self.bar.refresh()
-
-    def done(self, record: dict, reused: bool) -> None:
-        if self.bar is None:
-            return
-        s, label = record["summary"], record["label"]
-        weakest = min(s["block"], key=lambda b: (b["blocked"], b["beta"]))
-        self.bar.write(
-            f"  hold {'+'.join(label.get('holds', [])) or '-':<20} pass "
-            f"{'+'.join(label.get('passes', [])) or '-':<28} winner {s['winner']}  "
-            f"weakest {weakest['name']} beta {weakest['beta']:.4f}  "
-            + ("reused" if reused else f"{s.get('game_s', 0):.1f} s")
-        )
-        self.bar.update(1)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
 
 
 def prepare(mixture: Mixture) -> tuple[dict, list]:
@@ -132,22 +92,9 @@ def sort_mixture(
         label = {"holds": list(holds), "passes": list(passes)}
         return GameSpec(key, scene, seed, variant, label)
 
-    cache = GameCache(cache_folder(out_dir), also=(os.path.join(out_dir, "games"),))
-    bar = Progress(progress)
-    runner = Runner(cache, use_ray=use_ray, address=address, workers=workers, on_done=bar.done)
-    seen: dict = {}
-
-    def play_games(specs):
-        bar.add(len({s.key for s in specs}))
-        records = runner.run(specs)
-        seen.update(records)
-        return records
-
-    try:
-        plan = plan_cascade(order, play_games, make_spec)
-    finally:
-        bar.close()
-        runner.close()
+    engine = Engine(out_dir, use_ray=use_ray, address=address, workers=workers, progress=progress)
+    with engine:
+        plan = plan_cascade(order, engine.play, make_spec)
     games = [
         {
             "key": k,
@@ -155,20 +102,19 @@ def sort_mixture(
             "winner": r["summary"]["winner"],
             "game_s": r["summary"].get("game_s"),
         }
-        for k, r in seen.items()
+        for k, r in engine.records.items()
     ]
-    mode = "ray" if use_ray else "serial"
     report = cascade_dict(
         plan,
         shapes=shapes,
         games=games,
-        runner={"mode": mode, "address": address, "played": runner.played, "reused": runner.reused},
+        runner=engine.info(),
         timings={"total_s": round(time.perf_counter() - t0, 3)},
     )
     report["order"] = order
     spacing = 2.0 * max(r["radius"] for r in shapes)  # a gap the largest shape fits in
-    _write(out_dir, inputs, plan, report, {k: cache.find(k) for k in seen}, spacing, mixture.units)
-    _clear_cache(cache.folder, seen)
+    _write(out_dir, inputs, plan, report, engine.folders(), spacing, mixture.units)
+    engine.clear_cache()
     return report
 
 
@@ -179,15 +125,3 @@ def _write(out_dir, inputs, plan, report, folders, spacing, units) -> None:
         write_figure(os.path.join(tmp, "cascade.png"), plan, units)
         write_json(os.path.join(tmp, "cascade.json"), report)
         write_json(os.path.join(tmp, "report.json"), report)
-
-
-def _clear_cache(folder: str, keys) -> None:
-    """Remove the cached games that the written folder now holds; the cache folder if empty."""
-    for key in keys:
-        path = os.path.join(folder, key)
-        if os.path.isdir(path) and outdir.is_replaceable(path):
-            shutil.rmtree(path, ignore_errors=True)
-    try:
-        os.rmdir(folder)
-    except OSError:
-        pass

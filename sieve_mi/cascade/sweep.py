@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import copy
 import os
+import shutil
 import time
 
 from sieve_mi import outdir
-from sieve_mi.cascade.games import GameCache, GameSpec, Runner, game_key, mesh_digest
+from sieve_mi.cascade.games import Engine, GameSpec, game_key, mesh_digest
 from sieve_mi.cascade.outputs import copy_games, write_json
-from sieve_mi.cascade.sort import Progress, _clear_cache, cache_folder
 from sieve_mi.scene import Scene
 
 
@@ -72,7 +72,30 @@ def sweep_scene(
     variant = variant or default_variant()
     use_ray = (ray_module() is not None) if use_ray is None else use_ray
     base, digests = _loaded(scene)
-    tolerances = tolerances or [base.fabrication.tolerance]
+    specs = _specs(base, digests, seeds, tolerances or [base.fabrication.tolerance], variant)
+    engine = Engine(out_dir, use_ray=use_ray, address=address, workers=workers, progress=progress)
+    with engine:
+        records = engine.play(specs)
+    runs = [_run_row(spec, records[spec.key]["summary"]) for spec in specs]
+    best = max(runs, key=lambda r: r["rank"])
+    report = {
+        "scene": scene.path,
+        "runs": [{k: v for k, v in r.items() if k != "rank"} for r in runs],
+        "best": {k: v for k, v in best.items() if k != "rank"},
+        "runner": engine.info(),
+        "timings": {"total_s": round(time.perf_counter() - t0, 3)},
+    }
+    with outdir.writing(out_dir, command="sweep", inputs=inputs) as tmp:
+        copy_games(engine.folders(), tmp)
+        shutil.copytree(os.path.join(tmp, best["folder"]), os.path.join(tmp, "best"))
+        write_json(os.path.join(tmp, "sweep.json"), report)
+        write_json(os.path.join(tmp, "report.json"), report)
+    engine.clear_cache()
+    return report
+
+
+def _specs(base: Scene, digests: dict, seeds, tolerances, variant: str) -> list[GameSpec]:
+    """One game per (tolerance, seed)."""
     specs = []
     for tol in tolerances:
         for seed in seeds:
@@ -81,54 +104,22 @@ def sweep_scene(
             s.solver.seed = seed
             key = game_key(f"seed{seed}-tol{tol:g}", s, seed, variant, digests)
             specs.append(GameSpec(key, s, seed, variant, {"seed": seed, "tolerance": tol}))
-    cache = GameCache(cache_folder(out_dir), also=(os.path.join(out_dir, "games"),))
-    bar = Progress(progress)
-    runner = Runner(cache, use_ray=use_ray, address=address, workers=workers, on_done=bar.done)
-    bar.add(len(specs))
-    try:
-        records = runner.run(specs)
-    finally:
-        bar.close()
-        runner.close()
-    runs = []
-    for spec in specs:
-        s = records[spec.key]["summary"]
-        weakest = min(s["block"], key=lambda b: (b["blocked"], b["beta"], b["protrusion"]))
-        runs.append(
-            {
-                **spec.label,
-                "winner": s["winner"],
-                "weakest": weakest["name"],
-                "beta": weakest["beta"],
-                "protrusion": weakest["protrusion"],
-                "game_s": s.get("game_s"),
-                "folder": f"games/{spec.key}",
-                "rank": margin(s),
-            }
-        )
-    best = max(runs, key=lambda r: r["rank"])
-    report = {
-        "scene": scene.path,
-        "runs": [{k: v for k, v in r.items() if k != "rank"} for r in runs],
-        "best": {k: v for k, v in best.items() if k != "rank"},
-        "runner": {
-            "mode": "ray" if use_ray else "serial",
-            "address": address,
-            "played": runner.played,
-            "reused": runner.reused,
-        },
-        "timings": {"total_s": round(time.perf_counter() - t0, 3)},
-    }
-    folders = {spec.key: cache.find(spec.key) for spec in specs}
-    with outdir.writing(out_dir, command="sweep", inputs=inputs) as tmp:
-        copy_games(folders, tmp)
-        import shutil
+    return specs
 
-        shutil.copytree(os.path.join(tmp, best["folder"]), os.path.join(tmp, "best"))
-        write_json(os.path.join(tmp, "sweep.json"), report)
-        write_json(os.path.join(tmp, "report.json"), report)
-    _clear_cache(cache.folder, folders)
-    return report
+
+def _run_row(spec: GameSpec, summary: dict) -> dict:
+    """A run's row of the table: its weakest B and its rank (:func:`margin`)."""
+    weakest = min(summary["block"], key=lambda b: (b["blocked"], b["beta"], b["protrusion"]))
+    return {
+        **spec.label,
+        "winner": summary["winner"],
+        "weakest": weakest["name"],
+        "beta": weakest["beta"],
+        "protrusion": weakest["protrusion"],
+        "game_s": summary.get("game_s"),
+        "folder": f"games/{spec.key}",
+        "rank": margin(summary),
+    }
 
 
 def sweep_table(report: dict) -> str:
