@@ -61,7 +61,7 @@ def won(record: dict) -> bool:
     return record["summary"]["winner"] == "A"
 
 
-def plan_cascade(order: list, play_games, make_spec) -> Plan:
+def plan_cascade(order: list, play_games, make_spec, *, parallel: bool = True) -> Plan:
     """Plan the cascade for shape names ``order`` (coarsest first).
 
     Parameters
@@ -71,17 +71,22 @@ def plan_cascade(order: list, play_games, make_spec) -> Plan:
         ``play_games(specs) -> {key: record}`` (a :class:`~sieve_mi.cascade.games.Runner`'s run).
     make_spec : callable
         ``make_spec(holds, passes) -> GameSpec``.
+    parallel : bool
+        Play each round's games together (speculatively, for parallel workers). When False, play
+        them one at a time and stop at the first that decides the round: the planned games up
+        to the first lost one, the alternatives up to the first won one.
     """
     if len(order) < 2:
         raise SieveError("a cascade needs at least two shapes")
     units = [[n] for n in order]
     plan = Plan(sieves=[], bottom=[])
+    play = _together(play_games) if parallel else _one_by_one(play_games)
     while len(units) > 1:
-        k = _accept_planned(units, plan, play_games, make_spec)
+        k = _accept_planned(units, plan, play, make_spec)
         units = units[k:]
         if len(units) == 1:
             break
-        j = _alternative(units, play_games, make_spec)
+        j = _alternative(units, play, make_spec)
         if j is not None:
             units.insert(0, units.pop(j))
             continue
@@ -90,24 +95,47 @@ def plan_cascade(order: list, play_games, make_spec) -> Plan:
     return plan
 
 
-def _accept_planned(units, plan, play_games, make_spec) -> int:
+def _one_by_one(play_games):
+    """A ``play(specs, stop)`` that plays the specs in order until ``stop(record)`` holds."""
+
+    def play(specs, stop=None):
+        records = {}
+        for spec in specs:
+            records.update(play_games([spec]))
+            if stop is not None and stop(records[spec.key]):
+                break
+        return records
+
+    return play
+
+
+def _together(play_games):
+    """A ``play(specs, stop)`` that plays all specs at once (``stop`` is not needed)."""
+
+    def play(specs, stop=None):
+        return play_games(specs)
+
+    return play
+
+
+def _accept_planned(units, plan, play, make_spec) -> int:
     """Play the planned order's games; accept the won ones from the top; return how many."""
     specs = [make_spec(units[k], flat(units[k + 1 :])) for k in range(len(units) - 1)]
-    records = play_games(specs)
+    records = play(specs, stop=lambda r: not won(r))
     for k, spec in enumerate(specs):
-        record = records[spec.key]
-        if not won(record):
+        record = records.get(spec.key)
+        if record is None or not won(record):
             return k
         plan.sieves.append(Sieve(units[k], flat(units[k + 1 :]), spec.key, record))
     return len(units) - 1
 
 
-def _alternative(units, play_games, make_spec) -> int | None:
+def _alternative(units, play, make_spec) -> int | None:
     """The first unit after the top one that a sieve can hold while the rest pass, or None."""
     specs = [make_spec(units[j], flat(units[:j] + units[j + 1 :])) for j in range(1, len(units))]
-    records = play_games(specs)
+    records = play(specs, stop=won)
     for j, spec in enumerate(specs, start=1):
-        if won(records[spec.key]):
+        if spec.key in records and won(records[spec.key]):
             return j
     return None
 

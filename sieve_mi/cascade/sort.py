@@ -94,7 +94,7 @@ def sort_mixture(
 
     engine = Engine(out_dir, use_ray=use_ray, address=address, workers=workers, progress=progress)
     with engine:
-        plan = plan_cascade(order, engine.play, make_spec)
+        plan = plan_cascade(order, engine.play, make_spec, parallel=use_ray)
     games = [
         {
             "key": k,
