@@ -160,7 +160,11 @@ def test_a_pair_that_no_sieve_splits_shares_a_tray_with_the_reason(tmp_path):
         },
         name="twins",
     )
-    report = sort_mixture(load_mixture(path), str(tmp_path / "out"), use_ray=False, progress=False)
+    proc = _cli("sort", path, "--serial", "--quiet", "--out", "out", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "trays (top to bottom): cube28 | ball20_2+ball20" in proc.stdout
+    assert "cannot split ball20_2 and ball20" in proc.stdout
+    report = json.loads((tmp_path / "out" / "cascade.json").read_text())
     assert report["trays"] == [["cube28"], ["ball20_2", "ball20"]]
     (pair,) = report["inseparable"]
     assert sorted(pair["pair"]) == ["ball20", "ball20_2"]
