@@ -98,31 +98,78 @@ def write_plates(plan: Plan, tmp: str, gap: float, units: str) -> list[str]:
     return ["cascade.stl", "cascade.3mf"]
 
 
-def write_figure(path: str, plan: Plan, units: str) -> None:
-    """``cascade.png``: each sieve's exact hole, top to bottom, with the tray it fills."""
+def write_figure(path: str, plan: Plan, units: str, icons: dict | None = None) -> None:
+    """``cascade.png``: each sieve's exact hole, top to bottom, and below it the tray it fills.
+
+    Parameters
+    ----------
+    path : str
+    plan : Plan
+    units : str
+    icons : dict, optional
+        Shape name -> list of (n, 2) polygons (its silhouette along its passage view), drawn in
+        the trays at the holes' scale.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    n = max(1, len(plan.sieves))
-    fig, axes = plt.subplots(1, n, figsize=(3.4 * n, 4.3), squeeze=False)
-    for k, s in enumerate(plan.sieves):
-        ax = axes[0, k]
-        for poly in s.record["summary"]["outline"]:
-            p = np.asarray(poly)
-            ax.fill(p[:, 0], p[:, 1], color="#9ecae1", edgecolor="#08519c", linewidth=1.0)
-        ax.set_aspect("equal")
-        ax.set_title(f"sieve {k + 1}\nholds: {', '.join(s.holds)}", fontsize=9)
-        ax.set_xlabel(f"passes: {', '.join(s.passes)}\n({units})", fontsize=8)
-        ax.tick_params(labelsize=7)
-    fig.suptitle(
-        "cascade, top to bottom — trays: " + " | ".join("+".join(t) for t in plan.trays),
-        fontsize=10,
+    trays = plan.trays
+    n = len(trays)
+    holes = [[np.asarray(p) for p in s.record["summary"]["outline"]] for s in plan.sieves]
+    rows = [_tray_layout(names, icons or {}) for names in trays]
+    reach = max(
+        [np.abs(p).max() for h in holes for p in h]
+        + [np.abs(p).max() for row in rows for _, polys in row for p in polys]
+        + [1.0]
     )
+    fig, axes = plt.subplots(2, n, figsize=(2.8 * n, 6.2), squeeze=False)
+    for k in range(n):
+        top, tray = axes[0, k], axes[1, k]
+        if k < len(plan.sieves):
+            for p in holes[k]:
+                top.fill(p[:, 0], p[:, 1], color="#9ecae1", edgecolor="#08519c", linewidth=1.0)
+            top.set_title(f"sieve {k + 1}", fontsize=9)
+            top.text(
+                0.5, 0.02, "passes: " + ", ".join(plan.sieves[k].passes), transform=top.transAxes,
+                ha="center", va="bottom", fontsize=7, wrap=True,
+            )  # fmt: skip
+            top.tick_params(labelsize=7)
+        else:
+            top.axis("off")
+        for name, polys in rows[k]:
+            for p in polys:
+                tray.fill(*p.T, color="#fdae6b", edgecolor="#a63603", linewidth=0.8)
+            if polys:
+                pts = np.concatenate(polys)
+                tray.text(pts[:, 0].mean(), -reach * 0.95, name, ha="center", fontsize=8)
+        tray.set_title(f"tray {k + 1}: " + " + ".join(trays[k]), fontsize=9)
+        tray.axis("off")
+        for ax in (top, tray):
+            ax.set_xlim(-reach * 1.05, reach * 1.05)
+            ax.set_ylim(-reach * 1.05, reach * 1.05)
+            ax.set_aspect("equal")
+    fig.suptitle(f"cascade, top to bottom (all panels to one scale, {units})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _tray_layout(names: list, icons: dict) -> list:
+    """The shapes of one tray side by side, centred on the origin: [(name, polygons), ...]."""
+    placed, x = [], 0.0
+    for name in names:
+        polys = [np.asarray(p, dtype=float) for p in icons.get(name, [])]
+        if polys:
+            pts = np.concatenate(polys)
+            centre_y = 0.5 * (pts[:, 1].min() + pts[:, 1].max())
+            shift = np.array([x - pts[:, 0].min(), -centre_y])
+            polys = [p + shift for p in polys]
+            x += (pts[:, 0].max() - pts[:, 0].min()) * 1.15
+        placed.append((name, polys))
+    width = x / 1.15 if x else 0.0
+    return [(name, [p - [width / 2, 0.0] for p in polys]) for name, polys in placed]
 
 
 def write_json(path: str, data: dict) -> None:

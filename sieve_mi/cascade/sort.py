@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 import time
 
+import numpy as np
+
 from sieve_mi import outdir
 from sieve_mi.cascade.games import Engine, GameSpec, game_key, mesh_digest, ray_module
 from sieve_mi.cascade.mixture import Mixture
@@ -19,17 +21,30 @@ from sieve_mi.cascade.plan import plan_cascade
 from sieve_mi.cascade.size import passage_radius
 
 
-def prepare(mixture: Mixture) -> tuple[dict, list]:
+def prepare(mixture: Mixture) -> tuple[dict, list, dict]:
     """Load every mesh into its entry (so games travel without files), hash the files, and
-    measure the passage radii; returns the digests by name and the shape rows for the report."""
-    from sieve_mi.meshes import load_trimesh, shape_from_trimesh
+    measure the passage radii.
 
-    digests, rows = {}, []
+    Returns
+    -------
+    digests : dict
+        sha256 of each shape's mesh file, by name.
+    rows : list of dict
+        Per shape: name, mesh, scale, passage radius and its view, bounding radius.
+    icons : dict
+        Per shape: its exact silhouette seen along the passage view, as polygons (for figures).
+    """
+    from sieve_mi.exact import silhouette
+    from sieve_mi.meshes import load_trimesh, shape_from_trimesh
+    from sieve_mi.rotations import align
+
+    digests, rows, icons = {}, [], {}
     for e in mixture.shapes:
         path = os.path.join(os.path.dirname(os.path.abspath(mixture.path)), e.mesh)
         e.data = load_trimesh(path)
         digests[e.name] = mesh_digest(path)
-        radius, view = passage_radius(shape_from_trimesh(e.data, name=e.name, scale=e.scale))
+        shape = shape_from_trimesh(e.data, name=e.name, scale=e.scale)
+        radius, view = passage_radius(shape)
         rows.append(
             {
                 "name": e.name,
@@ -37,10 +52,12 @@ def prepare(mixture: Mixture) -> tuple[dict, list]:
                 "scale": e.scale,
                 "passage_radius": radius,
                 "view": [float(x) for x in view],
-                "radius": float(shape_from_trimesh(e.data, name=e.name, scale=e.scale).radius),
+                "radius": float(shape.radius),
             }
         )
-    return digests, rows
+        sil = silhouette(shape, align(view, [0.0, 0.0, 1.0]), np.zeros(2))
+        icons[e.name] = [np.asarray(p) for p in sil.to_polygons()]
+    return digests, rows, icons
 
 
 def sort_mixture(
@@ -83,7 +100,7 @@ def sort_mixture(
     variant = variant or default_variant()
     seed = mixture.tables["solver"].seed if seed is None else seed
     use_ray = (ray_module() is not None) if use_ray is None else use_ray
-    digests, shapes = prepare(mixture)
+    digests, shapes, icons = prepare(mixture)
     order = [r["name"] for r in sorted(shapes, key=lambda r: (-r["passage_radius"], r["name"]))]
 
     def make_spec(holds, passes) -> GameSpec:
@@ -113,15 +130,15 @@ def sort_mixture(
     )
     report["order"] = order
     spacing = 2.0 * max(r["radius"] for r in shapes)  # a gap the largest shape fits in
-    _write(out_dir, inputs, plan, report, engine.folders(), spacing, mixture.units)
+    _write(out_dir, inputs, plan, report, engine.folders(), spacing, mixture.units, icons)
     engine.clear_cache()
     return report
 
 
-def _write(out_dir, inputs, plan, report, folders, spacing, units) -> None:
+def _write(out_dir, inputs, plan, report, folders, spacing, units, icons) -> None:
     with outdir.writing(out_dir, command="sort", inputs=inputs) as tmp:
         copy_games(folders, tmp)
         report["files"] = write_plates(plan, tmp, spacing, units)
-        write_figure(os.path.join(tmp, "cascade.png"), plan, units)
+        write_figure(os.path.join(tmp, "cascade.png"), plan, units, icons)
         write_json(os.path.join(tmp, "cascade.json"), report)
         write_json(os.path.join(tmp, "report.json"), report)
