@@ -359,6 +359,7 @@ EXPECTED_EXTENTS = {
 }
 SIMPLE = ["cube.stl", "sphere.stl", "small_sphere.stl", "bowtie.stl", "arch.stl", "prism.stl"]
 LETTER_FILES = [f"letter_{c}.stl" for c in "SIGRAPH"]
+COIN_FILES = [f"coin_{c}.stl" for c in ("2eur", "50c", "10c", "1c")]
 
 
 @pytest.fixture(scope="module")
@@ -367,10 +368,10 @@ def generated():
 
 
 def test_generator_covers_expected_files(generated):
-    assert set(generated) == set(SIMPLE) | set(LETTER_FILES)
+    assert set(generated) == set(SIMPLE) | set(LETTER_FILES) | set(COIN_FILES)
 
 
-@pytest.mark.parametrize("name", SIMPLE + LETTER_FILES)
+@pytest.mark.parametrize("name", SIMPLE + LETTER_FILES + COIN_FILES)
 def test_stl_file_loads_and_matches_generator(name, generated):
     path = os.path.join(MESH_DIR, name)
     with open(path, "rb") as f:
@@ -423,3 +424,14 @@ def test_copied_meshes_present_unchanged_and_documented(name):
     if os.path.exists(shared):
         with open(path, "rb") as a, open(shared, "rb") as b:
             assert a.read() == b.read()
+
+
+def test_coin_is_a_regular_prism_with_the_official_sizes():
+    # a 2 euro coin: 25.75 mm across, 2.20 mm thick; a 96-gon prism inscribed in that cylinder
+    coin = shapes.coin(25.75, 2.20)
+    n, r, t = 96, 25.75 / 2, 2.20
+    np.testing.assert_allclose(coin.extents, [25.75, 25.75, 2.20], atol=1e-9)
+    assert coin.volume == pytest.approx(0.5 * n * r * r * np.sin(2 * np.pi / n) * t, rel=1e-9)
+    assert coin.is_watertight
+    with pytest.raises(ValueError):
+        shapes.coin(0.0, 1.0)
