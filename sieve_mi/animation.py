@@ -53,7 +53,8 @@ def phases(frames: int) -> np.ndarray:
 def render_frames(
     passage: Passage,
     *,
-    frames: int | None = None,
+    phases: np.ndarray | None = None,
+    box: np.ndarray | None = None,
     width: int = WIDTH,
     height: int = HEIGHT,
     spp: int = SPP,
@@ -63,8 +64,10 @@ def render_frames(
     Parameters
     ----------
     passage : Passage
-    frames : int, optional
-        Number of frames (phases :func:`phases`; default :func:`frame_count`).
+    phases : (K,) array_like, optional
+        The frames' phases in [0, 1] (default: :func:`phases` of :func:`frame_count` frames).
+    box : (2, 3) ndarray, optional
+        The box the camera frames (default: ``passage.bounds()``), scene units.
     width, height : int
         Frame size, pixels.
     spp : int
@@ -72,20 +75,20 @@ def render_frames(
 
     Returns
     -------
-    (frames, height, width) ndarray of float32
+    (K, height, width) ndarray of float32
         Linear radiance per frame (row 0 at the top).
     """
     import mitsuba as mi
 
-    frames = frame_count(passage) if frames is None else frames
-    box = passage.bounds()
+    s = globals()["phases"](frame_count(passage)) if phases is None else np.asarray(phases, float)
+    box = passage.bounds() if box is None else np.asarray(box, dtype=np.float64)
     size = float(np.max(box[1] - box[0]))
     spacing = 10.0 * size
-    scene = _scene(mi, passage, frames, spacing, size)
-    sensor = _batch_sensor(mi, box, frames, spacing, width, height, spp, size)
+    scene = _scene(mi, passage, s, spacing)
+    sensor = _batch_sensor(mi, box, len(s), spacing, width, height, spp, size)
     image = np.asarray(mi.render(scene, sensor=sensor, spp=spp), dtype=np.float32)
-    image = image.reshape(height, frames * width, -1).mean(axis=2)
-    return np.stack([image[:, k * width : (k + 1) * width] for k in range(frames)])
+    image = image.reshape(height, len(s) * width, -1).mean(axis=2)
+    return np.stack([image[:, k * width : (k + 1) * width] for k in range(len(s))])
 
 
 def _group(mi, vertices: np.ndarray, faces: np.ndarray, albedo: float):
@@ -113,8 +116,8 @@ def _albedo(piece) -> float:
     return ESCAPED_ALBEDO if piece.passes else BLOCKED_ALBEDO
 
 
-def _scene(mi, passage: Passage, frames: int, spacing: float, size: float):
-    """One copy of the plate and the shapes per frame, frame k moved by k * spacing along x."""
+def _scene(mi, passage: Passage, phases: np.ndarray, spacing: float):
+    """One copy of the plate and the shapes per phase, the k-th moved by k * spacing along x."""
     T = mi.ScalarTransform4f
     groups = [_group(mi, passage.plate_vertices, passage.plate_faces, PLATE_ALBEDO)]
     groups += [_group(mi, p.vertices, p.faces, _albedo(p)) for p in passage.pieces]
@@ -132,7 +135,7 @@ def _scene(mi, passage: Passage, frames: int, spacing: float, size: float):
     }
     for g, group in enumerate(groups):
         scene[f"group_{g}"] = group
-    for k, s in enumerate(phases(frames)):
+    for k, s in enumerate(phases):
         x = k * spacing
         scene[f"plate_{k}"] = {
             "type": "instance",
@@ -211,7 +214,7 @@ def to_gray8(frames: np.ndarray) -> np.ndarray:
     return np.round(255.0 * srgb).astype(np.uint8)
 
 
-def write_gif(path: str, passage: Passage, *, frames: int | None = None) -> dict:
+def write_gif(path: str, passage: Passage) -> dict:
     """Render ``passage.gif`` (:func:`render_frames`) and return what report.json records of it.
 
     Returns
@@ -221,8 +224,8 @@ def write_gif(path: str, passage: Passage, *, frames: int | None = None) -> dict
     """
     from PIL import Image
 
-    frames = frame_count(passage) if frames is None else frames
-    images = to_gray8(render_frames(passage, frames=frames))
+    s = phases(frame_count(passage))
+    images = to_gray8(render_frames(passage, phases=s))
     pics = [Image.fromarray(im, mode="L") for im in images]
     durations = [FRAME_MS] * (len(pics) - 1) + [3 * FRAME_MS]
     pics[0].save(path, save_all=True, append_images=pics[1:], duration=durations, loop=0)
@@ -232,5 +235,5 @@ def write_gif(path: str, passage: Passage, *, frames: int | None = None) -> dict
         "height": HEIGHT,
         "spp": SPP,
         "frame_ms": FRAME_MS,
-        "phases": [float(s) for s in phases(frames)],
+        "phases": [float(x) for x in s],
     }

@@ -34,6 +34,9 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, help="random seed (overrides [solver] seed)")
     s.add_argument("--quiet", action="store_true", help="no progress bars")
     s.add_argument("--no-figure", action="store_true", help="skip the Mitsuba rendering figure.png")
+    s.add_argument(
+        "--no-animation", action="store_true", help="skip the Mitsuba animation passage.gif"
+    )
     c = sub.add_parser(
         "check",
         help="test a shape against a sieve (plate mesh or hole image): passes or blocked, and the fit scale",
@@ -87,6 +90,8 @@ def _parser() -> argparse.ArgumentParser:
         "empty or earlier sieve-mi output folder is used)",
     )
     _certify_parser(sub)
+    v = sub.add_parser("view", help="open an output folder's report.html in the default browser")
+    v.add_argument("folder", help="output folder of solve or check (e.g. out/<name>)")
     return p
 
 
@@ -123,7 +128,7 @@ def cmd_solve(args) -> int:
     if args.seed is not None and args.seed < 0:
         raise SieveError(f"--seed {args.seed}: must be >= 0")
     result = sm.solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
-    report = result.save(out_dir, figure=not args.no_figure)
+    report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
     print(summary_table(report))
     for w in report["warnings"] + report.get("fabrication", {}).get("warnings", []):
         print(f"sieve-mi: warning: {w}", file=sys.stderr)
@@ -187,6 +192,24 @@ def cmd_check(args) -> int:
     print(text if args.json else summary(rep))
     if args.out is not None:
         print(f"outputs: {args.out}/", file=sys.stderr if args.json else sys.stdout)
+    return 0
+
+
+def cmd_view(args) -> int:
+    """Open ``FOLDER/report.html`` in the default browser (Python's :mod:`webbrowser`)."""
+    import pathlib
+    import webbrowser
+
+    folder = args.folder
+    if not os.path.isdir(folder):
+        raise SieveError(f"{folder}: no such output folder")
+    page = os.path.join(folder, "report.html")
+    if not os.path.isfile(page):
+        raise SieveError(f"{folder}: has no report.html (write it with sieve-mi solve or check --out)")
+    url = pathlib.Path(os.path.abspath(page)).as_uri()
+    if not webbrowser.open(url):
+        raise SieveError(f"{page}: no browser could be started; open {url} by hand")
+    print(url)
     return 0
 
 
@@ -285,6 +308,8 @@ def main(argv: list[str] | None = None) -> int:
                 return cmd_check(args)
             if args.command == "certify":
                 return cmd_certify(args)
+            if args.command == "view":
+                return cmd_view(args)
     except SieveError as exc:
         print(f"sieve-mi: error: {exc}", file=sys.stderr)
         return 2
