@@ -186,9 +186,14 @@ def cmd_check(args) -> int:
     )
     text = json.dumps(rep.to_dict(), indent=2, default=lambda x: None if x != x else str(x))
     if args.out is not None:
+        from sieve_mi.viewer import check_holes, render_check_page
+
         with outdir.writing(args.out, command="check", inputs=inputs) as tmp:
             with open(os.path.join(tmp, "report.json"), "w") as fh:
                 fh.write(text + "\n")
+            holes = check_holes(args.sieve, args.axis, args.hole, args.pixel_size)
+            with open(os.path.join(tmp, "report.html"), "w", encoding="utf-8") as fh:
+                fh.write(render_check_page(json.loads(text), shape, holes))
     print(text if args.json else summary(rep))
     if args.out is not None:
         print(f"outputs: {args.out}/", file=sys.stderr if args.json else sys.stdout)

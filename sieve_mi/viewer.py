@@ -127,16 +127,34 @@ def hole_svg(result, blocked: list[bool]) -> str:
     from sieve_mi.report import _overlay_sections
 
     hole, a_sections, b_sections = _overlay_sections(result)
-    boxes = [np.asarray(s.bounds(), dtype=float) for s in [hole, *b_sections] if not s.is_empty()]
-    lim = max([result.hole.frame.half_extent] + [float(np.abs(b).max()) for b in boxes]) * 1.05
+    return outline_svg([hole], a_sections, b_sections, blocked, result.hole.frame.half_extent)
+
+
+def outline_svg(holes: list, a_sections: list, b_sections: list, blocked: list[bool], half: float) -> str:
+    """An inline SVG of hole outlines, dashed A outlines and filled B attempts (CrossSections).
+
+    Parameters
+    ----------
+    holes, a_sections, b_sections : list of manifold3d.CrossSection
+        Scene units, xy; the first hole gets ``data-id="hole"``, the others ``hole<k>``.
+    blocked : list of bool
+        Per B: red (blocked) or orange (gets through).
+    half : float
+        Least half-width of the view, scene units (grown to hold every hole and B).
+    """
+    boxes = [np.asarray(s.bounds(), dtype=float) for s in [*holes, *b_sections] if not s.is_empty()]
+    lim = max([half] + [float(np.abs(b).max()) for b in boxes]) * 1.05
     stroke = lim / 250
     parts = [
         f'<svg xmlns="http://www.w3.org/2000/svg" id="hole2d" viewBox="{-lim:.6g} {-lim:.6g} '
         f'{2 * lim:.6g} {2 * lim:.6g}" data-lim="{lim:.6g}">',
         f'<rect x="{-lim:.6g}" y="{-lim:.6g}" width="{2 * lim:.6g}" height="{2 * lim:.6g}" fill="#b9bcc2"/>',
-        f'<path data-id="hole" fill="#ffffff" fill-rule="evenodd" stroke="#555" '
-        f'stroke-width="{stroke:.3g}" d="{_path_d(hole)}"/>',
     ]
+    for k, hole in enumerate(holes):
+        parts.append(
+            f'<path data-id="hole{k or ""}" fill="#ffffff" fill-rule="evenodd" stroke="#555" '
+            f'stroke-width="{stroke:.3g}" d="{_path_d(hole)}"/>'
+        )
     for j, sec in enumerate(b_sections):
         colour = _hex(COLOURS["blocked" if blocked[j] else "escaped"])
         parts.append(
@@ -301,3 +319,87 @@ def page_files(folder: str) -> list[str]:
             if not n.startswith(".") and rel != "report.html":
                 out.append(rel)
     return sorted(out)
+
+
+# ------------------------------------------------------------------------------------------------
+# The page of ``sieve-mi check --out``
+# ------------------------------------------------------------------------------------------------
+
+
+def image_outline(mask: np.ndarray, frame):
+    """A hole image's mask (on ``frame``, row 0 at the top) as a CrossSection (marching squares)."""
+    import manifold3d
+    from skimage.measure import find_contours
+
+    padded = np.pad(np.asarray(mask, dtype=float), 1)
+    h, r = frame.pixel_size, frame.half_extent
+    polys = []
+    for c in find_contours(padded, 0.5):  # (row, col) with the padding's offset of 1
+        polys.append(np.column_stack([-r + (c[:, 1] - 0.5) * h, r - (c[:, 0] - 0.5) * h]))
+    return manifold3d.CrossSection(polys, manifold3d.FillRule.EvenOdd)
+
+
+def check_holes(sieve: str | None, axis: str, image: str | None, pixel_size: float | None) -> list:
+    """The holes a check used, as CrossSections in the coordinates its poses are reported in."""
+    from sieve_mi.checker import frame_for_image, holes_from_mesh, mask_from_image
+
+    if sieve is not None:
+        return holes_from_mesh(sieve, axis)
+    frame, mask = frame_for_image(mask_from_image(image), pixel_size)
+    return [image_outline(mask, frame)]
+
+
+def check_table(rep: dict) -> str:
+    """The check's result: verdict, β, protrusion, fit scale and every evaluation."""
+    r, u = rep["result"], rep["units"]
+    rows = [
+        ["result", "PASSES" if r["passes"] else "blocked"],
+        ["β", f"{r['beta']:.4f}"],
+        [f"protrusion ({u})", f"{r['protrusion']:.3f}"],
+        ["hole", str(r["hole"])],
+        ["pixel size", f"{rep['pixel_size']:.4g} {u}"],
+    ]
+    if rep.get("fit_scale") is not None:
+        lo, hi = rep["fit_bracket"]
+        rows.append(["fit scale", f"{rep['fit_scale']:.4g} (passes at {lo:.4g}, blocked at {hi:.4g})"])
+    evals = [
+        [f"{e['scale']:.4g}", "passes" if e["passes"] else "blocked", f"{e['beta']:.4f}", f"{e['protrusion']:.3f}"]
+        for e in rep.get("evaluations", [])
+    ]
+    return _table(rows, ["", ""]) + "<h3>Evaluations</h3>" + _table(
+        evals, ["scale", "result", "β", f"protrusion ({u})"]
+    )
+
+
+def render_check_page(rep: dict, shape, holes: list) -> str:
+    """The page of ``sieve-mi check --out``: the holes, the shape's best attempt, the result.
+
+    Parameters
+    ----------
+    rep : dict
+        The check's report (:meth:`sieve_mi.checker.CheckReport.to_dict`).
+    shape : sieve_mi.meshes.Shape
+        The shape checked (scale 1).
+    holes : list of manifold3d.CrossSection
+        :func:`check_holes`.
+    """
+    from sieve_mi.exact import silhouette
+    from sieve_mi.outline import is_closed
+
+    r = rep["result"]
+    sec = silhouette(shape, np.asarray(r["rotation"]), np.asarray(r["translation"]), is_closed(shape))
+    name = os.path.basename(str(rep["shape"]))
+    verdict = f"{name} {'passes' if r['passes'] else 'is blocked'} at scale {r['scale']:g}"
+    fill = {
+        "TITLE": html.escape(f"sieve-mi check: {name}"),
+        "NAME": html.escape(f"{name} against {os.path.basename(str(rep['sieve']))}"),
+        "WINNER": "B" if r["passes"] else "A",
+        "VERDICT": html.escape(verdict),
+        "UNITS": html.escape(rep["units"]),
+        "HOLE_SVG": outline_svg(holes, [], [sec], [not r["passes"]], shape.radius),
+        "RESULT_TABLE": check_table(rep),
+        "REPORT": html.escape(json.dumps(rep, indent=2, default=str)),
+        "STYLE": _asset("report.css"),
+        "SCRIPT": _asset("viewer.js").replace("</", "<\\/"),
+    }
+    return re.sub(r"\{\{([A-Z_0-9]+)\}\}", lambda m: fill[m.group(1)], _asset("check.html"))

@@ -17,7 +17,13 @@
   window.addEventListener("unhandledrejection", function (e) { fail("unhandled: " + e.reason); });
   document.addEventListener("securitypolicyviolation", function (e) { fail("blocked request: " + e.blockedURI); });
 
-  var data = JSON.parse(document.getElementById("sieve-data").textContent);
+  var dataEl = document.getElementById("sieve-data");
+  if (!dataEl) {  // the page of sieve-mi check: only the 2D view
+    try { holeControls(); } catch (e) { fail(e && e.stack ? e.stack : e); }
+    document.body.setAttribute("data-ready", "1");
+    return;
+  }
+  var data = JSON.parse(dataEl.textContent);
   var opts = parseHash(location.hash);
   var hidden = {};
   if (opts.show !== undefined) {
