@@ -166,7 +166,9 @@ def camera(box: np.ndarray, aspect: float) -> tuple[np.ndarray, np.ndarray]:
     right = np.cross(-back, [0.0, 0.0, 1.0])
     right /= np.linalg.norm(right)
     up = np.cross(right, -back)
-    corners = np.array([[box[i, 0], box[j, 1], box[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    corners = np.array(
+        [[box[i, 0], box[j, 1], box[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+    )
     rel = corners - centre
     tx = 0.92 * math.tan(math.radians(FOV) / 2)
     ty = tx / aspect

@@ -1,4 +1,4 @@
-"""Command line: ``sieve-mi solve SCENE [--out DIR]`` and ``sieve-mi check SHAPE (--sieve PLATE | --hole IMAGE --pixel-size MM) [--out DIR]``."""
+"""Command line: ``sieve-mi solve SCENE [--out DIR]``, ``sieve-mi check SHAPE (--sieve PLATE | --hole IMAGE --pixel-size MM) [--out DIR]``, ``sieve-mi certify ...`` and ``sieve-mi view DIR``."""
 
 from __future__ import annotations
 
@@ -90,9 +90,14 @@ def _parser() -> argparse.ArgumentParser:
         "empty or earlier sieve-mi output folder is used)",
     )
     _certify_parser(sub)
+    _view_parser(sub)
+    return p
+
+
+def _view_parser(sub) -> None:
+    """``sieve-mi view FOLDER``."""
     v = sub.add_parser("view", help="open an output folder's report.html in the default browser")
     v.add_argument("folder", help="output folder of solve or check (e.g. out/<name>)")
-    return p
 
 
 def _certify_parser(sub) -> None:
@@ -210,7 +215,9 @@ def cmd_view(args) -> int:
         raise SieveError(f"{folder}: no such output folder")
     page = os.path.join(folder, "report.html")
     if not os.path.isfile(page):
-        raise SieveError(f"{folder}: has no report.html (write it with sieve-mi solve or check --out)")
+        raise SieveError(
+            f"{folder}: has no report.html (write it with sieve-mi solve or check --out)"
+        )
     url = pathlib.Path(os.path.abspath(page)).as_uri()
     if not webbrowser.open(url):
         raise SieveError(f"{page}: no browser could be started; open {url} by hand")

@@ -128,7 +128,9 @@ def surface_points(vertices: np.ndarray, faces: np.ndarray, n: int = 4) -> np.nd
     return np.einsum("wk,fkc->fwc", w, tri).reshape(-1, 3)
 
 
-def rest_offset(vertices: np.ndarray, faces: np.ndarray, hole, plate_box: np.ndarray) -> float | None:
+def rest_offset(
+    vertices: np.ndarray, faces: np.ndarray, hole, plate_box: np.ndarray
+) -> float | None:
     """Height offset at which a posed shape rests on the plate, or None if it fits the hole.
 
     The shape comes down vertically; it stops when a point of its surface over the plate's

@@ -150,9 +150,7 @@ class Result:
         """
         from sieve_mi.report import write_outputs
 
-        return write_outputs(
-            self, out_dir, fabricate=fabricate, figure=figure, animation=animation
-        )
+        return write_outputs(self, out_dir, fabricate=fabricate, figure=figure, animation=animation)
 
     @property
     def a_mask(self) -> np.ndarray:

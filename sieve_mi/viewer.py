@@ -130,7 +130,9 @@ def hole_svg(result, blocked: list[bool]) -> str:
     return outline_svg([hole], a_sections, b_sections, blocked, result.hole.frame.half_extent)
 
 
-def outline_svg(holes: list, a_sections: list, b_sections: list, blocked: list[bool], half: float) -> str:
+def outline_svg(
+    holes: list, a_sections: list, b_sections: list, blocked: list[bool], half: float
+) -> str:
     """An inline SVG of hole outlines, dashed A outlines and filled B attempts (CrossSections).
 
     Parameters
@@ -188,7 +190,9 @@ def convergence_svg(history: list[float]) -> str:
         f'<line x1="{m}" y1="{h - m}" x2="{w - m / 2}" y2="{h - m}" stroke="#444"/>'
         f'<line x1="{m}" y1="{h - m}" x2="{m}" y2="{m / 2}" stroke="#444"/>'
         f'<polyline fill="none" stroke="#1f6fb2" stroke-width="2" points="{pts}"/>'
-        + "".join(f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.5" fill="#1f6fb2"/>' for a, b in zip(xs, ys))
+        + "".join(
+            f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.5" fill="#1f6fb2"/>' for a, b in zip(xs, ys)
+        )
         + f'<text x="{m - 4}" y="{h - m}" text-anchor="end" font-size="11">{lo:.4g}</text>'
         f'<text x="{m - 4}" y="{m / 2 + 10}" text-anchor="end" font-size="11">{hi:.4g}</text>'
         f'<text x="{(w + m) / 2}" y="{h - 10}" text-anchor="middle" font-size="12">search iteration '
@@ -278,7 +282,9 @@ def render_page(result, report: dict, passage, files: list[str]) -> str:
     )
     warnings = report.get("warnings", []) + report.get("fabrication", {}).get("warnings", [])
     warn = "".join(f"<li>{html.escape(w)}</li>" for w in warnings)
-    verdict = "A wins: every B is blocked" if report["winner"] == "A" else "B wins: a B gets through"
+    verdict = (
+        "A wins: every B is blocked" if report["winner"] == "A" else "B wins: a B gets through"
+    )
     fill = {
         "TITLE": html.escape(f"sieve-mi: {report['name']}"),
         "NAME": html.escape(report["name"]),
@@ -361,13 +367,22 @@ def check_table(rep: dict) -> str:
     ]
     if rep.get("fit_scale") is not None:
         lo, hi = rep["fit_bracket"]
-        rows.append(["fit scale", f"{rep['fit_scale']:.4g} (passes at {lo:.4g}, blocked at {hi:.4g})"])
+        rows.append(
+            ["fit scale", f"{rep['fit_scale']:.4g} (passes at {lo:.4g}, blocked at {hi:.4g})"]
+        )
     evals = [
-        [f"{e['scale']:.4g}", "passes" if e["passes"] else "blocked", f"{e['beta']:.4f}", f"{e['protrusion']:.3f}"]
+        [
+            f"{e['scale']:.4g}",
+            "passes" if e["passes"] else "blocked",
+            f"{e['beta']:.4f}",
+            f"{e['protrusion']:.3f}",
+        ]
         for e in rep.get("evaluations", [])
     ]
-    return _table(rows, ["", ""]) + "<h3>Evaluations</h3>" + _table(
-        evals, ["scale", "result", "β", f"protrusion ({u})"]
+    return (
+        _table(rows, ["", ""])
+        + "<h3>Evaluations</h3>"
+        + _table(evals, ["scale", "result", "β", f"protrusion ({u})"])
     )
 
 
@@ -387,7 +402,9 @@ def render_check_page(rep: dict, shape, holes: list) -> str:
     from sieve_mi.outline import is_closed
 
     r = rep["result"]
-    sec = silhouette(shape, np.asarray(r["rotation"]), np.asarray(r["translation"]), is_closed(shape))
+    sec = silhouette(
+        shape, np.asarray(r["rotation"]), np.asarray(r["translation"]), is_closed(shape)
+    )
     name = os.path.basename(str(rep["shape"]))
     verdict = f"{name} {'passes' if r['passes'] else 'is blocked'} at scale {r['scale']:g}"
     fill = {

@@ -362,8 +362,82 @@ def test_screenshot_shows_the_hole_and_shapes_where_the_report_says(solved, tmp_
             continue
         j = int(piece["id"][1:])
         shape = result.block_shapes[j]
-        sec = silhouette(shape, result.attack.quats[0, j], result.attack.trans[0, j], is_closed(shape))
+        sec = silhouette(
+            shape, result.attack.quats[0, j], result.attack.trans[0, j], is_closed(shape)
+        )
         spot = sec - result.outline if not piece["passes"] else sec ^ result.outline
         image = _shot(out, tmp_path, f"t={piece['slot'][1] - 1e-4:.6f}&show=plate,{piece['id']}")
         want = "escaped" if piece["passes"] else "blocked"
         assert _kind(_pixel(image, _deepest(spot ^ plate_square, box), box)) == want
+
+
+# ------------------------------------------------------------------------------------------------
+# The command line: solve --no-animation, check --out, view
+# ------------------------------------------------------------------------------------------------
+
+
+def run_cli(*args, env=None):
+    import sys
+
+    return subprocess.run(
+        [sys.executable, "-m", "sieve_mi", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+    )
+
+
+def test_no_animation_skips_only_the_gif(merged, tmp_path):
+    from sieve_mi.cli import _parser
+
+    assert _parser().parse_args(["solve", "s.toml", "--no-animation"]).no_animation
+    result, report, out = merged
+    rep = result.save(str(tmp_path / "o"), figure=False, animation=False)
+    assert not (tmp_path / "o" / "passage.gif").exists() and "animation" not in rep
+    assert (tmp_path / "o" / "report.html").is_file()
+    marker = json.loads((tmp_path / "o" / ".sieve-mi").read_text())
+    assert "report.html" in marker["files"] and "passage.gif" not in marker["files"]
+    assert {"report.html", "passage.gif"} <= set(
+        json.loads((out / ".sieve-mi").read_text())["files"]
+    )
+
+
+def test_check_out_writes_a_page_of_the_plate_hole(merged, tmp_path):
+    from sieve_mi.checker import holes_from_mesh
+
+    result, report, out = merged
+    dest = tmp_path / "check"
+    p = run_cli(
+        "check", os.path.join(MESHES, "sphere.stl"), "--sieve", str(out / "sieve.stl"),
+        "--starts", "4", "--steps", "30", "--resolution", "64", "--no-fit", "--out", str(dest),
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    rep = json.loads((dest / "report.json").read_text())
+    paths = svg_paths(dest)
+    _same_contours(paths["hole"], holes_from_mesh(str(out / "sieve.stl"))[0].to_polygons(), 1e-4)
+    assert len(paths["b0"]) >= 1
+    page = (dest / "report.html").read_text()
+    assert ("is blocked" if not rep["result"]["passes"] else "passes") in page
+    if any(shutil.which(b) for b in BROWSERS):
+        got = run_browser((dest / "report.html").as_uri(), tmp_path)
+        assert 'data-ready="1"' in got["dom"] and got["console"] == [] and got["requests"] == []
+
+
+def test_view_opens_the_page_and_refuses_what_is_not_an_output(merged, tmp_path):
+    result, report, out = merged
+    log = tmp_path / "opened.txt"
+    fake = tmp_path / "browser.sh"
+    fake.write_text(f'#!/bin/sh\necho "$1" > {log}\n')
+    fake.chmod(0o755)
+    env = dict(os.environ, BROWSER=f"{fake} %s")
+    p = run_cli("view", str(out), env=env)
+    assert p.returncode == 0, p.stderr
+    assert log.read_text().strip() == (out / "report.html").resolve().as_uri()
+    for folder, needle in (
+        (tmp_path / "nope", "no such output folder"),
+        (tmp_path, "no report.html"),
+    ):
+        p = run_cli("view", str(folder), env=env)
+        assert p.returncode == 2 and needle in p.stderr
+        assert len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
