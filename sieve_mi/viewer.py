@@ -175,28 +175,31 @@ def outline_svg(
 
 def convergence_svg(history: list[float]) -> str:
     """The best game value per search iteration as an inline SVG line plot (or a note)."""
-    w, h, m = 480, 260, 44
     if not history:
         return "<p>A's rotation was fixed: no search.</p>"
+    w, h, left, pad = 480, 260, 64, 24
     y = np.asarray(history, dtype=np.float64)
     lo, hi = float(y.min()), float(y.max())
     span = hi - lo or max(abs(hi), 1.0)
-    xs = m + (w - 1.5 * m) * np.arange(len(y)) / max(len(y) - 1, 1)
-    ys = h - m - (h - 1.6 * m) * (y - lo) / span
+    xs = left + (w - left - pad) * np.arange(len(y)) / max(len(y) - 1, 1)
+    ys = h - 2 * pad - (h - 3 * pad) * (y - lo) / span
     pts = " ".join(f"{a:.1f},{b:.1f}" for a, b in zip(xs, ys))
+    dots = "".join(
+        f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.5" fill="#1f6fb2"/>' for a, b in zip(xs, ys)
+    )
+    levels = [(lo, h - 2 * pad)] + ([(hi, pad)] if hi > lo else [])
+    ticks = "".join(
+        f'<text x="{left - 6}" y="{yy + 4:.1f}" text-anchor="end" font-size="11">{v:.4g}</text>'
+        for v, yy in levels
+    )
     return (
         f'<svg xmlns="http://www.w3.org/2000/svg" class="plot" viewBox="0 0 {w} {h}" role="img" '
-        f'aria-label="convergence">'
-        f'<line x1="{m}" y1="{h - m}" x2="{w - m / 2}" y2="{h - m}" stroke="#444"/>'
-        f'<line x1="{m}" y1="{h - m}" x2="{m}" y2="{m / 2}" stroke="#444"/>'
-        f'<polyline fill="none" stroke="#1f6fb2" stroke-width="2" points="{pts}"/>'
-        + "".join(
-            f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.5" fill="#1f6fb2"/>' for a, b in zip(xs, ys)
-        )
-        + f'<text x="{m - 4}" y="{h - m}" text-anchor="end" font-size="11">{lo:.4g}</text>'
-        f'<text x="{m - 4}" y="{m / 2 + 10}" text-anchor="end" font-size="11">{hi:.4g}</text>'
-        f'<text x="{(w + m) / 2}" y="{h - 10}" text-anchor="middle" font-size="12">search iteration '
-        f"(0..{len(y) - 1})</text>"
+        f'aria-label="convergence of A\'s search">'
+        f'<line x1="{left}" y1="{h - 2 * pad}" x2="{w - pad}" y2="{h - 2 * pad}" stroke="#444"/>'
+        f'<line x1="{left}" y1="{h - 2 * pad}" x2="{left}" y2="{pad / 2}" stroke="#444"/>'
+        f'<polyline fill="none" stroke="#1f6fb2" stroke-width="2" points="{pts}"/>{dots}{ticks}'
+        f'<text x="{(w + left) / 2}" y="{h - 8}" text-anchor="middle" font-size="12">search '
+        f"iteration (0..{len(y) - 1})</text>"
         f'<text x="12" y="{h / 2}" font-size="12" transform="rotate(-90 12 {h / 2})" '
         f'text-anchor="middle">best game value (min β)</text></svg>'
     )
