@@ -9,9 +9,10 @@ translation; only its height changes with the animation's phase ``s`` in [0, 1]:
   during its slot (so the shapes never overlap), and moves with its slot's local phase u in [0, 1];
 * every A starts ``gap`` above the plate (its lowest point at z = gap) and ends ``gap`` below it
   (its highest point at z = -T - gap), at constant speed;
-* a B starts the same way and descends at the speed it would need to pass, until it rests on
-  the plate: its lowest point over the plate's material touches z = 0; it stays there to the end
-  of its slot. A B whose attempt lies wholly inside the hole passes like an A.
+* a blocked B (as report.json says) starts the same way and descends at the speed it would need
+  to pass, until it rests on the plate: its lowest point over the plate's material touches z = 0
+  (:func:`rest_offset`); it stays there to the end of its slot. A B that is not blocked passes
+  like an A.
 """
 
 from __future__ import annotations
@@ -174,6 +175,9 @@ def build(result) -> Passage:
     gap = 0.15 * size
     pieces = []
     n = 1 + len(result.block_shapes)
+    blocked = [
+        b.blocked for b in result.blocks
+    ]  # the report's verdict (a certified passage passes)
     for i, shape in enumerate(result.pass_shapes):
         v = placed_vertices(shape, result.pass_quats[i], result.pass_trans[i])
         pieces.append(_falling(shape, "pass", i, v, thickness, gap, result.pass_trans[i]))
@@ -183,8 +187,11 @@ def build(result) -> Passage:
         v = placed_vertices(shape, q, t)
         piece = _falling(shape, "block", j, v, thickness, gap, t)
         piece.slot = ((j + 1) / n, (j + 2) / n)
-        rest = rest_offset(v, shape.faces, result.outline, box)
-        if rest is not None and rest > piece.end:
+        if blocked[j]:
+            rest = rest_offset(v, shape.faces, result.outline, box)
+            rest = (
+                -float(v[:, 2].min()) if rest is None else rest
+            )  # a sliver: rest on its lowest point
             piece.stop = (piece.start - rest) / (piece.start - piece.end)
             piece.end, piece.passes = rest, False
         pieces.append(piece)

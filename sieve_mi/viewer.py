@@ -255,7 +255,8 @@ def _toggles(data: dict) -> str:
     )
 
 
-def _files(report: dict, folder_files: list[str]) -> str:
+def _files(folder_files: list[str]) -> str:
+    """Links to the output files (relative to the page)."""
     links = "".join(
         f'<li><a href="{html.escape(f)}">{html.escape(f)}</a></li>' for f in folder_files
     )
@@ -302,7 +303,7 @@ def render_page(result, report: dict, passage, files: list[str]) -> str:
         "SETTINGS": html.escape(json.dumps(report.get("settings", {}), indent=2)),
         "CONVERGENCE": convergence_svg(report.get("convergence", [])),
         "GIF": gif,
-        "FILES": _files(report, files),
+        "FILES": _files(files),
         "PIXEL": f"{report['pixel_size']:.4g}",
         "VARIANT": html.escape(str(report.get("variant", ""))),
         "STYLE": _asset("report.css"),
