@@ -221,7 +221,7 @@ def _browser() -> str:
     pytest.skip("no headless Chromium on this machine (make setup installs Debian's chromium)")
 
 
-def run_browser(url: str, tmp_path, *, screenshot: bool = False) -> dict:
+def run_browser(url: str, tmp_path, *, screenshot: bool = False, size=(SIZE, SIZE)) -> dict:
     """Load ``url`` headlessly; returns the DOM (or the screenshot), console lines and page requests.
 
     Page requests are the network log's requests whose initiator is the page (a file:// page's
@@ -232,7 +232,7 @@ def run_browser(url: str, tmp_path, *, screenshot: bool = False) -> dict:
     shot = tmp_path / "shot.png"
     args = [
         exe, "--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-        "--hide-scrollbars", "--force-device-scale-factor=1", f"--window-size={SIZE},{SIZE}",
+        "--hide-scrollbars", "--force-device-scale-factor=1", f"--window-size={size[0]},{size[1]}",
         f"--user-data-dir={tmp_path / 'profile'}", "--no-first-run", "--disable-background-networking",
         "--disable-component-update", "--disable-sync", "--enable-logging=stderr", "--v=0",
         f"--log-net-log={net}", "--virtual-time-budget=4000",
@@ -288,6 +288,10 @@ def test_page_loads_offline_without_errors(solved, tmp_path):
     assert re.search(r'<pre id="errors" hidden="?"?>\s*</pre>', got["dom"])
     assert got["console"] == [] and got["requests"] == []
     assert f'data-winner="{report["winner"]}"' in body
+    # Desktop and phone widths: the page fits the window (no sideways scrolling).
+    assert 'data-fits="1"' in body
+    phone = run_browser((out / "report.html").as_uri(), tmp_path, size=(390, 844))
+    assert re.search(r'<body[^>]*data-fits="1"', phone["dom"]) and phone["console"] == []
 
 
 def _deepest(section, box) -> np.ndarray:

@@ -17,10 +17,16 @@
   window.addEventListener("unhandledrejection", function (e) { fail("unhandled: " + e.reason); });
   document.addEventListener("securitypolicyviolation", function (e) { fail("blocked request: " + e.blockedURI); });
 
+  // Drawn: say so, and whether the layout fits the window's width (no sideways scrolling).
+  function ready() {
+    var root = document.documentElement;
+    document.body.setAttribute("data-fits", root.scrollWidth <= root.clientWidth ? "1" : "0");
+    document.body.setAttribute("data-ready", "1");
+  }
   var dataEl = document.getElementById("sieve-data");
   if (!dataEl) {  // the page of sieve-mi check: only the 2D view
     try { holeControls(); } catch (e) { fail(e && e.stack ? e.stack : e); }
-    document.body.setAttribute("data-ready", "1");
+    ready();
     return;
   }
   var data = JSON.parse(dataEl.textContent);
@@ -203,7 +209,7 @@
     }
     last = now;
     draw();
-    if (!document.body.hasAttribute("data-ready")) document.body.setAttribute("data-ready", "1");
+    if (!document.body.hasAttribute("data-ready")) ready();
     requestAnimationFrame(frame);
   }
 
@@ -309,7 +315,7 @@
       document.getElementById("nogl").hidden = false;
       canvas.hidden = true;
       document.body.setAttribute("data-webgl", "none");
-      document.body.setAttribute("data-ready", "1");
+      ready();
     } else {
       setupGL();
       orbitControls();
