@@ -140,6 +140,20 @@ def test_page_meshes_are_the_printed_plate_and_the_posed_shapes(solved):
         assert piece["passes"] == (role == "pass" or not row["blocked"])
 
 
+def test_a_ball_rests_on_a_round_hole_at_the_known_height():
+    # A 24 mm ball over a 22 mm round hole: the rim holds it where the sphere meets the circle,
+    # its centre sqrt(12² - 11²) = 4.796 mm above the plate's top. A 20 mm ball falls through.
+    from sieve_mi.passage import rest_offset
+
+    hole = manifold3d.CrossSection.circle(11.0, 256)
+    box = np.array([[-20.0, -20.0], [20.0, 20.0]])
+    ball = trimesh.creation.icosphere(4, 12.0)
+    rest = rest_offset(np.asarray(ball.vertices), np.asarray(ball.faces), hole, box)
+    assert rest == pytest.approx(np.sqrt(12.0**2 - 11.0**2), abs=0.1)
+    small = trimesh.creation.icosphere(4, 10.0)
+    assert rest_offset(np.asarray(small.vertices), np.asarray(small.faces), hole, box) is None
+
+
 def _volume(a: manifold3d.Manifold) -> float:
     return float(a.volume()) if hasattr(a, "volume") else float(a.get_volume())
 
