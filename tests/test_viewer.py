@@ -235,7 +235,9 @@ def _browser() -> str:
     pytest.skip("no headless Chromium on this machine (make setup installs Debian's chromium)")
 
 
-def run_browser(url: str, tmp_path, *, screenshot: bool = False, size=(SIZE, SIZE)) -> dict:
+def run_browser(
+    url: str, tmp_path, *, screenshot: bool = False, size=(SIZE, SIZE), extra=()
+) -> dict:
     """Load ``url`` headlessly; returns the DOM (or the screenshot), console lines and page requests.
 
     Page requests are the network log's requests whose initiator is the page (a file:// page's
@@ -251,7 +253,7 @@ def run_browser(url: str, tmp_path, *, screenshot: bool = False, size=(SIZE, SIZ
         "--disable-component-update", "--disable-sync", "--enable-logging=stderr", "--v=0",
         f"--log-net-log={net}", "--virtual-time-budget=4000",
     ]  # fmt: skip
-    args += [f"--screenshot={shot}"] if screenshot else ["--dump-dom"]
+    args += list(extra) + ([f"--screenshot={shot}"] if screenshot else ["--dump-dom"])
     p = subprocess.run(args + [url], capture_output=True, text=True, timeout=120)
     console = [
         ln
@@ -306,6 +308,16 @@ def test_page_loads_offline_without_errors(solved, tmp_path):
     assert 'data-fits="1"' in body
     phone = run_browser((out / "report.html").as_uri(), tmp_path, size=(390, 844))
     assert re.search(r'<body[^>]*data-fits="1"', phone["dom"]) and phone["console"] == []
+
+
+def test_page_without_webgl_still_shows_the_result(b_wins, tmp_path):
+    # A browser without WebGL: a note instead of the 3D view, no error, the rest of the page.
+    result, report, out = b_wins
+    got = run_browser((out / "report.html").as_uri(), tmp_path, extra=["--disable-3d-apis"])
+    body = re.search(r"<body[^>]*>", got["dom"]).group(0)
+    assert 'data-webgl="none"' in body and 'data-ready="1"' in body and "data-errors" not in body
+    assert re.search(r'<p id="nogl">', got["dom"])  # shown (no longer hidden)
+    assert got["console"] == [] and 'data-id="hole"' in got["dom"]
 
 
 def _deepest(section, box) -> np.ndarray:
