@@ -140,6 +140,19 @@ def test_page_meshes_are_the_printed_plate_and_the_posed_shapes(solved):
         assert piece["passes"] == (role == "pass" or not row["blocked"])
 
 
+def test_names_cannot_break_out_of_the_page(merged):
+    # Shape and scene names are text: escaped in the HTML, and "</script>" cannot end the data.
+    result, report, out = merged
+    evil = 'x</script><img src="http://example.invalid/a.png">{{DATA}}'
+    rep = dict(report, name=evil, block=[dict(b, name=evil) for b in report["block"]])
+    page = viewer.render_page(result, rep, build(result), [])
+    assert page.count("</script>") == 2  # the template's own data and script blocks
+    assert 'example.invalid/a.png"' not in page.replace("&quot;", "")
+    m = re.search(r'<script type="application/json" id="sieve-data">(.*?)</script>', page, re.S)
+    assert json.loads(m.group(1))["name"] == evil
+    assert f"<h1>{viewer.html.escape(evil)}</h1>" in page
+
+
 def test_a_ball_rests_on_a_round_hole_at_the_known_height():
     # A 24 mm ball over a 22 mm round hole: the rim holds it where the sphere meets the circle,
     # its centre sqrt(12² - 11²) = 4.796 mm above the plate's top. A 20 mm ball falls through.
