@@ -3,8 +3,9 @@
 The page holds everything it needs: its style sheet and script (the package's ``assets/``, inlined;
 a small hand-written WebGL viewer, no third-party code), the passage scene of
 :mod:`sieve_mi.passage` as JSON (mesh positions as base64 little-endian float32, faces as uint32),
-and the 2D hole view and the convergence plot as inline SVG. It makes no request at all while it is
-viewed (a Content-Security-Policy forbids any); links to the other output files are relative.
+and the 2D hole view and the convergence plot as inline SVG. It makes no network request while it
+is viewed: its Content-Security-Policy allows only its own inline script and style and images from
+its folder (``passage.gif``); links to the other output files are relative.
 
 What it shows: a 3D view (orbit, zoom, touch) of the plate with every A sliding down through the
 hole and every B's best attempt coming to rest on the plate, with per-shape toggles; the exact

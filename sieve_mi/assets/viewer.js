@@ -104,7 +104,8 @@
   var bounds = data.bounds, centre = [0, 1, 2].map(function (i) { return (bounds[0][i] + bounds[1][i]) / 2; });
   var radius = 0.5 * Math.hypot(bounds[1][0] - bounds[0][0], bounds[1][1] - bounds[0][1], bounds[1][2] - bounds[0][2]);
   var cam = {};
-  function resetCamera() { cam.yaw = -1.05; cam.pitch = 0.42; cam.dist = 2.6 * radius; cam.top = false; }
+  var DIST = 2.6 * radius;  // the initial distance; the top view's zoom is relative to it
+  function resetCamera() { cam.yaw = -1.05; cam.pitch = 0.42; cam.dist = DIST; cam.top = false; }
   resetCamera();
   if (opts.view === "top") cam.top = true;
   var phase = opts.t !== undefined ? Math.min(Math.max(parseFloat(opts.t) || 0, 0), 1) : 0;
@@ -153,7 +154,7 @@
     var aspect = w / h;
     if (cam.top) {
       var box = data.plate_box, cx = (box[0][0] + box[1][0]) / 2, cy = (box[0][1] + box[1][1]) / 2;
-      var half = 0.5 * Math.max(box[1][0] - box[0][0], box[1][1] - box[0][1]);
+      var half = 0.5 * Math.max(box[1][0] - box[0][0], box[1][1] - box[0][1]) * cam.dist / DIST;
       var hw = aspect >= 1 ? half * aspect : half, hh = aspect >= 1 ? half : half / aspect;
       var top = bounds[1][2] + radius;
       return mul(ortho(hw, hh, 0.001 * radius, 4 * radius + top - bounds[0][2]),
