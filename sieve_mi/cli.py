@@ -33,10 +33,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     s.add_argument("--seed", type=int, help="random seed (overrides [solver] seed)")
     s.add_argument("--quiet", action="store_true", help="no progress bars")
-    s.add_argument("--no-figure", action="store_true", help="skip the Mitsuba rendering figure.png")
-    s.add_argument(
-        "--no-animation", action="store_true", help="skip the Mitsuba animation passage.gif"
-    )
+    _skip_flags(s)
     c = sub.add_parser(
         "check",
         help="test a shape against a sieve (plate mesh or hole image): passes or blocked, and the fit scale",
@@ -90,8 +87,19 @@ def _parser() -> argparse.ArgumentParser:
         "empty or earlier sieve-mi output folder is used)",
     )
     _certify_parser(sub)
+    from sieve_mi.cascade.commands import add_parsers
+
+    add_parsers(sub)
     _view_parser(sub)
     return p
+
+
+def _skip_flags(s) -> None:
+    """``solve``'s flags that skip an optional output."""
+    s.add_argument("--no-figure", action="store_true", help="skip the Mitsuba rendering figure.png")
+    s.add_argument(
+        "--no-animation", action="store_true", help="skip the Mitsuba animation passage.gif"
+    )
 
 
 def _view_parser(sub) -> None:
@@ -322,6 +330,10 @@ def main(argv: list[str] | None = None) -> int:
                 return cmd_certify(args)
             if args.command == "view":
                 return cmd_view(args)
+            if args.command in ("sort", "sweep"):
+                from sieve_mi.cascade.commands import COMMANDS
+
+                return COMMANDS[args.command](args)
     except SieveError as exc:
         print(f"sieve-mi: error: {exc}", file=sys.stderr)
         return 2

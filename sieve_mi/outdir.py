@@ -29,6 +29,7 @@ import secrets
 import shutil
 import signal
 import socket
+import threading
 from collections.abc import Iterable, Iterator
 
 from sieve_mi.errors import SieveError
@@ -164,15 +165,41 @@ def is_replaceable(folder: str) -> bool:
 
 @contextlib.contextmanager
 def deferred_signals() -> Iterator[None]:
-    """Hold SIGINT, SIGTERM and SIGHUP back until the block ends (they arrive afterwards)."""
-    if not hasattr(signal, "pthread_sigmask"):
-        yield
+    """Hold SIGINT, SIGTERM and SIGHUP back until the block ends (they arrive afterwards).
+
+    In the main thread the signals' Python handlers are swapped for one that only records them,
+    and the recorded signals are raised again once the old handlers are back. (Blocking them with
+    ``pthread_sigmask`` would not do: it blocks one thread only, and the kernel hands a signal
+    sent to the process to any thread that does not block it, such as Dr.Jit's workers, after
+    which Python runs the handler in the main thread anyway.) Elsewhere, where Python allows no
+    handlers, the calling thread's signal mask is used.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        if not hasattr(signal, "pthread_sigmask"):
+            yield
+            return
+        old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
         return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
+    pending: list[int] = []
+
+    def hold(signum, frame):
+        pending.append(signum)
+
+    old = {}
+    for sig in _SIGNALS:
+        if signal.getsignal(sig) is not None:  # None: a handler not installed from Python
+            old[sig] = signal.signal(sig, hold)
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(pending):
+            signal.raise_signal(sig)
 
 
 def _host() -> str:

@@ -549,12 +549,33 @@ def load_scene(path: str) -> Scene:
             raise SieveError(
                 f"{path}: block[{i}].rotation: shapes to block are tried in every orientation; remove 'rotation'"
             )
-    for f in tables:
+    values.update(read_tables(path, data))
+    return Scene(path=path, passes=passes, blocks=blocks, **values)
+
+
+def read_tables(path: str, data: dict) -> dict:
+    """The settings tables of a parsed TOML document, checked, with defaults filled in.
+
+    Parameters
+    ----------
+    path : str
+        The file, for error messages.
+    data : dict
+        The whole document.
+
+    Returns
+    -------
+    dict
+        ``{"fabrication": Fabrication(...), "solver": Solver(...), ...}``, one per
+        :func:`table_fields` entry (absent tables at their defaults).
+    """
+    out = {}
+    for f in table_fields():
         cls = value_types(Scene)[f.name]
         r = _Reader(path, _table(path, data, f.name), f.name + ".")
         r.check_keys({key_of(g) for g in fields(cls)})
-        values[f.name] = cls(**r.read(cls))
-    return Scene(path=path, passes=passes, blocks=blocks, **values)
+        out[f.name] = cls(**r.read(cls))
+    return out
 
 
 def _table(path: str, data: dict, key: str) -> dict:

@@ -436,3 +436,21 @@ def test_an_interrupted_check_leaves_the_old_output(check_files, tmp_path, monke
     code = cli.main(["check", shape, *hole, *CHECK_SMALL, "--scale", "2", "--out", str(out)])
     assert code == 130 and "interrupted" in capsys.readouterr().err
     assert snapshot(out) == before and temp_folders(tmp_path) == []
+
+
+def test_signals_sent_from_another_thread_wait_for_the_block_to_end():
+    # A signal sent to the process may be delivered to any thread (Dr.Jit has workers); the
+    # deferral must hold it back all the same, and raise it once the block ends.
+    import threading
+
+    reached = []
+    with pytest.raises(KeyboardInterrupt):
+        with outdir.deferred_signals():
+            sender = threading.Thread(target=os.kill, args=(os.getpid(), signal.SIGINT))
+            sender.start()
+            sender.join()
+            for _ in range(100):  # many chances for Python to run a pending handler
+                time.sleep(0.001)
+            reached.append(True)
+    assert reached == [True]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -29,6 +29,12 @@ from sieve_mi.testing import shapes  # noqa: E402
 LETTERS = "SIGRAPH"
 LETTER_HEIGHT = 30.0  # mm, y-extent of each glyph
 LETTER_DEPTH = 12.0
+EURO_COINS = {
+    "2eur": (25.75, 2.20),
+    "50c": (24.25, 2.38),
+    "10c": (19.75, 1.93),
+    "1c": (16.25, 1.67),
+}
 
 # file name -> zero-argument builder; every size is in mm.
 SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
@@ -40,6 +46,11 @@ SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
         width=30.0, height=20.0, thickness=6.0, depth=10.0, segments=16
     ),
     "prism.stl": lambda: shapes.box(12.0, 12.0, 30.0),
+    # euro coins, official diameter and thickness (mm): scenes/euro-coins.toml
+    **{
+        f"coin_{label}.stl": (lambda d=d, t=t: shapes.coin(d, t))
+        for label, (d, t) in EURO_COINS.items()
+    },
     **{
         f"letter_{c}.stl": (lambda c=c: shapes.letter(c, height=LETTER_HEIGHT, depth=LETTER_DEPTH))
         for c in LETTERS

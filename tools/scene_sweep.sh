@@ -8,6 +8,7 @@ mkdir -p "$dest"
 scenes=("$@")
 [ ${#scenes[@]} -gt 0 ] || scenes=(scenes/*.toml)
 for s in "${scenes[@]}"; do
+  grep -q '^\[\[shape\]\]' "$s" && continue  # a mixture for sieve-mi sort, not a scene
   name=$(basename "$s" .toml)
   tmp=$(mktemp -d)
   .venv/bin/python -m sieve_mi solve "$s" --out "$tmp/o" --quiet --no-figure > "$dest/$name.txt" 2>&1 || echo "failed: $s" >> "$dest/$name.txt"

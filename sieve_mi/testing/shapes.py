@@ -231,6 +231,23 @@ def cube(side: float = 20.0) -> trimesh.Trimesh:
     return box(side, side, side)
 
 
+def coin(diameter: float, thickness: float, sections: int = 96) -> trimesh.Trimesh:
+    """A coin: a cylinder with its axis along z, centred at the origin.
+
+    Parameters
+    ----------
+    diameter, thickness : float
+        mm. The rim is a regular polygon of ``sections`` vertices on the circle of the diameter.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Closed, with vertices on the circle (so its silhouettes lie within the ideal coin's).
+    """
+    _check_positive(diameter=diameter, thickness=thickness)
+    return trimesh.creation.cylinder(radius=diameter / 2.0, height=thickness, sections=sections)
+
+
 def sphere(radius: float = 12.0, subdivisions: int = 3) -> trimesh.Trimesh:
     """An icosphere (subdivided icosahedron) approximating a ball.
 

@@ -1,0 +1,24 @@
+"""Sorting a mixture of many shapes with a stack of sieves (a cascade), and seed/tolerance sweeps.
+
+A cascade is a stack of sieves, coarsest on top: sieve k holds the shape(s) of tray k and lets
+every shape still to be split below it fall through. Each sieve is one game of the solver
+(:func:`sieve_mi.solver.solve`): the falling shapes are set A, the held ones set B. The games are
+independent, so they run in parallel on Ray (:mod:`sieve_mi.cascade.games`) where it is
+installed, one after another otherwise; finished games are kept, so an interrupted ``sort``
+resumes.
+
+Modules
+-------
+mixture
+    The mixture file (``[[shape]]`` tables and the usual settings tables).
+size
+    The size measure that orders the shapes (coarsest first).
+games
+    One game (a scene to solve), its key, and the serial and Ray runners with the game cache.
+plan
+    The cascade planner: order, alternatives when a game is lost, inseparable pairs.
+outputs
+    ``cascade.json``, the stacked plates and the figure.
+sweep
+    ``sieve-mi sweep``: one scene over seeds and tolerances, the design with the largest margin.
+"""

@@ -1,0 +1,156 @@
+"""The ``sort`` and ``sweep`` subcommands of the command line (see :mod:`sieve_mi.cli`)."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from sieve_mi.errors import SieveError
+
+VARIANT_HELP = "Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono"
+
+
+def _engine_options(p) -> None:
+    """Options shared by ``sort`` and ``sweep``: where the games run."""
+    p.add_argument("--out", help="output folder (default: out/<name>/ or out/<name>-sweep/)")
+    p.add_argument("--variant", help=VARIANT_HELP)
+    p.add_argument("--seed", type=int, help="random seed of every game (overrides [solver] seed)")
+    p.add_argument(
+        "--address",
+        help="run the games on an existing Ray cluster (host:port of its head); default: a "
+        "local Ray on this machine",
+    )
+    p.add_argument("--workers", type=int, help="local Ray: CPUs to use (default: all)")
+    p.add_argument(
+        "--serial", action="store_true", help="play the games one after another, without Ray"
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+
+
+def add_parsers(sub) -> None:
+    """Add ``sort`` and ``sweep`` to the subcommand parsers ``sub``."""
+    s = sub.add_parser(
+        "sort", help="design a cascade of sieves that sorts a mixture of [[shape]]s into trays"
+    )
+    s.add_argument("mixture", help="mixture file (TOML with [[shape]] tables)")
+    _engine_options(s)
+    w = sub.add_parser(
+        "sweep",
+        help="solve one scene over several seeds (and tolerances) and keep the largest margin",
+    )
+    w.add_argument("scene", help="scene file (TOML)")
+    w.add_argument(
+        "--seeds", default="0-4", help="seeds: a range 0-9 or a list 0,3,7 (default 0-4)"
+    )
+    w.add_argument("--tolerance", help="tolerances to try, comma-separated (default: the scene's)")
+    _engine_options(w)
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``"0-9"`` -> [0, ..., 9]; ``"0,3,7"`` -> [0, 3, 7]; a one-line SieveError otherwise."""
+    out = []
+    try:
+        for part in text.split(","):
+            lo, dash, hi = part.strip().partition("-")
+            out += list(range(int(lo), int(hi) + 1)) if dash else [int(lo)]
+    except ValueError:
+        raise SieveError(
+            f"--seeds {text}: expected a range like 0-9 or a list like 0,3,7"
+        ) from None
+    if not out or min(out) < 0:
+        raise SieveError(f"--seeds {text}: give at least one seed, all >= 0")
+    return sorted(set(out))
+
+
+def parse_tolerances(text: str | None) -> list[float] | None:
+    """``"0.5,1.0"`` -> [0.5, 1.0]; None stays None (the scene's own tolerance)."""
+    if text is None:
+        return None
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise SieveError(f"--tolerance {text}: expected numbers like 0.5,1.0") from None
+    if any(not (v >= 0 and v < float("inf")) for v in values):
+        raise SieveError(f"--tolerance {text}: every tolerance must be >= 0")
+    return values
+
+
+def _engine(args) -> dict:
+    from sieve_mi.cascade.games import check_address, ray_module
+
+    if args.seed is not None and args.seed < 0:
+        raise SieveError(f"--seed {args.seed}: must be >= 0")
+    if args.workers is not None and args.workers < 1:
+        raise SieveError(f"--workers {args.workers}: must be at least 1")
+    if args.serial and args.address:
+        raise SieveError("--serial and --address exclude each other")
+    use_ray = not args.serial
+    if use_ray and ray_module() is None:
+        if args.address:
+            raise SieveError(
+                f"--address {args.address}: Ray is not installed; pip install 'sieve-mi[cluster]'"
+            )
+        print(
+            "sieve-mi: Ray is not installed; playing the games one after another", file=sys.stderr
+        )
+        use_ray = False
+    if args.address:
+        check_address(args.address)
+    return {
+        "use_ray": use_ray,
+        "address": args.address,
+        "workers": args.workers,
+        "variant": args.variant,
+        "seed": args.seed,
+        "progress": not args.quiet,
+    }
+
+
+def cmd_sort(args) -> int:
+    from sieve_mi.cascade.mixture import load_mixture
+    from sieve_mi.cascade.sort import sort_mixture
+
+    mixture = load_mixture(args.mixture)
+    engine = _engine(args)
+    out = args.out or os.path.join("out", mixture.name)
+    report = sort_mixture(mixture, out, **engine)
+    print(tray_table(report))
+    for w in report["warnings"]:
+        print(f"sieve-mi: warning: {w}", file=sys.stderr)
+    print(f"outputs: {out}/")
+    return 0
+
+
+def tray_table(report: dict) -> str:
+    """The cascade as text: one line per sieve and tray, then the inseparable pairs."""
+    lines = [f"{'sieve':<6}{'holds':<24}{'passes':<36}{'beta':>8}{'protrusion':>12}"]
+    for s in report["sieves"]:
+        lines.append(
+            f"{s['index'] + 1:<6}{'+'.join(s['holds']):<24}{', '.join(s['passes']):<36}"
+            f"{s['margins']['beta']:>8.4f}{s['margins']['protrusion']:>12.3f}"
+        )
+    lines.append("trays (top to bottom): " + " | ".join("+".join(t) for t in report["trays"]))
+    for pair in report["inseparable"]:
+        lines.append(f"cannot split {pair['pair'][0]} and {pair['pair'][1]}: {pair['reason']}")
+    run = report["runner"]
+    lines.append(f"games: {run['played']} played, {run['reused']} reused ({run['mode']})")
+    return "\n".join(lines)
+
+
+def cmd_sweep(args) -> int:
+    from sieve_mi.cascade.sweep import sweep_scene, sweep_table
+    from sieve_mi.scene import load_scene
+
+    seeds = parse_seeds(args.seeds) if args.seed is None else [args.seed]
+    tolerances = parse_tolerances(args.tolerance)
+    scene = load_scene(args.scene)
+    engine = _engine(args)
+    engine.pop("seed")
+    out = args.out or os.path.join("out", scene.name + "-sweep")
+    report = sweep_scene(scene, out, seeds=seeds, tolerances=tolerances, **engine)
+    print(sweep_table(report))
+    print(f"outputs: {out}/")
+    return 0
+
+
+COMMANDS = {"sort": cmd_sort, "sweep": cmd_sweep}

@@ -1,0 +1,404 @@
+"""Games: one scene to solve, keyed by its content, run serially or as Ray tasks, and cached.
+
+A :class:`GameSpec` is everything one solve needs (the scene with its meshes loaded, the seed,
+the variant), so it travels to a Ray worker on another machine without shared files. The worker
+(:func:`play`) solves it, writes the outputs as ``solve`` does into a scratch folder and sends
+the files back; the driver writes them into the game cache (:class:`GameCache`) as each game
+finishes, so an interrupted run keeps every finished game and the next run reuses it.
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import json
+import os
+import shutil
+import socket
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+
+from sieve_mi import outdir
+from sieve_mi.errors import SieveError
+from sieve_mi.scene import Scene
+
+#: Test hook: the first worker to see this path missing creates it and dies (Ray retries it).
+FAULT_ENV = "SIEVE_MI_FAULT_ONCE"
+#: The file in each cached game folder that holds its spec and summary.
+GAME_FILE = "game.json"
+
+
+@dataclass
+class GameSpec:
+    """One game to play.
+
+    Attributes
+    ----------
+    key : str
+        Folder name in the cache: readable label plus a content hash.
+    scene : Scene
+        With every shape's mesh loaded (``ShapeEntry.data``).
+    seed : int
+    variant : str
+    label : dict
+        What the game is, for tables and files (e.g. ``{"holds": [...], "passes": [...]}``).
+
+    Dr.Jit keeps its default thread pool in every worker: with ``dr.set_thread_count(1)``,
+    Mitsuba 3.9's OpenEXR writing (``mi.Bitmap.write``) hangs.
+    """
+
+    key: str
+    scene: Scene
+    seed: int
+    variant: str
+    label: dict
+
+
+def mesh_digest(path: str) -> str:
+    """sha256 of a mesh file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def game_key(prefix: str, scene: Scene, seed: int, variant: str, digests: dict) -> str:
+    """``<prefix>-<hash>``: the hash covers the shapes (mesh digests, scales, names, roles),
+    every setting, the units, the seed and the variant, so an edited mixture plays again."""
+    content = {
+        "passes": [(e.name, digests[e.name], e.scale, e.rotation) for e in scene.passes],
+        "blocks": [(e.name, digests[e.name], e.scale) for e in scene.blocks],
+        "settings": scene.settings(),
+        "seed": seed,
+        "variant": variant,
+    }
+    h = hashlib.sha256(json.dumps(content, sort_keys=True, default=str).encode()).hexdigest()
+    safe = "".join(c if c.isalnum() or c in "-_+" else "_" for c in prefix)[:80]
+    return f"{safe}-{h[:12]}"
+
+
+def play(spec: GameSpec) -> dict:
+    """Solve one game (in a worker); returns its summary and its output files.
+
+    Returns
+    -------
+    dict
+        ``"summary"``: report.json's dict plus ``"outline"`` (the exact hole's polygons, lists
+        of (x, y) in scene units); ``"files"``: relative path -> base64 of the bytes, everything
+        ``solve`` writes.
+    """
+    flag = os.environ.get(FAULT_ENV)
+    if flag and not os.path.exists(flag):
+        open(flag, "w").close()
+        os._exit(17)  # a worker dying mid-game
+    from sieve_mi.solver import solve
+
+    t0 = time.perf_counter()
+    result = solve(spec.scene, variant=spec.variant, seed=spec.seed, progress=False)
+    with tempfile.TemporaryDirectory(prefix="sieve-mi-game-") as scratch:
+        out = os.path.join(scratch, "out")
+        report = result.save(out, figure=False)
+        files = {}
+        for root, _, names in os.walk(out):
+            for n in names:
+                path = os.path.join(root, n)
+                rel = os.path.relpath(path, out)
+                if rel != outdir.MARKER:
+                    with open(path, "rb") as fh:
+                        files[rel] = base64.b64encode(fh.read()).decode()
+    summary = dict(report)
+    summary["outline"] = [p.tolist() for p in result.outline.to_polygons()]
+    summary["game_s"] = round(time.perf_counter() - t0, 3)
+    summary["worker"] = socket.gethostname()
+    return {"summary": summary, "files": files}
+
+
+class GameCache:
+    """Finished games on disk: ``<folder>/<key>/`` as ``solve`` writes it, plus ``game.json``.
+
+    Parameters
+    ----------
+    folder : str
+        Where new games are written.
+    also : list of str
+        Folders searched too for finished games (e.g. a previous run's ``games/``).
+    """
+
+    def __init__(self, folder: str, also: tuple = ()):
+        self.folder = folder
+        self.search = [folder, *also]
+
+    def find(self, key: str) -> str | None:
+        """The folder of a finished game, or None."""
+        for base in self.search:
+            path = os.path.join(base, key)
+            if os.path.isfile(os.path.join(path, GAME_FILE)) and outdir.is_replaceable(path):
+                return path
+        return None
+
+    def load(self, key: str) -> dict | None:
+        """A finished game's ``game.json`` (spec label and summary), or None."""
+        path = self.find(key)
+        if path is None:
+            return None
+        with open(os.path.join(path, GAME_FILE)) as fh:
+            return json.load(fh)
+
+    def store(self, spec: GameSpec, outcome: dict) -> dict:
+        """Write a finished game (atomically, see :func:`sieve_mi.outdir.writing`)."""
+        record = {
+            "key": spec.key,
+            "label": spec.label,
+            "seed": spec.seed,
+            "variant": spec.variant,
+            "summary": outcome["summary"],
+        }
+        target = os.path.join(self.folder, spec.key)
+        with outdir.writing(target, command="game", option="game folder") as tmp:
+            for rel, data in outcome["files"].items():
+                path = os.path.join(tmp, rel)
+                os.makedirs(os.path.dirname(path), exist_ok=True)
+                with open(path, "wb") as fh:
+                    fh.write(base64.b64decode(data))
+            with open(os.path.join(tmp, GAME_FILE), "w") as fh:
+                json.dump(record, fh, indent=1)
+        return record
+
+
+def check_address(address: str) -> None:
+    """Raise a one-line SieveError unless something listens at a Ray ``host:port`` address."""
+    if address == "auto" or address.startswith("ray://") and ":" not in address[6:]:
+        return
+    hostport = address[6:] if address.startswith("ray://") else address
+    host, _, port = hostport.rpartition(":")
+    if not host or not port.isdigit():
+        raise SieveError(f"--address {address}: expected host:port (e.g. 10.0.0.5:6379) or 'auto'")
+    try:
+        with socket.create_connection((host, int(port)), timeout=3.0):
+            pass
+    except OSError as exc:
+        raise SieveError(
+            f"--address {address}: nothing is listening there ({exc.strerror or exc}); "
+            "start a Ray head with 'ray start --head' or leave --address out"
+        ) from None
+
+
+def ray_module():
+    """The ``ray`` module, or None where it is not installed."""
+    try:
+        import ray
+    except ImportError:
+        return None
+    return ray
+
+
+class Runner:
+    """Plays games, reusing cached ones; serially, or as Ray tasks.
+
+    Parameters
+    ----------
+    cache : GameCache
+    use_ray : bool
+        Run the games as Ray tasks (``ray`` must be importable).
+    address : str, optional
+        An existing Ray cluster (``host:port``); default: a local Ray on this machine.
+    workers : int, optional
+        Local Ray: CPUs to give Ray (default: all).
+    on_done : callable, optional
+        Called as ``on_done(record, reused)`` after each game.
+    """
+
+    def __init__(self, cache, *, use_ray=False, address=None, workers=None, on_done=None):
+        self.cache, self.use_ray, self.address, self.workers = cache, use_ray, address, workers
+        self.on_done = on_done or (lambda record, reused: None)
+        self.played, self.reused = 0, 0
+        self._ray = None
+        self._started = False
+
+    def run(self, specs: list[GameSpec]) -> dict:
+        """Play every spec not in the cache; returns ``{key: record}`` for all of them."""
+        out, todo = {}, []
+        for spec in {s.key: s for s in specs}.values():
+            record = self.cache.load(spec.key)
+            if record is None:
+                todo.append(spec)
+            else:
+                out[spec.key] = record
+                self.reused += 1
+                self.on_done(record, True)
+        if todo:
+            runs = self._ray_games(todo) if self.use_ray else self._serial_games(todo)
+            for spec, outcome in runs:
+                record = self.cache.store(spec, outcome)
+                out[spec.key] = record
+                self.played += 1
+                self.on_done(record, False)
+        return out
+
+    def _serial_games(self, todo):
+        for spec in todo:
+            yield spec, play(spec)
+
+    def _ray_games(self, todo):
+        ray = self._start()
+        options = {"max_retries": 3, "num_cpus": 1}
+        if todo[0].variant.startswith("cuda"):
+            options["num_gpus"] = 1
+        remote = ray.remote(**options)(play)
+        pending = {remote.remote(spec): spec for spec in todo}
+        try:
+            while pending:
+                done, _ = ray.wait(list(pending), num_returns=1)
+                spec = pending.pop(done[0])
+                try:
+                    outcome = ray.get(done[0])
+                except ray.exceptions.RayError as exc:
+                    raise SieveError(f"game {spec.key} failed on Ray: {_first_line(exc)}") from None
+                yield spec, outcome
+        finally:
+            for ref in pending:
+                ray.cancel(ref, force=True)
+
+    def _start(self):
+        if self._ray is not None:
+            return self._ray
+        ray = ray_module()
+        if ray is None:
+            raise SieveError(
+                "Ray is not installed; pip install 'sieve-mi[cluster]' or use --serial"
+            )
+        if not ray.is_initialized():
+            kwargs = {"include_dashboard": False, "log_to_driver": False, "logging_level": "error"}
+            if self.address:
+                kwargs["address"] = self.address
+            else:
+                if self.workers:
+                    kwargs["num_cpus"] = self.workers
+                # local workers import sieve_mi from where the driver does
+                kwargs["runtime_env"] = {"env_vars": {"PYTHONPATH": os.pathsep.join(sys.path)}}
+            ray.init(**kwargs)
+            self._started = True
+        self._ray = ray
+        return ray
+
+    def close(self) -> None:
+        """Shut down the local Ray this runner started (a cluster is left running)."""
+        if self._started and self._ray is not None:
+            self._ray.shutdown()
+        self._ray, self._started = None, False
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[-1] if text else type(exc).__name__
+
+
+def spec_dict(spec: GameSpec) -> dict:
+    """A spec as JSON-able data (for tables)."""
+    return {"key": spec.key, "seed": spec.seed, "variant": spec.variant, **spec.label}
+
+
+def cache_folder(out_dir: str) -> str:
+    """Where finished games wait until the whole run is written: ``<out>.games`` beside it."""
+    return os.path.normpath(out_dir) + ".games"
+
+
+class Progress:
+    """One bar for the games (done / known so far) and a line per finished game (stderr)."""
+
+    def __init__(self, enabled: bool):
+        self.enabled, self.bar = enabled, None
+        if enabled:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=0, desc="games", unit="game", dynamic_ncols=True, file=sys.stderr)
+
+    def add(self, n: int) -> None:
+        if self.bar is not None:
+            self.bar.total += n
+            self.bar.refresh()
+
+    def done(self, record: dict, reused: bool) -> None:
+        if self.bar is None:
+            return
+        s, label = record["summary"], record["label"]
+        weakest = min(s["block"], key=lambda b: (b["blocked"], b["beta"]))
+        self.bar.write(
+            f"  hold {'+'.join(label.get('holds', [])) or '-':<20} pass "
+            f"{'+'.join(label.get('passes', [])) or '-':<28} winner {s['winner']}  "
+            f"weakest {weakest['name']} beta {weakest['beta']:.4f}  "
+            + ("reused" if reused else f"{s.get('game_s', 0):.1f} s")
+        )
+        self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _clear_cache(folder: str, keys) -> None:
+    """Remove the cached games that the written folder now holds; the cache folder if empty."""
+    for key in keys:
+        path = os.path.join(folder, key)
+        if os.path.isdir(path) and outdir.is_replaceable(path):
+            shutil.rmtree(path, ignore_errors=True)
+    try:
+        os.rmdir(folder)
+    except OSError:
+        pass
+
+
+class Engine:
+    """The game engine of ``sort`` and ``sweep``: cache, runner and progress together.
+
+    Use as a context manager (it shuts down a local Ray at the end). Finished games wait in
+    :func:`cache_folder` (beside ``out_dir``) and in a previous run's ``out_dir/games``.
+
+    Parameters
+    ----------
+    out_dir : str
+        The command's output folder.
+    use_ray, address, workers
+        As :class:`Runner`.
+    progress : bool
+    """
+
+    def __init__(self, out_dir: str, *, use_ray, address=None, workers=None, progress=True):
+        self.cache = GameCache(cache_folder(out_dir), also=(os.path.join(out_dir, "games"),))
+        self.bar = Progress(progress)
+        self.runner = Runner(
+            self.cache, use_ray=use_ray, address=address, workers=workers, on_done=self.bar.done
+        )
+        self.records: dict = {}
+
+    def play(self, specs: list) -> dict:
+        """Play (or reuse) ``specs``; returns ``{key: record}``."""
+        self.bar.add(len({s.key for s in specs}))
+        records = self.runner.run(specs)
+        self.records.update(records)
+        return records
+
+    def info(self) -> dict:
+        """How the games ran: mode, address, games played and reused."""
+        r = self.runner
+        mode = "ray" if r.use_ray else "serial"
+        return {"mode": mode, "address": r.address, "played": r.played, "reused": r.reused}
+
+    def folders(self) -> dict:
+        """``{key: folder}`` of every game played or reused."""
+        return {k: self.cache.find(k) for k in self.records}
+
+    def clear_cache(self) -> None:
+        """Remove the waiting games (after the output folder that copies them is written)."""
+        _clear_cache(self.cache.folder, self.records)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.bar.close()
+        self.runner.close()
+        return False

@@ -1,0 +1,127 @@
+"""``sieve-mi sort``: design a cascade for a mixture and write its outputs."""
+
+from __future__ import annotations
+
+import os
+import time
+
+from sieve_mi import outdir
+from sieve_mi.cascade.games import Engine, GameSpec, game_key, mesh_digest, ray_module
+from sieve_mi.cascade.mixture import Mixture
+from sieve_mi.cascade.outputs import (
+    cascade_dict,
+    copy_games,
+    write_figure,
+    write_json,
+    write_plates,
+)
+from sieve_mi.cascade.plan import plan_cascade
+from sieve_mi.cascade.size import passage_radius
+
+
+def prepare(mixture: Mixture) -> tuple[dict, list]:
+    """Load every mesh into its entry (so games travel without files), hash the files, and
+    measure the passage radii; returns the digests by name and the shape rows for the report."""
+    from sieve_mi.meshes import load_trimesh, shape_from_trimesh
+
+    digests, rows = {}, []
+    for e in mixture.shapes:
+        path = os.path.join(os.path.dirname(os.path.abspath(mixture.path)), e.mesh)
+        e.data = load_trimesh(path)
+        digests[e.name] = mesh_digest(path)
+        radius, view = passage_radius(shape_from_trimesh(e.data, name=e.name, scale=e.scale))
+        rows.append(
+            {
+                "name": e.name,
+                "mesh": e.mesh,
+                "scale": e.scale,
+                "passage_radius": radius,
+                "view": [float(x) for x in view],
+                "radius": float(shape_from_trimesh(e.data, name=e.name, scale=e.scale).radius),
+            }
+        )
+    return digests, rows
+
+
+def sort_mixture(
+    mixture: Mixture,
+    out_dir: str,
+    *,
+    use_ray: bool | None = None,
+    address: str | None = None,
+    workers: int | None = None,
+    variant: str | None = None,
+    seed: int | None = None,
+    progress: bool = True,
+) -> dict:
+    """Design a cascade for ``mixture`` and write it to ``out_dir``; returns ``cascade.json``.
+
+    Parameters
+    ----------
+    mixture : Mixture
+    out_dir : str
+        The cascade's folder (refused unless empty, missing or an earlier sieve-mi output).
+        Finished games wait in ``<out_dir>.games`` until the folder is written.
+    use_ray : bool, optional
+        Run games as Ray tasks; default: when Ray is installed.
+    address : str, optional
+        A running Ray cluster (``host:port``).
+    workers : int, optional
+        CPUs for a local Ray (default: all of this machine's).
+    variant : str, optional
+    seed : int, optional
+        Overrides ``[solver] seed`` for every game.
+    progress : bool
+    """
+    from sieve_mi.backend import default_variant
+
+    t0 = time.perf_counter()
+    inputs = [mixture.path] + [
+        os.path.join(os.path.dirname(os.path.abspath(mixture.path)), e.mesh) for e in mixture.shapes
+    ]
+    outdir.validate(out_dir, inputs=inputs)
+    variant = variant or default_variant()
+    seed = mixture.tables["solver"].seed if seed is None else seed
+    use_ray = (ray_module() is not None) if use_ray is None else use_ray
+    digests, shapes = prepare(mixture)
+    order = [r["name"] for r in sorted(shapes, key=lambda r: (-r["passage_radius"], r["name"]))]
+
+    def make_spec(holds, passes) -> GameSpec:
+        scene = mixture.scene(passes, holds, name="sieve", seed=seed)
+        key = game_key("hold-" + "+".join(holds), scene, seed, variant, digests)
+        label = {"holds": list(holds), "passes": list(passes)}
+        return GameSpec(key, scene, seed, variant, label)
+
+    engine = Engine(out_dir, use_ray=use_ray, address=address, workers=workers, progress=progress)
+    with engine:
+        plan = plan_cascade(order, engine.play, make_spec, parallel=use_ray)
+    games = [
+        {
+            "key": k,
+            **r["label"],
+            "winner": r["summary"]["winner"],
+            "game_s": r["summary"].get("game_s"),
+        }
+        for k, r in engine.records.items()
+    ]
+    report = cascade_dict(
+        plan,
+        shapes=shapes,
+        games=games,
+        runner=engine.info(),
+        timings={"total_s": round(time.perf_counter() - t0, 3)},
+    )
+    report["order"] = order
+    spacing = 2.0 * max(r["radius"] for r in shapes)  # a gap the largest shape fits in
+    _write(out_dir, inputs, plan, report, engine.folders(), spacing, mixture.units)
+    engine.clear_cache()
+    return report
+
+
+def _write(out_dir, inputs, plan, report, folders, spacing, units) -> None:
+    with outdir.writing(out_dir, command="sort", inputs=inputs) as tmp:
+        copy_games(folders, tmp)
+        report["files"] = write_plates(plan, tmp, spacing, units)
+        write_figure(os.path.join(tmp, "cascade.png"), plan, units)
+        write_json(os.path.join(tmp, "cascade.json"), report)
+        write_json(os.path.join(tmp, "report.json"), report)

@@ -1,0 +1,138 @@
+"""``sieve-mi sweep``: one scene over seeds (and tolerances), on the cascade's game engine.
+
+Every (seed, tolerance) is one game; they run in parallel on Ray where it is installed. The kept
+design is the one with the largest smallest margin: A must win, then the weakest B's β is as
+large as it can be, then its protrusion (scene units).
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import shutil
+import time
+
+from sieve_mi import outdir
+from sieve_mi.cascade.games import Engine, GameSpec, game_key, mesh_digest
+from sieve_mi.cascade.outputs import copy_games, write_json
+from sieve_mi.scene import Scene
+
+
+def margin(summary: dict) -> tuple:
+    """A run's rank: (A won, weakest B's β, weakest B's protrusion); larger is better."""
+    weakest = min(summary["block"], key=lambda b: (b["blocked"], b["beta"], b["protrusion"]))
+    return (summary["winner"] == "A", weakest["beta"], weakest["protrusion"])
+
+
+def _loaded(scene: Scene) -> tuple[Scene, dict]:
+    """A copy of the scene with its meshes loaded into the entries, and their file digests."""
+    from sieve_mi.meshes import load_trimesh
+
+    scene = copy.deepcopy(scene)
+    digests = {}
+    for e in scene.passes + scene.blocks:
+        if e.data is None:
+            path = scene.resolve(e.mesh)
+            e.data = load_trimesh(path)
+            digests[e.name or e.mesh] = mesh_digest(path)
+        else:
+            digests[e.name or e.mesh] = "in-memory"
+        e.name = e.name or os.path.splitext(os.path.basename(e.mesh))[0]
+    return scene, {
+        e.name: digests.get(e.name, digests.get(e.mesh)) for e in scene.passes + scene.blocks
+    }
+
+
+def sweep_scene(
+    scene: Scene,
+    out_dir: str,
+    *,
+    seeds: list[int],
+    tolerances: list[float] | None = None,
+    use_ray: bool | None = None,
+    address: str | None = None,
+    workers: int | None = None,
+    variant: str | None = None,
+    progress: bool = True,
+) -> dict:
+    """Solve ``scene`` for every seed and tolerance; write all runs and the best one.
+
+    Writes ``out_dir/sweep.json`` (also as ``report.json``): ``"runs"`` (seed, tolerance,
+    winner, weakest B, β, protrusion, seconds, folder), ``"best"`` (the kept run); every run's
+    folder as ``solve`` writes it under ``games/``, and the kept one again as ``best/``.
+    """
+    from sieve_mi.backend import default_variant
+    from sieve_mi.cascade.games import ray_module
+
+    t0 = time.perf_counter()
+    inputs = [scene.path] + [
+        scene.resolve(e.mesh) for e in scene.passes + scene.blocks if e.data is None
+    ]
+    outdir.validate(out_dir, inputs=inputs)
+    variant = variant or default_variant()
+    use_ray = (ray_module() is not None) if use_ray is None else use_ray
+    base, digests = _loaded(scene)
+    specs = _specs(base, digests, seeds, tolerances or [base.fabrication.tolerance], variant)
+    engine = Engine(out_dir, use_ray=use_ray, address=address, workers=workers, progress=progress)
+    with engine:
+        records = engine.play(specs)
+    runs = [_run_row(spec, records[spec.key]["summary"]) for spec in specs]
+    best = max(runs, key=lambda r: r["rank"])
+    report = {
+        "scene": scene.path,
+        "runs": [{k: v for k, v in r.items() if k != "rank"} for r in runs],
+        "best": {k: v for k, v in best.items() if k != "rank"},
+        "runner": engine.info(),
+        "timings": {"total_s": round(time.perf_counter() - t0, 3)},
+    }
+    with outdir.writing(out_dir, command="sweep", inputs=inputs) as tmp:
+        copy_games(engine.folders(), tmp)
+        shutil.copytree(os.path.join(tmp, best["folder"]), os.path.join(tmp, "best"))
+        write_json(os.path.join(tmp, "sweep.json"), report)
+        write_json(os.path.join(tmp, "report.json"), report)
+    engine.clear_cache()
+    return report
+
+
+def _specs(base: Scene, digests: dict, seeds, tolerances, variant: str) -> list[GameSpec]:
+    """One game per (tolerance, seed)."""
+    specs = []
+    for tol in tolerances:
+        for seed in seeds:
+            s = copy.deepcopy(base)
+            s.fabrication.tolerance = tol
+            s.solver.seed = seed
+            key = game_key(f"seed{seed}-tol{tol:g}", s, seed, variant, digests)
+            specs.append(GameSpec(key, s, seed, variant, {"seed": seed, "tolerance": tol}))
+    return specs
+
+
+def _run_row(spec: GameSpec, summary: dict) -> dict:
+    """A run's row of the table: its weakest B and its rank (:func:`margin`)."""
+    weakest = min(summary["block"], key=lambda b: (b["blocked"], b["beta"], b["protrusion"]))
+    return {
+        **spec.label,
+        "winner": summary["winner"],
+        "weakest": weakest["name"],
+        "beta": weakest["beta"],
+        "protrusion": weakest["protrusion"],
+        "game_s": summary.get("game_s"),
+        "folder": f"games/{spec.key}",
+        "rank": margin(summary),
+    }
+
+
+def sweep_table(report: dict) -> str:
+    """All runs as text, the kept one marked with ``*``."""
+    lines = [
+        f"  {'seed':>5}{'tol':>7}  {'winner':<7}{'weakest B':<16}{'beta':>8}{'protr.':>9}{'s':>7}"
+    ]
+    best = report["best"]
+    for r in report["runs"]:
+        mark = "*" if r["folder"] == best["folder"] else " "
+        lines.append(
+            f"{mark} {r['seed']:>5}{r['tolerance']:>7g}  {r['winner']:<7}{r['weakest']:<16}"
+            f"{r['beta']:>8.4f}{r['protrusion']:>9.3f}{(r['game_s'] or 0):>7.1f}"
+        )
+    lines.append(f"kept: seed {best['seed']}, tolerance {best['tolerance']:g} (folder best/)")
+    return "\n".join(lines)

@@ -1,0 +1,233 @@
+"""Sorting cascades and sweeps (sieve_mi.cascade): order, trays, inseparable pairs, Ray, resume."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+from sieve_mi.cascade import games as games_mod
+from sieve_mi.cascade.mixture import load_mixture
+from sieve_mi.cascade.size import inscribed_radius, passage_radius
+from sieve_mi.cascade.sort import sort_mixture
+from sieve_mi.errors import SieveError
+from sieve_mi.meshes import shape_from_trimesh
+
+SMALL = """
+[fabrication]
+tolerance = 0.5
+[solver]
+particles = 3
+iterations = 1
+starts = 4
+steps = 30
+resolution = 64
+canonical = 6
+polish = 0
+[verdict]
+starts = 16
+steps = 100
+resolution = 96
+[layout]
+rounds = 1
+alternatives = 0
+restarts = 0
+"""
+
+
+def _mixture(tmp_path, meshes: dict, name="mix", extra="") -> str:
+    os.makedirs(tmp_path / "meshes", exist_ok=True)
+    text = f'name = "{name}"\n'
+    for label, mesh in meshes.items():
+        mesh.export(str(tmp_path / "meshes" / f"{label}.stl"))
+        text += f'[[shape]]\nmesh = "meshes/{label}.stl"\n'
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text + extra + SMALL)
+    return str(path)
+
+
+def _four(tmp_path) -> str:
+    # Listed out of order on purpose. Passage radii: cube28 14, ball20 10, cube14 7, ball10 5.
+    return _mixture(
+        tmp_path,
+        {
+            "ball10": trimesh.creation.icosphere(3, 5.0),
+            "cube28": trimesh.creation.box((28.0, 28.0, 28.0)),
+            "cube14": trimesh.creation.box((14.0, 14.0, 14.0)),
+            "ball20": trimesh.creation.icosphere(3, 10.0),
+        },
+        name="four",
+    )
+
+
+def test_inscribed_radius_and_passage_radius_known_answers():
+    assert inscribed_radius(np.array([[0, 0], [4, 0], [4, 2], [0, 2.0]])) == pytest.approx(1.0)
+    assert inscribed_radius(np.array([[0, 0], [1, 0], [2, 0.0]])) == 0.0  # a segment
+    cases = [
+        (trimesh.creation.box((20.0, 20.0, 20.0)), 10.0, 1e-6),  # the face-on square
+        (trimesh.creation.box((30.0, 10.0, 4.0)), 2.0, 1e-6),  # half the thinnest side
+        (trimesh.creation.cylinder(10.0, 1.5, sections=64), 0.75, 1e-6),  # a coin edge-on
+        (trimesh.creation.icosphere(4, 10.0), 10.0, 0.02),  # a ball: its radius
+    ]
+    for mesh, expected, rel in cases:
+        r, view = passage_radius(shape_from_trimesh(mesh, name="x"))
+        assert r == pytest.approx(expected, rel=rel) and np.linalg.norm(view) == pytest.approx(1)
+
+
+@pytest.mark.slow
+def test_four_shapes_sort_into_four_trays_and_an_interrupted_sort_resumes(tmp_path, monkeypatch):
+    # Coarsest on top: a hole that passes the 20 mm ball and the 14 mm cube cannot pass the
+    # 28 mm cube (its every projection holds a 28 mm square); a 14 mm cube's hole (+0.5 mm)
+    # cannot pass a 20 mm ball; a 10 mm ball's hole cannot pass the 14 mm cube.
+    mixture = load_mixture(_four(tmp_path))
+    out = str(tmp_path / "out" / "four")
+    stored = []
+    original = games_mod.GameCache.store
+
+    def store_then_stop(self, spec, outcome):
+        original(self, spec, outcome)
+        stored.append(spec.key)
+        raise KeyboardInterrupt  # the user stops the sort after its first game
+
+    monkeypatch.setattr(games_mod.GameCache, "store", store_then_stop)
+    with pytest.raises(KeyboardInterrupt):
+        sort_mixture(mixture, out, use_ray=False, progress=False)
+    assert not os.path.exists(out) and len(stored) == 1
+    assert os.listdir(out + ".games") == stored  # the finished game waits
+    monkeypatch.setattr(games_mod.GameCache, "store", original)
+
+    report = sort_mixture(load_mixture(mixture.path), out, use_ray=False, progress=False)
+    assert report["trays"] == [["cube28"], ["ball20"], ["cube14"], ["ball10"]]
+    assert report["runner"]["reused"] == 1 and report["runner"]["played"] == 2
+    assert not os.path.exists(out + ".games")  # the waiting games moved into the output
+    on_disk = json.loads(open(os.path.join(out, "cascade.json")).read())
+    assert on_disk["trays"] == report["trays"]
+    for k, s in enumerate(on_disk["sieves"]):
+        assert (
+            s["winner"] == "A" and s["margins"]["beta"] > 0.1 and s["holds"] == report["trays"][k]
+        )
+        game = json.loads(open(os.path.join(out, s["folder"], "report.json")).read())
+        assert game["winner"] == "A" and [p["name"] for p in game["pass"]] == s["passes"]
+    plates = trimesh.load(os.path.join(out, "cascade.stl"), force="mesh")
+    assert len(plates.split(only_watertight=False)) >= 3  # three plates, stacked
+    assert os.path.getsize(os.path.join(out, "cascade.png")) > 10_000
+    # a second sort of the same mixture plays nothing: every game is in the output
+    again = sort_mixture(load_mixture(mixture.path), out, use_ray=False, progress=False)
+    assert again["runner"] == {**report["runner"], "played": 0, "reused": 3}
+    assert again["sieves"] == report["sieves"]
+
+
+@pytest.mark.slow
+def test_ray_with_two_workers_gives_the_serial_cascade_and_retries_a_dead_worker(
+    tmp_path, monkeypatch
+):
+    pytest.importorskip("ray")
+    serial = sort_mixture(
+        load_mixture(_four(tmp_path)), str(tmp_path / "serial"), use_ray=False, progress=False
+    )
+    flag = tmp_path / "killed-once"
+    monkeypatch.setenv(games_mod.FAULT_ENV, str(flag))  # the first game's worker dies
+    ray = sort_mixture(
+        load_mixture(_four(tmp_path)),
+        str(tmp_path / "ray"),
+        use_ray=True,
+        workers=2,
+        progress=False,
+    )
+    assert flag.exists()  # a worker did die, and Ray played its game again
+    assert ray["runner"]["mode"] == "ray" and ray["runner"]["played"] == 3
+    assert ray["trays"] == serial["trays"]
+    for a, b in zip(ray["sieves"], serial["sieves"]):
+        assert a["margins"] == pytest.approx(b["margins"], rel=1e-6)
+
+
+@pytest.mark.slow
+def test_a_pair_that_no_sieve_splits_shares_a_tray_with_the_reason(tmp_path):
+    # Balls of 20 and 20.2 mm with a 0.5 mm tolerance: each one's hole (its disk grown by
+    # 0.5 mm) lets the other through, so no sieve can split them; the 28 mm cube is held above.
+    path = _mixture(
+        tmp_path,
+        {
+            "cube28": trimesh.creation.box((28.0, 28.0, 28.0)),
+            "ball20": trimesh.creation.icosphere(3, 10.0),
+            "ball20_2": trimesh.creation.icosphere(3, 10.1),
+        },
+        name="twins",
+    )
+    report = sort_mixture(load_mixture(path), str(tmp_path / "out"), use_ray=False, progress=False)
+    assert report["trays"] == [["cube28"], ["ball20_2", "ball20"]]
+    (pair,) = report["inseparable"]
+    assert sorted(pair["pair"]) == ["ball20", "ball20_2"]
+    assert "ball20 passes" in pair["reason"] and "ball20_2 passes" in pair["reason"]
+
+
+def test_sweep_keeps_the_run_with_the_largest_margin(tmp_path):
+    from sieve_mi.cascade.sweep import sweep_scene
+    from sieve_mi.scene import load_scene
+
+    os.makedirs(tmp_path / "meshes")
+    trimesh.creation.box((14.0, 14.0, 14.0)).export(str(tmp_path / "meshes" / "cube.stl"))
+    trimesh.creation.icosphere(3, 10.0).export(str(tmp_path / "meshes" / "ball.stl"))
+    (tmp_path / "pair.toml").write_text(
+        '[[pass]]\nmesh = "meshes/cube.stl"\n[[block]]\nmesh = "meshes/ball.stl"\n'
+        + SMALL.replace("tolerance = 0.5", "")
+    )
+    scene = load_scene(str(tmp_path / "pair.toml"))
+    out = tmp_path / "sweep"
+    report = sweep_scene(
+        scene, str(out), seeds=[0, 1], tolerances=[0.5, 2.0], use_ray=False, progress=False
+    )
+    assert len(report["runs"]) == 4 and all(r["winner"] == "A" for r in report["runs"])
+    # a wider tolerance makes a wider hole: the ball sticks out less; the smaller one wins
+    assert report["best"]["tolerance"] == 0.5
+    assert report["best"]["beta"] == max(r["beta"] for r in report["runs"])
+    best = json.loads((out / "best" / "report.json").read_text())
+    kept = json.loads((out / report["best"]["folder"] / "report.json").read_text())
+    assert best == kept and best["settings"]["fabrication"]["tolerance"] == 0.5
+
+
+def _cli(*args, cwd):
+    env = {**os.environ, "SIEVE_MI_VARIANT": "llvm_ad_mono"}
+    return subprocess.run(
+        [sys.executable, "-m", "sieve_mi", *args], capture_output=True, text=True, cwd=cwd, env=env
+    )
+
+
+def _one_error_line(proc, needle):
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert "Traceback" not in proc.stderr and len(lines) == 1, proc.stderr
+    assert lines[0].startswith("sieve-mi: error: ") and needle in lines[0], lines[0]
+
+
+def test_bad_mixtures_and_addresses_are_one_line_errors(tmp_path):
+    one = _mixture(tmp_path, {"a": trimesh.creation.box((1.0, 1.0, 1.0))}, name="one")
+    _one_error_line(_cli("sort", one, cwd=tmp_path), "a mixture needs at least two")
+    dup = tmp_path / "dup.toml"
+    dup.write_text(
+        '[[shape]]\nmesh = "meshes/a.stl"\nname = "x"\n[[shape]]\nmesh = "meshes/a.stl"\nname = "x"\n'
+    )
+    _one_error_line(_cli("sort", str(dup), cwd=tmp_path), "shape[1].name: 'x'")
+    old = tmp_path / "old.toml"
+    old.write_text('[[pass]]\nmesh = "meshes/a.stl"\n[[block]]\nmesh = "meshes/a.stl"\n')
+    _one_error_line(_cli("sort", str(old), cwd=tmp_path), "[[shape]]")
+    with socket.socket() as s:  # a port with nothing listening
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    two = _mixture(
+        tmp_path,
+        {"a": trimesh.creation.box((1.0, 1.0, 1.0)), "b": trimesh.creation.box((2.0, 2.0, 2.0))},
+        name="two",
+    )
+    if games_mod.ray_module() is not None:
+        proc = _cli("sort", two, "--address", f"127.0.0.1:{port}", cwd=tmp_path)
+        _one_error_line(proc, "nothing is listening")
+    _one_error_line(_cli("sweep", two, "--seeds", "3-x", cwd=tmp_path), "--seeds 3-x")
+    with pytest.raises(SieveError, match="expected host:port"):
+        games_mod.check_address("nowhere")
