@@ -9,9 +9,11 @@ SCENE  ?= scenes/default.toml
 
 setup: $(STAMP)
 
-# The virtual environment, the package and its dependencies, and a libLLVM (>= 17) that Dr.Jit accepts.
-$(STAMP): pyproject.toml tools/ensure_llvm.sh
+# The virtual environment, the package and its dependencies, a libLLVM (>= 17) that Dr.Jit accepts,
+# and (best effort, never failing) a headless Chromium for the browser tests of report.html.
+$(STAMP): pyproject.toml tools/ensure_llvm.sh tools/ensure_chromium.sh
 	bash tools/ensure_llvm.sh
+	-bash tools/ensure_chromium.sh
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[test,cluster]'

@@ -1,4 +1,4 @@
-"""Command line: ``sieve-mi solve SCENE [--out DIR]`` and ``sieve-mi check SHAPE (--sieve PLATE | --hole IMAGE --pixel-size MM) [--out DIR]``."""
+"""Command line: ``sieve-mi solve SCENE [--out DIR]``, ``sieve-mi check SHAPE (--sieve PLATE | --hole IMAGE --pixel-size MM) [--out DIR]``, ``sieve-mi certify ...`` and ``sieve-mi view DIR``."""
 
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     s.add_argument("--seed", type=int, help="random seed (overrides [solver] seed)")
     s.add_argument("--quiet", action="store_true", help="no progress bars")
-    s.add_argument("--no-figure", action="store_true", help="skip the Mitsuba rendering figure.png")
+    _skip_flags(s)
     c = sub.add_parser(
         "check",
         help="test a shape against a sieve (plate mesh or hole image): passes or blocked, and the fit scale",
@@ -90,7 +90,22 @@ def _parser() -> argparse.ArgumentParser:
     from sieve_mi.cascade.commands import add_parsers
 
     add_parsers(sub)
+    _view_parser(sub)
     return p
+
+
+def _skip_flags(s) -> None:
+    """``solve``'s flags that skip an optional output."""
+    s.add_argument("--no-figure", action="store_true", help="skip the Mitsuba rendering figure.png")
+    s.add_argument(
+        "--no-animation", action="store_true", help="skip the Mitsuba animation passage.gif"
+    )
+
+
+def _view_parser(sub) -> None:
+    """``sieve-mi view FOLDER``."""
+    v = sub.add_parser("view", help="open an output folder's report.html in the default browser")
+    v.add_argument("folder", help="output folder of solve or check (e.g. out/<name>)")
 
 
 def _certify_parser(sub) -> None:
@@ -126,7 +141,7 @@ def cmd_solve(args) -> int:
     if args.seed is not None and args.seed < 0:
         raise SieveError(f"--seed {args.seed}: must be >= 0")
     result = sm.solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
-    report = result.save(out_dir, figure=not args.no_figure)
+    report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
     print(summary_table(report))
     for w in report["warnings"] + report.get("fabrication", {}).get("warnings", []):
         print(f"sieve-mi: warning: {w}", file=sys.stderr)
@@ -184,12 +199,37 @@ def cmd_check(args) -> int:
     )
     text = json.dumps(rep.to_dict(), indent=2, default=lambda x: None if x != x else str(x))
     if args.out is not None:
+        from sieve_mi.viewer import check_holes, render_check_page
+
         with outdir.writing(args.out, command="check", inputs=inputs) as tmp:
             with open(os.path.join(tmp, "report.json"), "w") as fh:
                 fh.write(text + "\n")
+            holes = check_holes(args.sieve, args.axis, args.hole, args.pixel_size)
+            with open(os.path.join(tmp, "report.html"), "w", encoding="utf-8") as fh:
+                fh.write(render_check_page(json.loads(text), shape, holes))
     print(text if args.json else summary(rep))
     if args.out is not None:
         print(f"outputs: {args.out}/", file=sys.stderr if args.json else sys.stdout)
+    return 0
+
+
+def cmd_view(args) -> int:
+    """Open ``FOLDER/report.html`` in the default browser (Python's :mod:`webbrowser`)."""
+    import pathlib
+    import webbrowser
+
+    folder = args.folder
+    if not os.path.isdir(folder):
+        raise SieveError(f"{folder}: no such output folder")
+    page = os.path.join(folder, "report.html")
+    if not os.path.isfile(page):
+        raise SieveError(
+            f"{folder}: has no report.html (write it with sieve-mi solve or check --out)"
+        )
+    url = pathlib.Path(os.path.abspath(page)).as_uri()
+    if not webbrowser.open(url):
+        raise SieveError(f"{page}: no browser could be started; open {url} by hand")
+    print(url)
     return 0
 
 
@@ -288,6 +328,8 @@ def main(argv: list[str] | None = None) -> int:
                 return cmd_check(args)
             if args.command == "certify":
                 return cmd_certify(args)
+            if args.command == "view":
+                return cmd_view(args)
             if args.command in ("sort", "sweep"):
                 from sieve_mi.cascade.commands import COMMANDS
 

@@ -340,14 +340,21 @@ def input_paths(scene) -> list[str]:
 
 
 def write_outputs(
-    result: Result, out_dir: str, *, fabricate: bool = True, figure: bool = True
+    result: Result,
+    out_dir: str,
+    *,
+    fabricate: bool = True,
+    figure: bool = True,
+    animation: bool = True,
 ) -> dict:
     """Write every output of a solve into ``out_dir`` (replacing it) and return the report dict.
 
     Files: report.json, hole.png, hole.exr, masks/a_silhouette.exr, masks/block_<j>_<name>.exr,
     convergence.png, overlay.png; with ``fabricate`` also the printable sieve (sieve.stl, sieve.3mf,
     hole.svg), pass_<i>.stl, block_<j>.stl and, with ``figure``, figure.png (see
-    :func:`sieve_mi.fabrication.fabricate`), and the marker ``.sieve-mi``. Everything is written
+    :func:`sieve_mi.fabrication.fabricate`), with ``animation`` passage.gif
+    (:mod:`sieve_mi.animation`), the page report.html (:mod:`sieve_mi.viewer`) and the marker
+    ``.sieve-mi``. Everything is written
     into a temporary folder and swapped in at the end (:func:`sieve_mi.outdir.writing`): an
     interrupted or failed run leaves the old folder as it was, and a folder that sieve-mi did not
     write is refused (:class:`~sieve_mi.errors.SieveError`), never replaced.
@@ -361,9 +368,29 @@ def write_outputs(
             t0 = time.perf_counter()
             report["fabrication"] = make_sieve(result, tmp, figure=figure)
             report["timings"]["fabrication_s"] = round(time.perf_counter() - t0, 4)
-        with open(os.path.join(tmp, "report.json"), "w") as fh:
-            json.dump(report, fh, indent=2)
+        _write_passage(result, report, tmp, animation)
     return report
+
+
+def _write_passage(result: Result, report: dict, tmp: str, animation: bool) -> None:
+    """passage.gif (with ``animation``), report.json and report.html into ``tmp``.
+
+    The GIF's record and its time go into ``report`` before report.json is written; the page,
+    written last, holds report.json's content and links every other file.
+    """
+    from sieve_mi.passage import build
+    from sieve_mi.viewer import page_files, write_page
+
+    passage = build(result)
+    if animation:
+        from sieve_mi.animation import write_gif
+
+        t0 = time.perf_counter()
+        report["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
+        report["timings"]["animation_s"] = round(time.perf_counter() - t0, 4)
+    with open(os.path.join(tmp, "report.json"), "w") as fh:
+        json.dump(report, fh, indent=2)
+    write_page(os.path.join(tmp, "report.html"), result, report, passage, page_files(tmp))
 
 
 def _write_images(result: Result, tmp: str) -> None:

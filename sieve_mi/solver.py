@@ -140,14 +140,17 @@ class Result:
             )
         return out
 
-    def save(self, out_dir: str, *, fabricate: bool = True, figure: bool = True) -> dict:
+    def save(
+        self, out_dir: str, *, fabricate: bool = True, figure: bool = True, animation: bool = True
+    ) -> dict:
         """Write every output into ``out_dir`` (as ``sieve-mi solve --out``); returns report.json's dict.
 
         A folder that sieve-mi did not write is refused, never replaced (:mod:`sieve_mi.outdir`).
+        ``animation=False`` skips passage.gif (as ``--no-animation``).
         """
         from sieve_mi.report import write_outputs
 
-        return write_outputs(self, out_dir, fabricate=fabricate, figure=figure)
+        return write_outputs(self, out_dir, fabricate=fabricate, figure=figure, animation=animation)
 
     @property
     def a_mask(self) -> np.ndarray:

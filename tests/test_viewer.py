@@ -1,0 +1,486 @@
+"""report.html and passage.gif: the page's inlined data, the passage's geometry, the GIF's frames,
+and the page in a real browser (headless Chromium, where installed: ``make setup`` installs it)."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+
+import manifold3d
+import numpy as np
+import pytest
+import trimesh
+
+from sieve_mi import animation, viewer
+from sieve_mi.exact import silhouette
+from sieve_mi.outline import is_closed, placed_vertices, rasterize
+from sieve_mi.passage import Passage, build
+from sieve_mi.raster import Frame
+from sieve_mi.scene import load_scene
+from sieve_mi.solver import solve
+
+MESHES = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
+TINY = """
+[solver]
+resolution = 64
+particles = 3
+iterations = 1
+starts = 4
+steps = 20
+[verdict]
+starts = 8
+steps = 40
+resolution = 96
+"""
+# Several A shapes merged into one hole (A wins: the 24 mm sphere is blocked) ...
+MERGED = (
+    f'name = "merged"\n[[pass]]\nmesh = "{MESHES}/cube.stl"\n[[pass]]\nmesh = "{MESHES}/prism.stl"\n'
+    f'[[block]]\nmesh = "{MESHES}/sphere.stl"\n[layout]\nmode = "merged"\nrounds = 1\n'
+    "alternatives = 0\n"
+)
+# ... and a scene B wins: the 12 mm ball passes any hole the 20 mm cube needs.
+B_WINS = (
+    f'name = "b wins"\n[[pass]]\nmesh = "{MESHES}/cube.stl"\n[[block]]\nmesh = "{MESHES}/sphere.stl"\n'
+    f'[[block]]\nmesh = "{MESHES}/small_sphere.stl"\n'
+)
+
+
+def _solved(tmp_path_factory, body):
+    folder = tmp_path_factory.mktemp("scene")
+    (folder / "scene.toml").write_text(body + TINY)
+    result = solve(load_scene(str(folder / "scene.toml")), progress=False)
+    out = folder / "out"
+    report = result.save(str(out), figure=False)
+    return result, report, out
+
+
+@pytest.fixture(scope="module")
+def merged(tmp_path_factory):
+    return _solved(tmp_path_factory, MERGED)
+
+
+@pytest.fixture(scope="module")
+def b_wins(tmp_path_factory):
+    return _solved(tmp_path_factory, B_WINS)
+
+
+@pytest.fixture(params=["merged", "b_wins"])
+def solved(request):
+    return request.getfixturevalue(request.param)
+
+
+def page_data(out) -> dict:
+    text = (out / "report.html").read_text(encoding="utf-8")
+    m = re.search(r'<script type="application/json" id="sieve-data">(.*?)</script>', text, re.S)
+    return json.loads(m.group(1))
+
+
+def svg_paths(out) -> dict:
+    """data-id -> list of (K, 2) contours (y flipped back) of the page's 2D hole view."""
+    text = (out / "report.html").read_text(encoding="utf-8")
+    paths = {}
+    for pid, d in re.findall(r'<path data-id="([^"]+)"[^>]* d="([^"]*)"', text):
+        contours = []
+        for part in re.findall(r"M ([^MZ]*) Z", d):
+            xy = np.array([float(v) for v in part.replace("L", " ").split()]).reshape(-1, 2)
+            contours.append(xy * [1.0, -1.0])
+        paths[pid] = contours
+    return paths
+
+
+def _same_contours(got, want, tol):
+    want = [np.asarray(c, dtype=np.float64) for c in want if len(c)]
+    assert len(got) == len(want)
+    for g, w in zip(got, want):
+        assert g.shape == w.shape
+        np.testing.assert_allclose(g, w, rtol=1e-5, atol=tol)
+
+
+# ------------------------------------------------------------------------------------------------
+# The page's inlined data
+# ------------------------------------------------------------------------------------------------
+
+
+def test_page_hole_and_outlines_are_the_exact_polygons(solved):
+    result, report, out = solved
+    paths = svg_paths(out)
+    tol = 1e-5 * result.hole.frame.half_extent
+    _same_contours(paths["hole"], result.outline.to_polygons(), tol)
+    for i, (s, q, t) in enumerate(zip(result.pass_shapes, result.pass_quats, result.pass_trans)):
+        _same_contours(paths[f"a{i}"], silhouette(s, q, t, is_closed(s)).to_polygons(), tol)
+    for j, s in enumerate(result.block_shapes):
+        sec = silhouette(s, result.attack.quats[0, j], result.attack.trans[0, j], is_closed(s))
+        _same_contours(paths[f"b{j}"], sec.to_polygons(), tol)
+
+
+def test_page_meshes_are_the_printed_plate_and_the_posed_shapes(solved):
+    result, report, out = solved
+    data = page_data(out)
+    # The plate is sieve.stl, triangle for triangle.
+    v = viewer.decode(data["plate"]["positions"], "<f4")
+    f = viewer.decode(data["plate"]["faces"], "<u4")
+    stl = trimesh.load(str(out / "sieve.stl"), process=False)
+    key = lambda tris: np.sort(np.round(tris.reshape(len(tris), -1), 4), axis=0)  # noqa: E731
+    np.testing.assert_allclose(key(v[f]), key(np.asarray(stl.triangles)), atol=1e-4)
+    # Each shape is its mesh at report.json's pose (rotation about its centre, xy translation).
+    poses = [("pass", p) for p in report["pass"]] + [("block", b) for b in report["block"]]
+    shapes = result.pass_shapes + result.block_shapes
+    assert [p["id"] for p in data["pieces"]] == [f"a{i}" for i in range(len(report["pass"]))] + [
+        f"b{j}" for j in range(len(report["block"]))
+    ]
+    for piece, (role, row), shape in zip(data["pieces"], poses, shapes):
+        assert piece["role"] == role and piece["name"] == row["name"]
+        want = placed_vertices(shape, np.array(row["rotation"]), np.array(row["translation"]))
+        got = viewer.decode(piece["positions"], "<f4")
+        np.testing.assert_allclose(got, want, atol=1e-4 * shape.radius + 1e-5)
+        assert np.array_equal(viewer.decode(piece["faces"], "<u4"), shape.faces)
+        assert piece["passes"] == (role == "pass" or not row["blocked"])
+
+
+def test_names_cannot_break_out_of_the_page(merged):
+    # Shape and scene names are text: escaped in the HTML, and "</script>" cannot end the data.
+    result, report, out = merged
+    evil = 'x</script><img src="http://example.invalid/a.png">{{DATA}}'
+    rep = dict(report, name=evil, block=[dict(b, name=evil) for b in report["block"]])
+    page = viewer.render_page(result, rep, build(result), [])
+    assert page.count("</script>") == 2  # the template's own data and script blocks
+    assert '<img src="http://example.invalid' not in page  # never a live tag
+    m = re.search(r'<script type="application/json" id="sieve-data">(.*?)</script>', page, re.S)
+    assert json.loads(m.group(1))["name"] == evil
+    assert f"<h1>{viewer.html.escape(evil)}</h1>" in page
+
+
+def test_a_ball_rests_on_a_round_hole_at_the_known_height():
+    # A 24 mm ball over a 22 mm round hole: the rim holds it where the sphere meets the circle,
+    # its centre sqrt(12² - 11²) = 4.796 mm above the plate's top. A 20 mm ball falls through.
+    from sieve_mi.passage import rest_offset
+
+    hole = manifold3d.CrossSection.circle(11.0, 256)
+    box = np.array([[-20.0, -20.0], [20.0, 20.0]])
+    ball = trimesh.creation.icosphere(4, 12.0)
+    rest = rest_offset(np.asarray(ball.vertices), np.asarray(ball.faces), hole, box)
+    assert rest == pytest.approx(np.sqrt(12.0**2 - 11.0**2), abs=0.1)
+    small = trimesh.creation.icosphere(4, 10.0)
+    assert rest_offset(np.asarray(small.vertices), np.asarray(small.faces), hole, box) is None
+
+
+def _volume(a: manifold3d.Manifold) -> float:
+    return float(a.volume()) if hasattr(a, "volume") else float(a.get_volume())
+
+
+def _solid(vertices, faces) -> manifold3d.Manifold:
+    mesh = manifold3d.Mesh(
+        vert_properties=np.asarray(vertices, dtype=np.float32),
+        tri_verts=np.asarray(faces, dtype=np.uint32),
+    )
+    return manifold3d.Manifold(mesh)
+
+
+def test_a_slides_through_and_a_blocked_b_rests_on_the_plate(merged):
+    # Real solids: A never cuts into the plate on its way down; the blocked sphere at its resting
+    # height touches the plate's top and would cut into it a little lower.
+    result, report, out = merged
+    passage = build(result)
+    plate = _solid(passage.plate_vertices, passage.plate_faces)
+    size = float(np.ptp(passage.plate_vertices, axis=0).max())
+    for p in passage.pieces:
+        solid = _solid(p.vertices, p.faces)
+
+        def cut(dz, solid=solid):
+            return _volume(solid.translate([0.0, 0.0, dz]) ^ plate)
+
+        if p.passes:
+            for s in np.linspace(0.0, 1.0, 9):
+                assert cut(p.offset(p.slot[0] + s * (p.slot[1] - p.slot[0]))) < 1e-6 * size**3
+        else:
+            assert report["block"][p.index]["blocked"]
+            assert 0.0 < p.stop < 1.0 and p.offset(p.slot[1] - 1e-9) == pytest.approx(p.end)
+            assert cut(p.end + 0.01 * size) < 1e-6 * size**3
+            assert cut(p.end - 0.03 * size) > 0.0
+
+
+# ------------------------------------------------------------------------------------------------
+# passage.gif
+# ------------------------------------------------------------------------------------------------
+
+
+def test_gif_has_its_frames_and_a_moves_down(merged):
+    from PIL import Image
+
+    result, report, out = merged
+    passage = build(result)
+    n = animation.frame_count(passage)
+    assert n == animation.FRAMES_PER_SLOT * (1 + len(result.block_shapes))
+    gif = Image.open(out / "passage.gif")
+    assert gif.n_frames == report["animation"]["frames"] == n
+    assert gif.size == (animation.WIDTH, animation.HEIGHT)
+    # In the first slot only the As are shown: against the same camera's picture of the plate
+    # alone, what differs in the GIF's first frames is A, and it moves down the picture.
+    empty = Passage(passage.plate_vertices, passage.plate_faces, passage.thickness, passage.gap, [])
+    plate_only = animation.to_gray8(
+        animation.render_frames(empty, phases=[0.0], box=passage.bounds(), spp=64)
+    )[0].astype(np.int16)
+    rows = []
+    for k in range(4):
+        gif.seek(k)
+        diff = np.abs(np.asarray(gif.convert("L"), dtype=np.int16) - plate_only) > 40
+        assert diff.sum() > 100  # A is in the picture
+        rows.append(int(np.nonzero(diff)[0].min()))  # the top of A
+    assert all(b > a + 5 for a, b in zip(rows, rows[1:])), rows
+
+
+# ------------------------------------------------------------------------------------------------
+# In a real browser: headless Chromium
+# ------------------------------------------------------------------------------------------------
+
+BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+SIZE = 640  # window side, pixels (square: the top view fits the plate's box to it)
+
+
+def _browser() -> str:
+    for name in BROWSERS:
+        path = shutil.which(name)
+        if path:
+            return path
+    pytest.skip("no headless Chromium on this machine (make setup installs Debian's chromium)")
+
+
+def run_browser(
+    url: str, tmp_path, *, screenshot: bool = False, size=(SIZE, SIZE), extra=()
+) -> dict:
+    """Load ``url`` headlessly; returns the DOM (or the screenshot), console lines and page requests.
+
+    Page requests are the network log's requests whose initiator is the page (a file:// page's
+    origin is "null"); Chromium's own background requests ("not an origin") are left out.
+    """
+    exe = _browser()
+    net = tmp_path / "net.json"
+    shot = tmp_path / "shot.png"
+    args = [
+        exe, "--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+        "--hide-scrollbars", "--force-device-scale-factor=1", f"--window-size={size[0]},{size[1]}",
+        f"--user-data-dir={tmp_path / 'profile'}", "--no-first-run", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--enable-logging=stderr", "--v=0",
+        f"--log-net-log={net}", "--virtual-time-budget=4000",
+    ]  # fmt: skip
+    args += list(extra) + ([f"--screenshot={shot}"] if screenshot else ["--dump-dom"])
+    p = subprocess.run(args + [url], capture_output=True, text=True, timeout=120)
+    console = [
+        ln
+        for ln in p.stderr.splitlines()
+        if ":CONSOLE" in ln and "GL Driver Message" not in ln  # SwiftShader's performance notes
+    ]
+    return {
+        "dom": p.stdout,
+        "shot": shot if screenshot else None,
+        "console": console,
+        "requests": _page_requests(net),
+    }
+
+
+def _page_requests(path) -> list[str]:
+    text = path.read_text() if path.exists() else '{"events": []}'
+    text = text.rstrip()
+    if not text.endswith("}"):  # a log cut short when the browser quit
+        text = text.rstrip(",") + "]}"
+    log = json.loads(text)
+    names = {v: k for k, v in log.get("constants", {}).get("logEventTypes", {}).items()}
+    urls = []
+    for e in log["events"]:
+        p = e.get("params", {})
+        start = names.get(e["type"]) == "URL_REQUEST_START_JOB" and "url" in p  # not its end
+        if start and p.get("initiator") != "not an origin":
+            urls.append(p["url"])
+    return [u for u in urls if not u.startswith(("file:", "data:", "blob:"))]
+
+
+def test_the_browser_check_sees_errors_and_requests(tmp_path):
+    # The checks below can fail: a page that logs an error and loads a remote image is caught.
+    _browser()
+    page = tmp_path / "bad.html"
+    page.write_text(
+        '<!DOCTYPE html><img src="http://example.invalid/x.png"><script>console.error("boom")</script>'
+    )
+    got = run_browser(page.as_uri(), tmp_path)
+    assert any("boom" in ln for ln in got["console"])
+    assert got["requests"] == ["http://example.invalid/x.png"]
+
+
+def test_page_loads_offline_without_errors(solved, tmp_path):
+    result, report, out = solved
+    got = run_browser((out / "report.html").as_uri(), tmp_path)
+    body = re.search(r"<body[^>]*>", got["dom"]).group(0)
+    assert 'data-ready="1"' in body and "data-webgl" not in body and "data-errors" not in body
+    assert re.search(r'<pre id="errors" hidden="?"?>\s*</pre>', got["dom"])
+    assert got["console"] == [] and got["requests"] == []
+    assert f'data-winner="{report["winner"]}"' in body
+    # Desktop and phone widths: the page fits the window (no sideways scrolling).
+    assert 'data-fits="1"' in body
+    phone = run_browser((out / "report.html").as_uri(), tmp_path, size=(390, 844))
+    assert re.search(r'<body[^>]*data-fits="1"', phone["dom"]) and phone["console"] == []
+
+
+def test_page_without_webgl_still_shows_the_result(b_wins, tmp_path):
+    # A browser without WebGL: a note instead of the 3D view, no error, the rest of the page.
+    result, report, out = b_wins
+    got = run_browser((out / "report.html").as_uri(), tmp_path, extra=["--disable-3d-apis"])
+    body = re.search(r"<body[^>]*>", got["dom"]).group(0)
+    assert 'data-webgl="none"' in body and 'data-ready="1"' in body and "data-errors" not in body
+    assert re.search(r'<p id="nogl">', got["dom"])  # shown (no longer hidden)
+    assert got["console"] == [] and 'data-id="hole"' in got["dom"]
+
+
+def _deepest(section, box) -> np.ndarray:
+    """The point of a CrossSection (within the box (2, 2)) farthest from its boundary, xy."""
+    from scipy.ndimage import distance_transform_edt
+
+    half = 0.5 * float(np.max(box[1] - box[0]))
+    centre = 0.5 * (box[0] + box[1])
+    frame = Frame(400, half)
+    mask = rasterize(section.translate(list(-centre)), frame)
+    dist = distance_transform_edt(mask)
+    r, c = np.unravel_index(int(np.argmax(dist)), mask.shape)
+    assert dist[r, c] > 3  # a clear spot, several screen pixels from any edge
+    x, y = frame.centres()
+    return np.array([x[c], y[r]]) + centre
+
+
+def _pixel(image, point, box) -> tuple[int, int, int]:
+    """The screenshot's colour at scene point (x, y) in the top view (plate box fitted, centred)."""
+    centre = 0.5 * (box[0] + box[1])
+    scale = SIZE / float(np.max(box[1] - box[0]))
+    col = SIZE / 2 + (point[0] - centre[0]) * scale
+    row = SIZE / 2 - (point[1] - centre[1]) * scale
+    return tuple(int(v) for v in image.getpixel((int(col), int(row)))[:3])
+
+
+def _kind(rgb) -> str:
+    r, g, b = rgb
+    if min(rgb) > 235:
+        return "background"
+    if max(rgb) - min(rgb) < 16:
+        return "plate"
+    if g > 1.5 * r and g > 1.5 * b:
+        return "pass"
+    if r > g > b and r > 1.5 * b:
+        return "blocked" if g < 0.35 * r else "escaped"
+    return f"other {rgb}"
+
+
+def _shot(out, tmp_path, query: str):
+    from PIL import Image
+
+    url = (out / "report.html").as_uri() + "#view=top&full&" + query
+    got = run_browser(url, tmp_path, screenshot=True)
+    assert got["console"] == [] and got["requests"] == []
+    image = Image.open(got["shot"]).convert("RGB")
+    assert image.size == (SIZE, SIZE)
+    return image
+
+
+def test_screenshot_shows_the_hole_and_shapes_where_the_report_says(solved, tmp_path):
+    result, report, out = solved
+    data = page_data(out)
+    box = np.array(data["plate_box"])
+    plate_square = manifold3d.CrossSection.square(list(box[1] - box[0])).translate(list(box[0]))
+    # The plate alone, from above: the hole's deepest point shows the background, the plate's
+    # material the plate; the picture is not blank.
+    image = _shot(out, tmp_path, "t=0&show=plate")
+    assert len(np.unique(np.asarray(image).reshape(-1, 3), axis=0)) > 2
+    assert _kind(_pixel(image, _deepest(result.outline, box), box)) == "background"
+    assert _kind(_pixel(image, _deepest(plate_square - result.outline, box), box)) == "plate"
+    # Every A at its start above the plate, at its pose's place.
+    ids = ",".join(["plate"] + [f"a{i}" for i in range(len(result.pass_shapes))])
+    image = _shot(out, tmp_path, f"t=0&show={ids}")
+    for s, q, t in zip(result.pass_shapes, result.pass_quats, result.pass_trans):
+        sec = silhouette(s, q, t, is_closed(s))
+        assert _kind(_pixel(image, _deepest(sec, box), box)) == "pass"
+    # Each B at the end of its turn: resting on the plate where it sticks out (blocked), or
+    # below the plate, seen through the hole (it got through).
+    for piece in data["pieces"]:
+        if piece["role"] != "block":
+            continue
+        j = int(piece["id"][1:])
+        shape = result.block_shapes[j]
+        sec = silhouette(
+            shape, result.attack.quats[0, j], result.attack.trans[0, j], is_closed(shape)
+        )
+        spot = sec - result.outline if not piece["passes"] else sec ^ result.outline
+        image = _shot(out, tmp_path, f"t={piece['slot'][1] - 1e-4:.6f}&show=plate,{piece['id']}")
+        want = "escaped" if piece["passes"] else "blocked"
+        assert _kind(_pixel(image, _deepest(spot ^ plate_square, box), box)) == want
+
+
+# ------------------------------------------------------------------------------------------------
+# The command line: solve --no-animation, check --out, view
+# ------------------------------------------------------------------------------------------------
+
+
+def run_cli(*args, env=None):
+    import sys
+
+    return subprocess.run(
+        [sys.executable, "-m", "sieve_mi", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+    )
+
+
+def test_no_animation_skips_only_the_gif(merged, tmp_path):
+    from sieve_mi.cli import _parser
+
+    assert _parser().parse_args(["solve", "s.toml", "--no-animation"]).no_animation
+    result, report, out = merged
+    rep = result.save(str(tmp_path / "o"), figure=False, animation=False)
+    assert not (tmp_path / "o" / "passage.gif").exists() and "animation" not in rep
+    assert (tmp_path / "o" / "report.html").is_file()
+    marker = json.loads((tmp_path / "o" / ".sieve-mi").read_text())
+    assert "report.html" in marker["files"] and "passage.gif" not in marker["files"]
+    assert {"report.html", "passage.gif"} <= set(
+        json.loads((out / ".sieve-mi").read_text())["files"]
+    )
+
+
+def test_check_out_writes_a_page_of_the_plate_hole(merged, tmp_path):
+    from sieve_mi.checker import holes_from_mesh
+
+    result, report, out = merged
+    dest = tmp_path / "check"
+    p = run_cli(
+        "check", os.path.join(MESHES, "sphere.stl"), "--sieve", str(out / "sieve.stl"),
+        "--starts", "4", "--steps", "30", "--resolution", "64", "--no-fit", "--out", str(dest),
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    rep = json.loads((dest / "report.json").read_text())
+    paths = svg_paths(dest)
+    _same_contours(paths["hole"], holes_from_mesh(str(out / "sieve.stl"))[0].to_polygons(), 1e-4)
+    assert len(paths["b0"]) >= 1
+    page = (dest / "report.html").read_text()
+    assert ("is blocked" if not rep["result"]["passes"] else "passes") in page
+    if any(shutil.which(b) for b in BROWSERS):
+        got = run_browser((dest / "report.html").as_uri(), tmp_path)
+        assert 'data-ready="1"' in got["dom"] and got["console"] == [] and got["requests"] == []
+
+
+def test_view_opens_the_page_and_refuses_what_is_not_an_output(merged, tmp_path):
+    result, report, out = merged
+    log = tmp_path / "opened.txt"
+    fake = tmp_path / "browser.sh"
+    fake.write_text(f'#!/bin/sh\necho "$1" > {log}\n')
+    fake.chmod(0o755)
+    env = dict(os.environ, BROWSER=f"{fake} %s")
+    p = run_cli("view", str(out), env=env)
+    assert p.returncode == 0, p.stderr
+    assert log.read_text().strip() == (out / "report.html").resolve().as_uri()
+    for folder, needle in (
+        (tmp_path / "nope", "no such output folder"),
+        (tmp_path, "no report.html"),
+    ):
+        p = run_cli("view", str(folder), env=env)
+        assert p.returncode == 2 and needle in p.stderr
+        assert len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
