@@ -100,7 +100,7 @@ def play(spec: GameSpec) -> dict:
     result = solve(spec.scene, variant=spec.variant, seed=spec.seed, progress=False)
     with tempfile.TemporaryDirectory(prefix="sieve-mi-game-") as scratch:
         out = os.path.join(scratch, "out")
-        report = result.save(out, figure=False)
+        report = result.save(out, figure=False, animation=False)
         files = {}
         for root, _, names in os.walk(out):
             for n in names:
