@@ -162,10 +162,7 @@ class ClearanceObjective:
     def _pose_sums(self, active, rows, t, holes: HoleStack, pose_hole) -> list:
         """Per-pose sums of the loss and of its derivatives, in an order fixed by the inputs.
 
-        Two levels, both sequential loops over contiguous ranges: each thread sums the samples of
-        at most :data:`CHUNK` consecutive active pairs of one pose (``active`` is ascending, so a
-        pose's pairs are contiguous), then one thread per pose sums its chunks in order. The
-        result depends on neither the thread count nor the scheduling (atomic scatter-adds do).
+        See :func:`pose_sums` for the two-level order.
 
         Parameters
         ----------
@@ -185,41 +182,16 @@ class ClearanceObjective:
             in scene units.
         """
         dr, mi = self.dr, self.mi
-        k = self.pose_count
-        if dr.width(active) == 0:
-            return [dr.zeros(mi.Float, k) for _ in range(9)]
-        count = dr.zeros(mi.UInt32, k)  # integer sums are exact: order does not matter
-        dr.scatter_reduce(dr.ReduceOp.Add, count, 1, dr.gather(mi.UInt32, self._pairs[0], active))
-        chunks = (count + (CHUNK - 1)) // CHUNK
-        first_pair, first_chunk = dr.prefix_sum(count), dr.prefix_sum(chunks)
-        dr.eval(count, chunks, first_pair, first_chunk)
-        n_chunks = int(dr.sum(chunks)[0])
-        partial = self._chunk_sums(
-            active, n_chunks, (count, first_pair, first_chunk), rows, t, holes, pose_hole
-        )
-        return self._sum_chunks(partial, chunks, first_chunk)
-
-    def _chunk_sums(self, active, n_chunks, layout, rows, t, holes, pose_hole) -> list:
-        """First level of :meth:`_pose_sums`: 9 partial sums per chunk, each (n_chunks,)."""
-        dr, mi = self.dr, self.mi
-        count, first_pair, first_chunk = layout
-        c = dr.arange(mi.UInt32, n_chunks)
-        # The pose of chunk c: the last pose whose first chunk is <= c.
-        r = dr.binary_search(
-            0, self.pose_count - 1, lambda i: dr.gather(mi.UInt32, first_chunk, i) <= c
-        )
-        pose = dr.select(dr.gather(mi.UInt32, first_chunk, r) <= c, r, r - 1)
-        begin = dr.gather(mi.UInt32, first_pair, pose)
-        lo = begin + (c - dr.gather(mi.UInt32, first_chunk, pose)) * CHUNK
-        hi = dr.minimum(lo + CHUNK, begin + dr.gather(mi.UInt32, count, pose))
-        g = [dr.gather(mi.Float, x, pose) for x in list(rows) + list(t)]
-        hole = dr.gather(mi.UInt32, pose_hole, pose)
         fracs = [(j + 0.5) / self.samples for j in range(self.samples)]
 
-        def body(i, *acc):
-            seg = dr.gather(mi.UInt32, self._pairs[1], dr.gather(mi.UInt32, active, i))
+        def prepare(pose):
+            g = [dr.gather(mi.Float, x, pose) for x in list(rows) + list(t)]
+            return g, dr.gather(mi.UInt32, pose_hole, pose)
+
+        def accumulate(pair, ctx, acc):
+            g, hole = ctx
+            seg = dr.gather(mi.UInt32, self._pairs[1], pair)
             a, d = dr.gather(mi.Vector3f, self.a, seg), dr.gather(mi.Vector3f, self.d, seg)
-            acc = list(acc)
             for frac in fracs:
                 p = a + d * frac
                 x = g[0] * p.x + g[1] * p.y + g[2] * p.z + g[6]
@@ -228,25 +200,11 @@ class ClearanceObjective:
                 gx, gy = 2 * dist * ddx, 2 * dist * ddy
                 terms = (dist * dist, gx, gy, gx * p.x, gx * p.y, gx * p.z, gy * p.x, gy * p.y)
                 acc = [s + v for s, v in zip(acc, terms + (gy * p.z,))]
-            return (i + 1, *acc)
+            return acc
 
-        zero = [dr.zeros(mi.Float, n_chunks) for _ in range(9)]
-        out = dr.while_loop((lo, *zero), lambda i, *_: i < hi, body, label="clearance chunks")
-        return list(out[1:])
-
-    def _sum_chunks(self, partial, chunks, first_chunk) -> list:
-        """Second level of :meth:`_pose_sums`: each pose sums its chunks in order, (K,) each."""
-        dr, mi = self.dr, self.mi
-        k = self.pose_count
-        dr.eval(partial)
-        end = first_chunk + chunks
-
-        def body(j, *acc):
-            return (j + 1, *[s + dr.gather(mi.Float, p, j) for s, p in zip(acc, partial)])
-
-        zero = [dr.zeros(mi.Float, k) for _ in range(9)]
-        out = dr.while_loop((mi.UInt32(first_chunk), *zero), lambda j, *_: j < end, body)
-        return list(out[1:])
+        return pose_sums(
+            active, self._pairs[0], self.pose_count, 9, prepare, accumulate, "clearance chunks"
+        )
 
     def _lookup(self, x, y, holes: HoleStack, hole_index):
         """Distance to H in pixels at world points (x, y), and its derivatives (pixels per unit).
@@ -283,3 +241,79 @@ class ClearanceObjective:
         dd_du += (u - uc) / root
         dd_dv += (v - vc) / root
         return d, dd_du * inv_h, -dd_dv * inv_h
+
+
+def pose_sums(active, pair_pose, pose_count: int, sums: int, prepare, accumulate, label: str):
+    """Per-pose sums over (pose, item) pairs, added in an order fixed by the inputs.
+
+    Two levels, both sequential loops over contiguous ranges: each thread sums the terms of at
+    most :data:`CHUNK` consecutive active pairs of one pose (``active`` is ascending and the pairs
+    are pose-major, so a pose's pairs are contiguous), then one thread per pose sums its chunks in
+    order. The result depends on neither the thread count nor the scheduling (atomic
+    scatter-adds do).
+
+    Parameters
+    ----------
+    active : mi.UInt32
+        Indices of the pairs to sum, ascending.
+    pair_pose : mi.UInt32
+        Pose of every pair, non-decreasing.
+    pose_count : int
+        K, the number of poses.
+    sums : int
+        Number of sums per pose.
+    prepare : callable
+        ``prepare(pose) -> ctx``: per-thread data gathered once per chunk (pose is mi.UInt32).
+    accumulate : callable
+        ``accumulate(pair, ctx, acc) -> acc``: adds pair ``pair``'s terms to the ``sums``
+        running sums ``acc`` (a list of mi.Float); called inside a symbolic loop.
+    label : str
+        Name of the loop (in Dr.Jit's kernel history).
+
+    Returns
+    -------
+    list of ``sums`` mi.Float, each (K,)
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    k = pose_count
+    if dr.width(active) == 0:
+        return [dr.zeros(mi.Float, k) for _ in range(sums)]
+    count = dr.zeros(mi.UInt32, k)  # integer sums are exact: order does not matter
+    dr.scatter_reduce(dr.ReduceOp.Add, count, 1, dr.gather(mi.UInt32, pair_pose, active))
+    chunks = (count + (CHUNK - 1)) // CHUNK
+    first_pair, first_chunk = dr.prefix_sum(count), dr.prefix_sum(chunks)
+    dr.eval(count, chunks, first_pair, first_chunk)
+    n_chunks = int(dr.sum(chunks)[0])
+    c = dr.arange(mi.UInt32, n_chunks)
+    # The pose of chunk c: the last pose whose first chunk is <= c.
+    r = dr.binary_search(0, k - 1, lambda i: dr.gather(mi.UInt32, first_chunk, i) <= c)
+    pose = dr.select(dr.gather(mi.UInt32, first_chunk, r) <= c, r, r - 1)
+    begin = dr.gather(mi.UInt32, first_pair, pose)
+    lo = begin + (c - dr.gather(mi.UInt32, first_chunk, pose)) * CHUNK
+    hi = dr.minimum(lo + CHUNK, begin + dr.gather(mi.UInt32, count, pose))
+    ctx = prepare(pose)
+
+    def body(i, *acc):
+        return (i + 1, *accumulate(dr.gather(mi.UInt32, active, i), ctx, list(acc)))
+
+    zero = [dr.zeros(mi.Float, n_chunks) for _ in range(sums)]
+    partial = dr.while_loop((lo, *zero), lambda i, *_: i < hi, body, label=label)[1:]
+    return _sum_chunks(list(partial), chunks, first_chunk, k)
+
+
+def _sum_chunks(partial, chunks, first_chunk, k: int) -> list:
+    """Second level of :func:`pose_sums`: each pose sums its chunks in order, (K,) each."""
+    import drjit as dr
+    import mitsuba as mi
+
+    dr.eval(partial)
+    end = first_chunk + chunks
+
+    def body(j, *acc):
+        return (j + 1, *[s + dr.gather(mi.Float, p, j) for s, p in zip(acc, partial)])
+
+    zero = [dr.zeros(mi.Float, k) for _ in range(len(partial))]
+    out = dr.while_loop((mi.UInt32(first_chunk), *zero), lambda j, *_: j < end, body)
+    return list(out[1:])

@@ -147,7 +147,7 @@ class PlayerB:
         The shapes that must be blocked.
     frame : Frame
         The raster frame of the holes it will be tested against.
-    objective : {"clearance", "overlap"}
+    objective : {"clearance", "overlap", "overlap-mitsuba"}
         Differentiable loss used by Adam; scores are always binary beta.
     samples_per_segment : int, optional
         Edge samples per segment for the clearance objective (default: from the edge lengths).
