@@ -17,12 +17,12 @@ its segment's projected length).
   Near a junction where the outline passes from one edge to another, a segment is thus counted
   whole or not at all (an error of a fraction of a segment's length).
 * **Area** (Green's theorem): area(S) = ∮_∂S (x - t_x) n_x dl, exact on straight segments.
-* **Area inside H**: area(S ∩ H) = ∮_∂S P n_x dl with P(x, y) the length of H in y's pixel row
-  between t_x and x (signed), read from a per-row prefix sum of H's cells; ∂P/∂x = 1_H, which is
-  all Green's theorem needs. Where the horizontal chord from t_x to the outline point lies in H
-  (B inside H and star-shaped about its centre), P = x - t_x and β = 0 exactly; where the chord
-  misses H, P = 0. Elsewhere P jumps between pixel rows by the change of H's boundary from one
-  row to the next, which costs a fraction of a pixel's area per row crossing.
+* **Area outside H**: area(S \\ H) = ∮_∂S P n_x dl with P(x, y) the length outside H in y's
+  pixel row between t_x and x (signed), read from a per-row prefix sum of the cells outside H;
+  ∂P/∂x = 1_out, which is all Green's theorem needs. Where the horizontal chord from t_x to the
+  outline point lies in H (B inside H and star-shaped about its centre), P = 0 and β = 0 exactly;
+  where it misses H, P = x - t_x. Elsewhere P jumps between pixel rows by the change of H's
+  boundary from one row to the next, which costs a fraction of a pixel's area per row crossing.
 * **Gradient** (Reynolds transport; what Mitsuba's projective integrators estimate): with v the
   velocity of an outline point under a change of (R, t),
   d area(S)/dθ = ∮_∂S (v·n) dl and d area(S \\ H)/dθ = ∮_∂S 1_out (v·n) dl, and
@@ -90,7 +90,6 @@ class EdgeOverlapObjective(ClearanceObjective):
 
     def __init__(self, shapes: list[Shape], frame: Frame, samples_per_segment: int | None = None):
         super().__init__(shapes, frame, samples_per_segment)
-        mi = self.mi
         self._scenes = [_scene(s) for s in shapes]
         h = frame.pixel_size
         # Ray origins sit this far below the shape's centre (as in SilhouetteRenderer.trace).
@@ -130,7 +129,7 @@ class EdgeOverlapObjective(ClearanceObjective):
         per_pose : mi.Float
             β of each pose (detached), in [0, 1]; 1 for a pose whose outline has no length.
         """
-        dr, mi = self.dr, self.mi
+        dr = self.dr
         if holes.frame != self.frame:
             raise ValueError("the hole stack's frame differs from the objective's frame")
         rows = quat_rows(*q)
@@ -141,7 +140,7 @@ class EdgeOverlapObjective(ClearanceObjective):
             area = s[0]
             ok = area > 1e-3 * self.frame.pixel_size**2
             safe = dr.select(ok, area, 1.0)
-            raw = (area - s[1]) / safe
+            raw = s[1] / safe
             per_pose = dr.select(ok, dr.clip(raw, 0.0, 1.0), 1.0)
             coef = [dr.select(ok, (s[10 + i] - raw * s[2 + i]) / safe, 0.0) for i in range(8)]
         total = dr.sum(per_pose)
@@ -159,7 +158,7 @@ class EdgeOverlapObjective(ClearanceObjective):
         ``g`` holds the pose's 9 rotation entries and 2 translations (gathered per lane),
         ``shape`` its shape index.
         """
-        dr, mi = self.dr, self.mi
+        mi = self.mi
         dx, dy = x - g[9], y - g[10]
         direction = mi.Vector3f(g[6], g[7], g[8])
         hit = mi.Bool(False)
@@ -177,17 +176,17 @@ class EdgeOverlapObjective(ClearanceObjective):
         return hit
 
     def _prefix(self, holes: HoleStack):
-        """Per hole and pixel row, the length of H left of each cell edge: (count N (N + 1),).
+        """Per hole and pixel row, the length outside H left of each cell edge: (count N (N + 1),).
 
         Entry ``(k N + row) (N + 1) + c`` is h times the number of cells of row ``row`` of hole
-        ``k`` left of column ``c`` that lie in H. Cached for the last stack.
+        ``k`` left of column ``c`` that are not in H. Cached for the last stack.
         """
         if self._prefix_cache is not None and self._prefix_cache[0] is holes:
             return self._prefix_cache[1]
         n = self.frame.resolution
-        inside = np.asarray(holes.texture, dtype=np.float32).reshape(holes.count, n, n) <= 0
+        outside = np.asarray(holes.texture, dtype=np.float32).reshape(holes.count, n, n) > 0
         prefix = np.zeros((holes.count, n, n + 1), dtype=np.float64)
-        np.cumsum(inside, axis=2, out=prefix[:, :, 1:])
+        np.cumsum(outside, axis=2, out=prefix[:, :, 1:])
         prefix = self.mi.Float((prefix * self.frame.pixel_size).astype(np.float32).ravel())
         self._prefix_cache = (holes, prefix)
         return prefix
@@ -210,18 +209,20 @@ class EdgeOverlapObjective(ClearanceObjective):
         d = holes.gather(hole, mi.UInt32(dr.maximum(row, 0)), mi.UInt32(dr.maximum(col, 0)), on)
         return on & (d <= 0)
 
-    def _hole_left_of(self, x, row, holes: HoleStack, hole, prefix):
-        """Length of H in pixel row ``row`` left of x (scene units); 0 beyond the frame's rows."""
+    def _outside_left_of(self, x, row, holes: HoleStack, hole, prefix):
+        """Length outside H in pixel row ``row`` left of x, from the frame's left edge (scene
+        units; negative left of the frame, all outside beyond the frame)."""
         dr, mi = self.dr, self.mi
         f = self.frame
         n, h = f.resolution, f.pixel_size
-        u = dr.clip((x + f.half_extent) / h, 0.0, float(n))
-        col = dr.minimum(mi.Int32(dr.floor(u)), n - 1)
+        u = (x + f.half_extent) / h
+        uc = dr.clip(u, 0.0, float(n))
+        col = dr.minimum(mi.Int32(dr.floor(uc)), n - 1)
         row_on = (row >= 0) & (row < n)
         base = (mi.UInt32(hole) * n + mi.UInt32(dr.maximum(row, 0))) * (n + 1)
         left = dr.gather(mi.Float, prefix, base + mi.UInt32(col), row_on)
-        cell = dr.select(self._in_hole(col, row, holes, hole), h, 0.0)
-        return left + (u - mi.Float(col)) * cell
+        cell = dr.select(self._in_hole(col, row, holes, hole), 0.0, h)
+        return dr.select(row_on, left + (uc - mi.Float(col)) * cell + (u - uc) * h, u * h)
 
     def _context(self, rows, t, pose_hole):
         """``prepare`` for :func:`pose_sums`: the pose's 11 numbers, its hole and its shape."""
@@ -243,7 +244,7 @@ class EdgeOverlapObjective(ClearanceObjective):
         Returns
         -------
         list of 18 mi.Float, each (K,)
-            area(S); the part of ∮ x n_x dl inside H; ∮ (n_x, n_y, n_x p, n_y p) dl (8: the
+            area(S); area(S \\ H); ∮ (n_x, n_y, n_x p, n_y p) dl (8: the
             derivatives of area(S) with respect to t and the first two rows of R); the same 8
             restricted to outline points outside H. Scene units.
         """
@@ -285,13 +286,13 @@ class EdgeOverlapObjective(ClearanceObjective):
                 col, row = self._cell(x, y)
                 inside = self._in_hole(col, row, holes, hole)
                 area = wx * (x - g[9])
-                # H's length in this row between the pose's centre and the point (Green's theorem
-                # for the area of S ∩ H, see the module docstring).
-                in_h = self._hole_left_of(x, row, holes, hole, prefix)
-                in_h = in_h - self._hole_left_of(g[9], row, holes, hole, prefix)
+                # The length outside H in this row between the pose's centre and the point
+                # (Green's theorem for the area of S \\ H, see the module docstring).
+                out_h = self._outside_left_of(x, row, holes, hole, prefix)
+                out_h = out_h - self._outside_left_of(g[9], row, holes, hole, prefix)
                 d_all = (wx, wy, wx * p.x, wx * p.y, wx * p.z, wy * p.x, wy * p.y, wy * p.z)
                 d_out = tuple(dr.select(inside, 0.0, v) for v in d_all)
-                terms = (area, wx * in_h) + d_all + d_out
+                terms = (area, wx * out_h) + d_all + d_out
                 acc = [s + v for s, v in zip(acc, terms)]
             return acc
 
