@@ -151,6 +151,9 @@ class PlayerB:
         Differentiable loss used by Adam; scores are always binary beta.
     samples_per_segment : int, optional
         Edge samples per segment for the clearance objective (default: from the edge lengths).
+    freeze : bool
+        Record the Adam step once and replay it (:mod:`sieve_mi.frozen`) where the objective
+        allows it (``clearance``); the results are the same either way.
     """
 
     def __init__(
@@ -159,6 +162,7 @@ class PlayerB:
         frame: Frame,
         objective: str = "clearance",
         samples_per_segment: int | None = None,
+        freeze: bool = True,
     ):
         if objective not in OBJECTIVES:
             raise ValueError(f"unknown objective {objective!r}")
@@ -168,6 +172,8 @@ class PlayerB:
         self.renderers = [SilhouetteRenderer(s) for s in shapes]
         self._samples = samples_per_segment
         self._loss = None
+        self.freeze = bool(freeze)
+        self._frozen = None
 
     def _loss_fn(self):
         if self._loss is None:
@@ -298,14 +304,36 @@ class PlayerB:
             kept = [dr.select(improved, dr.detach(opt[key]), b) for key, b in zip(POSE_KEYS, best)]
             return kept, dr.select(improved, per_pose, best_loss)
 
+        frozen = self.freeze and steps > 0 and hasattr(loss, "loss_fixed")
+        if frozen:
+            from sieve_mi.frozen import frozen_step
+
+            self._frozen = self._frozen or frozen_step()
+            capacity = loss.capacity(tuple(opt[name] for name in QUAT_KEYS))
+            record = (scale, capacity, k, loss.pair_count)
+            overflow = dr.opaque(mi.Bool, False)
         for step in range(steps):
-            total, per_pose = evaluate()
-            dr.backward(total)
-            best, best_loss = keep_best(per_pose, best, best_loss)
-            opt.step(eval=False)
-            renormalise_quaternions(opt, best, best_loss)
+            # The first two steps' inputs are laid out differently (the best poses are Adam's
+            # parameters themselves, then Adam's state is new): tracing them is cheaper than
+            # recording them each time.
+            if frozen and step >= 2:
+                best, best_loss, overflow = self._frozen(
+                    opt, best, best_loss, overflow, loss, stack, hole_idx, record
+                )
+            else:
+                total, per_pose = evaluate()
+                dr.backward(total)
+                best, best_loss = keep_best(per_pose, best, best_loss)
+                opt.step(eval=False)
+                renormalise_quaternions(opt, best, best_loss)
             if progress:
                 progress(step + 1)
+        if frozen and bool(overflow[0]):  # more silhouette edges than the buffer: redo unfrozen
+            self.freeze = False
+            try:
+                return self.descend(holes, pose_hole, pose_shape, q0, t0, steps, learning_rate)
+            finally:
+                self.freeze = True
         if steps > 0:
             with dr.suspend_grad():
                 best, _ = keep_best(evaluate()[1], best, best_loss)
