@@ -56,6 +56,8 @@ class ClearanceObjective:
         meshes whose edges are shorter than a pixel get one sample per edge instead of four.
     """
 
+    #: :meth:`loss_fixed` computes this loss, so player B may freeze its steps (:mod:`sieve_mi.frozen`).
+    freezable = True
     #: The Dr.Jit arrays a frozen function (:func:`drjit.freeze`) must see as its inputs.
     DRJIT_STRUCT = {
         "a": object,
@@ -240,8 +242,9 @@ class ClearanceObjective:
         first, end = self._pose_ends
         before = dr.gather(mi.UInt32, upto, first - 1, first > 0)
         count = dr.gather(mi.UInt32, upto, end - 1) - before
-        total = dr.sum(count)
-        return active, count, total > capacity
+        overflow = dr.sum(count) > capacity
+        # Past the buffer there is nothing to read: sum nothing (the caller discards the results).
+        return active, dr.select(overflow, 0, count), overflow
 
     def _active_pairs(self, rows):
         """Indices (ascending) of the (pose, segment) pairs whose segment is on the silhouette."""

@@ -88,6 +88,9 @@ class EdgeOverlapObjective(ClearanceObjective):
         As for :class:`~sieve_mi.clearance.ClearanceObjective`.
     """
 
+    #: The inherited :meth:`loss_fixed` is the clearance loss: steps on this one are not frozen.
+    freezable = False
+
     def __init__(self, shapes: list[Shape], frame: Frame, samples_per_segment: int | None = None):
         super().__init__(shapes, frame, samples_per_segment)
         self._scenes = [_scene(s) for s in shapes]

@@ -6,9 +6,13 @@ call records the launches and later calls replay them with new inputs, skipping 
 that, a step may neither read values back nor make arrays whose size depends on data, so the
 objective must offer ``loss_fixed(q, t, holes, pose_hole, capacity)`` (a fixed-size version of
 ``loss`` that also returns an overflow flag, see
-:meth:`sieve_mi.clearance.ClearanceObjective.loss_fixed`) and ``capacity(q)``.
+:meth:`sieve_mi.clearance.ClearanceObjective.loss_fixed`) and ``capacity(q)``, and say so with
+``freezable = True``; its Dr.Jit arrays must be listed in ``DRJIT_STRUCT`` (frozen functions see
+only what they can traverse).
 
-A recording is reused by every call with the same Python values (frame scale, buffer capacity,
+The first two steps of a descent are traced: their inputs are laid out differently (the best
+poses are Adam's parameters themselves, then Adam's state is new), and would be recorded anew
+in every descent. A recording is reused by every call with the same Python values (frame scale, buffer capacity,
 pose count): every Adam step of an attack, and the attacks of later PSO iterations of the same
 size. The results are the same as unfrozen (a test holds them together); when the buffer
 overflows, :meth:`~sieve_mi.players.PlayerB.descend` runs the descent again unfrozen.
@@ -60,4 +64,4 @@ def frozen_step():
     """
     import drjit as dr
 
-    return dr.freeze(_step, limit=8)
+    return dr.freeze(_step, limit=8, warn_after=100)

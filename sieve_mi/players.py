@@ -162,7 +162,7 @@ class PlayerB:
         frame: Frame,
         objective: str = "clearance",
         samples_per_segment: int | None = None,
-        freeze: bool = True,
+        freeze: bool = False,
     ):
         if objective not in OBJECTIVES:
             raise ValueError(f"unknown objective {objective!r}")
@@ -304,22 +304,10 @@ class PlayerB:
             kept = [dr.select(improved, dr.detach(opt[key]), b) for key, b in zip(POSE_KEYS, best)]
             return kept, dr.select(improved, per_pose, best_loss)
 
-        frozen = self.freeze and steps > 0 and hasattr(loss, "loss_fixed")
-        if frozen:
-            from sieve_mi.frozen import frozen_step
-
-            self._frozen = self._frozen or frozen_step()
-            capacity = loss.capacity(tuple(opt[name] for name in QUAT_KEYS))
-            record = (scale, capacity, k, loss.pair_count)
-            overflow = dr.opaque(mi.Bool, False)
+        frozen = self._frozen_steps(loss, opt, stack, hole_idx, scale) if steps > 0 else None
         for step in range(steps):
-            # The first two steps' inputs are laid out differently (the best poses are Adam's
-            # parameters themselves, then Adam's state is new): tracing them is cheaper than
-            # recording them each time.
-            if frozen and step >= 2:
-                best, best_loss, overflow = self._frozen(
-                    opt, best, best_loss, overflow, loss, stack, hole_idx, record
-                )
+            if frozen is not None and step >= 2:  # steps 1, 2 differ in layout: traced
+                best, best_loss = frozen(best, best_loss)
             else:
                 total, per_pose = evaluate()
                 dr.backward(total)
@@ -328,7 +316,7 @@ class PlayerB:
                 renormalise_quaternions(opt, best, best_loss)
             if progress:
                 progress(step + 1)
-        if frozen and bool(overflow[0]):  # more silhouette edges than the buffer: redo unfrozen
+        if frozen is not None and frozen.overflowed():  # more active pairs than the buffer held
             self.freeze = False
             try:
                 return self.descend(holes, pose_hole, pose_shape, q0, t0, steps, learning_rate)
@@ -339,6 +327,34 @@ class PlayerB:
                 best, _ = keep_best(evaluate()[1], best, best_loss)
         final = np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
         return normalize(final[:, :4]), final[:, 4:] * scale
+
+    def _frozen_steps(self, loss, opt, stack, hole_idx, scale):
+        """The frozen Adam step of one descent (:mod:`sieve_mi.frozen`), or None if not frozen.
+
+        Returns a callable ``step(best, best_loss) -> (best, best_loss)`` that updates ``opt``,
+        with ``step.overflowed()`` telling whether any step's buffer overflowed (its results
+        are then wrong).
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        if not (self.freeze and getattr(loss, "freezable", False)):
+            return None
+        from sieve_mi.frozen import frozen_step
+
+        self._frozen = self._frozen or frozen_step()
+        capacity = loss.capacity(tuple(opt[name] for name in QUAT_KEYS))
+        record = (scale, capacity, loss.pose_count, loss.pair_count)
+        state = {"overflow": dr.opaque(mi.Bool, False)}
+
+        def step(best, best_loss):
+            best, best_loss, state["overflow"] = self._frozen(
+                opt, best, best_loss, state["overflow"], loss, stack, hole_idx, record
+            )
+            return best, best_loss
+
+        step.overflowed = lambda: bool(state["overflow"][0])
+        return step
 
     def _score(self, holes, quats, trans, pose_hole, pose_shape, starts, keep=0) -> Attack:
         n_h, n_b = len(holes), len(self.shapes)

@@ -244,8 +244,8 @@ class Solver:
         10, "rounds of the local polish of A's best rotation (0: none)", minimum=0
     )
     freeze: bool = setting(
-        True,
-        "record player B's Adam step once and replay it (same results; false: trace each step)",
+        False,
+        "record player B's Adam step once and replay it (drjit.freeze; same results)",
     )
 
 
