@@ -284,7 +284,6 @@ class PlayerB:
 
         from sieve_mi.hole import HoleStack
 
-        k = len(q0)
         loss = self._loss_fn()
         stack = HoleStack(holes)
         loss.bind(pose_shape)
@@ -292,7 +291,7 @@ class PlayerB:
         opt = pose_adam(q0, np.asarray(t0) / scale, learning_rate)
         hole_idx = mi.UInt32(np.asarray(pose_hole).astype(np.uint32))
         best = [dr.detach(opt[key]) for key in POSE_KEYS]
-        best_loss = dr.opaque(mi.Float, np.inf, k)
+        best_loss = dr.opaque(mi.Float, np.inf, len(q0))
 
         def evaluate():
             q = tuple(opt[key] for key in QUAT_KEYS)
