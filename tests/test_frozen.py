@@ -87,3 +87,30 @@ def test_the_fixed_size_loss_equals_the_loss(mi, shapes):
     assert float(dr.sum(per)[0]) > 0
     _, _, small = obj.loss_fixed(qa, ta, stack, ph, 8)
     assert bool(small[0])
+
+
+@pytest.mark.slow
+def test_a_frozen_solve_gives_the_same_result(write_scene):
+    """Search and verdict with ``[solver] freeze = true``: the traced solve's result, exactly."""
+    import os
+
+    from sieve_mi.scene import load_scene
+    from sieve_mi.solver import solve
+
+    meshes = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
+    body = (
+        f'name = "t"\n[[pass]]\nmesh = "{meshes}/cube.stl"\n[[block]]\nmesh = "{meshes}/sphere.stl"\n'
+        "[solver]\nresolution = 96\nparticles = 4\niterations = 2\nstarts = 6\nsteps = 40\n"
+        "canonical = 4\npolish = 2\n[verdict]\nstarts = 20\nsteps = 120\nresolution = 128\n"
+    )
+    results = []
+    for freeze in ("false", "true"):
+        scene = load_scene(
+            write_scene(body.replace("steps = 40\n", f"steps = 40\nfreeze = {freeze}\n"))
+        )
+        results.append(solve(scene, progress=False))
+    traced, frozen = results
+    assert frozen.winner == traced.winner == "A"
+    np.testing.assert_array_equal(frozen.pass_quats, traced.pass_quats)
+    np.testing.assert_array_equal(frozen.attack.beta, traced.attack.beta)
+    np.testing.assert_array_equal(frozen.attack.protrusion, traced.attack.protrusion)
