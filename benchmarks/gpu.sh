@@ -15,3 +15,4 @@ done
 python3 -m benchmarks.run --variant cuda_ad_mono --out "$out" --tag "${TAG:-gpu}" 2>&1 | grep -v '^|'
 python3 -m benchmarks.scaling --variant cuda_ad_mono --out "$out/scaling_b_cuda.png"
 for k in 10 100; do python3 -m benchmarks.objectives --variant cuda_ad_mono --poses $k; done
+python3 -m benchmarks.speed --variant cuda_ad_mono --repeat 2   # frozen vs traced; clearance vs overlap

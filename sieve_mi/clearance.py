@@ -56,6 +56,19 @@ class ClearanceObjective:
         meshes whose edges are shorter than a pixel get one sample per edge instead of four.
     """
 
+    #: :meth:`loss_fixed` computes this loss, so player B may freeze its steps (:mod:`sieve_mi.frozen`).
+    freezable = True
+    #: The Dr.Jit arrays a frozen function (:func:`drjit.freeze`) must see as its inputs.
+    DRJIT_STRUCT = {
+        "a": object,
+        "d": object,
+        "m1": object,
+        "m2": object,
+        "always": object,
+        "_pairs": object,
+        "_pose_ends": object,
+    }
+
     def __init__(self, shapes: list[Shape], frame: Frame, samples_per_segment: int | None = None):
         import drjit as dr
         import mitsuba as mi
@@ -79,10 +92,16 @@ class ClearanceObjective:
         self.m1, self.m2 = cat("m1"), cat("m2")
         self.always = mi.Bool(np.concatenate([s.always for s in segs]))
         self._pairs = None
+        self._pose_ends = None
 
     @property
     def segment_count(self) -> int:
         return int(self.counts.sum())
+
+    @property
+    def pair_count(self) -> int:
+        """Number of (pose, segment) pairs of the bound poses."""
+        return 0 if self._pairs is None else self.dr.width(self._pairs[0])
 
     def bind(self, pose_shape: np.ndarray) -> None:
         """Fix which shape each pose belongs to (builds the (pose, segment) pair list).
@@ -101,6 +120,12 @@ class ClearanceObjective:
         self._pairs = (
             mi.UInt32(pair_pose.astype(np.uint32)),
             mi.UInt32(pair_seg.astype(np.uint32)),
+        )
+        # Each pose's first pair and one past its last (pairs are pose-major).
+        ends = np.cumsum(n)
+        self._pose_ends = (
+            mi.UInt32((ends - n).astype(np.uint32)),
+            mi.UInt32(ends.astype(np.uint32)),
         )
         self.pose_count = len(pose_shape)
 
@@ -129,13 +154,49 @@ class ClearanceObjective:
         per_pose : mi.Float
             Loss of each pose (detached).
         """
+        return self._loss(q, t, holes, pose_hole)[:2]
+
+    def loss_fixed(self, q, t, holes: HoleStack, pose_hole, capacity: int):
+        """:meth:`loss` without data-dependent sizes or reads, for :func:`drjit.freeze`.
+
+        The active pairs go into a buffer of ``capacity`` entries (in the same ascending order as
+        :meth:`_active_pairs`), so the sums, and the results, are the same as :meth:`loss`'s as
+        long as no more than ``capacity`` pairs are active.
+
+        Returns
+        -------
+        total, per_pose : mi.Float
+            As for :meth:`loss`.
+        overflow : mi.Bool
+            One entry: more than ``capacity`` pairs were active (the results are then wrong).
+        """
+        return self._loss(q, t, holes, pose_hole, capacity)
+
+    def capacity(self, q) -> int:
+        """A buffer size for :meth:`loss_fixed` at poses near quaternions ``q`` (4 mi.Float).
+
+        Twice the active pairs at ``q``, rounded up to a power of two (at least 1024), so that
+        attacks of the same size share one recording of a frozen step.
+        """
         dr = self.dr
+        with dr.suspend_grad():
+            active = dr.width(self._active_pairs(quat_rows(*[dr.detach(x) for x in q])))
+        total = dr.width(self._pairs[0])
+        return int(min(max(1024, 1 << int(np.ceil(np.log2(max(2 * active, 1))))), max(total, 1)))
+
+    def _loss(self, q, t, holes: HoleStack, pose_hole, capacity: int | None = None):
+        """:meth:`loss` (``capacity`` None) or :meth:`loss_fixed`: total, per_pose, overflow."""
+        dr, mi = self.dr, self.mi
         rows = quat_rows(*q)
         with dr.suspend_grad():
             r = [dr.detach(x) for x in rows[:6]]
-            sums = self._pose_sums(
-                self._active_pairs(rows), r, (dr.detach(t[0]), dr.detach(t[1])), holes, pose_hole
-            )
+            td = (dr.detach(t[0]), dr.detach(t[1]))
+            if capacity is None:
+                active, layout, overflow = self._active_pairs(rows), None, mi.Bool(False)
+            else:
+                active, count, overflow = self._active_fixed(rows, capacity)
+                layout = (count, capacity // CHUNK + self.pose_count)
+            sums = self._pose_sums(active, r, td, holes, pose_hole, layout)
         per_pose = sums[0]
         total = dr.sum(per_pose)
         if dr.grad_enabled(q, t):
@@ -145,10 +206,10 @@ class ClearanceObjective:
                 link = link + rows[i] * sums[3 + i]
             link = dr.sum(link)
             total = total + (link - dr.detach(link))
-        return total, per_pose
+        return total, per_pose, overflow
 
-    def _active_pairs(self, rows):
-        """Indices (ascending) of the (pose, segment) pairs whose segment is on the silhouette."""
+    def _silhouette_flags(self, rows):
+        """Whether each (pose, segment) pair's segment is on the silhouette (mi.Bool)."""
         dr, mi = self.dr, self.mi
         pair_pose, pair_seg = self._pairs
         with dr.suspend_grad():
@@ -156,16 +217,43 @@ class ClearanceObjective:
             r3p = dr.gather(mi.Vector3f, r3, pair_pose)
             s1 = dr.dot(r3p, dr.gather(mi.Vector3f, self.m1, pair_seg))
             s2 = dr.dot(r3p, dr.gather(mi.Vector3f, self.m2, pair_seg))
-            flag = (s1 * s2 >= 0) | dr.gather(mi.Bool, self.always, pair_seg)
-            return dr.compress(flag)
+            return (s1 * s2 >= 0) | dr.gather(mi.Bool, self.always, pair_seg)
 
-    def _pose_sums(self, active, rows, t, holes: HoleStack, pose_hole) -> list:
+    def _active_fixed(self, rows, capacity: int):
+        """:meth:`_active_pairs` in a buffer of fixed size, without reading anything back.
+
+        Returns
+        -------
+        active : mi.UInt32
+            ``capacity`` entries: the active pair indices, ascending, then zeros.
+        count : mi.UInt32
+            Active pairs per pose (K,).
+        overflow : mi.Bool
+            One entry: more than ``capacity`` pairs are active.
+        """
+        dr, mi = self.dr, self.mi
+        flag = self._silhouette_flags(rows)
+        one = dr.select(flag, mi.UInt32(1), mi.UInt32(0))
+        slot = dr.prefix_sum(one)  # active pairs before each pair
+        upto = slot + one
+        active = dr.zeros(mi.UInt32, capacity)
+        n = dr.arange(mi.UInt32, dr.width(flag))
+        dr.scatter(active, n, slot, flag & (slot < capacity))
+        first, end = self._pose_ends
+        before = dr.gather(mi.UInt32, upto, first - 1, first > 0)
+        count = dr.gather(mi.UInt32, upto, end - 1) - before
+        overflow = dr.sum(count) > capacity
+        # Past the buffer there is nothing to read: sum nothing (the caller discards the results).
+        return active, dr.select(overflow, 0, count), overflow
+
+    def _active_pairs(self, rows):
+        """Indices (ascending) of the (pose, segment) pairs whose segment is on the silhouette."""
+        return self.dr.compress(self._silhouette_flags(rows))
+
+    def _pose_sums(self, active, rows, t, holes: HoleStack, pose_hole, layout=None) -> list:
         """Per-pose sums of the loss and of its derivatives, in an order fixed by the inputs.
 
-        Two levels, both sequential loops over contiguous ranges: each thread sums the samples of
-        at most :data:`CHUNK` consecutive active pairs of one pose (``active`` is ascending, so a
-        pose's pairs are contiguous), then one thread per pose sums its chunks in order. The
-        result depends on neither the thread count nor the scheduling (atomic scatter-adds do).
+        See :func:`pose_sums` for the two-level order.
 
         Parameters
         ----------
@@ -177,6 +265,8 @@ class ClearanceObjective:
             Translations, scene units (detached).
         holes : HoleStack
         pose_hole : mi.UInt32
+        layout : tuple, optional
+            Fixed-size mode (:meth:`loss_fixed`): see :func:`pose_sums`.
 
         Returns
         -------
@@ -185,41 +275,16 @@ class ClearanceObjective:
             in scene units.
         """
         dr, mi = self.dr, self.mi
-        k = self.pose_count
-        if dr.width(active) == 0:
-            return [dr.zeros(mi.Float, k) for _ in range(9)]
-        count = dr.zeros(mi.UInt32, k)  # integer sums are exact: order does not matter
-        dr.scatter_reduce(dr.ReduceOp.Add, count, 1, dr.gather(mi.UInt32, self._pairs[0], active))
-        chunks = (count + (CHUNK - 1)) // CHUNK
-        first_pair, first_chunk = dr.prefix_sum(count), dr.prefix_sum(chunks)
-        dr.eval(count, chunks, first_pair, first_chunk)
-        n_chunks = int(dr.sum(chunks)[0])
-        partial = self._chunk_sums(
-            active, n_chunks, (count, first_pair, first_chunk), rows, t, holes, pose_hole
-        )
-        return self._sum_chunks(partial, chunks, first_chunk)
-
-    def _chunk_sums(self, active, n_chunks, layout, rows, t, holes, pose_hole) -> list:
-        """First level of :meth:`_pose_sums`: 9 partial sums per chunk, each (n_chunks,)."""
-        dr, mi = self.dr, self.mi
-        count, first_pair, first_chunk = layout
-        c = dr.arange(mi.UInt32, n_chunks)
-        # The pose of chunk c: the last pose whose first chunk is <= c.
-        r = dr.binary_search(
-            0, self.pose_count - 1, lambda i: dr.gather(mi.UInt32, first_chunk, i) <= c
-        )
-        pose = dr.select(dr.gather(mi.UInt32, first_chunk, r) <= c, r, r - 1)
-        begin = dr.gather(mi.UInt32, first_pair, pose)
-        lo = begin + (c - dr.gather(mi.UInt32, first_chunk, pose)) * CHUNK
-        hi = dr.minimum(lo + CHUNK, begin + dr.gather(mi.UInt32, count, pose))
-        g = [dr.gather(mi.Float, x, pose) for x in list(rows) + list(t)]
-        hole = dr.gather(mi.UInt32, pose_hole, pose)
         fracs = [(j + 0.5) / self.samples for j in range(self.samples)]
 
-        def body(i, *acc):
-            seg = dr.gather(mi.UInt32, self._pairs[1], dr.gather(mi.UInt32, active, i))
+        def prepare(pose):
+            g = [dr.gather(mi.Float, x, pose) for x in list(rows) + list(t)]
+            return g, dr.gather(mi.UInt32, pose_hole, pose)
+
+        def accumulate(pair, ctx, acc):
+            g, hole = ctx
+            seg = dr.gather(mi.UInt32, self._pairs[1], pair)
             a, d = dr.gather(mi.Vector3f, self.a, seg), dr.gather(mi.Vector3f, self.d, seg)
-            acc = list(acc)
             for frac in fracs:
                 p = a + d * frac
                 x = g[0] * p.x + g[1] * p.y + g[2] * p.z + g[6]
@@ -228,25 +293,18 @@ class ClearanceObjective:
                 gx, gy = 2 * dist * ddx, 2 * dist * ddy
                 terms = (dist * dist, gx, gy, gx * p.x, gx * p.y, gx * p.z, gy * p.x, gy * p.y)
                 acc = [s + v for s, v in zip(acc, terms + (gy * p.z,))]
-            return (i + 1, *acc)
+            return acc
 
-        zero = [dr.zeros(mi.Float, n_chunks) for _ in range(9)]
-        out = dr.while_loop((lo, *zero), lambda i, *_: i < hi, body, label="clearance chunks")
-        return list(out[1:])
-
-    def _sum_chunks(self, partial, chunks, first_chunk) -> list:
-        """Second level of :meth:`_pose_sums`: each pose sums its chunks in order, (K,) each."""
-        dr, mi = self.dr, self.mi
-        k = self.pose_count
-        dr.eval(partial)
-        end = first_chunk + chunks
-
-        def body(j, *acc):
-            return (j + 1, *[s + dr.gather(mi.Float, p, j) for s, p in zip(acc, partial)])
-
-        zero = [dr.zeros(mi.Float, k) for _ in range(9)]
-        out = dr.while_loop((mi.UInt32(first_chunk), *zero), lambda j, *_: j < end, body)
-        return list(out[1:])
+        return pose_sums(
+            active,
+            self._pairs[0],
+            self.pose_count,
+            9,
+            prepare,
+            accumulate,
+            "clearance chunks",
+            layout,
+        )
 
     def _lookup(self, x, y, holes: HoleStack, hole_index):
         """Distance to H in pixels at world points (x, y), and its derivatives (pixels per unit).
@@ -283,3 +341,90 @@ class ClearanceObjective:
         dd_du += (u - uc) / root
         dd_dv += (v - vc) / root
         return d, dd_du * inv_h, -dd_dv * inv_h
+
+
+def pose_sums(
+    active, pair_pose, pose_count: int, sums: int, prepare, accumulate, label: str, layout=None
+):
+    """Per-pose sums over (pose, item) pairs, added in an order fixed by the inputs.
+
+    Two levels, both sequential loops over contiguous ranges: each thread sums the terms of at
+    most :data:`CHUNK` consecutive active pairs of one pose (``active`` is ascending and the pairs
+    are pose-major, so a pose's pairs are contiguous), then one thread per pose sums its chunks in
+    order. The result depends on neither the thread count nor the scheduling (atomic
+    scatter-adds do).
+
+    Parameters
+    ----------
+    active : mi.UInt32
+        Indices of the pairs to sum, ascending.
+    pair_pose : mi.UInt32
+        Pose of every pair, non-decreasing.
+    pose_count : int
+        K, the number of poses.
+    sums : int
+        Number of sums per pose.
+    prepare : callable
+        ``prepare(pose) -> ctx``: per-thread data gathered once per chunk (pose is mi.UInt32).
+    accumulate : callable
+        ``accumulate(pair, ctx, acc) -> acc``: adds pair ``pair``'s terms to the ``sums``
+        running sums ``acc`` (a list of mi.Float); called inside a symbolic loop.
+    label : str
+        Name of the loop (in Dr.Jit's kernel history).
+    layout : tuple (count, threads), optional
+        Fixed-size mode, which reads nothing back (for :func:`drjit.freeze`): ``count`` (mi.UInt32,
+        K) holds the active pairs of each pose (``active`` may have unused entries after them) and
+        ``threads`` (int) is at least the number of chunks; the extra threads sum nothing. The
+        sums are the same as without it.
+
+    Returns
+    -------
+    list of ``sums`` mi.Float, each (K,)
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    k = pose_count
+    if layout is None:
+        if dr.width(active) == 0:
+            return [dr.zeros(mi.Float, k) for _ in range(sums)]
+        count = dr.zeros(mi.UInt32, k)  # integer sums are exact: order does not matter
+        dr.scatter_reduce(dr.ReduceOp.Add, count, 1, dr.gather(mi.UInt32, pair_pose, active))
+    else:
+        count, n_chunks = layout
+    chunks = (count + (CHUNK - 1)) // CHUNK
+    first_pair, first_chunk = dr.prefix_sum(count), dr.prefix_sum(chunks)
+    if layout is None:
+        dr.eval(count, chunks, first_pair, first_chunk)
+        n_chunks = int(dr.sum(chunks)[0])
+    c = dr.arange(mi.UInt32, n_chunks)
+    # The pose of chunk c: the last pose whose first chunk is <= c.
+    r = dr.binary_search(0, k - 1, lambda i: dr.gather(mi.UInt32, first_chunk, i) <= c)
+    pose = dr.select(dr.gather(mi.UInt32, first_chunk, r) <= c, r, r - 1)
+    begin = dr.gather(mi.UInt32, first_pair, pose)
+    lo = begin + (c - dr.gather(mi.UInt32, first_chunk, pose)) * CHUNK
+    hi = dr.minimum(lo + CHUNK, begin + dr.gather(mi.UInt32, count, pose))
+    ctx = prepare(pose)
+
+    def body(i, *acc):
+        return (i + 1, *accumulate(dr.gather(mi.UInt32, active, i), ctx, list(acc)))
+
+    zero = [dr.zeros(mi.Float, n_chunks) for _ in range(sums)]
+    partial = dr.while_loop((lo, *zero), lambda i, *_: i < hi, body, label=label)[1:]
+    return _sum_chunks(list(partial), chunks, first_chunk, k)
+
+
+def _sum_chunks(partial, chunks, first_chunk, k: int) -> list:
+    """Second level of :func:`pose_sums`: each pose sums its chunks in order, (K,) each."""
+    import drjit as dr
+    import mitsuba as mi
+
+    dr.eval(partial)
+    end = first_chunk + chunks
+
+    def body(j, *acc):
+        return (j + 1, *[s + dr.gather(mi.Float, p, j) for s, p in zip(acc, partial)])
+
+    zero = [dr.zeros(mi.Float, k) for _ in range(len(partial))]
+    out = dr.while_loop((mi.UInt32(first_chunk), *zero), lambda j, *_: j < end, body)
+    return list(out[1:])

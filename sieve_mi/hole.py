@@ -140,6 +140,9 @@ class HoleStack:
         ``count * N^2`` outside distances in pixels (0 inside a hole).
     """
 
+    #: The Dr.Jit array a frozen function (:func:`drjit.freeze`) must see as its input.
+    DRJIT_STRUCT = {"texture": object}
+
     def __init__(self, holes: list[Hole]):
         import mitsuba as mi
 

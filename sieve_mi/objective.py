@@ -5,14 +5,17 @@ An *objective* scores many poses of B's shapes against a stack of holes in one c
 then calls :meth:`Objective.loss` once per Adam step with all poses' quaternions and translations
 as Dr.Jit arrays, and differentiates the returned total.
 
-Two objectives exist:
+Three objectives exist:
 
 ``"clearance"`` (:class:`sieve_mi.clearance.ClearanceObjective`)
     Squared distance to H summed over samples on B's silhouette edges; zero iff B fits. The default:
     one kernel for all poses, reproducible bit for bit.
-``"overlap"`` (:class:`sieve_mi.overlap.OverlapObjective`)
-    The paper's eq. 8: the fraction of B's anti-aliased silhouette outside H, differentiated by
-    Mitsuba's projective sampling, one render per pose.
+``"overlap"`` (:class:`sieve_mi.edge_overlap.EdgeOverlapObjective`)
+    The paper's eq. 12: the fraction of B's silhouette outside H, from integrals over B's visible
+    outline (edge sampling), all poses at once; reproducible bit for bit.
+``"overlap-mitsuba"`` (:class:`sieve_mi.overlap.OverlapObjective`)
+    The same loss on an anti-aliased silhouette, differentiated by Mitsuba's projective sampling,
+    one render per pose (the reference for ``"overlap"``; orders of magnitude slower).
 
 Neither decides a winner: the verdict scores poses on the hole itself (:mod:`sieve_mi.scoring`).
 """
@@ -28,7 +31,7 @@ if TYPE_CHECKING:  # kept light: scene.py reads OBJECTIVES from here
     from sieve_mi.raster import Frame
 
 #: Names of the objectives, as ``[solver] objective`` accepts them.
-OBJECTIVES = ("clearance", "overlap")
+OBJECTIVES = ("clearance", "overlap", "overlap-mitsuba")
 
 
 class Objective(Protocol):
@@ -82,12 +85,12 @@ def make_objective(
 
     Parameters
     ----------
-    name : {"clearance", "overlap"}
+    name : {"clearance", "overlap", "overlap-mitsuba"}
     shapes : list of Shape
         Player B's shapes.
     frame : Frame
     samples_per_segment : int, optional
-        Clearance only: edge samples per segment (default: from the edge lengths).
+        Clearance and overlap: edge samples per segment (default: from the edge lengths).
 
     Examples
     --------
@@ -100,6 +103,10 @@ def make_objective(
 
         return ClearanceObjective(shapes, frame, samples_per_segment)
     if name == "overlap":
+        from sieve_mi.edge_overlap import EdgeOverlapObjective
+
+        return EdgeOverlapObjective(shapes, frame, samples_per_segment)
+    if name == "overlap-mitsuba":
         from sieve_mi.overlap import OverlapObjective
 
         return OverlapObjective(shapes, frame)

@@ -147,10 +147,13 @@ class PlayerB:
         The shapes that must be blocked.
     frame : Frame
         The raster frame of the holes it will be tested against.
-    objective : {"clearance", "overlap"}
+    objective : {"clearance", "overlap", "overlap-mitsuba"}
         Differentiable loss used by Adam; scores are always binary beta.
     samples_per_segment : int, optional
         Edge samples per segment for the clearance objective (default: from the edge lengths).
+    freeze : bool
+        Record the Adam step once and replay it (:mod:`sieve_mi.frozen`) where the objective
+        allows it (``clearance``); the results are the same either way.
     """
 
     def __init__(
@@ -159,6 +162,7 @@ class PlayerB:
         frame: Frame,
         objective: str = "clearance",
         samples_per_segment: int | None = None,
+        freeze: bool = False,
     ):
         if objective not in OBJECTIVES:
             raise ValueError(f"unknown objective {objective!r}")
@@ -168,6 +172,8 @@ class PlayerB:
         self.renderers = [SilhouetteRenderer(s) for s in shapes]
         self._samples = samples_per_segment
         self._loss = None
+        self.freeze = bool(freeze)
+        self._frozen = None
 
     def _loss_fn(self):
         if self._loss is None:
@@ -278,7 +284,6 @@ class PlayerB:
 
         from sieve_mi.hole import HoleStack
 
-        k = len(q0)
         loss = self._loss_fn()
         stack = HoleStack(holes)
         loss.bind(pose_shape)
@@ -286,7 +291,7 @@ class PlayerB:
         opt = pose_adam(q0, np.asarray(t0) / scale, learning_rate)
         hole_idx = mi.UInt32(np.asarray(pose_hole).astype(np.uint32))
         best = [dr.detach(opt[key]) for key in POSE_KEYS]
-        best_loss = dr.opaque(mi.Float, np.inf, k)
+        best_loss = dr.opaque(mi.Float, np.inf, len(q0))
 
         def evaluate():
             q = tuple(opt[key] for key in QUAT_KEYS)
@@ -298,19 +303,57 @@ class PlayerB:
             kept = [dr.select(improved, dr.detach(opt[key]), b) for key, b in zip(POSE_KEYS, best)]
             return kept, dr.select(improved, per_pose, best_loss)
 
+        frozen = self._frozen_steps(loss, opt, stack, hole_idx, scale) if steps > 0 else None
         for step in range(steps):
-            total, per_pose = evaluate()
-            dr.backward(total)
-            best, best_loss = keep_best(per_pose, best, best_loss)
-            opt.step(eval=False)
-            renormalise_quaternions(opt, best, best_loss)
+            if frozen is not None and step >= 2:  # steps 1, 2 differ in layout: traced
+                best, best_loss = frozen(best, best_loss)
+            else:
+                total, per_pose = evaluate()
+                dr.backward(total)
+                best, best_loss = keep_best(per_pose, best, best_loss)
+                opt.step(eval=False)
+                renormalise_quaternions(opt, best, best_loss)
             if progress:
                 progress(step + 1)
+        if frozen is not None and frozen.overflowed():  # more active pairs than the buffer held
+            self.freeze = False
+            try:
+                return self.descend(holes, pose_hole, pose_shape, q0, t0, steps, learning_rate)
+            finally:
+                self.freeze = True
         if steps > 0:
             with dr.suspend_grad():
                 best, _ = keep_best(evaluate()[1], best, best_loss)
         final = np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
         return normalize(final[:, :4]), final[:, 4:] * scale
+
+    def _frozen_steps(self, loss, opt, stack, hole_idx, scale):
+        """The frozen Adam step of one descent (:mod:`sieve_mi.frozen`), or None if not frozen.
+
+        Returns a callable ``step(best, best_loss) -> (best, best_loss)`` that updates ``opt``,
+        with ``step.overflowed()`` telling whether any step's buffer overflowed (its results
+        are then wrong).
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        if not (self.freeze and getattr(loss, "freezable", False)):
+            return None
+        from sieve_mi.frozen import frozen_step
+
+        self._frozen = self._frozen or frozen_step()
+        capacity = loss.capacity(tuple(opt[name] for name in QUAT_KEYS))
+        record = (scale, capacity, loss.pose_count, loss.pair_count)
+        state = {"overflow": dr.opaque(mi.Bool, False)}
+
+        def step(best, best_loss):
+            best, best_loss, state["overflow"] = self._frozen(
+                opt, best, best_loss, state["overflow"], loss, stack, hole_idx, record
+            )
+            return best, best_loss
+
+        step.overflowed = lambda: bool(state["overflow"][0])
+        return step
 
     def _score(self, holes, quats, trans, pose_hole, pose_shape, starts, keep=0) -> Attack:
         n_h, n_b = len(holes), len(self.shapes)

@@ -243,6 +243,10 @@ class Solver:
     polish: int = setting(
         10, "rounds of the local polish of A's best rotation (0: none)", minimum=0
     )
+    freeze: bool = setting(
+        False,
+        "record player B's Adam step once and replay it (drjit.freeze; same results)",
+    )
 
 
 @_documented

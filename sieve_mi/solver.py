@@ -240,7 +240,7 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Ba
     s, fab = scene.solver, scene.fabrication
     frame = hole_frame(a, fab.tolerance, s.resolution)
     player_a = PlayerA(a, frame, fab.tolerance, fab.fill_holes)
-    player_b = PlayerB(blocks, frame, s.objective)
+    player_b = PlayerB(blocks, frame, s.objective, freeze=s.freeze)
 
     def report(it, best):
         step = "swarm" if s.outer == "pso" else s.outer
@@ -358,7 +358,7 @@ def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: _Bar):
     s, fab = scene.solver, scene.fabrication
     frame = union_frame([p.radius for p in passes], fab.tolerance, s.resolution)
     players = [PlayerA(p, frame, fab.tolerance, fab.fill_holes) for p in passes]
-    player_b = PlayerB(blocks, frame, s.objective)
+    player_b = PlayerB(blocks, frame, s.objective, freeze=s.freeze)
     return merge(
         players,
         player_b,

@@ -173,7 +173,7 @@ def judge(
     if len(passes) > 1 and not separate and len(outline.decompose()) > 1:
         warnings.append("the merged hole is not connected")
     grown = [dilated(o, fab.block_margin) for o in outlines] if fab.block_margin > 0 else outlines
-    player_b = PlayerB(blocks, frame, "clearance")
+    player_b = PlayerB(blocks, frame, "clearance", freeze=scene.solver.freeze)
     # without a margin, one merged hole's raster is the one already built
     same = fab.block_margin == 0 and not separate
     attack = player_b.attack(

@@ -269,7 +269,7 @@ def test_player_b_fits_a_box_with_the_overlap_objective(mi):
     from sieve_mi.players import PlayerB
 
     hole = _rect_hole(0.0, 0.8, -0.5, 0.5)  # the box (half diagonal 0.2) starts near x = 0
-    player = PlayerB([_box(0.3, 0.2, 0.2)], FRAME, objective="overlap")
+    player = PlayerB([_box(0.3, 0.2, 0.2)], FRAME, objective="overlap-mitsuba")
     attack = player.attack([hole], starts=2, steps=40, learning_rate=0.05, rng=rng(1))
     assert attack.beta.shape == (1, 1)
     assert attack.beta[0, 0] == 0.0 and attack.fits[0, 0] >= 1

@@ -307,7 +307,7 @@ def test_wrong_type_is_one_line_naming_the_key(tmp_path, table, f, kind, spec):
         ("learning_rate", "nan", "expected a finite number, got nan"),
         ("inertia", "inf", "expected a finite number, got inf"),
         ("objective", '""', "expected a non-empty string, got ''"),
-        ("objective", '"area"', "'area' is not one of: clearance, overlap"),
+        ("objective", '"area"', "'area' is not one of: clearance, overlap, overlap-mitsuba"),
         ("outer", '"PSO"', "'PSO' is not one of: pso, crs2, esch, direct, isres, mlsl, ags"),
         ("seed", "[1, 2]", "expected a whole number, got [1, 2]"),
     ],

@@ -89,7 +89,7 @@ def test_nlopt_outer_method(write_scene):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("objective", ["clearance", "overlap"])
+@pytest.mark.parametrize("objective", ["clearance", "overlap", "overlap-mitsuba"])
 def test_both_objectives_find_the_face_on_cube(write_scene, objective):
     # Only near-face-on views of the cube block the 24 mm sphere: tilted views are hexagons whose
     # inscribed disk is up to 2 * 14.1 mm wide. Both objectives must lead player A there.

@@ -1,0 +1,116 @@
+"""Frozen Adam steps (``[solver] freeze``): the same results as traced ones."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from helpers import rng, sphere
+
+from sieve_mi.hole import Hole
+from sieve_mi.meshes import shape_from_trimesh
+from sieve_mi.players import PlayerB
+from sieve_mi.raster import Frame
+from sieve_mi.rotations import random_uniform
+
+FRAME = Frame(64, 1.0)
+
+
+def _holes():
+    xc, yc = FRAME.centres()
+    xx, yy = np.meshgrid(xc, yc)
+    return [
+        Hole.from_mask((np.abs(xx) < 0.45) & (np.abs(yy) < 0.3), FRAME),
+        Hole.from_mask(xx**2 + yy**2 < 0.4**2, FRAME),
+    ]
+
+
+def _descend(player, steps=12):
+    shapes = len(player.shapes)
+    k = 2 * shapes * 3  # 2 holes x shapes x 3 starts
+    pose_hole = np.repeat(np.arange(2), shapes * 3)
+    pose_shape = np.tile(np.repeat(np.arange(shapes), 3), 2)
+    q0 = random_uniform(k, rng(4))
+    t0 = rng(5).uniform(-0.1, 0.1, (k, 2))
+    return player.descend(_holes(), pose_hole, pose_shape, q0, t0, steps, 0.05)
+
+
+@pytest.fixture(scope="module")
+def shapes():
+    box = shape_from_trimesh(trimesh.creation.box((0.7, 0.4, 0.3)), name="box")
+    return [sphere(0.35, 2), box]
+
+
+def test_frozen_steps_give_the_same_poses_as_traced_ones(mi, shapes):
+    traced = _descend(PlayerB(shapes, FRAME, freeze=False))
+    frozen_player = PlayerB(shapes, FRAME, freeze=True)
+    frozen = _descend(frozen_player)
+    again = _descend(frozen_player)  # replayed, not recorded
+    assert frozen_player._frozen is not None and frozen_player._frozen.n_recordings >= 1
+    for out in (frozen, again):
+        np.testing.assert_array_equal(out[0], traced[0])
+        np.testing.assert_array_equal(out[1], traced[1])
+    assert not np.allclose(traced[0], _descend(PlayerB(shapes, FRAME), steps=0)[0])  # moved
+
+
+def test_an_overflowing_buffer_falls_back_to_traced_steps(mi, shapes, monkeypatch):
+    from sieve_mi.clearance import ClearanceObjective
+
+    traced = _descend(PlayerB(shapes, FRAME, freeze=False))
+    monkeypatch.setattr(ClearanceObjective, "capacity", lambda self, q: 16)  # far too small
+    player = PlayerB(shapes, FRAME, freeze=True)
+    out = _descend(player)
+    np.testing.assert_array_equal(out[0], traced[0])
+    np.testing.assert_array_equal(out[1], traced[1])
+    assert player.freeze  # switched back on after the fallback
+
+
+def test_the_fixed_size_loss_equals_the_loss(mi, shapes):
+    """loss_fixed's active-pair buffer holds the same pairs in the same order: same bits."""
+    import drjit as dr
+
+    from sieve_mi.hole import HoleStack
+    from sieve_mi.objective import make_objective
+
+    obj = make_objective("clearance", shapes, FRAME)
+    k = 8
+    obj.bind(np.arange(k) % 2)
+    q = random_uniform(k, rng(9))
+    qa = tuple(mi.Float(q[:, i].astype(np.float32)) for i in range(4))
+    ta = tuple(mi.Float(rng(10).uniform(-0.3, 0.3, k).astype(np.float32)) for _ in range(2))
+    stack, ph = HoleStack(_holes()), mi.UInt32(np.arange(k, dtype=np.uint32) % 2)
+    capacity = obj.capacity(qa)
+    total, per = obj.loss(qa, ta, stack, ph)
+    total_f, per_f, overflow = obj.loss_fixed(qa, ta, stack, ph, capacity)
+    assert not bool(overflow[0])
+    np.testing.assert_array_equal(per_f.numpy(), per.numpy())
+    assert float(dr.sum(per)[0]) > 0
+    _, _, small = obj.loss_fixed(qa, ta, stack, ph, 8)
+    assert bool(small[0])
+
+
+@pytest.mark.slow
+def test_a_frozen_solve_gives_the_same_result(write_scene):
+    """Search and verdict with ``[solver] freeze = true``: the traced solve's result, exactly."""
+    import os
+
+    from sieve_mi.scene import load_scene
+    from sieve_mi.solver import solve
+
+    meshes = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
+    body = (
+        f'name = "t"\n[[pass]]\nmesh = "{meshes}/cube.stl"\n[[block]]\nmesh = "{meshes}/sphere.stl"\n'
+        "[solver]\nresolution = 96\nparticles = 4\niterations = 2\nstarts = 6\nsteps = 40\n"
+        "canonical = 4\npolish = 2\n[verdict]\nstarts = 20\nsteps = 120\nresolution = 128\n"
+    )
+    results = []
+    for freeze in ("false", "true"):
+        scene = load_scene(
+            write_scene(body.replace("steps = 40\n", f"steps = 40\nfreeze = {freeze}\n"))
+        )
+        results.append(solve(scene, progress=False))
+    traced, frozen = results
+    assert frozen.winner == traced.winner == "A"
+    np.testing.assert_array_equal(frozen.pass_quats, traced.pass_quats)
+    np.testing.assert_array_equal(frozen.attack.beta, traced.attack.beta)
+    np.testing.assert_array_equal(frozen.attack.protrusion, traced.attack.protrusion)
