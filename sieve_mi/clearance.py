@@ -29,6 +29,61 @@ from sieve_mi.rotations import quat_rows
 CHUNK = 16
 
 
+def _edge_table(segs: list) -> dict:
+    """Per edge of every shape (concatenated): the silhouette-test vectors and its segments.
+
+    Returns
+    -------
+    dict
+        ``m1``, ``m2`` ((E, 3) float32), ``always`` ((E,) bool), ``pieces`` (segments per edge),
+        ``first_local`` (its first segment's index within its shape), ``count`` (edges per
+        shape) and ``offset`` (each shape's first edge).
+    """
+    m1, m2, always, pieces, first_local, count = [], [], [], [], [], []
+    for s in segs:
+        k = np.bincount(s.parent, minlength=int(s.parent[-1]) + 1 if len(s.parent) else 0)
+        start = np.cumsum(k) - k
+        m1.append(s.m1[start])
+        m2.append(s.m2[start])
+        always.append(s.always[start])
+        pieces.append(k)
+        first_local.append(start)
+        count.append(len(k))
+    count = np.array(count, dtype=np.int64)
+    return {
+        "m1": np.concatenate(m1).astype(np.float32),
+        "m2": np.concatenate(m2).astype(np.float32),
+        "always": np.concatenate(always),
+        "pieces": np.concatenate(pieces),
+        "first_local": np.concatenate(first_local),
+        "count": count,
+        "offset": np.cumsum(count) - count,
+    }
+
+
+def expand_ranges(start, length):
+    """The integers ``start[j], ..., start[j] + length[j] - 1`` for every j, in order (mi.UInt32).
+
+    ``length`` must be positive. Reads back the total length (one synchronisation).
+
+    Examples
+    --------
+    start (3, 10), length (2, 3) -> (3, 4, 10, 11, 12).
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    if dr.width(start) == 0:
+        return dr.zeros(mi.UInt32, 0)
+    offset = dr.prefix_sum(length)  # exclusive
+    total = int(dr.sum(length)[0]) if dr.width(length) else 0
+    marks = dr.zeros(mi.UInt32, total)
+    dr.scatter(marks, mi.UInt32(1), offset, offset > 0)
+    entry = dr.cumsum(marks)  # inclusive
+    i = dr.arange(mi.UInt32, total)
+    return dr.gather(mi.UInt32, start, entry) + (i - dr.gather(mi.UInt32, offset, entry))
+
+
 def auto_samples(shapes: list[Shape], spacing: float, most: int = 4) -> int:
     """Samples per segment from the median edge length (in units of ``spacing``), in [1, most]."""
     from sieve_mi.meshes import edge_topology
@@ -91,8 +146,12 @@ class ClearanceObjective:
         self.d = mi.Vector3f(d[:, 0], d[:, 1], d[:, 2])
         self.m1, self.m2 = cat("m1"), cat("m2")
         self.always = mi.Bool(np.concatenate([s.always for s in segs]))
+        self._edges = _edge_table([s for s in segs])
+        self.e_m1, self.e_m2 = (mi.Vector3f(*self._edges[k].T) for k in ("m1", "m2"))
+        self.e_always = mi.Bool(self._edges["always"])
         self._pairs = None
         self._pose_ends = None
+        self._edge_pairs = None
 
     @property
     def segment_count(self) -> int:
@@ -128,6 +187,22 @@ class ClearanceObjective:
             mi.UInt32(ends.astype(np.uint32)),
         )
         self.pose_count = len(pose_shape)
+        self._bind_edges(pose_shape, ends - n)
+
+    def _bind_edges(self, pose_shape: np.ndarray, pose_first_pair: np.ndarray) -> None:
+        """The (pose, edge) pairs, each with its first (pose, segment) pair and segment count."""
+        mi, e = self.mi, self._edges
+        n = e["count"][pose_shape]
+        pair_pose = np.repeat(np.arange(len(pose_shape)), n)
+        start = np.repeat(e["offset"][pose_shape] - (np.cumsum(n) - n), n)
+        pair_edge = np.arange(int(n.sum())) + start
+        first = pose_first_pair[pair_pose] + e["first_local"][pair_edge]
+        self._edge_pairs = (
+            mi.UInt32(pair_pose.astype(np.uint32)),
+            mi.UInt32(pair_edge.astype(np.uint32)),
+            mi.UInt32(first.astype(np.uint32)),
+            mi.UInt32(e["pieces"][pair_edge].astype(np.uint32)),
+        )
 
     def loss(self, q, t, holes: HoleStack, pose_hole):
         """Total and per-pose clearance loss (pixels squared), summed in a fixed order.
@@ -247,8 +322,25 @@ class ClearanceObjective:
         return active, dr.select(overflow, 0, count), overflow
 
     def _active_pairs(self, rows):
-        """Indices (ascending) of the (pose, segment) pairs whose segment is on the silhouette."""
-        return self.dr.compress(self._silhouette_flags(rows))
+        """Indices (ascending) of the (pose, segment) pairs whose segment is on the silhouette.
+
+        The silhouette test depends on the parent edge only, so it runs once per (pose, edge)
+        pair (about four times fewer tests than per segment); the active edges are then expanded
+        into their consecutive segment pairs. The result equals
+        ``dr.compress(self._silhouette_flags(rows))`` entry for entry.
+        """
+        dr, mi = self.dr, self.mi
+        pair_pose, pair_edge, first, pieces = self._edge_pairs
+        with dr.suspend_grad():
+            r3 = mi.Vector3f(dr.detach(rows[6]), dr.detach(rows[7]), dr.detach(rows[8]))
+            r3p = dr.gather(mi.Vector3f, r3, pair_pose)
+            s1 = dr.dot(r3p, dr.gather(mi.Vector3f, self.e_m1, pair_edge))
+            s2 = dr.dot(r3p, dr.gather(mi.Vector3f, self.e_m2, pair_edge))
+            flag = (s1 * s2 >= 0) | dr.gather(mi.Bool, self.e_always, pair_edge)
+            edges = dr.compress(flag)
+            return expand_ranges(
+                dr.gather(mi.UInt32, first, edges), dr.gather(mi.UInt32, pieces, edges)
+            )
 
     def _pose_sums(self, active, rows, t, holes: HoleStack, pose_hole, layout=None) -> list:
         """Per-pose sums of the loss and of its derivatives, in an order fixed by the inputs.

@@ -211,6 +211,8 @@ class Segments:
         The two faces' cross products of the segment's parent edge (zeros where ``always``).
     always : (S,) ndarray of bool
         Boundary or non-manifold parent edge: always a silhouette candidate.
+    parent : (S,) ndarray of int or None
+        Index of each segment's parent edge (ascending: an edge's segments are consecutive).
     """
 
     a: np.ndarray
@@ -218,6 +220,7 @@ class Segments:
     m1: np.ndarray
     m2: np.ndarray
     always: np.ndarray
+    parent: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(len(self.a))
@@ -284,4 +287,5 @@ def segments(shape: Shape, spacing: float, samples_per_segment: int) -> Segments
         m1=m1[parent],
         m2=m2[parent],
         always=always[parent],
+        parent=parent,
     )

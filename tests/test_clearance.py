@@ -100,3 +100,36 @@ def test_clearance_uses_exactly_the_silhouette_edges(mi, seed):
     for p in (a, a + d):
         assert np.abs(p @ eq[:, :2].T + eq[:, 2]).min(axis=1).max() < 1e-4
     assert 0 < len(keep) < 0.25 * obj.segment_count
+
+
+def test_expand_ranges_lists_every_range_in_order(mi):
+    from sieve_mi.clearance import expand_ranges
+
+    out = expand_ranges(mi.UInt32([3, 10, 20]), mi.UInt32([2, 3, 1]))
+    assert np.array(out).tolist() == [3, 4, 10, 11, 12, 20]
+    assert len(np.array(expand_ranges(mi.UInt32([]), mi.UInt32([])))) == 0
+
+
+def test_per_edge_silhouette_test_keeps_exactly_the_per_segment_pairs(mi, cube20):
+    # The silhouette test runs per (pose, edge) and expands the active edges into their
+    # segments; it must give the very list that testing every (pose, segment) gives, for closed,
+    # open (boundary edges: always candidates) and several shapes bound together.
+    import trimesh
+
+    from sieve_mi.meshes import shape_from_trimesh
+    from sieve_mi.rotations import normalize, quat_rows
+
+    torus = shape_from_trimesh(trimesh.creation.torus(8.0, 2.5), name="torus")
+    open_box = trimesh.creation.box((10.0, 6.0, 4.0))
+    open_box.update_faces(np.arange(len(open_box.faces)) > 1)  # one face removed: a hole
+    opened = shape_from_trimesh(open_box, name="open")
+    shapes = [cube20, sphere(12.0), torus, opened]
+    obj = ClearanceObjective(shapes, Frame(128, 20.0))
+    rng = np.random.default_rng(3)
+    pose_shape = rng.integers(0, len(shapes), size=300)
+    obj.bind(pose_shape)
+    q = normalize(rng.normal(size=(300, 4)))
+    rows = quat_rows(*[mi.Float(q[:, i].astype(np.float32)) for i in range(4)])
+    fast = np.array(obj._active_pairs(rows))
+    slow = np.array(mi.UInt32(__import__("drjit").compress(obj._silhouette_flags(rows))))
+    assert len(fast) > 1000 and np.array_equal(fast, slow)
