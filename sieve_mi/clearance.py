@@ -27,6 +27,8 @@ from sieve_mi.rotations import quat_rows
 #: Active (pose, segment) pairs that one thread sums in the first level of the per-pose reduction
 #: (:meth:`ClearanceObjective._pose_sums`). Fixed, so results do not depend on the machine.
 CHUNK = 16
+#: Segments per edge from which the silhouette test runs per (pose, edge), not per segment.
+PER_EDGE_RATIO = 1.5
 
 
 def _edge_table(segs: list) -> dict:
@@ -149,6 +151,8 @@ class ClearanceObjective:
         self._edges = _edge_table([s for s in segs])
         self.e_m1, self.e_m2 = (mi.Vector3f(*self._edges[k].T) for k in ("m1", "m2"))
         self.e_always = mi.Bool(self._edges["always"])
+        # testing per edge pays where edges are cut into several segments (not for fine meshes)
+        self.per_edge = self.segment_count >= PER_EDGE_RATIO * len(self._edges["pieces"])
         self._pairs = None
         self._pose_ends = None
         self._edge_pairs = None
@@ -327,9 +331,12 @@ class ClearanceObjective:
         The silhouette test depends on the parent edge only, so it runs once per (pose, edge)
         pair (about four times fewer tests than per segment); the active edges are then expanded
         into their consecutive segment pairs. The result equals
-        ``dr.compress(self._silhouette_flags(rows))`` entry for entry.
+        ``dr.compress(self._silhouette_flags(rows))`` entry for entry, which is what runs where
+        edges have few segments (:attr:`per_edge` False).
         """
         dr, mi = self.dr, self.mi
+        if not self.per_edge:
+            return dr.compress(self._silhouette_flags(rows))
         pair_pose, pair_edge, first, pieces = self._edge_pairs
         with dr.suspend_grad():
             r3 = mi.Vector3f(dr.detach(rows[6]), dr.detach(rows[7]), dr.detach(rows[8]))

@@ -125,6 +125,7 @@ def test_per_edge_silhouette_test_keeps_exactly_the_per_segment_pairs(mi, cube20
     opened = shape_from_trimesh(open_box, name="open")
     shapes = [cube20, sphere(12.0), torus, opened]
     obj = ClearanceObjective(shapes, Frame(128, 20.0))
+    assert obj.per_edge  # 4 samples a segment at this pixel size: edges have several segments
     rng = np.random.default_rng(3)
     pose_shape = rng.integers(0, len(shapes), size=300)
     obj.bind(pose_shape)
