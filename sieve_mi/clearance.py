@@ -11,8 +11,10 @@ with d_H the distance to H (bilinear in H's distance transform, in pixels), is z
 the raster), and has useful gradients even when B is far outside H.
 
 All poses of all shapes (particles x shapes x starts) are evaluated in one kernel per step: per step
-the silhouette test runs over every (pose, segment) pair, :func:`drjit.compress` keeps the active
-ones, and the loss is evaluated on their samples only.
+the silhouette test runs over every (pose, edge) pair (it depends on the edge only),
+:func:`drjit.compress` keeps the active ones, they are expanded into their segments' (pose,
+segment) pairs (:func:`expand_ranges`), and the loss is evaluated on their samples only. Where
+edges are about one segment long, the test runs per (pose, segment) directly.
 """
 
 from __future__ import annotations
