@@ -4,9 +4,11 @@ every B coming to rest on it (the motion of :mod:`sieve_mi.passage`).
 All frames are rendered by one ``mi.render`` call: the scene holds one copy of the plate and the
 shapes per frame (Mitsuba instances of shared shape groups, so the geometry is stored once), the
 copies far apart along x, and a ``batch`` sensor puts one perspective camera on each copy side by
-side on one film. The render uses the Mitsuba variant in effect (monochrome in sieve-mi's
-``*_ad_mono`` variants: grey frames; light: passes (every A, a B that gets through), dark: a
-blocked B, mid-grey: the plate).
+side on one film. :func:`write_gif` renders in colour: it switches Mitsuba to an RGB variant for
+the call, as :func:`sieve_mi.figure.render_figure` does, and restores the previous one (green:
+every A; red: a blocked B; orange: a B that gets through; grey: the plate). Where no RGB variant
+can be used (e.g. a packed GPU site without them) it renders in the monochrome variant in effect:
+grey frames (light: passes, dark: blocked, mid-grey: the plate).
 The sampler is seeded the same way every run and each sample lands in one pixel (box filter), so
 the same inputs give the same GIF (``tests/test_repro.py`` compares two processes' files).
 """
@@ -31,7 +33,14 @@ FRAME_MS = 120
 AZIMUTH = -60.0
 ELEVATION = 22.0
 FOV = 35.0
-#: Diffuse reflectances (monochrome; the mean of the RGB in RGB variants is not used).
+#: Diffuse reflectances in RGB variants (linear RGB) ...
+COLOURS = {
+    "plate": (0.35, 0.35, 0.35),
+    "pass": (0.10, 0.50, 0.16),
+    "blocked": (0.70, 0.07, 0.07),
+    "escaped": (0.90, 0.45, 0.06),
+}
+#: ... and in monochrome ones.
 PLATE_ALBEDO = 0.35
 PASS_ALBEDO = 0.6
 BLOCKED_ALBEDO = 0.12
@@ -62,7 +71,7 @@ def render_frames(
     height: int = HEIGHT,
     spp: int = SPP,
 ) -> np.ndarray:
-    """Render the passage's frames in one batch.
+    """Render the passage's frames in one batch, in the Mitsuba variant in effect.
 
     Parameters
     ----------
@@ -78,8 +87,9 @@ def render_frames(
 
     Returns
     -------
-    (K, height, width) ndarray of float32
-        Linear radiance per frame (row 0 at the top).
+    (K, height, width) or (K, height, width, 3) ndarray of float32
+        Linear radiance per frame (row 0 at the top): grey in a monochrome variant, RGB in an
+        RGB one.
     """
     import mitsuba as mi
 
@@ -87,21 +97,25 @@ def render_frames(
     box = passage.bounds() if box is None else np.asarray(box, dtype=np.float64)
     size = float(np.max(box[1] - box[0]))
     spacing = 10.0 * size
-    scene = _scene(mi, passage, s, spacing)
+    colour = "rgb" in mi.variant()
+    scene = _scene(mi, passage, s, spacing, colour)
     sensor = _batch_sensor(mi, box, len(s), spacing, width, height, spp, size)
     image = np.asarray(mi.render(scene, sensor=sensor, spp=spp), dtype=np.float32)
-    image = image.reshape(height, len(s) * width, -1).mean(axis=2)
+    image = image.reshape(height, len(s) * width, -1)
+    image = image[..., :3] if colour else image.mean(axis=2)
     return np.stack([image[:, k * width : (k + 1) * width] for k in range(len(s))])
 
 
-def _group(mi, vertices: np.ndarray, faces: np.ndarray, albedo: float):
-    """A shape group (a dict for ``mi.load_dict``) holding one mesh with a two-sided diffuse material."""
+def _group(mi, vertices: np.ndarray, faces: np.ndarray, albedo):
+    """A shape group (a dict for ``mi.load_dict``) holding one mesh with a two-sided diffuse
+    material; ``albedo`` is a float (monochrome) or an RGB triple."""
     props = mi.Properties()
+    if np.ndim(albedo):
+        reflectance = {"type": "rgb", "value": [float(c) for c in albedo]}
+    else:
+        reflectance = {"type": "spectrum", "value": float(albedo)}
     props["bsdf"] = mi.load_dict(
-        {
-            "type": "twosided",
-            "material": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": albedo}},
-        }
+        {"type": "twosided", "material": {"type": "diffuse", "reflectance": reflectance}}
     )
     m = mi.Mesh("m", len(vertices), len(faces), props=props)
     params = mi.traverse(m)
@@ -113,27 +127,36 @@ def _group(mi, vertices: np.ndarray, faces: np.ndarray, albedo: float):
     return {"type": "shapegroup", "mesh": m}
 
 
-def _albedo(piece) -> float:
-    if piece.role == "pass":
-        return PASS_ALBEDO
-    return ESCAPED_ALBEDO if piece.passes else BLOCKED_ALBEDO
+def _albedo(piece, colour: bool):
+    kind = "pass" if piece.role == "pass" else ("escaped" if piece.passes else "blocked")
+    if colour:
+        return COLOURS[kind]
+    return {"pass": PASS_ALBEDO, "escaped": ESCAPED_ALBEDO, "blocked": BLOCKED_ALBEDO}[kind]
 
 
-def _scene(mi, passage: Passage, phases: np.ndarray, spacing: float):
+def _light(value: float, colour: bool) -> dict:
+    """A grey light: white RGB in RGB variants (a flat spectrum would be tinted pink in sRGB)."""
+    if colour:
+        return {"type": "rgb", "value": [value] * 3}
+    return {"type": "spectrum", "value": value}
+
+
+def _scene(mi, passage: Passage, phases: np.ndarray, spacing: float, colour: bool = False):
     """One copy of the plate and the shapes per phase, the k-th moved by k * spacing along x."""
     T = mi.ScalarTransform4f
-    groups = [_group(mi, passage.plate_vertices, passage.plate_faces, PLATE_ALBEDO)]
-    groups += [_group(mi, p.vertices, p.faces, _albedo(p)) for p in passage.pieces]
+    plate = COLOURS["plate"] if colour else PLATE_ALBEDO
+    groups = [_group(mi, passage.plate_vertices, passage.plate_faces, plate)]
+    groups += [_group(mi, p.vertices, p.faces, _albedo(p, colour)) for p in passage.pieces]
     az, el = math.radians(AZIMUTH - 35.0), math.radians(55.0)
     sun = -np.array([math.cos(az) * math.cos(el), math.sin(az) * math.cos(el), math.sin(el)])
     scene = {
         "type": "scene",
         "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 1},
-        "sky": {"type": "constant", "radiance": {"type": "spectrum", "value": SKY}},
+        "sky": {"type": "constant", "radiance": _light(SKY, colour)},
         "sun": {
             "type": "directional",
             "direction": sun.tolist(),
-            "irradiance": {"type": "spectrum", "value": SUN},
+            "irradiance": _light(SUN, colour),
         },
     }
     for g, group in enumerate(groups):
@@ -213,7 +236,8 @@ def _batch_sensor(mi, box, frames, spacing, width, height, spp, size):
 
 
 def to_gray8(frames: np.ndarray) -> np.ndarray:
-    """Linear radiance to 8-bit sRGB grey, one exposure for all frames (the sky maps to ~white)."""
+    """Linear radiance to 8-bit sRGB, one exposure for all frames (the sky maps to ~white); grey
+    or RGB as the input."""
     x = np.clip(frames / (1.1 * SKY), 0.0, 1.0)
     srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
     return np.round(255.0 * srgb).astype(np.uint8)
@@ -227,11 +251,26 @@ def write_gif(path: str, passage: Passage) -> dict:
     dict
         ``frames``, ``width``, ``height``, ``spp``, ``frame_ms`` and ``phases``.
     """
+    import mitsuba as mi
     from PIL import Image
 
+    from sieve_mi.figure import _select_variant
+
     s = phases(frame_count(passage))
-    images = to_gray8(render_frames(passage, phases=s))
-    pics = [Image.fromarray(im, mode="L") for im in images]
+    before = mi.variant()
+    try:
+        variant = _select_variant(mi, before)
+        images = to_gray8(render_frames(passage, phases=s))
+    finally:
+        if before is not None and mi.variant() != before:
+            mi.set_variant(before)
+    mode = "RGB" if images.ndim == 4 else "L"
+    pics = [Image.fromarray(im, mode=mode) for im in images]
+    if mode == "RGB":  # one adaptive palette per frame (PIL's default GIF palette tints greys)
+        pics = [
+            p.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+            for p in pics
+        ]
     durations = [FRAME_MS] * (len(pics) - 1) + [3 * FRAME_MS]
     pics[0].save(path, save_all=True, append_images=pics[1:], duration=durations, loop=0)
     return {
@@ -240,5 +279,7 @@ def write_gif(path: str, passage: Passage) -> dict:
         "height": HEIGHT,
         "spp": SPP,
         "frame_ms": FRAME_MS,
+        "colour": mode == "RGB",
+        "variant": variant,
         "phases": [float(x) for x in s],
     }

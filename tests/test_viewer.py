@@ -229,7 +229,15 @@ def test_gif_has_its_frames_and_a_moves_down(merged):
         diff = np.abs(np.asarray(gif.convert("L"), dtype=np.int16) - plate_only) > 40
         assert diff.sum() > 100  # A is in the picture
         rows.append(int(np.nonzero(diff)[0].min()))  # the top of A
+        if report["animation"]["colour"]:  # A is drawn green
+            rgb = np.asarray(gif.convert("RGB"), dtype=np.float64)[diff]
+            assert rgb[:, 1].mean() > 1.3 * rgb[:, 0].mean(), rgb.mean(axis=0)
     assert all(b > a + 5 for a, b in zip(rows, rows[1:])), rows
+    import mitsuba as mi
+
+    assert report["animation"]["colour"] == ("llvm_ad_rgb" in mi.variants())
+    if report["animation"]["colour"]:  # rendered in RGB, and the variant switched back
+        assert report["animation"]["variant"] != mi.variant()
 
 
 # ------------------------------------------------------------------------------------------------
