@@ -80,6 +80,12 @@ def game_key(prefix: str, scene: Scene, seed: int, variant: str, digests: dict) 
     return f"{safe}-{h[:12]}"
 
 
+def weakest(summary: dict) -> dict:
+    """The B of a game's summary that came closest to passing: one that passes, else the
+    smallest β, then the smallest protrusion."""
+    return min(summary["block"], key=lambda b: (b["blocked"], b["beta"], b["protrusion"]))
+
+
 def play(spec: GameSpec) -> dict:
     """Solve one game (in a worker); returns its summary and its output files.
 
@@ -170,8 +176,8 @@ class GameCache:
 
 def check_address(address: str) -> None:
     """Raise a one-line SieveError unless something listens at a Ray ``host:port`` address."""
-    if address == "auto" or address.startswith("ray://") and ":" not in address[6:]:
-        return
+    if address == "auto" or (address.startswith("ray://") and ":" not in address[6:]):
+        return  # Ray finds the cluster itself / a Ray client address on its default port
     hostport = address[6:] if address.startswith("ray://") else address
     host, _, port = hostport.rpartition(":")
     if not host or not port.isdigit():
@@ -296,11 +302,6 @@ def _first_line(exc: BaseException) -> str:
     return text[-1] if text else type(exc).__name__
 
 
-def spec_dict(spec: GameSpec) -> dict:
-    """A spec as JSON-able data (for tables)."""
-    return {"key": spec.key, "seed": spec.seed, "variant": spec.variant, **spec.label}
-
-
 def cache_folder(out_dir: str) -> str:
     """Where finished games wait until the whole run is written: ``<out>.games`` beside it."""
     return os.path.normpath(out_dir) + ".games"
@@ -325,11 +326,11 @@ class Progress:
         if self.bar is None:
             return
         s, label = record["summary"], record["label"]
-        weakest = min(s["block"], key=lambda b: (b["blocked"], b["beta"]))
+        weak = weakest(s)
         self.bar.write(
             f"  hold {'+'.join(label.get('holds', [])) or '-':<20} pass "
             f"{'+'.join(label.get('passes', [])) or '-':<28} winner {s['winner']}  "
-            f"weakest {weakest['name']} beta {weakest['beta']:.4f}  "
+            f"weakest {weak['name']} beta {weak['beta']:.4f}  "
             + ("reused" if reused else f"{s.get('game_s', 0):.1f} s")
         )
         self.bar.update(1)

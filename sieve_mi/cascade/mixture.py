@@ -47,6 +47,10 @@ class Mixture:
     units: str
     tables: dict
 
+    def resolve(self, mesh: str) -> str:
+        """A mesh path relative to the mixture file, made absolute."""
+        return os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(self.path)), mesh))
+
     def shape(self, name: str) -> ShapeEntry:
         """The entry called ``name``."""
         return next(s for s in self.shapes if s.name == name)
@@ -114,10 +118,13 @@ def load_mixture(path: str) -> Mixture:
                 "give every shape its own name"
             )
         seen[s.name] = i
-        mesh = os.path.join(os.path.dirname(os.path.abspath(path)), s.mesh)
-        if not os.path.isfile(mesh):
+    mixture = Mixture(
+        path=path, name=name, shapes=shapes, units=units, tables=read_tables(path, data)
+    )
+    for i, s in enumerate(shapes):
+        if not os.path.isfile(mixture.resolve(s.mesh)):
             raise SieveError(f"{path}: shape[{i}].mesh: {s.mesh} not found")
-    return Mixture(path=path, name=name, shapes=shapes, units=units, tables=read_tables(path, data))
+    return mixture
 
 
 def _shape(path: str, table, i: int) -> ShapeEntry:

@@ -40,7 +40,7 @@ def prepare(mixture: Mixture) -> tuple[dict, list, dict]:
 
     digests, rows, icons = {}, [], {}
     for e in mixture.shapes:
-        path = os.path.join(os.path.dirname(os.path.abspath(mixture.path)), e.mesh)
+        path = mixture.resolve(e.mesh)
         e.data = load_trimesh(path)
         digests[e.name] = mesh_digest(path)
         shape = shape_from_trimesh(e.data, name=e.name, scale=e.scale)
@@ -93,9 +93,7 @@ def sort_mixture(
     from sieve_mi.backend import default_variant
 
     t0 = time.perf_counter()
-    inputs = [mixture.path] + [
-        os.path.join(os.path.dirname(os.path.abspath(mixture.path)), e.mesh) for e in mixture.shapes
-    ]
+    inputs = [mixture.path] + [mixture.resolve(e.mesh) for e in mixture.shapes]
     outdir.validate(out_dir, inputs=inputs)
     variant = variant or default_variant()
     seed = mixture.tables["solver"].seed if seed is None else seed

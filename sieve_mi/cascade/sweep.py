@@ -8,20 +8,23 @@ large as it can be, then its protrusion (scene units).
 from __future__ import annotations
 
 import copy
+import hashlib
 import os
 import shutil
 import time
 
+import numpy as np
+
 from sieve_mi import outdir
-from sieve_mi.cascade.games import Engine, GameSpec, game_key, mesh_digest
+from sieve_mi.cascade.games import Engine, GameSpec, game_key, mesh_digest, weakest
 from sieve_mi.cascade.outputs import copy_games, write_json
 from sieve_mi.scene import Scene
 
 
 def margin(summary: dict) -> tuple:
     """A run's rank: (A won, weakest B's β, weakest B's protrusion); larger is better."""
-    weakest = min(summary["block"], key=lambda b: (b["blocked"], b["beta"], b["protrusion"]))
-    return (summary["winner"] == "A", weakest["beta"], weakest["protrusion"])
+    weak = weakest(summary)
+    return (summary["winner"] == "A", weak["beta"], weak["protrusion"])
 
 
 def _loaded(scene: Scene) -> tuple[Scene, dict]:
@@ -31,16 +34,15 @@ def _loaded(scene: Scene) -> tuple[Scene, dict]:
     scene = copy.deepcopy(scene)
     digests = {}
     for e in scene.passes + scene.blocks:
+        e.name = e.name or os.path.splitext(os.path.basename(e.mesh))[0]
         if e.data is None:
             path = scene.resolve(e.mesh)
             e.data = load_trimesh(path)
-            digests[e.name or e.mesh] = mesh_digest(path)
-        else:
-            digests[e.name or e.mesh] = "in-memory"
-        e.name = e.name or os.path.splitext(os.path.basename(e.mesh))[0]
-    return scene, {
-        e.name: digests.get(e.name, digests.get(e.mesh)) for e in scene.passes + scene.blocks
-    }
+            digests[e.name] = mesh_digest(path)
+        else:  # a mesh given in code: its arrays' bytes
+            arrays = np.asarray(e.data.vertices).tobytes() + np.asarray(e.data.faces).tobytes()
+            digests[e.name] = hashlib.sha256(arrays).hexdigest()
+    return scene, digests
 
 
 def sweep_scene(
@@ -109,13 +111,13 @@ def _specs(base: Scene, digests: dict, seeds, tolerances, variant: str) -> list[
 
 def _run_row(spec: GameSpec, summary: dict) -> dict:
     """A run's row of the table: its weakest B and its rank (:func:`margin`)."""
-    weakest = min(summary["block"], key=lambda b: (b["blocked"], b["beta"], b["protrusion"]))
+    weak = weakest(summary)
     return {
         **spec.label,
         "winner": summary["winner"],
-        "weakest": weakest["name"],
-        "beta": weakest["beta"],
-        "protrusion": weakest["protrusion"],
+        "weakest": weak["name"],
+        "beta": weak["beta"],
+        "protrusion": weak["protrusion"],
         "game_s": summary.get("game_s"),
         "folder": f"games/{spec.key}",
         "rank": margin(summary),
