@@ -80,7 +80,7 @@ def expand_ranges(start, length):
     if dr.width(start) == 0:
         return dr.zeros(mi.UInt32, 0)
     offset = dr.prefix_sum(length)  # exclusive
-    total = int(dr.sum(length)[0]) if dr.width(length) else 0
+    total = int(dr.sum(length)[0])
     marks = dr.zeros(mi.UInt32, total)
     dr.scatter(marks, mi.UInt32(1), offset, offset > 0)
     entry = dr.cumsum(marks)  # inclusive
@@ -150,7 +150,7 @@ class ClearanceObjective:
         self.d = mi.Vector3f(d[:, 0], d[:, 1], d[:, 2])
         self.m1, self.m2 = cat("m1"), cat("m2")
         self.always = mi.Bool(np.concatenate([s.always for s in segs]))
-        self._edges = _edge_table([s for s in segs])
+        self._edges = _edge_table(segs)
         self.e_m1, self.e_m2 = (mi.Vector3f(*self._edges[k].T) for k in ("m1", "m2"))
         self.e_always = mi.Bool(self._edges["always"])
         # testing per edge pays where edges are cut into several segments (not for fine meshes)

@@ -48,7 +48,10 @@ class Frame:
         from it (:meth:`sieve_mi.silhouettes.SilhouetteRenderer.trace`), and ``mi.render``
         under it gives the written masks (:meth:`~sieve_mi.silhouettes.SilhouetteRenderer.render`).
         """
-        return self.window_sensor(0, 0, self.resolution)
+        key = (self.resolution, self.half_extent)
+        if key not in _SENSORS:
+            _SENSORS[key] = self.window_sensor(0, 0, self.resolution)
+        return _SENSORS[key]
 
     def window_sensor(self, row0: int, col0: int, size: int):
         """The orthographic sensor whose size x size film is the lattice window at (row0, col0).
@@ -57,37 +60,35 @@ class Frame:
         col0 + i). The sensor sits at z = 1 looking down -z; whatever is rendered under it
         must lie below z = 0 (and above z = -1e7, in scene units). Its sampler takes each pixel's one
         sample at the centre (stratified, no jitter), so ``mi.render(..., spp=1)`` samples
-        exactly the pixel centres. Cached per (frame, window).
+        exactly the pixel centres. Not cached (windows differ from pose to pose; the whole
+        frame's sensor is, by :meth:`sensor`).
         """
-        key = (self.resolution, self.half_extent, row0, col0, size)
-        if key not in _SENSORS:
-            import mitsuba as mi
+        import mitsuba as mi
 
-            h = self.pixel_size
-            half = 0.5 * size * h
-            cx = -self.half_extent + col0 * h + half
-            cy = self.half_extent - row0 * h - half
-            t = mi.ScalarTransform4f()
-            to_world = t.look_at(
-                origin=[cx, cy, 1.0], target=[cx, cy, 0.0], up=[0, 1, 0]
-            ) @ t.scale([half, half, 1.0])
-            _SENSORS[key] = mi.load_dict(
-                {
-                    "type": "orthographic",
-                    "to_world": to_world,
-                    "near_clip": 1e-3,
-                    "far_clip": 1e7,
-                    "sampler": {"type": "stratified", "sample_count": 1, "jitter": False},
-                    "film": {
-                        "type": "hdrfilm",
-                        "width": size,
-                        "height": size,
-                        "pixel_format": "luminance",
-                        "rfilter": {"type": "box"},
-                    },
-                }
-            )
-        return _SENSORS[key]
+        h = self.pixel_size
+        half = 0.5 * size * h
+        cx = -self.half_extent + col0 * h + half
+        cy = self.half_extent - row0 * h - half
+        t = mi.ScalarTransform4f()
+        to_world = t.look_at(origin=[cx, cy, 1.0], target=[cx, cy, 0.0], up=[0, 1, 0]) @ t.scale(
+            [half, half, 1.0]
+        )
+        return mi.load_dict(
+            {
+                "type": "orthographic",
+                "to_world": to_world,
+                "near_clip": 1e-3,
+                "far_clip": 1e7,
+                "sampler": {"type": "stratified", "sample_count": 1, "jitter": False},
+                "film": {
+                    "type": "hdrfilm",
+                    "width": size,
+                    "height": size,
+                    "pixel_format": "luminance",
+                    "rfilter": {"type": "box"},
+                },
+            }
+        )
 
     def centres(self) -> tuple[np.ndarray, np.ndarray]:
         """Pixel-centre coordinates: x per column (N,) and y per row (N,), scene units."""
