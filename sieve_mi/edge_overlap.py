@@ -49,26 +49,13 @@ from sieve_mi.hole import HoleStack
 from sieve_mi.meshes import Shape
 from sieve_mi.raster import Frame
 from sieve_mi.rotations import quat_rows
+from sieve_mi.silhouettes import mesh_scene
 
 #: The two side points of an outline sample are this many pixels from it.
 SIDE_OFFSET = 0.01
 #: Per-pose sums of :meth:`EdgeOverlapObjective._outline_sums`: area, area inside H, the 8 sums
 #: of d area, the 8 sums of d area outside H.
 OUTLINE_SUMS = 18
-
-
-def _scene(shape: Shape):
-    """A Mitsuba scene holding ``shape`` in its own (centred) frame, for ray tests."""
-    import mitsuba as mi
-
-    mesh = mi.Mesh(
-        shape.name or "shape", len(shape.vertices), len(shape.faces), has_vertex_normals=False
-    )
-    params = mi.traverse(mesh)
-    params["vertex_positions"] = mi.Float(shape.vertices.astype(np.float32).ravel())
-    params["faces"] = mi.UInt32(shape.faces.astype(np.uint32).ravel())
-    params.update()
-    return mi.load_dict({"type": "scene", "shape": mesh})
 
 
 class EdgeOverlapObjective(ClearanceObjective):
@@ -93,7 +80,7 @@ class EdgeOverlapObjective(ClearanceObjective):
 
     def __init__(self, shapes: list[Shape], frame: Frame, samples_per_segment: int | None = None):
         super().__init__(shapes, frame, samples_per_segment)
-        self._scenes = [_scene(s) for s in shapes]
+        self._scenes = [mesh_scene(s.vertices, s.faces, s.name or "shape") for s in shapes]
         h = frame.pixel_size
         # Ray origins sit this far below the shape's centre (as in SilhouetteRenderer.trace).
         self._reach = [s.radius * 1.01 + h for s in shapes]
@@ -108,8 +95,7 @@ class EdgeOverlapObjective(ClearanceObjective):
             Index into ``shapes`` for every pose.
         """
         super().bind(pose_shape)
-        self._pose_shape_np = np.asarray(pose_shape, dtype=np.int64)
-        self._pose_shape = self.mi.UInt32(self._pose_shape_np.astype(np.uint32))
+        self._pose_shape = self.mi.UInt32(np.asarray(pose_shape).astype(np.uint32))
 
     def loss(self, q, t, holes: HoleStack, pose_hole):
         """Total and per-pose overlap loss β (fraction of each silhouette outside its hole).

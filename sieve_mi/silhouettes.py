@@ -58,6 +58,29 @@ def register_integrator() -> None:
     _REGISTERED.add(mi.variant())
 
 
+def mesh_scene(vertices: np.ndarray, faces: np.ndarray, name: str = "shape", **extra):
+    """A Mitsuba scene holding one triangle mesh (one BVH), for ray tests and renders.
+
+    Parameters
+    ----------
+    vertices : (n, 3) ndarray
+        Scene units (stored as float32).
+    faces : (m, 3) ndarray of int
+    name : str
+        The mesh's id.
+    **extra
+        Further scene entries (e.g. ``integrator={"type": "silhouette"}``).
+    """
+    import mitsuba as mi
+
+    mesh = mi.Mesh(name, len(vertices), len(faces), has_vertex_normals=False)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = mi.Float(np.asarray(vertices, dtype=np.float32).ravel())
+    params["faces"] = mi.UInt32(np.asarray(faces, dtype=np.uint32).ravel())
+    params.update()
+    return mi.load_dict({"type": "scene", "shape": mesh, **extra})
+
+
 class SilhouetteRenderer:
     """Renders binary silhouettes of one shape under many poses.
 
@@ -72,14 +95,7 @@ class SilhouetteRenderer:
         import mitsuba as mi
 
         self.shape = shape
-        mesh = mi.Mesh(
-            shape.name or "shape", len(shape.vertices), len(shape.faces), has_vertex_normals=False
-        )
-        params = mi.traverse(mesh)
-        params["vertex_positions"] = mi.Float(shape.vertices.astype(np.float32).ravel())
-        params["faces"] = mi.UInt32(shape.faces.astype(np.uint32).ravel())
-        params.update()
-        self._scene = mi.load_dict({"type": "scene", "shape": mesh})
+        self._scene = mesh_scene(shape.vertices, shape.faces, shape.name or "shape")
         self._mi, self._dr = mi, dr
 
     def trace(
@@ -222,12 +238,7 @@ class SilhouetteRenderer:
         v = self.shape.vertices @ to_matrix(np.asarray(quat)[None])[0].T
         v[:, :2] += np.asarray(trans, dtype=np.float64)
         v[:, 2] -= v[:, 2].max() + max(1.0, self.shape.radius)
-        mesh = mi.Mesh("posed", len(v), len(self.shape.faces), has_vertex_normals=False)
-        params = mi.traverse(mesh)
-        params["vertex_positions"] = mi.Float(v.astype(np.float32).ravel())
-        params["faces"] = mi.UInt32(self.shape.faces.astype(np.uint32).ravel())
-        params.update()
-        scene = mi.load_dict({"type": "scene", "shape": mesh, "integrator": {"type": "silhouette"}})
+        scene = mesh_scene(v, self.shape.faces, "posed", integrator={"type": "silhouette"})
         image = mi.render(scene, sensor=frame.window_sensor(row0, col0, size), spp=1)
         return np.asarray(image, dtype=np.float32).reshape(size, size) > 0.5
 
