@@ -10,20 +10,9 @@ import sys
 import numpy as np
 import pytest
 import trimesh
+from helpers import TINY
 
 SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
-TINY = """
-[solver]
-resolution = 64
-particles = 3
-iterations = 1
-starts = 4
-steps = 20
-[verdict]
-starts = 8
-steps = 40
-resolution = 96
-"""
 
 
 def run_cli(*args, cwd=None):

@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 import trimesh
-from helpers import sphere
+from helpers import TINY, sphere
 
 from sieve_mi.clearance import ClearanceObjective
 from sieve_mi.hole import HoleStack
@@ -22,18 +22,6 @@ from sieve_mi.rotations import random_uniform
 
 SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
 MESHES = os.path.abspath(os.path.join(SCENES, "meshes"))
-SMALL = """
-[solver]
-resolution = 64
-particles = 3
-iterations = 1
-starts = 4
-steps = 20
-[verdict]
-starts = 8
-steps = 40
-resolution = 96
-"""
 
 
 def _batch(cube20, holes=10, per_hole=20):
@@ -152,7 +140,7 @@ def _same_outputs(a, b):
     ids=["default", "merged-two-pass"],
 )
 def test_two_solve_processes_give_identical_outputs(write_scene, tmp_path, body):
-    scene = write_scene(body + SMALL)
+    scene = write_scene(body + TINY)
     first = _solve(scene, tmp_path / "a")
     _solve(scene, tmp_path / "b")
     _same_outputs(tmp_path / "a", tmp_path / "b")

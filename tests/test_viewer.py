@@ -13,6 +13,7 @@ import manifold3d
 import numpy as np
 import pytest
 import trimesh
+from helpers import TINY
 
 from sieve_mi import animation, viewer
 from sieve_mi.exact import silhouette
@@ -23,18 +24,6 @@ from sieve_mi.scene import load_scene
 from sieve_mi.solver import solve
 
 MESHES = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
-TINY = """
-[solver]
-resolution = 64
-particles = 3
-iterations = 1
-starts = 4
-steps = 20
-[verdict]
-starts = 8
-steps = 40
-resolution = 96
-"""
 # Several A shapes merged into one hole (A wins: the 24 mm sphere is blocked) ...
 MERGED = (
     f'name = "merged"\n[[pass]]\nmesh = "{MESHES}/cube.stl"\n[[pass]]\nmesh = "{MESHES}/prism.stl"\n'
