@@ -291,14 +291,19 @@ class ClearanceObjective:
 
     def _silhouette_flags(self, rows):
         """Whether each (pose, segment) pair's segment is on the silhouette (mi.Bool)."""
-        dr, mi = self.dr, self.mi
         pair_pose, pair_seg = self._pairs
+        return self._flags(rows, pair_pose, pair_seg, self.m1, self.m2, self.always)
+
+    def _flags(self, rows, pose, item, m1, m2, always):
+        """The silhouette test ``(r3 . m1)(r3 . m2) >= 0 or always`` of (pose, item) pairs, where
+        items are segments or edges (``m1``, ``m2``, ``always`` indexed by ``item``)."""
+        dr, mi = self.dr, self.mi
         with dr.suspend_grad():
             r3 = mi.Vector3f(dr.detach(rows[6]), dr.detach(rows[7]), dr.detach(rows[8]))
-            r3p = dr.gather(mi.Vector3f, r3, pair_pose)
-            s1 = dr.dot(r3p, dr.gather(mi.Vector3f, self.m1, pair_seg))
-            s2 = dr.dot(r3p, dr.gather(mi.Vector3f, self.m2, pair_seg))
-            return (s1 * s2 >= 0) | dr.gather(mi.Bool, self.always, pair_seg)
+            r3p = dr.gather(mi.Vector3f, r3, pose)
+            s1 = dr.dot(r3p, dr.gather(mi.Vector3f, m1, item))
+            s2 = dr.dot(r3p, dr.gather(mi.Vector3f, m2, item))
+            return (s1 * s2 >= 0) | dr.gather(mi.Bool, always, item)
 
     def _active_fixed(self, rows, capacity: int):
         """:meth:`_active_pairs` in a buffer of fixed size, without reading anything back.
@@ -340,12 +345,8 @@ class ClearanceObjective:
         if not self.per_edge:
             return dr.compress(self._silhouette_flags(rows))
         pair_pose, pair_edge, first, pieces = self._edge_pairs
+        flag = self._flags(rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always)
         with dr.suspend_grad():
-            r3 = mi.Vector3f(dr.detach(rows[6]), dr.detach(rows[7]), dr.detach(rows[8]))
-            r3p = dr.gather(mi.Vector3f, r3, pair_pose)
-            s1 = dr.dot(r3p, dr.gather(mi.Vector3f, self.e_m1, pair_edge))
-            s2 = dr.dot(r3p, dr.gather(mi.Vector3f, self.e_m2, pair_edge))
-            flag = (s1 * s2 >= 0) | dr.gather(mi.Bool, self.e_always, pair_edge)
             edges = dr.compress(flag)
             return expand_ranges(
                 dr.gather(mi.UInt32, first, edges), dr.gather(mi.UInt32, pieces, edges)
