@@ -320,7 +320,7 @@
     } else {
       setupGL();
       orbitControls();
-      requestAnimationFrame(frame);
+      frame(performance.now());  // the first frame now, not on a timer: the page is drawn (and ready) when the script ends
     }
   } catch (e) {
     fail(e && e.stack ? e.stack : e);
