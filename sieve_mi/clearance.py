@@ -126,6 +126,11 @@ class ClearanceObjective:
         "always": object,
         "_pairs": object,
         "_pose_ends": object,
+        "e_m1": object,
+        "e_m2": object,
+        "e_always": object,
+        "_edge_pairs": object,
+        "_edge_pose_ends": object,
     }
 
     def __init__(self, shapes: list[Shape], frame: Frame, samples_per_segment: int | None = None):
@@ -158,6 +163,7 @@ class ClearanceObjective:
         self._pairs = None
         self._pose_ends = None
         self._edge_pairs = None
+        self._edge_pose_ends = None
 
     @property
     def segment_count(self) -> int:
@@ -203,6 +209,12 @@ class ClearanceObjective:
         start = np.repeat(e["offset"][pose_shape] - (np.cumsum(n) - n), n)
         pair_edge = np.arange(int(n.sum())) + start
         first = pose_first_pair[pair_pose] + e["first_local"][pair_edge]
+        # Each pose's first (pose, edge) pair and one past its last (pose-major, as for segments).
+        ends = np.cumsum(n)
+        self._edge_pose_ends = (
+            mi.UInt32((ends - n).astype(np.uint32)),
+            mi.UInt32(ends.astype(np.uint32)),
+        )
         self._edge_pairs = (
             mi.UInt32(pair_pose.astype(np.uint32)),
             mi.UInt32(pair_edge.astype(np.uint32)),
@@ -308,6 +320,12 @@ class ClearanceObjective:
     def _active_fixed(self, rows, capacity: int):
         """:meth:`_active_pairs` in a buffer of fixed size, without reading anything back.
 
+        Per (pose, edge) pair where :attr:`per_edge` holds (as :meth:`_active_pairs`): each active
+        edge's segments get consecutive buffer slots from an exclusive prefix sum of their
+        counts; each edge writes its index at its first slot, and an inclusive running maximum
+        over the buffer tells every slot its edge (slots grow with the edge index). Otherwise
+        per (pose, segment) pair, each active pair writing itself at its slot.
+
         Returns
         -------
         active : mi.UInt32
@@ -318,17 +336,33 @@ class ClearanceObjective:
             One entry: more than ``capacity`` pairs are active.
         """
         dr, mi = self.dr, self.mi
-        flag = self._silhouette_flags(rows)
-        one = dr.select(flag, mi.UInt32(1), mi.UInt32(0))
-        slot = dr.prefix_sum(one)  # active pairs before each pair
-        upto = slot + one
-        active = dr.zeros(mi.UInt32, capacity)
-        n = dr.arange(mi.UInt32, dr.width(flag))
-        dr.scatter(active, n, slot, flag & (slot < capacity))
-        first, end = self._pose_ends
-        before = dr.gather(mi.UInt32, upto, first - 1, first > 0)
-        count = dr.gather(mi.UInt32, upto, end - 1) - before
-        overflow = dr.sum(count) > capacity
+        if self.per_edge:
+            pair_pose, pair_edge, first, pieces = self._edge_pairs
+            flag = self._flags(rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always)
+            size, ends = dr.select(flag, pieces, 0), self._edge_pose_ends
+        else:
+            flag = self._silhouette_flags(rows)
+            size, ends, first = dr.select(flag, mi.UInt32(1), mi.UInt32(0)), self._pose_ends, None
+        slot = dr.prefix_sum(size)  # exclusive: the buffer slot of each item's first pair
+        upto = slot + size
+        n = dr.width(flag)
+        total = dr.gather(mi.UInt32, upto, mi.UInt32(n - 1))
+        item = dr.arange(mi.UInt32, n)
+        owner = dr.zeros(mi.UInt32, capacity)  # 1 + the item that starts at each slot, else 0
+        # size > 0, not flag: flag is not evaluated, the test would run again in this kernel
+        dr.scatter(owner, item + 1, slot, (size > 0) & (slot < capacity))
+        i = dr.arange(mi.UInt32, capacity)
+        if first is None:  # one pair per item: the slot's item is its pair
+            active = owner - 1
+        else:
+            owner = dr.prefix_reduce(dr.ReduceOp.Max, owner, exclusive=False)
+            edge = dr.maximum(owner, 1) - 1
+            active = dr.gather(mi.UInt32, first, edge) + (i - dr.gather(mi.UInt32, slot, edge))
+        active = dr.select(i < total, active, 0)
+        start, end = ends
+        before = dr.gather(mi.UInt32, upto, start - 1, start > 0)
+        count = dr.select(end > start, dr.gather(mi.UInt32, upto, end - 1, end > start) - before, 0)
+        overflow = total > capacity
         # Past the buffer there is nothing to read: sum nothing (the caller discards the results).
         return active, dr.select(overflow, 0, count), overflow
 

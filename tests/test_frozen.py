@@ -65,14 +65,21 @@ def test_an_overflowing_buffer_falls_back_to_traced_steps(mi, shapes, monkeypatc
     assert player.freeze  # switched back on after the fallback
 
 
-def test_the_fixed_size_loss_equals_the_loss(mi, shapes):
-    """loss_fixed's active-pair buffer holds the same pairs in the same order: same bits."""
+@pytest.mark.parametrize("per_edge", [True, False], ids=["per-edge", "per-segment"])
+def test_the_fixed_size_loss_equals_the_loss(mi, shapes, per_edge):
+    """loss_fixed's active-pair buffer holds the same pairs in the same order: same bits.
+
+    Both layouts of the buffer: expanded from active (pose, edge) pairs, and written per
+    (pose, segment) pair (meshes whose edges are about one segment long).
+    """
     import drjit as dr
 
     from sieve_mi.hole import HoleStack
     from sieve_mi.objective import make_objective
+    from sieve_mi.rotations import quat_rows
 
     obj = make_objective("clearance", shapes, FRAME)
+    obj.per_edge = per_edge
     k = 8
     obj.bind(np.arange(k) % 2)
     q = random_uniform(k, rng(9))
@@ -80,6 +87,14 @@ def test_the_fixed_size_loss_equals_the_loss(mi, shapes):
     ta = tuple(mi.Float(rng(10).uniform(-0.3, 0.3, k).astype(np.float32)) for _ in range(2))
     stack, ph = HoleStack(_holes()), mi.UInt32(np.arange(k, dtype=np.uint32) % 2)
     capacity = obj.capacity(qa)
+    rows = quat_rows(*qa)
+    want = obj._active_pairs(rows).numpy()
+    buffer, count, overflow = obj._active_fixed(rows, capacity)
+    assert not bool(overflow[0]) and 0 < len(want) < capacity
+    np.testing.assert_array_equal(buffer.numpy()[: len(want)], want)
+    assert not buffer.numpy()[len(want) :].any()
+    poses = obj._pairs[0].numpy()[want]
+    np.testing.assert_array_equal(count.numpy(), np.bincount(poses, minlength=k))
     total, per = obj.loss(qa, ta, stack, ph)
     total_f, per_f, overflow = obj.loss_fixed(qa, ta, stack, ph, capacity)
     assert not bool(overflow[0])
