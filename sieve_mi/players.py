@@ -138,6 +138,14 @@ class AttackMemory:
         ).reshape(-1, 2)
 
 
+class _BufferOverflow(Exception):
+    """A frozen descent's active-pair buffer overflowed: its results are wrong."""
+
+
+class _FrozenStepFailed(Exception):
+    """Dr.Jit failed to record or replay a frozen step (the cause is chained)."""
+
+
 class PlayerB:
     """Fits B's shapes into holes by batched Adam from random starts.
 
@@ -162,7 +170,7 @@ class PlayerB:
         frame: Frame,
         objective: str = "clearance",
         samples_per_segment: int | None = None,
-        freeze: bool = False,
+        freeze: bool = True,
     ):
         if objective not in OBJECTIVES:
             raise ValueError(f"unknown objective {objective!r}")
@@ -278,7 +286,29 @@ class PlayerB:
         quats : (K, 4) ndarray
         trans : (K, 2) ndarray
             Scene units.
+
+        Notes
+        -----
+        Frozen steps (:mod:`sieve_mi.frozen`) whose buffer overflowed make this descent run again
+        traced; if Dr.Jit fails to record or replay one, this player warns and traces from then
+        on. Either way the result is the traced one.
         """
+        args = (holes, pose_hole, pose_shape, q0, t0, steps, learning_rate)
+        try:
+            return self._descend(*args, progress)
+        except _FrozenStepFailed as failure:
+            self._stop_freezing(failure.__cause__)
+        except _BufferOverflow:  # more active pairs than the buffer held: this descent traced
+            self.freeze = False
+            try:
+                return self._descend(*args)
+            finally:
+                self.freeze = True
+        return self._descend(*args)
+
+    def _descend(self, holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress=None):
+        """:meth:`descend` without its fallbacks; raises :class:`_BufferOverflow` or
+        :class:`_FrozenStepFailed` when a frozen descent must run again traced."""
         import drjit as dr
         import mitsuba as mi
 
@@ -304,28 +334,43 @@ class PlayerB:
             return kept, dr.select(improved, per_pose, best_loss)
 
         frozen = self._frozen_steps(loss, opt, stack, hole_idx, scale) if steps > 0 else None
-        for step in range(steps):
-            if frozen is not None and step >= 2:  # steps 1, 2 differ in layout: traced
-                best, best_loss = frozen(best, best_loss)
-            else:
-                total, per_pose = evaluate()
-                dr.backward(total)
-                best, best_loss = keep_best(per_pose, best, best_loss)
-                opt.step(eval=False)
-                renormalise_quaternions(opt, best, best_loss)
-            if progress:
-                progress(step + 1)
-        if frozen is not None and frozen.overflowed():  # more active pairs than the buffer held
-            self.freeze = False
-            try:
-                return self.descend(holes, pose_hole, pose_shape, q0, t0, steps, learning_rate)
-            finally:
-                self.freeze = True
+        try:
+            for step in range(steps):
+                if frozen is not None and step >= 2:  # steps 1, 2 differ in layout: traced
+                    best, best_loss = frozen(best, best_loss)
+                else:
+                    total, per_pose = evaluate()
+                    dr.backward(total)
+                    best, best_loss = keep_best(per_pose, best, best_loss)
+                    opt.step(eval=False)
+                    renormalise_quaternions(opt, best, best_loss)
+                if progress:
+                    progress(step + 1)
+        except Exception as exc:  # drjit.freeze is experimental: trace instead of failing
+            if frozen is None:
+                raise
+            raise _FrozenStepFailed from exc
+        if frozen is not None and frozen.overflowed():
+            raise _BufferOverflow
         if steps > 0:
             with dr.suspend_grad():
                 best, _ = keep_best(evaluate()[1], best, best_loss)
         final = np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
         return normalize(final[:, :4]), final[:, 4:] * scale
+
+    def _stop_freezing(self, exc: Exception) -> None:
+        """Trace every later step of this player, after Dr.Jit failed on a frozen one."""
+        import warnings
+
+        self.freeze = False
+        self._frozen = None
+        warnings.warn(
+            f"drjit.freeze failed on player B's Adam step ({type(exc).__name__}: {exc}); "
+            "tracing every step instead (same results, slower); [solver] freeze = false "
+            "skips the attempt",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
     def _frozen_steps(self, loss, opt, stack, hole_idx, scale):
         """The frozen Adam step of one descent (:mod:`sieve_mi.frozen`), or None if not frozen.

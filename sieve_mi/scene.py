@@ -244,7 +244,7 @@ class Solver:
         10, "rounds of the local polish of A's best rotation (0: none)", minimum=0
     )
     freeze: bool = setting(
-        False,
+        True,
         "record player B's Adam step once and replay it (drjit.freeze; same results)",
     )
 

@@ -65,6 +65,27 @@ def test_an_overflowing_buffer_falls_back_to_traced_steps(mi, shapes, monkeypatc
     assert player.freeze  # switched back on after the fallback
 
 
+def test_a_failing_frozen_step_warns_and_traces(mi, shapes, monkeypatch):
+    """If Dr.Jit cannot record or replay the step, player B warns once and traces: same poses."""
+    import sieve_mi.frozen
+
+    traced = _descend(PlayerB(shapes, FRAME, freeze=False))
+
+    def broken():
+        def step(*args):
+            raise RuntimeError("record(): unsupported operation")
+
+        return step
+
+    monkeypatch.setattr(sieve_mi.frozen, "frozen_step", broken)
+    player = PlayerB(shapes, FRAME, freeze=True)
+    with pytest.warns(RuntimeWarning, match="drjit.freeze failed.*unsupported operation"):
+        out = _descend(player)
+    np.testing.assert_array_equal(out[0], traced[0])
+    np.testing.assert_array_equal(out[1], traced[1])
+    assert not player.freeze  # later descents trace without trying again
+
+
 @pytest.mark.parametrize("per_edge", [True, False], ids=["per-edge", "per-segment"])
 def test_the_fixed_size_loss_equals_the_loss(mi, shapes, per_edge):
     """loss_fixed's active-pair buffer holds the same pairs in the same order: same bits.
