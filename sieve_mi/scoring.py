@@ -119,9 +119,11 @@ def score_poses(
         inside = (row == rc) & (col == cc) & (d == 0)
         dist = (d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))) * frame.pixel_size
         out = hit & ~inside
-        area = dr.block_sum(dr.select(hit, 1.0, 0.0), npix)
-        outside = dr.block_sum(dr.select(out, 1.0, 0.0), npix)
-        worst = dr.block_reduce(dr.ReduceOp.Max, dr.select(out, dist, 0.0), npix)
+        per_ray = (dr.select(hit, 1.0, 0.0), dr.select(out, 1.0, 0.0), dr.select(out, dist, 0.0))
+        dr.eval(*per_ray)  # one ray-casting kernel; unevaluated, each reduction would trace again
+        area = dr.block_sum(per_ray[0], npix)
+        outside = dr.block_sum(per_ray[1], npix)
+        worst = dr.block_reduce(dr.ReduceOp.Max, per_ray[2], npix)
         area, outside, worst = (np.asarray(a, dtype=np.float64) for a in (area, outside, worst))
         beta[sl] = np.where(area > 0, outside / np.maximum(area, 1), 1.0)
         prot[sl] = worst

@@ -267,3 +267,36 @@ def test_rendered_masks_equal_the_traced_ones(which):
         traced = renderer.masks(q[None], t[None], frame, np.array([row0]), np.array([col0]), 50)
         assert np.array_equal(window, traced[0])
     assert covered > 1000  # the shapes are really on the film
+
+
+def test_scoring_casts_each_ray_once_and_counts_pixels(cube20):
+    # score_poses reduces one ray-casting pass three ways (area, outside, worst distance): the
+    # rays are cast by one kernel, not once per reduction. A 12 mm sphere centred in a 40 mm
+    # square hole has no pixel outside it (beta 0); moved 43 mm aside, beyond the frame's edge,
+    # it lies wholly outside the hole (beta 1).
+    import drjit as dr
+
+    from sieve_mi.hole import Hole
+    from sieve_mi.scoring import score_poses, window_for
+
+    frame = Frame(96, 30.0)
+    xc, yc = frame.centres()
+    xx, yy = np.meshgrid(xc, yc)
+    hole = Hole.from_mask((np.abs(xx) < 20) & (np.abs(yy) < 20), frame)
+    renderer = SilhouetteRenderer(sphere(12.0, 4))
+    quats = np.tile([1.0, 0, 0, 0], (2, 1))
+    trans = np.array([[0.0, 0.0], [30.0 + 12.0 + 1.0, 0.0]])
+    score_poses(renderer, hole, quats, trans)  # compile
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        dr.kernel_history()
+        scores = score_poses(renderer, hole, quats, trans)
+        history = dr.kernel_history()
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+    n_rays = max(k["size"] for k in history)
+    casts = [k for k in history if k["size"] == n_rays and str(k["type"]).endswith("JIT")]
+    size = window_for(renderer, frame, trans)[2]
+    assert n_rays == 2 * size * size and len(casts) == 1
+    np.testing.assert_array_equal(scores.beta, [0.0, 1.0])
+    assert scores.protrusion[0] == 0 and scores.protrusion[1] > 0
