@@ -392,6 +392,9 @@ class PlayerB:
         state = {"overflow": dr.opaque(mi.Bool, False)}
 
         def step(best, best_loss):
+            # Literals (Adam's step counter after the traced steps) become evaluated arrays, so
+            # every descent's first frozen step has the layout of the later ones and replays.
+            dr.make_opaque(opt.state, best, best_loss)
             best, best_loss, state["overflow"] = self._frozen(
                 opt, best, best_loss, state["overflow"], loss, stack, hole_idx, record
             )
