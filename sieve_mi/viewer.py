@@ -2,7 +2,8 @@
 
 The page holds everything it needs: its style sheet and script (the package's ``assets/``, inlined;
 a small hand-written WebGL viewer, no third-party code), the passage scene of
-:mod:`sieve_mi.passage` as JSON (mesh positions as base64 little-endian float32, faces as uint32),
+:mod:`sieve_mi.passage` as JSON (mesh positions as base64 little-endian float32, faces as uint32;
+meshes over :data:`DISPLAY_FACES` triangles simplified for display, :func:`display_mesh`),
 and the 2D hole view and the convergence plot as inline SVG. It makes no network request while it
 is viewed: its Content-Security-Policy allows only its own inline script and style and images from
 its folder (``passage.gif``); links to the other output files are relative.
@@ -50,6 +51,81 @@ def decode(text: str, dtype: str, columns: int = 3) -> np.ndarray:
     return np.frombuffer(base64.b64decode(text), dtype=dtype).reshape(-1, columns)
 
 
+#: Most triangles of one mesh on the page; larger meshes are simplified for display only.
+DISPLAY_FACES = 100_000
+
+
+def display_mesh(vertices: np.ndarray, faces: np.ndarray, max_faces: int = DISPLAY_FACES):
+    """A mesh for the page: itself if it has at most ``max_faces`` triangles, else simplified.
+
+    Simplification clusters vertices on a grid (each cluster becomes its mean vertex) and drops
+    the triangles that collapse or repeat; the grid is coarsened until at most ``max_faces``
+    remain. Every vertex moves by at most one cell diagonal, reported as ``error``. Only the 3D
+    view uses this: the hole, the scores and the plate files come from the full meshes.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float ndarray
+    faces : (F, 3) int ndarray
+    max_faces : int
+
+    Returns
+    -------
+    vertices : (V', 3) float ndarray
+    faces : (F', 3) int ndarray
+    error : float
+        Largest distance a vertex moved (scene units; 0 if unchanged).
+
+    Examples
+    --------
+    >>> import trimesh
+    >>> ball = trimesh.creation.icosphere(5, 10.0)  # 20,480 triangles
+    >>> v, f, err = display_mesh(ball.vertices, ball.faces, max_faces=2000)
+    >>> len(f) <= 2000 and err < 3.0
+    True
+    """
+    vertices, faces = np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
+    if len(faces) <= max_faces:
+        return vertices, faces, 0.0
+    lo = vertices.min(0)
+    extent = float((vertices.max(0) - lo).max()) or 1.0
+    n = max(2, int(np.sqrt(max_faces)))  # a closed surface on an n^3 grid has ~n^2 cells
+    while True:
+        cell = extent / n
+        v, f = _cluster(vertices, faces, lo, cell)
+        if len(f) <= max_faces or n <= 2:
+            return v, f, float(np.sqrt(3.0) * cell)
+        n = max(2, int(n * 0.8))
+
+
+def _cluster(vertices, faces, lo, cell):
+    """Vertices merged per grid cell (their mean) and the triangles left (no repeats)."""
+    ijk = np.floor((vertices - lo) / cell).astype(np.int64)
+    side = int(ijk.max()) + 1
+    _, group = np.unique((ijk[:, 0] * side + ijk[:, 1]) * side + ijk[:, 2], return_inverse=True)
+    group = group.ravel()
+    count = np.bincount(group)
+    merged = np.stack([np.bincount(group, vertices[:, i]) / count for i in range(3)], axis=1)
+    f = group[faces]
+    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
+    s = np.sort(f, axis=1)
+    m = len(merged)
+    if m**3 < 2**62:  # one int64 per triangle: much faster than rows
+        _, first = np.unique((s[:, 0] * m + s[:, 1]) * m + s[:, 2], return_index=True)
+    else:
+        _, first = np.unique(s, axis=0, return_index=True)
+    return merged, f[np.sort(first)]
+
+
+def _mesh_data(vertices, faces) -> dict:
+    """``positions`` and ``faces`` (base64) of a mesh as shown, and ``simplified`` if it is."""
+    v, f, error = display_mesh(vertices, faces)
+    data = {"positions": _b64(v, "<f4"), "faces": _b64(f, "<u4")}
+    if error > 0:
+        data["simplified"] = {"faces": int(len(faces)), "shown": int(len(f)), "error": error}
+    return data
+
+
 def _hex(rgb) -> str:
     return "#" + "".join(f"{round(255 * c):02x}" for c in rgb)
 
@@ -67,7 +143,9 @@ def scene_data(passage, report: dict) -> dict:
     -------
     dict
         ``plate`` and each of ``pieces`` have ``positions`` ((V, 3) float32, base64) and ``faces``
-        ((F, 3) uint32, base64); a piece also has ``id`` (``a<i>``/``b<j>``), ``name``, ``role``,
+        ((F, 3) uint32, base64), simplified for display above :data:`DISPLAY_FACES` triangles
+        (then ``simplified`` gives the full and shown triangle counts and the largest vertex
+        shift, :func:`display_mesh`); a piece also has ``id`` (``a<i>``/``b<j>``), ``name``, ``role``,
         ``passes``, ``start``, ``end``, ``stop``, ``slot`` (its motion, :class:`~sieve_mi.passage.Piece`)
         and ``centre`` (xy, scene units). ``bounds`` is the (2, 3) box of the whole motion and
         ``plate_box`` the plate's xy box ``[[x0, y0], [x1, y1]]``.
@@ -88,8 +166,7 @@ def scene_data(passage, report: dict) -> dict:
                 "slot": [float(x) for x in p.slot],
                 "centre": [float(c) for c in p.centre],
                 "colour": list(COLOURS[kind]),
-                "positions": _b64(p.vertices, "<f4"),
-                "faces": _b64(p.faces, "<u4"),
+                **_mesh_data(p.vertices, p.faces),
             }
         )
     return {
@@ -99,11 +176,7 @@ def scene_data(passage, report: dict) -> dict:
         "thickness": float(passage.thickness),
         "bounds": passage.bounds().tolist(),
         "plate_box": [pv[:, :2].min(0).tolist(), pv[:, :2].max(0).tolist()],
-        "plate": {
-            "colour": list(COLOURS["plate"]),
-            "positions": _b64(pv, "<f4"),
-            "faces": _b64(passage.plate_faces, "<u4"),
-        },
+        "plate": {"colour": list(COLOURS["plate"]), **_mesh_data(pv, passage.plate_faces)},
         "pieces": pieces,
         "background": list(COLOURS["background"]),
     }
@@ -245,15 +318,24 @@ def _asset(name: str) -> str:
 
 def _toggles(data: dict) -> str:
     """Checkboxes: the plate, each A and each B (each hides the shape in both views)."""
-    items = [("plate", "plate", "plate")]
+    items = [("plate", "plate" + _simplified(data["plate"], data["units"]), "plate")]
     for p in data["pieces"]:
         kind = "pass" if p["role"] == "pass" else ("escaped" if p["passes"] else "blocked")
-        items.append((p["id"], f"{'A' if p['role'] == 'pass' else 'B'}: {p['name']}", kind))
+        label = f"{'A' if p['role'] == 'pass' else 'B'}: {p['name']}"
+        items.append((p["id"], label + _simplified(p, data["units"]), kind))
     return "".join(
         f'<label class="toggle {kind}"><input type="checkbox" checked data-toggle="{i}"> '
         f"{html.escape(label)}</label>"
         for i, label, kind in items
     )
+
+
+def _simplified(mesh: dict, units: str) -> str:
+    """`` (3D: 90,126 of 1,310,720 triangles, within 0.34 mm)`` for a simplified mesh, else ``""``."""
+    s = mesh.get("simplified")
+    if not s:
+        return ""
+    return f" (3D: {s['shown']:,} of {s['faces']:,} triangles, within {s['error']:.2g} {units})"
 
 
 def _files(folder_files: list[str]) -> str:

@@ -481,3 +481,27 @@ def test_view_opens_the_page_and_refuses_what_is_not_an_output(merged, tmp_path)
         p = run_cli("view", str(folder), env=env)
         assert p.returncode == 2 and needle in p.stderr
         assert len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
+
+
+def test_a_dense_mesh_is_simplified_for_the_3d_view_only():
+    # A 327,680-triangle ball of radius 10 is shown with at most 20,000 triangles whose vertices
+    # stay within the reported error of the sphere, still spanning it; a mesh under the cap is
+    # shown as it is, and the page's toggle says when a mesh is simplified.
+    ball = trimesh.creation.icosphere(7, 10.0)
+    v, f, error = viewer.display_mesh(ball.vertices, ball.faces, max_faces=20_000)
+    assert 5_000 < len(f) <= 20_000 and 0 < error < 1.0
+    r = np.linalg.norm(v, axis=1)
+    assert np.abs(r - 10.0).max() <= error
+    np.testing.assert_allclose(v.min(0), -10.0, atol=error)
+    np.testing.assert_allclose(v.max(0), 10.0, atol=error)
+    assert f.max() < len(v) and len(np.unique(np.sort(f, axis=1), axis=0)) == len(f)
+    small = trimesh.creation.box((1.0, 2.0, 3.0))
+    v2, f2, e2 = viewer.display_mesh(small.vertices, small.faces, max_faces=20_000)
+    assert e2 == 0 and np.array_equal(f2, small.faces) and np.array_equal(v2, small.vertices)
+    data = viewer._mesh_data(ball.vertices, ball.faces)  # the page's cap: 100,000 triangles
+    shown = viewer.decode(data["faces"], "<u4")
+    assert data["simplified"]["faces"] == len(ball.faces) == 327_680
+    assert data["simplified"]["shown"] == len(shown) <= viewer.DISPLAY_FACES
+    label = viewer._simplified(data, "mm")
+    assert label.startswith(" (3D: ") and "of 327,680 triangles, within" in label
+    assert viewer._simplified(viewer._mesh_data(small.vertices, small.faces), "mm") == ""
