@@ -393,7 +393,7 @@ class PlayerB:
 
         def step(best, best_loss):
             # Literals (Adam's step counter after the traced steps) become evaluated arrays, so
-            # every descent's first frozen step has the layout of the later ones and replays.
+            # the first frozen step has the layout of the later ones (else it is recorded twice).
             dr.make_opaque(opt.state, best, best_loss)
             best, best_loss, state["overflow"] = self._frozen(
                 opt, best, best_loss, state["overflow"], loss, stack, hole_idx, record
