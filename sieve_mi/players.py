@@ -138,6 +138,13 @@ class AttackMemory:
         ).reshape(-1, 2)
 
 
+#: On the CPU (LLVM variants) descents with more (pose, segment) pairs than this trace their steps
+#: even with ``freeze``: there a big step is bound by arithmetic and the frozen step's fixed-size
+#: buffer passes cost more than tracing saves (docs/performance.md: a 70k-face bunny at 100 poses,
+#: 15M pairs, steps 15 % slower frozen; spot/cow's verdict, 2.7M pairs, is 1.1x faster frozen).
+CPU_FREEZE_PAIRS = 5_000_000
+
+
 class _BufferOverflow(Exception):
     """A frozen descent's active-pair buffer overflowed: its results are wrong."""
 
@@ -161,7 +168,8 @@ class PlayerB:
         Edge samples per segment for the clearance objective (default: from the edge lengths).
     freeze : bool
         Record the Adam step once and replay it (:mod:`sieve_mi.frozen`) where the objective
-        allows it (``clearance``); the results are the same either way.
+        allows it (``clearance``) and it pays (on the CPU only up to :data:`CPU_FREEZE_PAIRS`
+        (pose, segment) pairs per step); the results are the same either way.
     """
 
     def __init__(
@@ -383,6 +391,8 @@ class PlayerB:
         import mitsuba as mi
 
         if not (self.freeze and getattr(loss, "freezable", False)):
+            return None
+        if loss.pair_count > CPU_FREEZE_PAIRS and mi.variant().startswith("llvm"):
             return None
         from sieve_mi.frozen import frozen_step
 

@@ -86,6 +86,19 @@ def test_a_failing_frozen_step_warns_and_traces(mi, shapes, monkeypatch):
     assert not player.freeze  # later descents trace without trying again
 
 
+def test_large_cpu_steps_are_traced(mi, shapes, monkeypatch):
+    """On the CPU a descent with more pairs than CPU_FREEZE_PAIRS is traced: same poses."""
+    import sieve_mi.players
+
+    traced = _descend(PlayerB(shapes, FRAME, freeze=False))
+    monkeypatch.setattr(sieve_mi.players, "CPU_FREEZE_PAIRS", 10)
+    player = PlayerB(shapes, FRAME, freeze=True)
+    out = _descend(player)
+    assert player._frozen is None and player.freeze  # not recorded, still on for smaller ones
+    np.testing.assert_array_equal(out[0], traced[0])
+    np.testing.assert_array_equal(out[1], traced[1])
+
+
 @pytest.mark.parametrize("per_edge", [True, False], ids=["per-edge", "per-segment"])
 def test_the_fixed_size_loss_equals_the_loss(mi, shapes, per_edge):
     """loss_fixed's active-pair buffer holds the same pairs in the same order: same bits.
