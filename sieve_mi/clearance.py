@@ -88,6 +88,47 @@ def expand_ranges(start, length):
     return dr.gather(mi.UInt32, start, entry) + (i - dr.gather(mi.UInt32, offset, entry))
 
 
+def pose_ranges(start: np.ndarray, length: np.ndarray):
+    """Pose-major pairs: pose j gets the items ``start[j], ..., start[j] + length[j] - 1``.
+
+    Built on the device (one synchronisation for the total); poses with no items get none.
+
+    Parameters
+    ----------
+    start, length : (K,) ndarrays of int
+        Each pose's first item and item count (``length`` >= 0).
+
+    Returns
+    -------
+    pose, item : mi.UInt32
+        ``sum(length)`` entries each, pose-major.
+
+    Examples
+    --------
+    start (3, 10, 7), length (2, 0, 3) -> pose (0, 0, 2, 2, 2), item (3, 4, 7, 8, 9).
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    start, length = np.asarray(start, dtype=np.int64), np.asarray(length, dtype=np.int64)
+    some = np.flatnonzero(length > 0)
+    if len(some) == 0:
+        return dr.zeros(mi.UInt32, 0), dr.zeros(mi.UInt32, 0)
+    length_u = mi.UInt32(length[some].astype(np.uint32))
+    offset = dr.prefix_sum(length_u)  # exclusive
+    total = int(length[some].sum())
+    marks = dr.zeros(mi.UInt32, total)
+    dr.scatter(marks, mi.UInt32(1), offset, offset > 0)
+    entry = dr.cumsum(marks)  # inclusive: which of the poses with items
+    i = dr.arange(mi.UInt32, total)
+    pose = dr.gather(mi.UInt32, mi.UInt32(some.astype(np.uint32)), entry)
+    item = dr.gather(mi.UInt32, mi.UInt32(start[some].astype(np.uint32)), entry) + (
+        i - dr.gather(mi.UInt32, offset, entry)
+    )
+    dr.eval(pose, item)
+    return pose, item
+
+
 def auto_samples(shapes: list[Shape], spacing: float, most: int = 4) -> int:
     """Samples per segment from the median edge length (in units of ``spacing``), in [1, most]."""
     from sieve_mi.meshes import edge_topology
@@ -177,6 +218,10 @@ class ClearanceObjective:
     def bind(self, pose_shape: np.ndarray) -> None:
         """Fix which shape each pose belongs to (builds the (pose, segment) pair list).
 
+        The pair lists are built on the device (:func:`pose_ranges`): only per-pose numbers go
+        through NumPy, so binding 100 poses of a 70k-face mesh takes milliseconds and no host
+        copies of the K x S pairs.
+
         Parameters
         ----------
         pose_shape : (K,) ndarray of int
@@ -185,13 +230,7 @@ class ClearanceObjective:
         mi = self.mi
         pose_shape = np.asarray(pose_shape, dtype=np.int64)
         n = self.counts[pose_shape]
-        pair_pose = np.repeat(np.arange(len(pose_shape)), n)
-        start = np.repeat(self.offsets[pose_shape] - (np.cumsum(n) - n), n)
-        pair_seg = np.arange(int(n.sum())) + start
-        self._pairs = (
-            mi.UInt32(pair_pose.astype(np.uint32)),
-            mi.UInt32(pair_seg.astype(np.uint32)),
-        )
+        self._pairs = pose_ranges(self.offsets[pose_shape], n)
         # Each pose's first pair and one past its last (pairs are pose-major).
         ends = np.cumsum(n)
         self._pose_ends = (
@@ -203,24 +242,21 @@ class ClearanceObjective:
 
     def _bind_edges(self, pose_shape: np.ndarray, pose_first_pair: np.ndarray) -> None:
         """The (pose, edge) pairs, each with its first (pose, segment) pair and segment count."""
-        mi, e = self.mi, self._edges
+        dr, mi, e = self.dr, self.mi, self._edges
         n = e["count"][pose_shape]
-        pair_pose = np.repeat(np.arange(len(pose_shape)), n)
-        start = np.repeat(e["offset"][pose_shape] - (np.cumsum(n) - n), n)
-        pair_edge = np.arange(int(n.sum())) + start
-        first = pose_first_pair[pair_pose] + e["first_local"][pair_edge]
+        pair_pose, pair_edge = pose_ranges(e["offset"][pose_shape], n)
+        first = dr.gather(
+            mi.UInt32, mi.UInt32(pose_first_pair.astype(np.uint32)), pair_pose
+        ) + dr.gather(mi.UInt32, mi.UInt32(e["first_local"].astype(np.uint32)), pair_edge)
+        pieces = dr.gather(mi.UInt32, mi.UInt32(e["pieces"].astype(np.uint32)), pair_edge)
         # Each pose's first (pose, edge) pair and one past its last (pose-major, as for segments).
         ends = np.cumsum(n)
         self._edge_pose_ends = (
             mi.UInt32((ends - n).astype(np.uint32)),
             mi.UInt32(ends.astype(np.uint32)),
         )
-        self._edge_pairs = (
-            mi.UInt32(pair_pose.astype(np.uint32)),
-            mi.UInt32(pair_edge.astype(np.uint32)),
-            mi.UInt32(first.astype(np.uint32)),
-            mi.UInt32(e["pieces"][pair_edge].astype(np.uint32)),
-        )
+        self._edge_pairs = (pair_pose, pair_edge, first, pieces)
+        dr.eval(self._edge_pairs)
 
     def loss(self, q, t, holes: HoleStack, pose_hole):
         """Total and per-pose clearance loss (pixels squared), summed in a fixed order.

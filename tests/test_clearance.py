@@ -110,6 +110,49 @@ def test_expand_ranges_lists_every_range_in_order(mi):
     assert len(np.array(expand_ranges(mi.UInt32([]), mi.UInt32([])))) == 0
 
 
+def test_pose_ranges_lists_each_poses_items_in_order(mi):
+    from sieve_mi.clearance import pose_ranges
+
+    pose, item = pose_ranges(np.array([3, 10, 7, 0]), np.array([2, 0, 3, 1]))
+    assert np.array(pose).tolist() == [0, 0, 2, 2, 2, 3]
+    assert np.array(item).tolist() == [3, 4, 7, 8, 9, 0]
+    empty = pose_ranges(np.array([5]), np.array([0]))
+    assert len(np.array(empty[0])) == len(np.array(empty[1])) == 0
+
+
+def test_bound_pairs_are_every_poses_segments_and_edges(mi, cube20):
+    # bind() builds the pairs on the device; they must be, entry for entry, each pose's segments
+    # (and edges, with each edge's first segment pair and segment count) in pose order, for a
+    # mix of shapes: the definition, written out here with NumPy.
+    import trimesh
+
+    from sieve_mi.meshes import shape_from_trimesh
+
+    torus = shape_from_trimesh(trimesh.creation.torus(8.0, 2.5), name="torus")
+    shapes = [cube20, sphere(12.0), torus]
+    obj = ClearanceObjective(shapes, Frame(128, 20.0))
+    pose_shape = np.array([2, 0, 0, 1, 2, 1, 0])
+    obj.bind(pose_shape)
+    e = obj._edges
+    want_pose, want_seg, want_epose, want_edge, want_first, want_pieces = [], [], [], [], [], []
+    first_pair = 0
+    for k, sh in enumerate(pose_shape):
+        segs = np.arange(obj.offsets[sh], obj.offsets[sh] + obj.counts[sh])
+        edges = np.arange(e["offset"][sh], e["offset"][sh] + e["count"][sh])
+        want_pose += [k] * len(segs)
+        want_seg += segs.tolist()
+        want_epose += [k] * len(edges)
+        want_edge += edges.tolist()
+        want_first += (first_pair + e["first_local"][edges]).tolist()
+        want_pieces += e["pieces"][edges].tolist()
+        first_pair += len(segs)
+    got = [np.array(a).tolist() for a in (*obj._pairs, *obj._edge_pairs)]
+    want = [want_pose, want_seg, want_epose, want_edge, want_first, want_pieces]
+    for g, w in zip(got, want):
+        assert g == w
+    assert obj.pair_count == first_pair > 1000
+
+
 def test_per_edge_silhouette_test_keeps_exactly_the_per_segment_pairs(mi, cube20):
     # The silhouette test runs per (pose, edge) and expands the active edges into their
     # segments; it must give the very list that testing every (pose, segment) gives, for closed,
