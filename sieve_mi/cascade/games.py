@@ -56,15 +56,6 @@ class GameSpec:
     label: dict
 
 
-def mesh_digest(path: str) -> str:
-    """sha256 of a mesh file's bytes."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def game_key(prefix: str, scene: Scene, seed: int, variant: str, digests: dict) -> str:
     """``<prefix>-<hash>``: the hash covers the shapes (mesh digests, scales, names, roles),
     every setting, the units, the seed and the variant, so an edited mixture plays again."""

@@ -8,7 +8,7 @@ import time
 import numpy as np
 
 from sieve_mi import outdir
-from sieve_mi.cascade.games import Engine, GameSpec, game_key, mesh_digest, ray_module
+from sieve_mi.cascade.games import Engine, GameSpec, game_key, ray_module
 from sieve_mi.cascade.mixture import Mixture
 from sieve_mi.cascade.outputs import (
     cascade_dict,
@@ -19,6 +19,7 @@ from sieve_mi.cascade.outputs import (
 )
 from sieve_mi.cascade.plan import plan_cascade
 from sieve_mi.cascade.size import passage_radius
+from sieve_mi.provenance import sha256
 
 
 def prepare(mixture: Mixture) -> tuple[dict, list, dict]:
@@ -42,7 +43,7 @@ def prepare(mixture: Mixture) -> tuple[dict, list, dict]:
     for e in mixture.shapes:
         path = mixture.resolve(e.mesh)
         e.data = load_trimesh(path)
-        digests[e.name] = mesh_digest(path)
+        digests[e.name] = sha256(path)
         shape = shape_from_trimesh(e.data, name=e.name, scale=e.scale)
         radius, view = passage_radius(shape)
         rows.append(

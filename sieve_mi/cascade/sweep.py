@@ -16,8 +16,9 @@ import time
 import numpy as np
 
 from sieve_mi import outdir
-from sieve_mi.cascade.games import Engine, GameSpec, game_key, mesh_digest, weakest
+from sieve_mi.cascade.games import Engine, GameSpec, game_key, weakest
 from sieve_mi.cascade.outputs import copy_games, write_json
+from sieve_mi.provenance import sha256
 from sieve_mi.scene import Scene
 
 
@@ -38,7 +39,7 @@ def _loaded(scene: Scene) -> tuple[Scene, dict]:
         if e.data is None:
             path = scene.resolve(e.mesh)
             e.data = load_trimesh(path)
-            digests[e.name] = mesh_digest(path)
+            digests[e.name] = sha256(path)
         else:  # a mesh given in code: its arrays' bytes
             arrays = np.asarray(e.data.vertices).tobytes() + np.asarray(e.data.faces).tobytes()
             digests[e.name] = hashlib.sha256(arrays).hexdigest()
