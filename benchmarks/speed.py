@@ -74,13 +74,18 @@ def compare(scene, variant: str, key: str, values: list, repeat: int) -> dict:
 def step_times(variant: str, poses=(10, 100, 1000), steps: int = 100) -> None:
     """Print ms per Adam step, traced and frozen, for K cube-hole/sphere poses (one run).
 
-    Each is (time of ``2 + steps`` steps - time of 2 steps) / ``steps``, the minimum of 3, after a
-    warm-up descent that compiles the kernels and records the frozen step: the set-up of a descent
-    (binding, the final scoring evaluation) and its two traced first steps are left out.
+    Each is :func:`benchmarks.objectives.step_time` with ``skip = 2``: (time of ``2 + steps``
+    steps - time of 2 steps) / ``steps``, the minimum of 3, after a warm-up descent that compiles
+    the kernels and records the frozen step; a descent's set-up and its two traced first steps are
+    left out.
     """
+    from benchmarks.objectives import step_time
     from sieve_mi.layout import hole_frame
     from sieve_mi.meshes import load_shape
     from sieve_mi.players import PlayerA, PlayerB
+
+    def rng():
+        return np.random.default_rng(0)
 
     meshes = os.path.join(ROOT, "scenes", "meshes")
     a, b = (load_shape(os.path.join(meshes, n)) for n in ("cube.stl", "sphere.stl"))
@@ -90,27 +95,10 @@ def step_times(variant: str, poses=(10, 100, 1000), steps: int = 100) -> None:
     print(f"{'poses':>6s} {'traced':>8s} {'frozen':>8s} {'traced / frozen':>16s}")
     for k in poses:
         ms = {
-            f: _step_ms(PlayerB([b], frame, "clearance", freeze=f), hole, k, steps) for f in (0, 1)
+            f: 1e3 * step_time(PlayerB([b], frame, "clearance", freeze=f), hole, k, steps, rng(), 2)
+            for f in (0, 1)
         }
         print(f"{k:6d} {ms[0]:8.2f} {ms[1]:8.2f} {ms[0] / ms[1]:15.2f}x")
-
-
-def _step_ms(player, hole, k: int, steps: int) -> float:
-    """Milliseconds per step of ``player``'s descents of ``k`` poses (see :func:`step_times`)."""
-    rng = np.random.default_rng(0)
-    q0 = np.tile([1.0, 0, 0, 0], (k, 1)) + rng.normal(0, 0.3, (k, 4))
-    t0 = rng.uniform(-0.1, 0.1, (k, 2)) * hole.frame.half_extent
-    zero = np.zeros(k, int)
-
-    def run(n):
-        t = time.perf_counter()
-        player.descend([hole], zero, zero, q0, t0, n, 0.05)
-        return time.perf_counter() - t
-
-    run(steps + 2)
-    short = min(run(2) for _ in range(3))
-    long = min(run(steps + 2) for _ in range(3))
-    return max(long - short, 0.0) / steps * 1e3
 
 
 def table(name: str, rows: dict, base) -> None:
