@@ -79,19 +79,26 @@ def expand_ranges(start, length):
 
     if dr.width(start) == 0:
         return dr.zeros(mi.UInt32, 0)
+    return _ranges(start, length, int(dr.sum(length)[0]))[1]
+
+
+def _ranges(start, length, total: int):
+    """:func:`expand_ranges` with its ``total`` given: (range index j, integer) of every entry."""
+    import drjit as dr
+    import mitsuba as mi
+
     offset = dr.prefix_sum(length)  # exclusive
-    total = int(dr.sum(length)[0])
     marks = dr.zeros(mi.UInt32, total)
     dr.scatter(marks, mi.UInt32(1), offset, offset > 0)
     entry = dr.cumsum(marks)  # inclusive
     i = dr.arange(mi.UInt32, total)
-    return dr.gather(mi.UInt32, start, entry) + (i - dr.gather(mi.UInt32, offset, entry))
+    return entry, dr.gather(mi.UInt32, start, entry) + (i - dr.gather(mi.UInt32, offset, entry))
 
 
 def pose_ranges(start: np.ndarray, length: np.ndarray):
     """Pose-major pairs: pose j gets the items ``start[j], ..., start[j] + length[j] - 1``.
 
-    Built on the device (one synchronisation for the total); poses with no items get none.
+    Built on the device (:func:`expand_ranges`' scan); poses with no items get none.
 
     Parameters
     ----------
@@ -114,17 +121,12 @@ def pose_ranges(start: np.ndarray, length: np.ndarray):
     some = np.flatnonzero(length > 0)
     if len(some) == 0:
         return dr.zeros(mi.UInt32, 0), dr.zeros(mi.UInt32, 0)
-    length_u = mi.UInt32(length[some].astype(np.uint32))
-    offset = dr.prefix_sum(length_u)  # exclusive
-    total = int(length[some].sum())
-    marks = dr.zeros(mi.UInt32, total)
-    dr.scatter(marks, mi.UInt32(1), offset, offset > 0)
-    entry = dr.cumsum(marks)  # inclusive: which of the poses with items
-    i = dr.arange(mi.UInt32, total)
-    pose = dr.gather(mi.UInt32, mi.UInt32(some.astype(np.uint32)), entry)
-    item = dr.gather(mi.UInt32, mi.UInt32(start[some].astype(np.uint32)), entry) + (
-        i - dr.gather(mi.UInt32, offset, entry)
+    entry, item = _ranges(
+        mi.UInt32(start[some].astype(np.uint32)),
+        mi.UInt32(length[some].astype(np.uint32)),
+        int(length[some].sum()),
     )
+    pose = dr.gather(mi.UInt32, mi.UInt32(some.astype(np.uint32)), entry)
     dr.eval(pose, item)
     return pose, item
 
