@@ -307,16 +307,25 @@ class PlayerB:
         except _FrozenStepFailed as failure:
             self._stop_freezing(failure.__cause__)
         except _BufferOverflow:  # more active pairs than the buffer held: this descent traced
-            self.freeze = False
-            try:
-                return self._descend(*args)
-            finally:
-                self.freeze = True
+            return self._descend(*args, may_freeze=False)
         return self._descend(*args)
 
-    def _descend(self, holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress=None):
+    def _descend(
+        self,
+        holes,
+        pose_hole,
+        pose_shape,
+        q0,
+        t0,
+        steps,
+        learning_rate,
+        progress=None,
+        *,
+        may_freeze: bool = True,
+    ):
         """:meth:`descend` without its fallbacks; raises :class:`_BufferOverflow` or
-        :class:`_FrozenStepFailed` when a frozen descent must run again traced."""
+        :class:`_FrozenStepFailed` when a frozen descent must run again traced. ``may_freeze=False``
+        traces every step."""
         import drjit as dr
         import mitsuba as mi
 
@@ -341,7 +350,8 @@ class PlayerB:
             kept = [dr.select(improved, dr.detach(opt[key]), b) for key, b in zip(POSE_KEYS, best)]
             return kept, dr.select(improved, per_pose, best_loss)
 
-        frozen = self._frozen_steps(loss, opt, stack, hole_idx, scale) if steps > 0 else None
+        may_freeze = may_freeze and steps > 0
+        frozen = self._frozen_steps(loss, opt, stack, hole_idx, scale) if may_freeze else None
         try:
             for step in range(steps):
                 if frozen is not None and step >= 2:  # steps 1, 2 differ in layout: traced
