@@ -3,10 +3,10 @@
 Usage: ``python -m benchmarks.animation [--variant V] [--scene default|letters] [--repeat R]``
 
 Solves the scene with small solver settings (the outputs' cost does not depend on how long the
-search ran), then times: the passage scene (:func:`sieve_mi.passage.build`), the GIF's frames in
+search ran), then times: the passage scene (:func:`sieve_mi.outputs.passage.build`), the GIF's frames in
 one batched ``mi.render`` (first call, with kernel compilation, then the median of R more), the
 same frames rendered one ``mi.render`` per frame (the alternative the batch replaces), the GIF
-file, and the page (:func:`sieve_mi.viewer.render_page`, with its size).
+file, and the page (:func:`sieve_mi.outputs.viewer.render_page`, with its size).
 """
 
 from __future__ import annotations
@@ -49,11 +49,11 @@ def main() -> None:
     p.add_argument("--repeat", type=int, default=3)
     args = p.parse_args()
 
-    from sieve_mi import animation, viewer
-    from sieve_mi.passage import build
-    from sieve_mi.report import report_dict
+    from sieve_mi.api import solve
+    from sieve_mi.outputs import animation, viewer
+    from sieve_mi.outputs.passage import build
+    from sieve_mi.outputs.report import report_dict
     from sieve_mi.scene import load_scene
-    from sieve_mi.solver import solve
 
     body = open(os.path.join(ROOT, "scenes", f"{args.scene}.toml")).read()
     body = body.split("[solver]")[0].split("[verdict]")[0]  # the scene's own solver settings go

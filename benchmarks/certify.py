@@ -19,9 +19,9 @@ import time
 import numpy as np
 
 from sieve_mi.certify import certify, read_svg_hole, replay
-from sieve_mi.meshes import load_shape, shape_from_trimesh
-from sieve_mi.outline import hole_outline
-from sieve_mi.rotations import align
+from sieve_mi.geometry.meshes import load_shape, shape_from_trimesh
+from sieve_mi.geometry.outline import hole_outline
+from sieve_mi.geometry.rotations import align
 from sieve_mi.testing import shapes
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

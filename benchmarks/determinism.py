@@ -6,7 +6,7 @@ Usage: ``python -m benchmarks.determinism [--variant V] [--poses K] [--steps N] 
 summed with ``dr.scatter_reduce(Add)`` and gradients from AD, whose backward pass turns each
 per-sample gather of a pose's rotation and translation into an atomic scatter-add (summation order
 set by thread scheduling), and a hand-written Adam. "After" is the package: per-pose sums in a
-fixed order (:meth:`sieve_mi.clearance.ClearanceObjective._pose_sums`) and ``drjit.opt.Adam``.
+fixed order (:meth:`sieve_mi.objectives.clearance.ClearanceObjective._pose_sums`) and ``drjit.opt.Adam``.
 
 For each B shape (K poses against ten 22 mm cube holes, as in one PSO iteration of the default scene) it prints the median
 time of one loss + gradient evaluation, of a whole descent of N Adam steps, the median best loss
@@ -35,7 +35,7 @@ def atomic_loss(obj, q, t, holes, pose_hole):
     import drjit as dr
     import mitsuba as mi
 
-    from sieve_mi.rotations import quat_rows
+    from sieve_mi.geometry.rotations import quat_rows
 
     pair_pose, pair_seg = obj._pairs
     rows = quat_rows(*q)
@@ -64,8 +64,8 @@ def hand_adam_descend(player, holes, pose_hole, q0, t0, steps, lr, loss_fn=atomi
     import drjit as dr
     import mitsuba as mi
 
-    from sieve_mi.hole import HoleStack
-    from sieve_mi.rotations import normalize
+    from sieve_mi.geometry.hole import HoleStack
+    from sieve_mi.geometry.rotations import normalize
 
     obj, stack, scale = player._loss_fn(), HoleStack(holes), player.frame.half_extent
     x0 = np.concatenate([q0, np.asarray(t0) / scale], axis=1).astype(np.float32)
@@ -103,10 +103,10 @@ def setup(path, scale, poses, rng):
     """
     import trimesh
 
-    from sieve_mi.meshes import load_shape, shape_from_trimesh
-    from sieve_mi.players import PlayerA, PlayerB
-    from sieve_mi.rotations import random_uniform
-    from sieve_mi.solver import hole_frame
+    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.game.solver import hole_frame
+    from sieve_mi.geometry.meshes import load_shape, shape_from_trimesh
+    from sieve_mi.geometry.rotations import random_uniform
 
     cube = shape_from_trimesh(trimesh.creation.box((20.0, 20.0, 20.0)), name="cube")
     frame = hole_frame(cube, 1.0, 256)
@@ -122,7 +122,7 @@ def time_loss(player, holes, q0, t0, loss_fn, repeat):
     import drjit as dr
     import mitsuba as mi
 
-    from sieve_mi.hole import HoleStack
+    from sieve_mi.geometry.hole import HoleStack
 
     obj, stack = player._loss_fn(), HoleStack(holes)
     obj.bind(np.zeros(len(q0), int))
@@ -144,13 +144,13 @@ def descents(player, holes, q0, t0, steps, repeat, config: str):
     """Median seconds per descent, best losses per start, number of distinct results.
 
     ``config``: "before" (atomic loss, hand-written Adam), "fixed order + hand Adam", or
-    "after" (the package's :meth:`~sieve_mi.players.PlayerB.descend`).
+    "after" (the package's :meth:`~sieve_mi.game.players.PlayerB.descend`).
     """
     import drjit as dr
     import mitsuba as mi
 
-    from sieve_mi.clearance import ClearanceObjective
-    from sieve_mi.hole import HoleStack
+    from sieve_mi.geometry.hole import HoleStack
+    from sieve_mi.objectives.clearance import ClearanceObjective
 
     zeros = np.zeros(len(q0), int)
     pose_hole = np.arange(len(q0)) % len(holes)
@@ -186,7 +186,7 @@ def main(argv=None) -> int:
     p.add_argument("--repeat", type=int, default=3)
     args = p.parse_args(argv)
     use_variant(args.variant)
-    from sieve_mi.clearance import ClearanceObjective
+    from sieve_mi.objectives.clearance import ClearanceObjective
 
     print(f"variant {args.variant}, {args.poses} poses, {args.steps} Adam steps, x{args.repeat}")
     print(

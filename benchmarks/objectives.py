@@ -58,9 +58,9 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int, default=10)
     args = p.parse_args(argv)
     use_variant(args.variant)
-    from sieve_mi.layout import hole_frame
-    from sieve_mi.meshes import load_shape
-    from sieve_mi.players import PlayerA, PlayerB
+    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.geometry.meshes import load_shape
 
     rng = np.random.default_rng(0)
     print(f"variant {args.variant}, {args.poses} poses per step, {args.resolution}^2 raster")

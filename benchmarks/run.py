@@ -99,8 +99,8 @@ def scene_text(name: str, objective: str, quick: bool) -> str:
 def run_one(name: str, variant: str, objective: str, quick: bool) -> dict:
     """Run one scene in this process and return its row (called in a child process)."""
     import sieve_mi  # noqa: F401
+    from sieve_mi.api import solve
     from sieve_mi.scene import load_scene
-    from sieve_mi.solver import solve
 
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "scene.toml")
@@ -110,7 +110,7 @@ def run_one(name: str, variant: str, objective: str, quick: bool) -> dict:
         t0 = time.perf_counter()
         result = solve(scene, variant=variant, progress=False)
         total = time.perf_counter() - t0
-    from sieve_mi.clearance import ClearanceObjective
+    from sieve_mi.objectives.clearance import ClearanceObjective
 
     frame = result.hole.frame
     clear = ClearanceObjective(result.block_shapes, frame)

@@ -40,9 +40,9 @@ def main(argv=None) -> int:
     )
     args = p.parse_args(argv)
     use_variant(args.variant)
-    from sieve_mi.layout import hole_frame
-    from sieve_mi.meshes import load_shape
-    from sieve_mi.players import PlayerA, PlayerB
+    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.geometry.meshes import load_shape
 
     a = load_shape(os.path.join(MESHES, "cube.stl"))
     frame = hole_frame(a, 1.0, 256)

@@ -31,7 +31,7 @@ ROOT = os.path.dirname(HERE)
 
 def solve_once(scene, variant: str, **solver):
     """Solve ``scene`` with ``[solver]`` keys replaced by ``solver``; (result, seconds)."""
-    from sieve_mi.solver import solve
+    from sieve_mi.api import solve
 
     changed = dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, **solver))
     t = time.perf_counter()
@@ -80,9 +80,9 @@ def step_times(variant: str, poses=(10, 100, 1000), steps: int = 100) -> None:
     left out.
     """
     from benchmarks.objectives import step_time
-    from sieve_mi.layout import hole_frame
-    from sieve_mi.meshes import load_shape
-    from sieve_mi.players import PlayerA, PlayerB
+    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.geometry.meshes import load_shape
 
     def rng():
         return np.random.default_rng(0)

@@ -25,9 +25,9 @@ def main() -> None:
     from sieve_mi.backend import use_variant
 
     use_variant(None)
+    from sieve_mi.game.solver import load_shapes
+    from sieve_mi.game.verdict import judge
     from sieve_mi.scene import load_scene
-    from sieve_mi.solver import load_shapes
-    from sieve_mi.verdict import judge
 
     scene = load_scene(args.scene)
     with open(args.report) as f:

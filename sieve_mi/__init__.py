@@ -29,20 +29,21 @@ Mitsuba, Dr.Jit and the solver are imported on first use of a public name.
 """
 
 from sieve_mi import backend as _backend
+from sieve_mi.outputs.provenance import VERSION
 
-__version__ = "0.1.0"
+__version__ = VERSION
 
 __all__ = ["Result", "Scene", "SieveError", "check", "load_scene", "load_shape", "solve"]
 
 #: Public name -> module that defines it (imported on first use).
 _LAZY = {
-    "Result": "sieve_mi.solver",
-    "solve": "sieve_mi.solver",
-    "Scene": "sieve_mi.scene",
-    "load_scene": "sieve_mi.scene",
-    "SieveError": "sieve_mi.errors",
-    "check": "sieve_mi.checker",
-    "load_shape": "sieve_mi.meshes",
+    "Result": "sieve_mi.api",
+    "solve": "sieve_mi.api",
+    "Scene": "sieve_mi.api",
+    "load_scene": "sieve_mi.api",
+    "SieveError": "sieve_mi.api",
+    "check": "sieve_mi.api",
+    "load_shape": "sieve_mi.api",
 }
 
 

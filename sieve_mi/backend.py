@@ -128,3 +128,36 @@ def gpu_available() -> bool:
     import drjit as dr
 
     return bool(dr.has_backend(dr.JitBackend.CUDA))
+
+
+#: RGB variants to try, in order (``cuda_ad_rgb`` moves to the front when a CUDA variant is active).
+RGB_VARIANTS = ("llvm_ad_rgb", "cuda_ad_rgb", "scalar_rgb")
+
+
+def select_rgb_variant(mi, before: str | None) -> str:
+    """Switch Mitsuba to the first usable RGB variant (for colour pictures); return the one chosen.
+
+    The current backend's RGB variant comes first (``cuda_ad_rgb`` while a CUDA variant is
+    active); where none can be used, the current variant ``before`` is kept (or, with none,
+    ``llvm_ad_mono``). The caller restores ``before`` when done.
+    """
+    import drjit as dr
+
+    backends = {"llvm": dr.JitBackend.LLVM, "cuda": dr.JitBackend.CUDA}
+    order = list(RGB_VARIANTS)
+    if before and before.startswith("cuda") and "cuda_ad_rgb" in order:  # stay on the GPU
+        order.insert(0, order.pop(order.index("cuda_ad_rgb")))
+    available = set(mi.variants())
+    for v in order:
+        kind = v.split("_")[0]
+        if v not in available or (kind in backends and not dr.has_backend(backends[kind])):
+            continue
+        try:
+            mi.set_variant(v)
+            return v
+        except Exception:  # noqa: BLE001 - a variant that fails to load: try the next one
+            continue
+    if before is None:
+        return use_variant("llvm_ad_mono").variant()
+    mi.set_variant(before)
+    return before

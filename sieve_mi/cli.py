@@ -131,9 +131,9 @@ def _certify_parser(sub) -> None:
 
 
 def cmd_solve(args) -> int:
-    import sieve_mi as sm
-    from sieve_mi.outdir import validate
-    from sieve_mi.report import input_paths, summary_table
+    from sieve_mi import api as sm
+    from sieve_mi.outputs.outdir import validate
+    from sieve_mi.outputs.report import input_paths, summary_table
 
     scene = sm.load_scene(args.scene)
     out_dir = args.out or os.path.join("out", scene.name)
@@ -152,10 +152,10 @@ def cmd_solve(args) -> int:
 def cmd_check(args) -> int:
     import json
 
-    from sieve_mi import outdir
     from sieve_mi.backend import use_variant
-    from sieve_mi.checker import CheckSettings, check, summary
-    from sieve_mi.meshes import load_shape
+    from sieve_mi.game.check import CheckSettings, check, summary
+    from sieve_mi.geometry.meshes import load_shape
+    from sieve_mi.outputs import outdir
 
     if args.hole is not None and args.pixel_size is None:
         raise SieveError(
@@ -199,7 +199,7 @@ def cmd_check(args) -> int:
     )
     text = json.dumps(rep.to_dict(), indent=2, default=lambda x: None if x != x else str(x))
     if args.out is not None:
-        from sieve_mi.viewer import check_holes, render_check_page
+        from sieve_mi.outputs.viewer import check_holes, render_check_page
 
         with outdir.writing(args.out, command="check", inputs=inputs) as tmp:
             with open(os.path.join(tmp, "report.json"), "w") as fh:
@@ -291,8 +291,8 @@ def cmd_certify(args) -> int:
         raise SieveError(f"--budget {args.budget}: must be a positive number of seconds")
     if args.certificate and not os.path.isdir(os.path.dirname(os.path.abspath(args.certificate))):
         raise SieveError(f"--certificate {args.certificate}: its folder does not exist")
-    from sieve_mi.checker import holes_from_mesh
-    from sieve_mi.meshes import load_shape
+    from sieve_mi.game.check import holes_from_mesh
+    from sieve_mi.geometry.meshes import load_shape
 
     shape = load_shape(args.shape, scale=args.scale)
     holes = holes_from_mesh(args.sieve, args.axis) if args.sieve else [read_svg_hole(args.hole)]

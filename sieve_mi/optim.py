@@ -69,7 +69,7 @@ class SwarmHistory:
     evaluations: int = 0
     #: Final personal bests of a swarm (positions and values), best first; empty for nlopt.
     finalists: list = field(default_factory=list)
-    #: The local polish's record (:meth:`sieve_mi.players.PlayerA.polish`), if one ran.
+    #: The local polish's record (:meth:`sieve_mi.game.players.PlayerA.polish`), if one ran.
     polish: dict | None = None
 
     def extend(self, other: SwarmHistory) -> None:

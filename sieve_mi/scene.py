@@ -27,7 +27,7 @@ from dataclasses import MISSING, asdict, dataclass, field, fields
 import numpy as np
 
 from sieve_mi.errors import SieveError
-from sieve_mi.objective import OBJECTIVES
+from sieve_mi.objectives import OBJECTIVES
 from sieve_mi.optim import NLOPT_METHODS
 
 #: Accepted ``units`` (a label for reports; meshes are not converted).
@@ -390,7 +390,7 @@ def table_fields() -> list[dataclasses.Field]:
     return [f for f in fields(Scene) if dataclasses.is_dataclass(kinds[f.name])]
 
 
-class _Reader:
+class Reader:
     """Type-checked access to one table of the scene file, with errors that name file and key."""
 
     def __init__(self, path: str, table: dict, where: str):
@@ -472,18 +472,18 @@ class _Reader:
 
 
 _READERS = {
-    bool: _Reader.boolean,
-    int: _Reader.integer,
-    float: _Reader.number,
-    str: _Reader.string,
-    list[float]: _Reader.quaternion,
+    bool: Reader.boolean,
+    int: Reader.integer,
+    float: Reader.number,
+    str: Reader.string,
+    list[float]: Reader.quaternion,
 }
 
 
-def _read_shape(path: str, table, where: str) -> ShapeEntry:
+def read_shape(path: str, table, where: str) -> ShapeEntry:
     if not isinstance(table, dict):
         raise SieveError(f"{path}: {where}: expected a table like [[pass]] with a 'mesh' key")
-    r = _Reader(path, table, where + ".")
+    r = Reader(path, table, where + ".")
     r.check_keys({key_of(f) for f in fields(ShapeEntry)})
     if "mesh" not in table:
         raise r.error("mesh", "missing; give the path of a mesh file (relative to the scene file)")
@@ -498,10 +498,10 @@ def _read_shapes(path: str, data: dict, key: str) -> list[ShapeEntry]:
         )
     if not isinstance(data[key], list) or not data[key]:
         raise SieveError(f"{path}: {key}: expected one or more [[{key}]] tables")
-    return [_read_shape(path, t, f"{key}[{i}]") for i, t in enumerate(data[key])]
+    return [read_shape(path, t, f"{key}[{i}]") for i, t in enumerate(data[key])]
 
 
-def _check_folder_name(path: str, name: str) -> None:
+def check_folder_name(path: str, name: str) -> None:
     """Raise unless ``name`` can be one folder's name (no separators, NUL, '.' or '..')."""
     if any(c in name for c in "/\\\0") or name in (".", ".."):
         raise SieveError(
@@ -509,7 +509,7 @@ def _check_folder_name(path: str, name: str) -> None:
         )
 
 
-def _read_file(path: str) -> dict:
+def read_file(path: str) -> dict:
     """The TOML document at ``path``; a missing, unreadable or invalid file is a SieveError."""
     if not os.path.exists(path):
         raise SieveError(f"{path}: scene file not found")
@@ -540,13 +540,13 @@ def load_scene(path: str) -> Scene:
     SieveError
         On a missing file, bad TOML, unknown keys, wrong types or out-of-range values.
     """
-    data = _read_file(path)
-    top = _Reader(path, data, "")
+    data = read_file(path)
+    top = Reader(path, data, "")
     tables = table_fields()
     top.check_keys({key_of(f) for f in fields(Scene) if spec_of(f) is not None or f in tables})
     values = top.read(Scene)
     values.setdefault("name", os.path.splitext(os.path.basename(path))[0])
-    _check_folder_name(path, values["name"])
+    check_folder_name(path, values["name"])
     passes, blocks = _read_shapes(path, data, "pass"), _read_shapes(path, data, "block")
     for i, b in enumerate(blocks):
         if b.rotation is not None:
@@ -576,7 +576,7 @@ def read_tables(path: str, data: dict) -> dict:
     out = {}
     for f in table_fields():
         cls = value_types(Scene)[f.name]
-        r = _Reader(path, _table(path, data, f.name), f.name + ".")
+        r = Reader(path, _table(path, data, f.name), f.name + ".")
         r.check_keys({key_of(g) for g in fields(cls)})
         out[f.name] = cls(**r.read(cls))
     return out

@@ -9,7 +9,7 @@ import trimesh
 
 import sieve_mi  # noqa: F401  (points Dr.Jit at a usable libLLVM before drjit is imported)
 from sieve_mi.backend import default_variant, use_variant
-from sieve_mi.meshes import shape_from_trimesh
+from sieve_mi.geometry.meshes import shape_from_trimesh
 
 
 @pytest.fixture(scope="session", autouse=True)

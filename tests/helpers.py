@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from sieve_mi.meshes import Shape, shape_from_trimesh
+from sieve_mi.geometry.meshes import Shape, shape_from_trimesh
 
 #: Solver and verdict settings small enough for end-to-end tests (seconds per solve).
 TINY = """

@@ -47,7 +47,7 @@ def test_check_takes_a_mesh_or_a_path(tmp_path):
     # A 15 mm square hole in a plate: a 10 mm cube passes face-on; a 16 mm cube cannot, since
     # its width in every direction is at least 16 (a cube's smallest width is its side) while the
     # hole is 15 wide across.
-    from sieve_mi.checker import CheckSettings
+    from sieve_mi.game.check import CheckSettings
 
     plate = trimesh.creation.box((40.0, 40.0, 4.0)).difference(
         trimesh.creation.box((15.0, 15.0, 10.0))
@@ -82,7 +82,7 @@ def test_a_scene_built_in_code_plays_like_the_same_scene_from_toml(write_scene, 
         '[[block]]\nmesh = "meshes/ball.stl"\n' + settings
     )
     from_file = sm.load_scene(write_scene(body, {"cube.stl": cube, "ball.stl": ball}))
-    from sieve_mi.meshes import load_trimesh
+    from sieve_mi.geometry.meshes import load_trimesh
 
     meshes = from_file.directory + "/meshes/"
     in_code = sm.Scene.from_meshes(

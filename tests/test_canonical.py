@@ -8,9 +8,15 @@ import numpy as np
 import pytest
 import trimesh
 
-from sieve_mi.canonical import canonical_orientations, principal_frames, view_directions
-from sieve_mi.meshes import shape_from_trimesh
-from sieve_mi.rotations import from_axis_angle, from_rotvec, random_uniform, to_matrix, to_rotvec
+from sieve_mi.geometry.canonical import canonical_orientations, principal_frames, view_directions
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.rotations import (
+    from_axis_angle,
+    from_rotvec,
+    random_uniform,
+    to_matrix,
+    to_rotvec,
+)
 from sieve_mi.testing.shapes import box
 
 Z = np.array([0.0, 0.0, 1.0])
@@ -92,7 +98,7 @@ polish = {polish}
 def test_the_search_finds_the_coin_slot(write_scene):
     # A 5-cent coin's edge-on slot (1.77 mm) blocks a 10-cent coin (1.93 mm thick) only within a
     # fraction of a degree of edge-on; the swarm alone lands 1.4° off on seed 1 and B wins.
-    from sieve_mi.solver import solve
+    from sieve_mi.api import solve
 
     r = solve(_coin_scene(write_scene, 1, 20, 10), progress=False)
     tilt = np.degrees(np.arcsin(abs(_view(r.pass_quats[0])[2])))
@@ -106,8 +112,8 @@ def test_the_search_finds_the_coin_slot(write_scene):
 def test_polish_turns_a_tilted_cube_face_on():
     # A 20 mm cube's hole blocks a 22 mm ball; tilting the cube widens the hole and lets more of
     # the ball in, so the polish must turn a 2.5° tilt back towards face-on.
-    from sieve_mi.layout import hole_frame
-    from sieve_mi.players import PlayerA, PlayerB
+    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.players import PlayerA, PlayerB
 
     cube = shape_from_trimesh(box(20, 20, 20), name="cube")
     ball = shape_from_trimesh(trimesh.creation.icosphere(3, radius=11.0), name="ball")
@@ -125,8 +131,8 @@ def test_polish_turns_a_tilted_cube_face_on():
 
 
 def test_search_announces_its_stages_and_counts_canonical_evaluations():
-    from sieve_mi.layout import hole_frame
-    from sieve_mi.players import PlayerA, PlayerB
+    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.players import PlayerA, PlayerB
 
     cube = shape_from_trimesh(box(20, 20, 20), name="cube")
     ball = shape_from_trimesh(trimesh.creation.icosphere(2, radius=12.0), name="ball")
@@ -149,8 +155,8 @@ def test_letters_win_at_reduced_settings():
     # blocks all four.
     import os
 
+    from sieve_mi.api import solve
     from sieve_mi.scene import load_scene
-    from sieve_mi.solver import solve
 
     scene = load_scene(os.path.join(os.path.dirname(__file__), "..", "scenes", "letters.toml"))
     s, v = scene.solver, scene.verdict
@@ -166,8 +172,8 @@ def test_the_search_turns_a_box_exactly_face_on():
     # Face-on, a 20 mm cube's hole (tolerance 1) is the 22 mm square with the smallest inscribed
     # disk; a 23 mm ball is blocked best there. The canonical views contain it exactly and the
     # polish must not wander off it on raster noise.
-    from sieve_mi.layout import hole_frame
-    from sieve_mi.players import PlayerA, PlayerB
+    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.players import PlayerA, PlayerB
 
     cube = shape_from_trimesh(box(20, 20, 20), name="cube")
     ball = shape_from_trimesh(trimesh.creation.icosphere(3, radius=11.5), name="ball")

@@ -17,7 +17,7 @@ from sieve_mi.cascade.mixture import load_mixture
 from sieve_mi.cascade.size import inscribed_radius, passage_radius
 from sieve_mi.cascade.sort import sort_mixture
 from sieve_mi.errors import SieveError
-from sieve_mi.meshes import shape_from_trimesh
+from sieve_mi.geometry.meshes import shape_from_trimesh
 
 SMALL = """
 [fabrication]

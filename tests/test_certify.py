@@ -25,9 +25,9 @@ import trimesh
 from sieve_mi.certify import cells, certify, read_svg_hole, replay, symmetry
 from sieve_mi.certify.bounds import OffsetCache, boundary_distance, contour_segments, width_test
 from sieve_mi.errors import SieveError
-from sieve_mi.meshes import shape_from_trimesh
-from sieve_mi.outline import hole_outline
-from sieve_mi.rotations import align, to_matrix
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.outline import hole_outline
+from sieve_mi.geometry.rotations import align, to_matrix
 from sieve_mi.testing import shapes
 
 
@@ -132,7 +132,7 @@ def test_balls_too_big_for_the_cube_hole_are_proved_at_the_root(cube_hole, mesh)
 
 
 def test_smaller_cube_finds_a_passage_that_really_fits(cube_hole):
-    from sieve_mi.outline import placed_vertices, projection
+    from sieve_mi.geometry.outline import placed_vertices, projection
 
     shape = _shape(shapes.cube(15.0))
     result = certify(shape, [cube_hole], budget_s=10)
@@ -220,7 +220,7 @@ def test_replay_rejects_a_false_symmetry_claim(proof_108):
 
 
 def test_svg_hole_round_trip(tmp_path, cube_hole):
-    from sieve_mi.fabrication import write_svg
+    from sieve_mi.outputs.fabrication import write_svg
 
     path = str(tmp_path / "hole.svg")
     write_svg(path, cube_hole)
@@ -246,7 +246,7 @@ def _cli(*args):
 
 
 def test_cli_certifies_writes_and_replays(tmp_path, cube_hole):
-    from sieve_mi.fabrication import write_svg
+    from sieve_mi.outputs.fabrication import write_svg
 
     mesh, svg, cert = tmp_path / "s.stl", str(tmp_path / "h.svg"), str(tmp_path / "c.json")
     shapes.sphere(12.0).export(str(mesh))
@@ -285,9 +285,9 @@ def test_solve_certifies_its_blocks_and_a_passage_overrules_the_verdict(write_sc
     # 21 mm cube, which passes face-on and turned by less than about 2.6 degrees in the plane
     # (21 (|cos a| + |sin a|) <= 22). A verdict of one start and no Adam steps misses that
     # passage; certify must find it through the exact hole and hand the win to B.
-    from sieve_mi.report import report_dict, summary_table
+    from sieve_mi.api import solve
+    from sieve_mi.outputs.report import report_dict, summary_table
     from sieve_mi.scene import load_scene
-    from sieve_mi.solver import solve
 
     body = """name = "t"
 [[pass]]

@@ -21,10 +21,10 @@ import pytest
 import trimesh
 from PIL import Image
 
-from sieve_mi.checker import CheckSettings, ShapeCheck, check, fit_scale, holes_from_mesh
 from sieve_mi.errors import SieveError
-from sieve_mi.fabrication import to_trimesh
-from sieve_mi.meshes import shape_from_trimesh
+from sieve_mi.game.check import CheckSettings, ShapeCheck, check, fit_scale, holes_from_mesh
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.outputs.fabrication import to_trimesh
 
 FAST = CheckSettings(starts=24, steps=150, resolution=192, fit_tolerance=0.01)
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from helpers import sphere
 
-from sieve_mi.clearance import ClearanceObjective
-from sieve_mi.hole import HoleStack, build_hole
-from sieve_mi.raster import Frame
-from sieve_mi.silhouettes import SilhouetteRenderer
+from sieve_mi.geometry.hole import HoleStack, build_hole
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.silhouettes import SilhouetteRenderer
+from sieve_mi.objectives.clearance import ClearanceObjective
 
 
 def _setup(cube20, radius=8.0):
@@ -50,7 +50,7 @@ def test_clearance_gradient_matches_finite_differences(mi, cube20):
     import drjit as dr
     import trimesh
 
-    from sieve_mi.meshes import shape_from_trimesh
+    from sieve_mi.geometry.meshes import shape_from_trimesh
 
     f, hole, _ = _setup(cube20)
     # A box in a generic orientation: its set of silhouette edges does not change under the small
@@ -83,7 +83,7 @@ def test_clearance_uses_exactly_the_silhouette_edges(mi, seed):
     import drjit as dr
     from scipy.spatial import ConvexHull
 
-    from sieve_mi.rotations import quat_rows, random_uniform, to_matrix
+    from sieve_mi.geometry.rotations import quat_rows, random_uniform, to_matrix
 
     b = sphere(8.0, 2)
     obj = ClearanceObjective([b], Frame.covering(9.0, 128))
@@ -103,7 +103,7 @@ def test_clearance_uses_exactly_the_silhouette_edges(mi, seed):
 
 
 def test_expand_ranges_lists_every_range_in_order(mi):
-    from sieve_mi.clearance import expand_ranges
+    from sieve_mi.objectives.clearance import expand_ranges
 
     out = expand_ranges(mi.UInt32([3, 10, 20]), mi.UInt32([2, 3, 1]))
     assert np.array(out).tolist() == [3, 4, 10, 11, 12, 20]
@@ -111,7 +111,7 @@ def test_expand_ranges_lists_every_range_in_order(mi):
 
 
 def test_pose_ranges_lists_each_poses_items_in_order(mi):
-    from sieve_mi.clearance import pose_ranges
+    from sieve_mi.objectives.clearance import pose_ranges
 
     pose, item = pose_ranges(np.array([3, 10, 7, 0]), np.array([2, 0, 3, 1]))
     assert np.array(pose).tolist() == [0, 0, 2, 2, 2, 3]
@@ -126,7 +126,7 @@ def test_bound_pairs_are_every_poses_segments_and_edges(mi, cube20):
     # mix of shapes: the definition, written out here with NumPy.
     import trimesh
 
-    from sieve_mi.meshes import shape_from_trimesh
+    from sieve_mi.geometry.meshes import shape_from_trimesh
 
     torus = shape_from_trimesh(trimesh.creation.torus(8.0, 2.5), name="torus")
     shapes = [cube20, sphere(12.0), torus]
@@ -159,8 +159,8 @@ def test_per_edge_silhouette_test_keeps_exactly_the_per_segment_pairs(mi, cube20
     # open (boundary edges: always candidates) and several shapes bound together.
     import trimesh
 
-    from sieve_mi.meshes import shape_from_trimesh
-    from sieve_mi.rotations import normalize, quat_rows
+    from sieve_mi.geometry.meshes import shape_from_trimesh
+    from sieve_mi.geometry.rotations import normalize, quat_rows
 
     torus = shape_from_trimesh(trimesh.creation.torus(8.0, 2.5), name="torus")
     open_box = trimesh.creation.box((10.0, 6.0, 4.0))

@@ -233,7 +233,7 @@ def test_unknown_variant_and_bad_out(write_scene, tmp_path):
 @pytest.mark.parametrize("name", ["suzanne.obj", "alligator.obj", "spot.obj"])
 def test_awkward_but_valid_meshes_are_accepted(name):
     # Open, non-manifold and flat (zero-thickness) meshes are valid input.
-    from sieve_mi.meshes import load_shape
+    from sieve_mi.geometry.meshes import load_shape
 
     s = load_shape(os.path.join(SCENES, "meshes", name))
     assert s.face_count > 0 and s.radius > 0

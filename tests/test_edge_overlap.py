@@ -1,6 +1,6 @@
 """The batched overlap objective (edge sampling): β and its gradient against exact polygons.
 
-References are exact: S is the union of B's projected triangles (:func:`sieve_mi.exact.silhouette`),
+References are exact: S is the union of B's projected triangles (:func:`sieve_mi.geometry.outline.silhouette`),
 H the union of the raster's pixel cells whose centre lies in the hole (which for a rectangle on
 pixel boundaries is the rectangle itself), and β = area(S \\ H) / area(S) by manifold3d; gradients
 are compared with central differences of that exact β.
@@ -14,12 +14,12 @@ import pytest
 import trimesh
 from helpers import rng, sphere
 
-from sieve_mi import exact
-from sieve_mi.edge_overlap import EdgeOverlapObjective
-from sieve_mi.hole import Hole, HoleStack
-from sieve_mi.meshes import shape_from_trimesh
-from sieve_mi.raster import Frame
-from sieve_mi.rotations import random_uniform
+from sieve_mi.geometry import outline
+from sieve_mi.geometry.hole import Hole, HoleStack
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.rotations import random_uniform
+from sieve_mi.objectives.overlap import EdgeOverlapObjective
 
 FRAME = Frame(128, 1.0)  # pixel size h = 1/64
 H = FRAME.pixel_size
@@ -58,7 +58,7 @@ def _cells(mask):
 
 def _polygon_hole(points):
     """A hole raster from a polygon (pixel centres inside it) and the exact union of its cells."""
-    from sieve_mi.exact import Boundary
+    from sieve_mi.geometry.outline import Boundary
 
     xc, yc = FRAME.centres()
     xx, yy = np.meshgrid(xc, yc)
@@ -68,7 +68,7 @@ def _polygon_hole(points):
 
 
 def _exact_beta(shape, q, t, cells):
-    s = exact.silhouette(shape, q, t)
+    s = outline.silhouette(shape, q, t)
     return (s - cells).area() / s.area()
 
 
@@ -183,7 +183,7 @@ def test_each_pose_gets_its_own_shape_hole_and_gradient(mi):
 
 def test_gradient_agrees_with_mitsubas_projective_sampling(mi):
     """Same loss, same gradient direction as ``overlap-mitsuba`` (Mitsuba's edge sampling)."""
-    from sieve_mi.overlap import OverlapObjective
+    from sieve_mi.objectives.overlap_mitsuba import OverlapObjective
 
     frame = Frame(64, 1.0)
     xc, yc = frame.centres()
@@ -210,7 +210,7 @@ def test_gradient_agrees_with_mitsubas_projective_sampling(mi):
 
 def test_all_objectives_agree_on_who_passes(mi):
     """A box passes a slot face-on and is blocked by a smaller one, whichever loss guides Adam."""
-    from sieve_mi.players import PlayerB
+    from sieve_mi.game.players import PlayerB
 
     frame = Frame(64, 1.0)
     xc, yc = frame.centres()

@@ -7,14 +7,15 @@ import numpy as np
 import pytest
 import trimesh
 
-from sieve_mi import exact
+from sieve_mi.api import solve
 from sieve_mi.errors import SieveError
-from sieve_mi.hole import Hole
-from sieve_mi.meshes import shape_from_trimesh
-from sieve_mi.raster import Frame
-from sieve_mi.rotations import from_axis_angle
+from sieve_mi.game import exact
+from sieve_mi.geometry import outline
+from sieve_mi.geometry.hole import Hole
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.rotations import from_axis_angle
 from sieve_mi.scene import load_scene
-from sieve_mi.solver import solve
 from sieve_mi.testing.shapes import box
 
 EDGE_ON = "[1, 0, 0, 0]"
@@ -26,7 +27,7 @@ def _peg():
 
 def _square_hole(side: float):
     h = manifold3d.CrossSection.square([side, side], center=True)
-    return h, exact.Boundary(h)
+    return h, outline.Boundary(h)
 
 
 def test_square_peg_turned_45_degrees_sticks_out_at_four_corners():
@@ -173,9 +174,9 @@ def test_verdict_starts_from_the_search_memory(write_scene):
     # A 20 mm cube face-on with tolerance 1 makes a 22 mm square hole; a 21 x 21 x 1 plate
     # fits only when it lies almost flat. Two starts and no Adam steps: a random rotation does not
     # fit, the remembered flat pose does.
-    from sieve_mi.players import Attack, AttackMemory
-    from sieve_mi.solver import load_shapes
-    from sieve_mi.verdict import judge
+    from sieve_mi.game.attack import Attack, AttackMemory
+    from sieve_mi.game.solver import load_shapes
+    from sieve_mi.game.verdict import judge
 
     body = """
 [[pass]]
@@ -212,11 +213,11 @@ def test_square_plate_sticks_out_of_the_rounded_corners_of_a_cube_hole():
     # The 20 mm cube's hole grown by 1 mm has corner arcs of radius 1 about (±10, ±10). A centred
     # 21.5 mm square's corner (10.75, 10.75) is 0.75 sqrt(2) from the arc's centre: it sticks out
     # by 0.75 sqrt(2) - 1 = 0.061 mm although the hole is 22 mm wide.
-    from sieve_mi.outline import hole_outline
+    from sieve_mi.geometry.outline import hole_outline
 
     cube = shape_from_trimesh(box(20, 20, 20), name="cube")
     hole = hole_outline([cube], np.array([[1.0, 0, 0, 0]]), np.zeros((1, 2)), 1.0, closed=[True])
-    b = exact.Boundary(hole)
+    b = outline.Boundary(hole)
     plate = shape_from_trimesh(box(21.5, 21.5, 1), name="plate")
     sc = exact.score(plate, [1.0, 0, 0, 0], [0.0, 0.0], hole, b, closed=True)
     # the outline lies at most 0.3 % of the tolerance outside the exact dilation
@@ -229,7 +230,7 @@ def test_square_plate_sticks_out_of_the_rounded_corners_of_a_cube_hole():
 def test_a_sheet_seen_edge_on_makes_a_stadium_slot():
     # A 20 x 20 sheet of zero thickness seen edge-on projects to a 20 mm segment; grown by 1 mm
     # it is a stadium 22 x 2 mm of area 20 * 2 + pi (not "zero area").
-    from sieve_mi.outline import hole_outline
+    from sieve_mi.geometry.outline import hole_outline
 
     sheet = trimesh.Trimesh(
         [[-10, 0, -10], [10, 0, -10], [10, 0, 10], [-10, 0, 10]], [[0, 1, 2], [0, 2, 3]]

@@ -1,4 +1,4 @@
-"""Known-answer tests for the exact hole outline and the printable plate (sieve_mi.fabrication).
+"""Known-answer tests for the exact hole outline and the printable plate (sieve_mi.outputs.fabrication).
 
 Areas are argued on paper: a cube of side a projects to an a x a square face-on and to a regular
 hexagon of area sqrt(3) a^2 along its body diagonal; a square of side s grown by r has area
@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from sieve_mi import fabrication as fab
-from sieve_mi import outline
-from sieve_mi.meshes import shape_from_trimesh
-from sieve_mi.raster import Frame
-from sieve_mi.rotations import align, from_axis_angle
+from sieve_mi.geometry import outline
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.rotations import align, from_axis_angle
+from sieve_mi.outputs import fabrication as fab
 from sieve_mi.testing.mesh_io import read_3mf
 from sieve_mi.testing.shapes import to_manifold
 
@@ -197,7 +197,7 @@ def test_shape_mesh_is_lifted_above_the_plate():
 
 
 def test_shapes_beside_the_plate_stand_on_its_ground_without_touching_it():
-    from sieve_mi.fabrication import beside_plate
+    from sieve_mi.outputs.fabrication import beside_plate
 
     plate = trimesh.creation.box(extents=(40.0, 30.0, 10.0))
     plate.apply_translation((0.0, 0.0, -5.0))  # top at z = 0, bottom at z = -10

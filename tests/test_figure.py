@@ -11,8 +11,9 @@ import pytest
 import trimesh
 from PIL import Image
 
-import sieve_mi.figure as figure
-from sieve_mi.figure import render_figure
+import sieve_mi.outputs.figure as figure
+from sieve_mi import backend
+from sieve_mi.outputs.figure import render_figure
 
 W, H, SPP = 160, 120, 4
 
@@ -45,7 +46,7 @@ def scene():
 def colour(mi):
     """Skip colour checks where no RGB variant of Mitsuba loads (the figure then falls back to grey)."""
     before = mi.variant()
-    chosen = figure._select_variant(mi, before)
+    chosen = backend.select_rgb_variant(mi, before)
     if mi.variant() != before:
         mi.set_variant(before)
     if not chosen.endswith("rgb"):
@@ -146,7 +147,7 @@ def test_degenerate_input_still_writes(tmp_path, mi):
 def test_mono_fallback_and_restore_on_error(tmp_path, scene, mi, monkeypatch):
     plate, passes, blocks = scene
     before = mi.variant()
-    monkeypatch.setattr(figure, "RGB_VARIANTS", ())
+    monkeypatch.setattr(backend, "RGB_VARIANTS", ())
     path = tmp_path / "grey.png"
     render_figure(str(path), plate, passes, blocks, [True], width=W, height=H, spp=SPP)
     img = _read(path)
@@ -174,8 +175,8 @@ def test_mono_fallback_and_restore_on_error(tmp_path, scene, mi, monkeypatch):
 
 def test_silhouettes_work_after_a_render(tmp_path, scene, cube20, mi):
     """The rest of the program (mono variant) keeps working after the switch to RGB and back."""
-    from sieve_mi.raster import Frame
-    from sieve_mi.silhouettes import SilhouetteRenderer
+    from sieve_mi.geometry.raster import Frame
+    from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 
     f = Frame(64, 20.0)
     early = SilhouetteRenderer(cube20)

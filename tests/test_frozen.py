@@ -7,11 +7,11 @@ import pytest
 import trimesh
 from helpers import rng, sphere
 
-from sieve_mi.hole import Hole
-from sieve_mi.meshes import shape_from_trimesh
-from sieve_mi.players import PlayerB
-from sieve_mi.raster import Frame
-from sieve_mi.rotations import random_uniform
+from sieve_mi.game.players import PlayerB
+from sieve_mi.geometry.hole import Hole
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.rotations import random_uniform
 
 FRAME = Frame(64, 1.0)
 
@@ -54,7 +54,7 @@ def test_frozen_steps_give_the_same_poses_as_traced_ones(mi, shapes):
 
 
 def test_an_overflowing_buffer_falls_back_to_traced_steps(mi, shapes, monkeypatch):
-    from sieve_mi.clearance import ClearanceObjective
+    from sieve_mi.objectives.clearance import ClearanceObjective
 
     traced = _descend(PlayerB(shapes, FRAME, freeze=False))
     monkeypatch.setattr(ClearanceObjective, "capacity", lambda self, q: 16)  # far too small
@@ -67,7 +67,7 @@ def test_an_overflowing_buffer_falls_back_to_traced_steps(mi, shapes, monkeypatc
 
 def test_a_failing_frozen_step_warns_and_traces(mi, shapes, monkeypatch):
     """If Dr.Jit cannot record or replay the step, player B warns once and traces: same poses."""
-    import sieve_mi.frozen
+    import sieve_mi.game.frozen
 
     traced = _descend(PlayerB(shapes, FRAME, freeze=False))
 
@@ -77,7 +77,7 @@ def test_a_failing_frozen_step_warns_and_traces(mi, shapes, monkeypatch):
 
         return step
 
-    monkeypatch.setattr(sieve_mi.frozen, "frozen_step", broken)
+    monkeypatch.setattr(sieve_mi.game.frozen, "frozen_step", broken)
     player = PlayerB(shapes, FRAME, freeze=True)
     with pytest.warns(RuntimeWarning, match="drjit.freeze failed.*unsupported operation"):
         out = _descend(player)
@@ -88,10 +88,10 @@ def test_a_failing_frozen_step_warns_and_traces(mi, shapes, monkeypatch):
 
 def test_large_cpu_steps_are_traced(mi, shapes, monkeypatch):
     """On the CPU a descent with more pairs than CPU_FREEZE_PAIRS is traced: same poses."""
-    import sieve_mi.players
+    import sieve_mi.game.players
 
     traced = _descend(PlayerB(shapes, FRAME, freeze=False))
-    monkeypatch.setattr(sieve_mi.players, "CPU_FREEZE_PAIRS", 10)
+    monkeypatch.setattr(sieve_mi.game.players, "CPU_FREEZE_PAIRS", 10)
     player = PlayerB(shapes, FRAME, freeze=True)
     out = _descend(player)
     assert player._frozen is None and player.freeze  # not recorded, still on for smaller ones
@@ -108,9 +108,9 @@ def test_the_fixed_size_loss_equals_the_loss(mi, shapes, per_edge):
     """
     import drjit as dr
 
-    from sieve_mi.hole import HoleStack
-    from sieve_mi.objective import make_objective
-    from sieve_mi.rotations import quat_rows
+    from sieve_mi.geometry.hole import HoleStack
+    from sieve_mi.geometry.rotations import quat_rows
+    from sieve_mi.objectives import make_objective
 
     obj = make_objective("clearance", shapes, FRAME)
     obj.per_edge = per_edge
@@ -143,8 +143,8 @@ def test_a_frozen_solve_gives_the_same_result(write_scene):
     """Search and verdict with ``[solver] freeze = true``: the traced solve's result, exactly."""
     import os
 
+    from sieve_mi.api import solve
     from sieve_mi.scene import load_scene
-    from sieve_mi.solver import solve
 
     meshes = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
     body = (

@@ -8,10 +8,10 @@ import trimesh
 from helpers import sphere
 from scipy.spatial import ConvexHull
 
-from sieve_mi.hole import build_hole
-from sieve_mi.meshes import edge_topology, load_shape, segments, shape_from_trimesh
-from sieve_mi.raster import Frame
-from sieve_mi.rotations import (
+from sieve_mi.geometry.hole import build_hole
+from sieve_mi.geometry.meshes import edge_topology, load_shape, segments, shape_from_trimesh
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.rotations import (
     align,
     from_axis_angle,
     from_matrix,
@@ -19,7 +19,7 @@ from sieve_mi.rotations import (
     random_uniform,
     to_matrix,
 )
-from sieve_mi.silhouettes import SilhouetteRenderer
+from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 
 
 def test_quaternion_matrix_round_trip():
@@ -184,7 +184,7 @@ def test_sensor_rays_are_the_pixel_centres():
     import drjit as dr  # noqa: F401
     import mitsuba as mi
 
-    from sieve_mi.raster import Frame
+    from sieve_mi.geometry.raster import Frame
 
     frame = Frame(resolution=64, half_extent=12.5)
     j, i = np.meshgrid(np.arange(-10, 74), np.arange(-10, 74), indexing="ij")
@@ -205,10 +205,10 @@ def test_silhouette_masks_match_an_independent_ray_caster(mesh):
     # pixel centres, for a generic pose (no pixel centre on an edge), pixel for pixel.
     import trimesh
 
-    from sieve_mi.meshes import shape_from_trimesh
-    from sieve_mi.raster import Frame
-    from sieve_mi.rotations import random_uniform, to_matrix
-    from sieve_mi.silhouettes import SilhouetteRenderer
+    from sieve_mi.geometry.meshes import shape_from_trimesh
+    from sieve_mi.geometry.raster import Frame
+    from sieve_mi.geometry.rotations import random_uniform, to_matrix
+    from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 
     m = {
         "box": lambda: trimesh.creation.box((14.0, 9.0, 5.0)),
@@ -243,10 +243,10 @@ def test_rendered_masks_equal_the_traced_ones(which):
     # reach beyond it, for random poses of three meshes.
     import trimesh
 
-    from sieve_mi.meshes import shape_from_trimesh
-    from sieve_mi.raster import Frame
-    from sieve_mi.rotations import normalize
-    from sieve_mi.silhouettes import SilhouetteRenderer
+    from sieve_mi.geometry.meshes import shape_from_trimesh
+    from sieve_mi.geometry.raster import Frame
+    from sieve_mi.geometry.rotations import normalize
+    from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 
     mesh = {
         "box": trimesh.creation.box([10.0, 14.0, 6.0]),
@@ -276,8 +276,8 @@ def test_scoring_casts_each_ray_once_and_counts_pixels(cube20):
     # it lies wholly outside the hole (beta 1).
     import drjit as dr
 
-    from sieve_mi.hole import Hole
-    from sieve_mi.scoring import score_poses, window_for
+    from sieve_mi.game.scoring import score_poses, window_for
+    from sieve_mi.geometry.hole import Hole
 
     frame = Frame(96, 30.0)
     xc, yc = frame.centres()

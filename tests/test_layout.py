@@ -7,10 +7,10 @@ import pytest
 import trimesh
 from scipy import ndimage
 
-from sieve_mi.layout import _shifted, _stratified, candidate_placements, pieces
-from sieve_mi.meshes import shape_from_trimesh
-from sieve_mi.players import PlayerA
-from sieve_mi.raster import Frame
+from sieve_mi.game.layout import _shifted, _stratified, candidate_placements, pieces
+from sieve_mi.game.players import PlayerA
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.raster import Frame
 
 
 def _c_ring(frame: Frame, outer: float, inner: float, mouth: float) -> np.ndarray:
@@ -59,8 +59,8 @@ def test_most_compact_placement_does_not_close_the_c():
 
 
 def test_alternative_rotations_are_distinct_and_good():
-    from sieve_mi.layout import alternative_rotations
-    from sieve_mi.rotations import from_axis_angle
+    from sieve_mi.game.layout import alternative_rotations
+    from sieve_mi.geometry.rotations import from_axis_angle
 
     best = np.array([1.0, 0, 0, 0])
     about_z = lambda a: from_axis_angle(np.array([0.0, 0, 1]), a)  # noqa: E731
@@ -86,7 +86,7 @@ def test_alternative_rotations_are_distinct_and_good():
 
 
 def test_merge_hint_only_when_each_shape_alone_blocked():
-    from sieve_mi.report import merge_hint, summary_table
+    from sieve_mi.outputs.report import merge_hint, summary_table
 
     report = {
         "winner": "B",
@@ -124,8 +124,8 @@ def test_merge_hint_only_when_each_shape_alone_blocked():
 def test_a_lost_merge_restarts_from_another_seed(write_scene, monkeypatch, restarts, seeds, kept):
     # The first merge loses (some B passes); with restarts, every A is searched again from
     # another seed and merged again, the blocking merge is kept and no further restart runs.
-    import sieve_mi.solver as solve_mod
-    from sieve_mi.layout import Merged
+    import sieve_mi.game.solver as solve_mod
+    from sieve_mi.game.layout import Merged
     from sieve_mi.optim import SwarmHistory
     from sieve_mi.scene import load_scene
 

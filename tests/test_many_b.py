@@ -69,12 +69,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from sieve_mi.meshes import shape_from_trimesh
-from sieve_mi.players import PlayerA, PlayerB
-from sieve_mi.raster import Frame
-from sieve_mi.rotations import from_axis_angle, to_matrix
+from sieve_mi.api import solve
+from sieve_mi.game.players import PlayerA, PlayerB
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.rotations import from_axis_angle, to_matrix
 from sieve_mi.scene import load_scene
-from sieve_mi.solver import solve
 from sieve_mi.testing.shapes import centred, from_manifold, sphere
 
 D, WIRE, AXLE = 34.0, 7.0, 60.0  # A: ring centre-line diameter, wire thickness, axle length

@@ -103,8 +103,8 @@ def test_descend_compiles_no_kernel_after_its_first_steps(mi, cube20, freeze):
     import drjit as dr
     from helpers import sphere
 
-    from sieve_mi.players import PlayerA, PlayerB
-    from sieve_mi.raster import Frame
+    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.geometry.raster import Frame
 
     f = Frame.covering(cube20.radius + 1.0, 64)
     hole = PlayerA(cube20, f, 1.0).holes(np.array([[1.0, 0, 0, 0]]))[0]
@@ -145,8 +145,8 @@ def test_every_outer_method_solves_end_to_end(write_scene, outer):
     # sphere is blocked whatever rotation the search picks: A wins with every method, after
     # exactly its budget of particles x (iterations + 1) = 3 x 2 evaluations plus the cube's
     # three canonical (face-on) views; the search's value is the polish's final one.
+    from sieve_mi.api import solve
     from sieve_mi.scene import load_scene
-    from sieve_mi.solver import solve
 
     ball = trimesh.creation.icosphere(2, 16.0)
     cube = trimesh.creation.box((20.0, 20.0, 20.0))

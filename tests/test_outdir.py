@@ -19,8 +19,9 @@ import pytest
 import trimesh
 from PIL import Image
 
-from sieve_mi import cli, outdir
+from sieve_mi import cli
 from sieve_mi.errors import SieveError
+from sieve_mi.outputs import outdir
 
 SMALL = """
 [solver]
@@ -299,8 +300,8 @@ def test_solve_refuses_protected_folders(scene_dir, tmp_path, tmp_path_factory, 
 
 @pytest.fixture(scope="module")
 def tiny_result(tmp_path_factory):
+    from sieve_mi.api import solve
     from sieve_mi.scene import load_scene
-    from sieve_mi.solver import solve
 
     d = tmp_path_factory.mktemp("tiny")
     (d / "meshes").mkdir()
@@ -311,7 +312,7 @@ def tiny_result(tmp_path_factory):
 
 
 def _write(result, out):
-    from sieve_mi.report import write_outputs
+    from sieve_mi.outputs.report import write_outputs
 
     return write_outputs(result, str(out), figure=False)
 
@@ -341,10 +342,10 @@ def _raise_interrupt(*args, **kwargs):
 @pytest.mark.parametrize(
     "module, name",
     [
-        ("sieve_mi.report", "_overlay_png"),  # before the fabrication step
-        ("sieve_mi.fabrication", "write_svg"),  # during it: sieve.stl is already written
-        ("sieve_mi.outdir", "write_marker"),  # after it: report.json is written
-        ("sieve_mi.outdir", "_exchange"),  # at the swap itself
+        ("sieve_mi.outputs.report", "_overlay_png"),  # before the fabrication step
+        ("sieve_mi.outputs.fabrication", "write_svg"),  # during it: sieve.stl is already written
+        ("sieve_mi.outputs.outdir", "write_marker"),  # after it: report.json is written
+        ("sieve_mi.outputs.outdir", "_exchange"),  # at the swap itself
     ],
 )
 def test_an_interrupted_solve_leaves_the_old_output(

@@ -12,12 +12,12 @@ import pytest
 import trimesh
 from helpers import rng
 
-from sieve_mi.hole import Hole, HoleStack
-from sieve_mi.meshes import shape_from_trimesh
-from sieve_mi.overlap import OverlapObjective
-from sieve_mi.raster import Frame
-from sieve_mi.rotations import random_uniform
-from sieve_mi.silhouettes import SilhouetteRenderer
+from sieve_mi.geometry.hole import Hole, HoleStack
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.rotations import random_uniform
+from sieve_mi.geometry.silhouettes import SilhouetteRenderer
+from sieve_mi.objectives.overlap_mitsuba import OverlapObjective
 
 FRAME = Frame(64, 1.0)  # pixel size h = 1/32
 
@@ -266,7 +266,7 @@ def test_margin_sees_the_part_outside_the_frame(mi):
 
 def test_player_b_fits_a_box_with_the_overlap_objective(mi):
     """Adam on the overlap loss moves a box that sticks out into an off-centre hole."""
-    from sieve_mi.players import PlayerB
+    from sieve_mi.game.players import PlayerB
 
     hole = _rect_hole(0.0, 0.8, -0.5, 0.5)  # the box (half diagonal 0.2) starts near x = 0
     player = PlayerB([_box(0.3, 0.2, 0.2)], FRAME, objective="overlap-mitsuba")

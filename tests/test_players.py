@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from helpers import rng, sphere
 
+from sieve_mi.game.players import PlayerA, PlayerB
+from sieve_mi.geometry.raster import Frame
 from sieve_mi.optim import nlopt_maximise, particle_swarm
-from sieve_mi.players import PlayerA, PlayerB
-from sieve_mi.raster import Frame
 
 
 def _cube_hole(cube20, resolution=128):
@@ -107,8 +107,8 @@ def test_attack_memory_replays_a_remembered_passage(cube20):
     # plane): a random pose never fits, the remembered upright pose always does.
     import trimesh
 
-    from sieve_mi.meshes import shape_from_trimesh
-    from sieve_mi.players import Attack, AttackMemory
+    from sieve_mi.game.attack import Attack, AttackMemory
+    from sieve_mi.geometry.meshes import shape_from_trimesh
 
     f, a, hole = _cube_hole(cube20)
     block = shape_from_trimesh(trimesh.creation.box(extents=(21.0, 21.0, 40.0)), name="block")

@@ -8,9 +8,9 @@ import os
 import numpy as np
 import pytest
 
-from sieve_mi.report import paste_window, report_dict, summary_table, write_outputs
+from sieve_mi.api import solve
+from sieve_mi.outputs.report import paste_window, report_dict, summary_table, write_outputs
 from sieve_mi.scene import load_scene
-from sieve_mi.solver import solve
 
 MESHES = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
 SCENE = f"""name = "report test"
@@ -101,7 +101,7 @@ def test_layered_exr_has_every_layer_on_one_lattice(solved, tmp_path):
     import manifold3d
     import mitsuba as mi
 
-    from sieve_mi.exact import Boundary, silhouette
+    from sieve_mi.geometry.outline import Boundary, silhouette
 
     out = tmp_path / "out"
     write_outputs(solved, str(out), fabricate=False)

@@ -14,11 +14,11 @@ import pytest
 import trimesh
 from helpers import TINY, sphere
 
-from sieve_mi.clearance import ClearanceObjective
-from sieve_mi.hole import HoleStack
-from sieve_mi.players import PlayerA
-from sieve_mi.raster import Frame
-from sieve_mi.rotations import random_uniform
+from sieve_mi.game.players import PlayerA
+from sieve_mi.geometry.hole import HoleStack
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.rotations import random_uniform
+from sieve_mi.objectives.clearance import ClearanceObjective
 
 SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
 MESHES = os.path.abspath(os.path.join(SCENES, "meshes"))
@@ -73,7 +73,7 @@ def test_per_pose_loss_equals_the_sum_over_its_samples(mi, cube20):
     # samples. A flat 26 mm square of two triangles, face-on over the face-on cube's 22 mm hole:
     # its 4 outline edges are boundary edges (always on the silhouette); its diagonal joins two
     # coplanar faces lying on opposite sides of it, so it is not. 2 mm stick out on every side.
-    from sieve_mi.meshes import segments, shape_from_trimesh
+    from sieve_mi.geometry.meshes import segments, shape_from_trimesh
 
     f = Frame.covering(cube20.radius + 1.0, 128)
     stack = HoleStack(PlayerA(cube20, f, 1.0).holes(np.array([[1.0, 0, 0, 0]])))
@@ -173,7 +173,7 @@ def test_check_is_reproducible(tmp_path):
 
 
 def test_report_records_provenance(tmp_path):
-    from sieve_mi.provenance import provenance, sha256
+    from sieve_mi.outputs.provenance import provenance, sha256
 
     mesh = tmp_path / "m.stl"
     mesh.write_bytes(b"solid x\nendsolid x\n")

@@ -7,10 +7,10 @@ import os
 import numpy as np
 import pytest
 
-from sieve_mi.hole import pieces
-from sieve_mi.rotations import align, to_matrix
+from sieve_mi.api import solve
+from sieve_mi.geometry.hole import pieces
+from sieve_mi.geometry.rotations import align, to_matrix
 from sieve_mi.scene import load_scene
-from sieve_mi.solver import solve
 
 SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
 FAST = """
@@ -110,8 +110,8 @@ def test_two_pass_shapes_share_one_connected_hole(write_scene):
     # silhouette does not widen the hole beyond 24 mm anywhere.
     from scipy import ndimage
 
-    from sieve_mi.scoring import score_poses
-    from sieve_mi.silhouettes import SilhouetteRenderer
+    from sieve_mi.game.scoring import score_poses
+    from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 
     body = (
         f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\n[[pass]]\nmesh = "{_mesh_path("prism.stl")}"\n'
@@ -134,8 +134,8 @@ def test_separate_layout_blocks_only_if_every_hole_blocks(write_scene):
     # its hole admits the sphere: B wins, through that hole.
     from scipy import ndimage
 
-    from sieve_mi.scoring import score_poses
-    from sieve_mi.silhouettes import SilhouetteRenderer
+    from sieve_mi.game.scoring import score_poses
+    from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 
     cube, sphere = _mesh_path("cube.stl"), _mesh_path("sphere.stl")
     sep = '[layout]\nmode = "separate"\n[fabrication]\nborder = 4.0\n'

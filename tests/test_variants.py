@@ -11,8 +11,8 @@ from sieve_mi.errors import SieveError
 
 
 def _attack(cube20):
-    from sieve_mi.players import PlayerA, PlayerB
-    from sieve_mi.raster import Frame
+    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.geometry.raster import Frame
 
     f = Frame.covering(cube20.radius + 1.0, 128)
     hole = PlayerA(cube20, f, 1.0).holes(np.array([[1.0, 0, 0, 0]]))[0]

@@ -15,13 +15,12 @@ import pytest
 import trimesh
 from helpers import TINY
 
-from sieve_mi import animation, viewer
-from sieve_mi.exact import silhouette
-from sieve_mi.outline import is_closed, placed_vertices, rasterize
-from sieve_mi.passage import Passage, build
-from sieve_mi.raster import Frame
+from sieve_mi.api import solve
+from sieve_mi.geometry.outline import is_closed, placed_vertices, rasterize, silhouette
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.outputs import animation, viewer
+from sieve_mi.outputs.passage import Passage, build
 from sieve_mi.scene import load_scene
-from sieve_mi.solver import solve
 
 MESHES = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
 # Several A shapes merged into one hole (A wins: the 24 mm sphere is blocked) ...
@@ -145,7 +144,7 @@ def test_names_cannot_break_out_of_the_page(merged):
 def test_a_ball_rests_on_a_round_hole_at_the_known_height():
     # A 24 mm ball over a 22 mm round hole: the rim holds it where the sphere meets the circle,
     # its centre sqrt(12² - 11²) = 4.796 mm above the plate's top. A 20 mm ball falls through.
-    from sieve_mi.passage import rest_offset
+    from sieve_mi.outputs.passage import rest_offset
 
     hole = manifold3d.CrossSection.circle(11.0, 256)
     box = np.array([[-20.0, -20.0], [20.0, 20.0]])
@@ -444,7 +443,7 @@ def test_no_animation_skips_only_the_gif(merged, tmp_path):
 
 
 def test_check_out_writes_a_page_of_the_plate_hole(merged, tmp_path):
-    from sieve_mi.checker import holes_from_mesh
+    from sieve_mi.game.check import holes_from_mesh
 
     result, report, out = merged
     dest = tmp_path / "check"

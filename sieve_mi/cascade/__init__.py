@@ -2,7 +2,7 @@
 
 A cascade is a stack of sieves, coarsest on top: sieve k holds the shape(s) of tray k and lets
 every shape still to be split below it fall through. Each sieve is one game of the solver
-(:func:`sieve_mi.solver.solve`): the falling shapes are set A, the held ones set B. The games are
+(:func:`sieve_mi.game.solver.solve`): the falling shapes are set A, the held ones set B. The games are
 independent, so they run in parallel on Ray (:mod:`sieve_mi.cascade.games`) where it is
 installed, one after another otherwise; finished games are kept, so an interrupted ``sort``
 resumes.

@@ -20,8 +20,8 @@ import tempfile
 import time
 from dataclasses import dataclass
 
-from sieve_mi import outdir
 from sieve_mi.errors import SieveError
+from sieve_mi.outputs import outdir
 from sieve_mi.scene import Scene
 
 #: Test hook: the first worker to see this path missing creates it and dies (Ray retries it).
@@ -91,7 +91,7 @@ def play(spec: GameSpec) -> dict:
     if flag and not os.path.exists(flag):
         open(flag, "w").close()
         os._exit(17)  # a worker dying mid-game
-    from sieve_mi.solver import solve
+    from sieve_mi.api import solve
 
     t0 = time.perf_counter()
     result = solve(spec.scene, variant=spec.variant, seed=spec.seed, progress=False)
@@ -145,7 +145,7 @@ class GameCache:
             return json.load(fh)
 
     def store(self, spec: GameSpec, outcome: dict) -> dict:
-        """Write a finished game (atomically, see :func:`sieve_mi.outdir.writing`)."""
+        """Write a finished game (atomically, see :func:`sieve_mi.outputs.outdir.writing`)."""
         record = {
             "key": spec.key,
             "label": spec.label,

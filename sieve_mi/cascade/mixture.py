@@ -13,12 +13,12 @@ from dataclasses import dataclass
 
 from sieve_mi.errors import SieveError
 from sieve_mi.scene import (
+    Reader,
     Scene,
     ShapeEntry,
-    _check_folder_name,
-    _read_file,
-    _read_shape,
-    _Reader,
+    check_folder_name,
+    read_file,
+    read_shape,
     read_tables,
     table_fields,
 )
@@ -89,7 +89,7 @@ def load_mixture(path: str) -> Mixture:
         One line naming the file and key: missing file, bad TOML, fewer than two shapes,
         duplicate names, unknown keys, bad values, a mesh file that does not exist.
     """
-    data = _read_file(path)
+    data = read_file(path)
     allowed = {"name", "units", "shape"} | {f.name for f in table_fields()}
     unknown = sorted(set(data) - allowed)
     if unknown:
@@ -99,9 +99,9 @@ def load_mixture(path: str) -> Mixture:
             else ""
         )
         raise SieveError(f"{path}: {unknown[0]}: unknown key{hint}; allowed: {sorted(allowed)}")
-    values = _Reader(path, data, "").read(Scene)  # name and units, checked
+    values = Reader(path, data, "").read(Scene)  # name and units, checked
     name = values.get("name", os.path.splitext(os.path.basename(path))[0])
-    _check_folder_name(path, name)
+    check_folder_name(path, name)
     units = values.get("units", Scene.__dataclass_fields__["units"].default)
     raw = data.get("shape")
     if not isinstance(raw, list) or len(raw) < 2:
@@ -133,8 +133,8 @@ def _shape(path: str, table, i: int) -> ShapeEntry:
         raise SieveError(
             f"{path}: {where}.rotation: every shape is tried in every orientation; remove it"
         )
-    entry = _read_shape(path, table, where)
+    entry = read_shape(path, table, where)
     if entry.name is None:
         entry.name = os.path.splitext(os.path.basename(entry.mesh))[0]
-    _check_folder_name(path, entry.name)
+    check_folder_name(path, entry.name)
     return entry

@@ -88,7 +88,7 @@ def stacked_plates(plan: Plan, game_dir: str, gap: float):
 
 def write_plates(plan: Plan, tmp: str, gap: float, units: str) -> list[str]:
     """``cascade.stl`` and ``cascade.3mf`` in ``tmp``; returns the names written."""
-    from sieve_mi.fabrication import UNIT_NAMES, write_3mf
+    from sieve_mi.outputs.fabrication import UNIT_NAMES, write_3mf
 
     mesh = stacked_plates(plan, os.path.join(tmp, "games"), gap)
     if mesh is None:

@@ -1,7 +1,7 @@
 """The size measure that orders a mixture, coarsest first.
 
 A shape's *passage radius* is the radius of the largest disk inscribed in its smallest-looking
-projection: over the canonical view directions (:func:`sieve_mi.canonical.view_directions`:
+projection: over the canonical view directions (:func:`sieve_mi.geometry.canonical.view_directions`:
 principal axes, minimum width and area directions, largest hull facets), the projection of the
 convex hull is a convex polygon, and its largest inscribed disk (Chebyshev centre, one small
 linear program) is measured; the smallest over the views is the passage radius. A round hole of
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sieve_mi.canonical import view_directions
-from sieve_mi.meshes import Shape
+from sieve_mi.geometry.canonical import view_directions
+from sieve_mi.geometry.meshes import Shape
 
 
 def inscribed_radius(points: np.ndarray) -> float:

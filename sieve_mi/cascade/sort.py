@@ -7,7 +7,6 @@ import time
 
 import numpy as np
 
-from sieve_mi import outdir
 from sieve_mi.cascade.games import Engine, GameSpec, game_key, ray_module
 from sieve_mi.cascade.mixture import Mixture
 from sieve_mi.cascade.outputs import (
@@ -19,7 +18,8 @@ from sieve_mi.cascade.outputs import (
 )
 from sieve_mi.cascade.plan import plan_cascade
 from sieve_mi.cascade.size import passage_radius
-from sieve_mi.provenance import sha256
+from sieve_mi.outputs import outdir
+from sieve_mi.outputs.provenance import sha256
 
 
 def prepare(mixture: Mixture) -> tuple[dict, list, dict]:
@@ -35,9 +35,9 @@ def prepare(mixture: Mixture) -> tuple[dict, list, dict]:
     icons : dict
         Per shape: its exact silhouette seen along the passage view, as polygons (for figures).
     """
-    from sieve_mi.exact import silhouette
-    from sieve_mi.meshes import load_trimesh, shape_from_trimesh
-    from sieve_mi.rotations import align
+    from sieve_mi.geometry.meshes import load_trimesh, shape_from_trimesh
+    from sieve_mi.geometry.outline import silhouette
+    from sieve_mi.geometry.rotations import align
 
     digests, rows, icons = {}, [], {}
     for e in mixture.shapes:

@@ -15,10 +15,10 @@ import time
 
 import numpy as np
 
-from sieve_mi import outdir
 from sieve_mi.cascade.games import Engine, GameSpec, game_key, weakest
 from sieve_mi.cascade.outputs import copy_games, write_json
-from sieve_mi.provenance import sha256
+from sieve_mi.outputs import outdir
+from sieve_mi.outputs.provenance import sha256
 from sieve_mi.scene import Scene
 
 
@@ -30,7 +30,7 @@ def margin(summary: dict) -> tuple:
 
 def _loaded(scene: Scene) -> tuple[Scene, dict]:
     """A copy of the scene with its meshes loaded into the entries, and their file digests."""
-    from sieve_mi.meshes import load_trimesh
+    from sieve_mi.geometry.meshes import load_trimesh
 
     scene = copy.deepcopy(scene)
     digests = {}

@@ -25,7 +25,7 @@ from sieve_mi.certify.replay import replay
 from sieve_mi.certify.search import Search, Settings
 from sieve_mi.certify.svg import read_svg_hole
 from sieve_mi.errors import SieveError
-from sieve_mi.meshes import Shape
+from sieve_mi.geometry.meshes import Shape
 
 __all__ = ["Certification", "Settings", "certify", "read_svg_hole", "replay"]
 

@@ -7,8 +7,8 @@ from collections.abc import Callable
 import numpy as np
 
 from sieve_mi.certify.certificate import Certification
-from sieve_mi.meshes import Shape
-from sieve_mi.outline import dilated, hole_outline, is_closed
+from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.outline import dilated, hole_outline, is_closed
 from sieve_mi.scene import Scene
 
 
@@ -23,7 +23,7 @@ def certify_blocks(
 ) -> list[Certification | None]:
     """Try to prove, for every B the verdict found blocked, that it cannot pass in any pose.
 
-    The hole is the exact outline the plate is cut from (:func:`sieve_mi.outline.hole_outline`:
+    The hole is the exact outline the plate is cut from (:func:`sieve_mi.geometry.outline.hole_outline`:
     A's placed projections, dilated by the tolerance, gaps filled), grown by ``block_margin``
     when there is one, so a proof covers the printed plate and the margin the scene asks for.
 

@@ -19,7 +19,7 @@ import math
 import manifold3d
 import numpy as np
 
-from sieve_mi.meshes import Shape
+from sieve_mi.geometry.meshes import Shape
 
 #: Segments per full circle of the round joins of H's offsets (chords within 0.12 % of the radius).
 ROUND_SEGMENTS = 64

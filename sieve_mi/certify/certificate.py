@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sieve_mi.errors import SieveError
-from sieve_mi.meshes import Shape
+from sieve_mi.geometry.meshes import Shape
 
 FORMAT = "sieve-mi-certificate/1"
 

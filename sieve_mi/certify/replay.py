@@ -159,7 +159,7 @@ class Replay:
             self.errors.append("the stored mesh does not match its sha256")
         path = self.cert["shape"].get("path", "")
         if path and os.path.isfile(path):
-            from sieve_mi.meshes import load_shape
+            from sieve_mi.geometry.meshes import load_shape
 
             s = load_shape(path, scale=float(self.cert["shape"].get("scale", 1.0)))
             if not (

@@ -16,9 +16,9 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.certify import bounds, cells
-from sieve_mi.meshes import Shape
-from sieve_mi.outline import placed_vertices, projection
-from sieve_mi.rotations import from_matrix, to_matrix
+from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.outline import placed_vertices, projection
+from sieve_mi.geometry.rotations import from_matrix, to_matrix
 
 
 @dataclass

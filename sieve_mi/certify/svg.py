@@ -1,4 +1,4 @@
-"""Read a hole outline from the SVG that :func:`sieve_mi.fabrication.write_svg` writes.
+"""Read a hole outline from the SVG that :func:`sieve_mi.outputs.fabrication.write_svg` writes.
 
 The file holds one ``<path>`` whose ``d`` attribute is a list of closed polygons
 ``M x y L x y ... Z`` (absolute coordinates, 1 user unit = 1 scene unit, y pointing down, so y is

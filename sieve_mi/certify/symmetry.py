@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sieve_mi.meshes import Shape
+from sieve_mi.geometry.meshes import Shape
 
 #: Half-width of the face-0 box that holds the octahedral group's fundamental region.
 OCTA_HALF = 0.41422  # > sqrt(2) - 1 = 0.414213...

@@ -1,0 +1,491 @@
+"""``sieve-mi check``: does a shape pass a given sieve, and by how much?
+
+Works on any sieve, not only those sieve-mi made:
+
+* ``--sieve plate.stl``: the through-holes of a plate along an axis (z by default) are found
+  exactly: a straight line along the axis is free iff it misses every triangle, so the free region
+  is the plate's filled outline minus the union of its projected triangles (manifold3d). Each
+  connected free region is one hole; this is exact for any plate, also for holes that narrow
+  inside the plate (a shape moving straight along the axis must clear the narrowest part).
+* ``--hole hole.png --pixel-size MM``: a binary image (white or opaque = hole), square pixels of the
+  given size in scene units, +y up.
+
+Player B then tries to fit the shape through each hole from many random starts (the same batched
+Adam as the verdict of ``solve``); the answer is *passes* when some pose has beta = 0 (binary
+masks). The *fit scale* is the largest uniform scale of the shape that still passes, found by
+bracketing and geometric bisection with the same inner solver: above 1 it says by how much a
+passing shape could grow, below 1 how far a blocked shape must shrink to get through, i.e. how
+much margin a block has.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field
+
+import manifold3d
+import numpy as np
+
+from sieve_mi.errors import SieveError
+from sieve_mi.game.exact import CANDIDATES, exact_rescore
+from sieve_mi.game.verdict import REACH
+from sieve_mi.geometry.hole import Hole, split_pieces
+from sieve_mi.geometry.meshes import Shape, load_trimesh
+from sieve_mi.geometry.outline import filled, placed_vertices, projection, union
+from sieve_mi.geometry.raster import Frame
+
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass
+class CheckSettings:
+    """Player B's budget for one check (the verdict's defaults) and the fit-scale search.
+
+    Attributes
+    ----------
+    starts, steps : int
+        Random starts and Adam steps per evaluation.
+    learning_rate : float
+    resolution : int
+        Raster side in pixels for sieves given as meshes.
+    seed : int
+    fit : bool
+        Also find the fit scale.
+    fit_tolerance : float
+        Relative width of the final fit-scale bracket.
+    """
+
+    starts: int = 100
+    steps: int = 500
+    learning_rate: float = 0.05
+    resolution: int = 256
+    seed: int = 0
+    fit: bool = True
+    fit_tolerance: float = 0.01
+
+
+@dataclass
+class ShapeCheck:
+    """One shape against one sieve at one scale."""
+
+    scale: float
+    passes: bool
+    beta: float
+    protrusion: float
+    rotation: list
+    translation: list
+    hole: int
+    fitting_starts: int
+    exact_outside_area: float | None = None
+
+
+@dataclass
+class CheckReport:
+    """What ``sieve-mi check`` reports (``--json`` prints it as a dict)."""
+
+    shape: str
+    sieve: str
+    units: str
+    holes: list
+    pixel_size: float
+    result: ShapeCheck
+    fit_scale: float | None = None
+    fit_bracket: list | None = None
+    evaluations: list = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def passes(self) -> bool:
+        """Whether the part passes at scale 1 (the exact verdict on a plate's holes)."""
+        return self.result.passes
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["passes"] = self.result.passes
+        return d
+
+
+# ------------------------------------------------------------------------------------------------
+# Holes
+# ------------------------------------------------------------------------------------------------
+
+
+def holes_from_mesh(path: str, axis: str = "z") -> list[manifold3d.CrossSection]:
+    """The through-holes of a plate mesh along ``axis``, each as an exact outline (scene units).
+
+    Raises
+    ------
+    SieveError
+        If the mesh cannot be read or has no through-hole along the axis.
+    """
+    mesh = load_trimesh(path)
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    if not np.all(np.isfinite(v)) or len(mesh.faces) == 0:
+        raise SieveError(
+            f"{path}: the sieve mesh has no usable triangles (or non-finite coordinates)"
+        )
+    a = AXES[axis]
+    order = [i for i in range(3) if i != a] + [a]
+    v = v[:, order]
+    if a == 1:  # keep a right-handed frame: (z, x, y)
+        v = v[:, [1, 0, 2]]
+    solid = projection(v, mesh.faces)
+    free = filled(solid) - solid
+    holes = [h for h in free.decompose() if h.area() > 1e-9 * max(solid.area(), 1e-300)]
+    if not holes:
+        raise SieveError(
+            f"{path}: no through-hole along {axis} (every line along {axis} inside the plate hits it); "
+            "check --axis or the file"
+        )
+    return sorted(holes, key=lambda h: -h.area())
+
+
+def mask_from_image(path: str) -> np.ndarray:
+    """A binary hole mask from an image: white (or opaque, for images with alpha) pixels are the hole."""
+    import os
+
+    from PIL import Image, UnidentifiedImageError
+
+    if not os.path.isfile(path):
+        raise SieveError(f"{path}: hole image not found")
+    try:
+        if path.lower().endswith(".exr"):
+            import mitsuba as mi
+
+            img = np.asarray(mi.Bitmap(path), dtype=np.float64)
+            img = img[..., 0] if img.ndim == 3 else img
+            mask = img > 0.5
+        else:
+            with Image.open(path) as im:
+                if im.mode in ("RGBA", "LA") or "transparency" in im.info:
+                    alpha = np.asarray(im.convert("RGBA"))[..., 3]
+                    grey = np.asarray(im.convert("L"))
+                    mask = (
+                        (alpha > 127) & (grey > 127)
+                        if (alpha < 255).any() and (grey < 128).any()
+                        else alpha > 127
+                    )
+                else:
+                    mask = np.asarray(im.convert("L")) > 127
+    except (UnidentifiedImageError, OSError, RuntimeError) as exc:
+        raise SieveError(
+            f"{path}: could not be read as an image ({exc.__class__.__name__})"
+        ) from None
+    if not mask.any():
+        raise SieveError(f"{path}: no hole pixels (the hole must be white on black)")
+    if mask.all():
+        raise SieveError(
+            f"{path}: every pixel is hole; the hole must be white on a black background"
+        )
+    return mask
+
+
+def frame_for_polygons(
+    holes: list[manifold3d.CrossSection], resolution: int
+) -> tuple[Frame, np.ndarray]:
+    """A frame centred on the holes' bounding box, covering them with a margin.
+
+    Returns
+    -------
+    frame : Frame
+    centre : (2,) ndarray
+        The bounding-box centre in the sieve's coordinates (subtracted from the outlines).
+    """
+    lo = np.min([h.bounds()[:2] for h in holes], axis=0)
+    hi = np.max([h.bounds()[2:] for h in holes], axis=0)
+    centre = 0.5 * (np.asarray(lo) + np.asarray(hi))
+    radius = 0.5 * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+    return Frame.covering(radius * 1.02, resolution, margin_px=4.0), centre
+
+
+def frame_for_image(mask: np.ndarray, pixel_size: float) -> tuple[Frame, np.ndarray]:
+    """Pad an image mask to a square frame with pixel size ``pixel_size``, hole centred.
+
+    Returns
+    -------
+    frame : Frame
+    mask : (N, N) bool ndarray
+    """
+    rows, cols = np.nonzero(mask)
+    crop = mask[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
+    n = max(crop.shape) + 8
+    out = np.zeros((n, n), dtype=bool)
+    r0, c0 = (n - crop.shape[0]) // 2, (n - crop.shape[1]) // 2
+    out[r0 : r0 + crop.shape[0], c0 : c0 + crop.shape[1]] = crop
+    return Frame(n, 0.5 * n * pixel_size), out
+
+
+# ------------------------------------------------------------------------------------------------
+# Player B against fixed holes
+# ------------------------------------------------------------------------------------------------
+
+
+def scaled(shape: Shape, s: float) -> Shape:
+    """The shape uniformly scaled about its centre by ``s``."""
+    return Shape(
+        name=shape.name,
+        path=shape.path,
+        vertices=shape.vertices * s,
+        faces=shape.faces,
+        centre=shape.centre * s,
+        radius=shape.radius * s,
+        hull=shape.hull * s,
+    )
+
+
+def attempt(
+    shape: Shape,
+    holes: list[Hole],
+    settings: CheckSettings,
+    s: float,
+    outlines: list[manifold3d.CrossSection] | None = None,
+) -> ShapeCheck:
+    """Player B's best attempt to pass ``shape`` scaled by ``s`` through any of ``holes``."""
+    from sieve_mi.game.players import PlayerB
+
+    b = scaled(shape, s)
+    player = PlayerB([b], holes[0].frame)
+    rng = np.random.default_rng(settings.seed)
+    keep = CANDIDATES if outlines is not None else 0
+    att = player.attack(
+        holes,
+        settings.starts,
+        settings.steps,
+        settings.learning_rate,
+        rng,
+        centres=_centres(holes),
+        keep=keep,
+    )
+    if outlines is None:  # a hole image: its pixels are the truth
+        k = int(np.lexsort((att.protrusion[:, 0], att.beta[:, 0]))[0])
+        best, row, fits = att, k, int(att.fits[k, 0])
+    else:  # the plate's exact holes decide (any of them may let it through)
+        hole = union(outlines)
+        best = exact_rescore(att, [b], hole, reach=REACH * holes[0].frame.pixel_size)
+        row, fits = 0, int(att.fits.sum())
+        k = _hole_of(best.trans[0, 0], outlines)
+    v = ShapeCheck(
+        scale=float(s),
+        passes=bool(best.beta[row, 0] == 0),
+        beta=float(best.beta[row, 0]),
+        protrusion=float(best.protrusion[row, 0]),
+        rotation=[float(x) for x in best.quats[row, 0]],
+        translation=[float(x) for x in best.trans[row, 0]],
+        hole=k,
+        fitting_starts=fits,
+    )
+    if outlines is not None:
+        proj = projection(placed_vertices(b, best.quats[0, 0], best.trans[0, 0]), b.faces)
+        v.exact_outside_area = float((proj - hole).area())
+    return v
+
+
+def _centres(holes: list[Hole]) -> np.ndarray:
+    """Each hole's starts centred on its own pixels (scene units), (H, 2)."""
+    out = []
+    for h in holes:
+        rows, cols = np.nonzero(h.mask)
+        x, y = h.frame.centres()
+        out.append([x[cols].mean(), y[rows].mean()] if len(rows) else [0.0, 0.0])
+    return np.array(out)
+
+
+def _hole_of(xy: np.ndarray, outlines: list) -> int:
+    """Index of the outline nearest to point ``xy`` (the hole a pose is in)."""
+    from sieve_mi.geometry.outline import Boundary
+
+    d = [Boundary(o).signed(np.atleast_2d(xy))[0] for o in outlines]
+    return int(np.argmin(d))
+
+
+def fit_scale(evaluate, first: ShapeCheck, rel_tol: float, limit: int = 12) -> tuple[float, list]:
+    """Largest scale that passes, by bracketing (doubling or halving) and geometric bisection.
+
+    Parameters
+    ----------
+    evaluate : callable
+        ``evaluate(s) -> ShapeCheck``.
+    first : ShapeCheck
+        The verdict at scale 1.
+    rel_tol : float
+        Stop when hi / lo - 1 is below this.
+    limit : int
+        Most doublings or halvings before giving up on a bracket.
+
+    Returns
+    -------
+    scale : float
+        The largest scale seen to pass (0 if none passed).
+    bracket : [lo, hi]
+        lo passes, hi is blocked (hi is inf when every tried scale passed).
+    """
+    lo, hi = (1.0, None) if first.passes else (None, 1.0)
+    for _ in range(limit):
+        if lo is not None and hi is not None:
+            break
+        if hi is None:
+            s = 2.0 * lo
+            if evaluate(s).passes:
+                lo = s
+            else:
+                hi = s
+        else:
+            s = 0.5 * hi
+            if evaluate(s).passes:
+                lo = s
+            else:
+                hi = s
+    if lo is None:
+        return 0.0, [0.0, hi]
+    if hi is None:
+        return lo, [lo, math.inf]
+    while hi / lo - 1.0 > rel_tol:
+        s = math.sqrt(lo * hi)
+        if evaluate(s).passes:
+            lo = s
+        else:
+            hi = s
+    return lo, [lo, hi]
+
+
+def check(
+    shape,
+    *,
+    sieve: str | None = None,
+    axis: str = "z",
+    image: str | None = None,
+    pixel_size: float | None = None,
+    units: str = "mm",
+    settings: CheckSettings | None = None,
+    progress=None,
+) -> CheckReport:
+    """Test a shape against a sieve (a plate mesh or a hole image).
+
+    Parameters
+    ----------
+    shape : Shape, trimesh.Trimesh or str
+        The part, in scene units: a loaded Shape, a trimesh mesh, or a mesh file's path.
+    sieve : str, optional
+        Plate mesh file; its holes are taken along ``axis``.
+    image : str, optional
+        Hole image (white = hole), with ``pixel_size`` in scene units.
+    units : str
+        Label for reports.
+    settings : CheckSettings, optional
+    progress : callable, optional
+        Called with each :class:`ShapeCheck` as it is computed.
+
+    Returns
+    -------
+    CheckReport
+    """
+    shape = as_shape(shape)
+    settings = settings or CheckSettings()
+    t0 = time.perf_counter()
+    if sieve is not None:
+        holes, outlines, centre, info, frame = _plate_holes(sieve, axis, settings.resolution)
+        source = sieve
+    else:
+        holes, frame = _image_holes(image, pixel_size)
+        outlines, centre, source = None, np.zeros(2), image
+        info = [{"area": h.area} for h in holes]
+    # Poses are reported in the sieve's own coordinates.
+    evaluations: list[ShapeCheck] = []
+
+    def evaluate(s: float) -> ShapeCheck:
+        v = attempt(shape, holes, settings, s, outlines)
+        v.translation = [v.translation[0] + float(centre[0]), v.translation[1] + float(centre[1])]
+        evaluations.append(v)
+        if progress:
+            progress(v)
+        return v
+
+    first = evaluate(1.0)
+    rep = CheckReport(
+        shape=shape.path or shape.name,
+        sieve=source,
+        units=units,
+        holes=info,
+        pixel_size=frame.pixel_size,
+        result=first,
+    )
+    if settings.fit:
+        rep.fit_scale, rep.fit_bracket = fit_scale(evaluate, first, settings.fit_tolerance)
+    rep.evaluations = evaluations
+    rep.seconds = time.perf_counter() - t0
+    return rep
+
+
+def as_shape(part) -> Shape:
+    """A Shape from a Shape, a trimesh mesh or a mesh file's path (scene units)."""
+    from sieve_mi.geometry.meshes import load_shape, shape_from_trimesh
+
+    if isinstance(part, Shape):
+        return part
+    if isinstance(part, (str, os.PathLike)):
+        return load_shape(os.fspath(part))
+    return shape_from_trimesh(part, name=getattr(part, "metadata", {}).get("name", "part"))
+
+
+def _plate_holes(sieve: str, axis: str, resolution: int):
+    """The through-holes of plate mesh ``sieve`` along ``axis``, centred on a common frame.
+
+    Returns
+    -------
+    holes : list of Hole
+    outlines : list of CrossSection
+        Exact hole outlines, shifted by ``-centre``.
+    centre : (2,) ndarray
+        The plate coordinates of the frame's centre.
+    info : list of dict
+        Per hole its area and centre (plate coordinates), for the report.
+    frame : Frame
+    """
+    outlines = holes_from_mesh(sieve, axis)
+    frame, centre = frame_for_polygons(outlines, resolution)
+    info = []
+    for o in outlines:
+        lo, hi = np.asarray(o.bounds()[:2]), np.asarray(o.bounds()[2:])
+        info.append({"area": float(o.area()), "centre": [float(c) for c in (lo + hi) / 2]})
+    outlines = [o.translate([-centre[0], -centre[1]]) for o in outlines]
+    holes = [Hole.from_outline(o, frame) for o in outlines]
+    return holes, outlines, centre, info, frame
+
+
+def _image_holes(image: str, pixel_size: float | None):
+    """The holes (8-connected white pieces) of a hole image with ``pixel_size``, and the frame."""
+    if pixel_size is None or not (pixel_size > 0 and math.isfinite(pixel_size)):
+        raise SieveError(
+            f"--pixel-size {pixel_size}: give the hole image's pixel size, a positive number in scene units"
+        )
+    frame, mask = frame_for_image(mask_from_image(image), pixel_size)
+    return [Hole.from_mask(m, frame) for m in split_pieces(mask)], frame
+
+
+def summary(rep: CheckReport) -> str:
+    """Plain-text result of a check."""
+    r, u = rep.result, rep.units
+    holes = ", ".join(f"{h['area']:.4g} {u}²" for h in rep.holes)
+    lines = [
+        f"shape {rep.shape} against {rep.sieve}: {len(rep.holes)} hole(s) of area {holes}, pixel {rep.pixel_size:.4g} {u}",
+        f"result: {'PASSES' if r.passes else 'blocked'}   beta {r.beta:.4f}   protrusion {r.protrusion:.3f} {u}   "
+        f"({r.fitting_starts} start(s) fit)",
+    ]
+    if r.exact_outside_area is not None:
+        lines.append(
+            f"best pose, exact polygons: {r.exact_outside_area:.4g} {u}² of the shape's outline outside the hole"
+        )
+    if rep.fit_scale is not None:
+        lo, hi = rep.fit_bracket
+        if rep.fit_scale == 0:
+            lines.append(f"fit scale: below {hi:.4g} (blocked at every scale tried)")
+        elif math.isinf(hi):
+            lines.append(f"fit scale: at least {lo:.4g} (passed at every scale tried)")
+        else:
+            lines.append(
+                f"fit scale: {rep.fit_scale:.4g}  (passes at {lo:.4g}, blocked at {hi:.4g})"
+            )
+    lines.append(f"{len(rep.evaluations)} evaluation(s) in {rep.seconds:.1f} s")
+    return "\n".join(lines)

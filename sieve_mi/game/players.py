@@ -1,0 +1,606 @@
+"""The two players of the sieve game (paper Secs. 5 and 6).
+
+Player B (:class:`PlayerB`) minimises how much of each blocked shape sticks out of a hole, over
+rotations and translations, with Adam from many random starts; every start of every shape against
+every candidate hole runs in one batched Dr.Jit kernel per step. Player A (:class:`PlayerA`)
+chooses the rotation of its shape so that B's best attempt is as bad as possible (eq. 7), with a
+particle swarm whose particles are evaluated together, or with an nlopt global method.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+
+import numpy as np
+
+from sieve_mi.game.attack import Attack, AttackMemory
+from sieve_mi.game.scoring import score_poses
+from sieve_mi.geometry.hole import Hole, build_hole
+from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.rotations import (
+    angle_between,
+    from_rotvec,
+    normalize,
+    quat_multiply,
+    random_uniform,
+    to_rotvec,
+)
+from sieve_mi.geometry.silhouettes import SilhouetteRenderer
+from sieve_mi.objectives import OBJECTIVES, make_objective
+from sieve_mi.optim import (
+    POSE_KEYS,
+    QUAT_KEYS,
+    nlopt_maximise,
+    particle_swarm,
+    pose_adam,
+    renormalise_quaternions,
+)
+
+#: On the CPU (LLVM variants) descents with more (pose, segment) pairs than this trace their steps
+#: even with ``freeze``: there a big step is bound by arithmetic and the frozen step's fixed-size
+#: buffer passes cost more than tracing saves (docs/performance.md: a 70k-face bunny at 100 poses,
+#: 15M pairs, steps 15 % slower frozen; spot/cow's verdict, 2.7M pairs, is 1.1x faster frozen).
+CPU_FREEZE_PAIRS = 5_000_000
+
+
+class _BufferOverflow(Exception):
+    """A frozen descent's active-pair buffer overflowed: its results are wrong."""
+
+
+class _FrozenStepFailed(Exception):
+    """Dr.Jit failed to record or replay a frozen step (the cause is chained)."""
+
+
+class PlayerB:
+    """Fits B's shapes into holes by batched Adam from random starts.
+
+    Parameters
+    ----------
+    shapes : list of Shape
+        The shapes that must be blocked.
+    frame : Frame
+        The raster frame of the holes it will be tested against.
+    objective : {"clearance", "overlap", "overlap-mitsuba"}
+        Differentiable loss used by Adam; scores are always binary beta.
+    samples_per_segment : int, optional
+        Edge samples per segment for the clearance objective (default: from the edge lengths).
+    freeze : bool
+        Record the Adam step once and replay it (:mod:`sieve_mi.game.frozen`) where the objective
+        allows it (``clearance``) and it pays (on the CPU only up to :data:`CPU_FREEZE_PAIRS`
+        (pose, segment) pairs per step); the results are the same either way.
+    """
+
+    def __init__(
+        self,
+        shapes: list[Shape],
+        frame: Frame,
+        objective: str = "clearance",
+        samples_per_segment: int | None = None,
+        freeze: bool = True,
+    ):
+        if objective not in OBJECTIVES:
+            raise ValueError(f"unknown objective {objective!r}")
+        self.shapes = shapes
+        self.frame = frame
+        self.objective = objective
+        self.renderers = [SilhouetteRenderer(s) for s in shapes]
+        self._samples = samples_per_segment
+        self._loss = None
+        self.freeze = bool(freeze)
+        self._frozen = None
+
+    def _loss_fn(self):
+        if self._loss is None:
+            self._loss = make_objective(self.objective, self.shapes, self.frame, self._samples)
+        return self._loss
+
+    def attack(
+        self,
+        holes: list[Hole],
+        starts: int,
+        steps: int,
+        learning_rate: float,
+        rng: np.random.Generator,
+        progress: Callable[[int], None] | None = None,
+        centres: np.ndarray | None = None,
+        memory: AttackMemory | None = None,
+        keep: int = 0,
+    ) -> Attack:
+        """Player B's best attempt on each hole, for each shape.
+
+        Starts are uniform random rotations and translations in +-0.1 of the frame's half extent
+        (paper Sec. 6.1); translations are optimised in units of the half extent.
+
+        Parameters
+        ----------
+        holes : list of Hole
+            Candidate holes, all on ``self.frame``.
+        starts : int
+            Random starts per hole and shape.
+        steps : int
+            Adam steps.
+        learning_rate : float
+            Adam's learning rate for quaternion components and normalised translations.
+        rng : numpy.random.Generator
+        progress : callable, optional
+            Called with the number of steps done after each step.
+        centres : (H, 2) or (H, C, 2) ndarray, optional
+            Where each hole's starts are centred (scene units); default the origin. With C
+            centres per hole, start ``s`` is centred on centre ``s % C``.
+        memory : AttackMemory, optional
+            B's remembered best poses replace the first random starts of every hole (at most
+            ``starts - 1`` per shape, so at least one start stays random); the memory is then
+            updated with this attack's results.
+        keep : int
+            Keep the ``keep`` best poses per hole and shape in ``Attack.candidates``.
+        """
+        n_h, n_b = len(holes), len(self.shapes)
+        k = n_h * n_b * starts
+        pose_hole = np.repeat(np.arange(n_h), n_b * starts)
+        pose_shape = np.tile(np.repeat(np.arange(n_b), starts), n_h)
+        q0 = random_uniform(k, rng)
+        t0 = rng.uniform(-0.1, 0.1, size=(k, 2)) * self.frame.half_extent
+        if centres is not None:
+            c = np.asarray(centres, dtype=np.float64)
+            c = c[:, None, :] if c.ndim == 2 else c
+            which = np.tile(np.arange(starts) % c.shape[1], n_h * n_b)
+            t0 += c[pose_hole, which]
+        if memory is not None:
+            q0, t0 = q0.reshape(n_h, n_b, starts, 4), t0.reshape(n_h, n_b, starts, 2)
+            for b in range(n_b):
+                mq, mt = memory.poses(b)
+                w = min(len(mq), starts - 1)
+                q0[:, b, :w], t0[:, b, :w] = mq[:w], mt[:w]
+            q0, t0 = q0.reshape(k, 4), t0.reshape(k, 2)
+        quats, trans = self.descend(
+            holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress
+        )
+        attack = self._score(holes, quats, trans, pose_hole, pose_shape, starts, keep)
+        if memory is not None:
+            memory.update(attack)
+        return attack
+
+    def descend(
+        self,
+        holes: list[Hole],
+        pose_hole: np.ndarray,
+        pose_shape: np.ndarray,
+        q0: np.ndarray,
+        t0: np.ndarray,
+        steps: int,
+        learning_rate: float,
+        progress: Callable[[int], None] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Batched Adam from given starting poses; returns each start's best pose.
+
+        Parameters
+        ----------
+        holes : list of Hole
+            On ``self.frame``.
+        pose_hole, pose_shape : (K,) ndarrays of int
+            Which hole and which shape each pose belongs to.
+        q0 : (K, 4) ndarray
+            Starting rotations.
+        t0 : (K, 2) ndarray
+            Starting translations, scene units.
+        steps : int
+        learning_rate : float
+        progress : callable, optional
+
+        Returns
+        -------
+        quats : (K, 4) ndarray
+        trans : (K, 2) ndarray
+            Scene units.
+
+        Notes
+        -----
+        Frozen steps (:mod:`sieve_mi.game.frozen`) whose buffer overflowed make this descent run again
+        traced; if Dr.Jit fails to record or replay one, this player warns and traces from then
+        on. Either way the result is the traced one.
+        """
+        args = (holes, pose_hole, pose_shape, q0, t0, steps, learning_rate)
+        try:
+            return self._descend(*args, progress)
+        except _FrozenStepFailed as failure:
+            self._stop_freezing(failure.__cause__)
+        except _BufferOverflow:  # more active pairs than the buffer held: this descent traced
+            return self._descend(*args, may_freeze=False)
+        return self._descend(*args)
+
+    def _descend(
+        self,
+        holes,
+        pose_hole,
+        pose_shape,
+        q0,
+        t0,
+        steps,
+        learning_rate,
+        progress=None,
+        *,
+        may_freeze: bool = True,
+    ):
+        """:meth:`descend` without its fallbacks; raises :class:`_BufferOverflow` or
+        :class:`_FrozenStepFailed` when a frozen descent must run again traced. ``may_freeze=False``
+        traces every step."""
+        import drjit as dr
+        import mitsuba as mi
+
+        from sieve_mi.geometry.hole import HoleStack
+
+        loss = self._loss_fn()
+        stack = HoleStack(holes)
+        loss.bind(pose_shape)
+        scale = self.frame.half_extent
+        opt = pose_adam(q0, np.asarray(t0) / scale, learning_rate)
+        hole_idx = mi.UInt32(np.asarray(pose_hole).astype(np.uint32))
+        best = [dr.detach(opt[key]) for key in POSE_KEYS]
+        best_loss = dr.opaque(mi.Float, np.inf, len(q0))
+
+        def evaluate():
+            q = tuple(opt[key] for key in QUAT_KEYS)
+            return loss.loss(q, (opt["tx"] * scale, opt["ty"] * scale), stack, hole_idx)
+
+        def keep_best(per_pose, best, best_loss):
+            # Each start keeps the best pose it visited (Adam may step past a fit).
+            improved = per_pose < best_loss
+            kept = [dr.select(improved, dr.detach(opt[key]), b) for key, b in zip(POSE_KEYS, best)]
+            return kept, dr.select(improved, per_pose, best_loss)
+
+        may_freeze = may_freeze and steps > 0
+        frozen = self._frozen_steps(loss, opt, stack, hole_idx, scale) if may_freeze else None
+        try:
+            for step in range(steps):
+                if frozen is not None and step >= 2:  # steps 1, 2 differ in layout: traced
+                    best, best_loss = frozen(best, best_loss)
+                else:
+                    total, per_pose = evaluate()
+                    dr.backward(total)
+                    best, best_loss = keep_best(per_pose, best, best_loss)
+                    opt.step(eval=False)
+                    renormalise_quaternions(opt, best, best_loss)
+                if progress:
+                    progress(step + 1)
+        except Exception as exc:  # drjit.freeze is experimental: trace instead of failing
+            if frozen is None:
+                raise
+            raise _FrozenStepFailed from exc
+        if frozen is not None and frozen.overflowed():
+            raise _BufferOverflow
+        if steps > 0:
+            with dr.suspend_grad():
+                best, _ = keep_best(evaluate()[1], best, best_loss)
+        final = np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
+        return normalize(final[:, :4]), final[:, 4:] * scale
+
+    def _stop_freezing(self, exc: Exception) -> None:
+        """Trace every later step of this player, after Dr.Jit failed on a frozen one."""
+        import warnings
+
+        self.freeze = False
+        self._frozen = None
+        warnings.warn(
+            f"drjit.freeze failed on player B's Adam step ({type(exc).__name__}: {exc}); "
+            "tracing every step instead (same results, slower); [solver] freeze = false "
+            "skips the attempt",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+
+    def _frozen_steps(self, loss, opt, stack, hole_idx, scale):
+        """The frozen Adam step of one descent (:mod:`sieve_mi.game.frozen`), or None if not frozen.
+
+        Returns a callable ``step(best, best_loss) -> (best, best_loss)`` that updates ``opt``,
+        with ``step.overflowed()`` telling whether any step's buffer overflowed (its results
+        are then wrong).
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        if not (self.freeze and getattr(loss, "freezable", False)):
+            return None
+        if loss.pair_count > CPU_FREEZE_PAIRS and mi.variant().startswith("llvm"):
+            return None
+        from sieve_mi.game.frozen import frozen_step
+
+        self._frozen = self._frozen or frozen_step()
+        capacity = loss.capacity(tuple(opt[name] for name in QUAT_KEYS))
+        record = (scale, capacity, loss.pose_count, loss.pair_count)
+        state = {"overflow": dr.opaque(mi.Bool, False)}
+
+        def step(best, best_loss):
+            # Literals (Adam's step counter after the traced steps) become evaluated arrays, so
+            # the first frozen step has the layout of the later ones (else it is recorded twice).
+            dr.make_opaque(opt.state, best, best_loss)
+            best, best_loss, state["overflow"] = self._frozen(
+                opt, best, best_loss, state["overflow"], loss, stack, hole_idx, record
+            )
+            return best, best_loss
+
+        step.overflowed = lambda: bool(state["overflow"][0])
+        return step
+
+    def _score(self, holes, quats, trans, pose_hole, pose_shape, starts, keep=0) -> Attack:
+        n_h, n_b = len(holes), len(self.shapes)
+        beta = np.ones(len(quats))
+        prot = np.zeros(len(quats))
+        for b in range(n_b):
+            sel = pose_shape == b
+            s = score_poses(
+                self.renderers[b], holes, quats[sel], trans[sel], pose_hole=pose_hole[sel]
+            )
+            beta[sel], prot[sel] = s.beta, s.protrusion
+        beta = beta.reshape(n_h, n_b, starts)
+        prot = prot.reshape(n_h, n_b, starts)
+        # Best start: lowest beta, then lowest protrusion.
+        key = beta + 1e-9 * prot / (1.0 + prot)
+        best = np.argmin(key, axis=-1)
+        idx = np.arange(n_h)[:, None], np.arange(n_b)[None, :]
+        qs = quats.reshape(n_h, n_b, starts, 4)
+        ts = trans.reshape(n_h, n_b, starts, 2)
+        candidates = None
+        if keep > 0:
+            order = np.argsort(key, axis=-1, kind="stable")[..., : min(keep, starts)]
+            candidates = (
+                np.take_along_axis(qs, order[..., None], axis=2),
+                np.take_along_axis(ts, order[..., None], axis=2),
+            )
+        return Attack(
+            candidates=candidates,
+            beta=beta[idx + (best,)],
+            protrusion=prot[idx + (best,)],
+            quats=qs[idx + (best,)],
+            trans=ts[idx + (best,)],
+            fits=(beta == 0).sum(-1),
+        )
+
+
+_POOL = None
+
+
+def _pool():
+    """A shared thread pool for per-pose raster work (distance transforms, hole filling)."""
+    global _POOL
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL = ThreadPoolExecutor(
+            max_workers=max(1, min(8, os.cpu_count() or 1)), thread_name_prefix="sieve-mi-raster"
+        )
+    return _POOL
+
+
+class PlayerA:
+    """Chooses A's rotation so that B's best attempt fails by as much as possible (eq. 7).
+
+    Parameters
+    ----------
+    shape : Shape
+        The shape that must pass.
+    frame : Frame
+        Raster frame of the hole (covers A's dilated silhouette at every rotation).
+    tolerance : float
+        Dilation of A's silhouette, scene units.
+    fill_holes : bool
+        Whether holes in A's silhouette are filled.
+    """
+
+    def __init__(self, shape: Shape, frame: Frame, tolerance: float, fill_holes: bool = True):
+        self.shape = shape
+        self.frame = frame
+        self.tolerance = tolerance
+        self.fill_holes = fill_holes
+        self.renderer = SilhouetteRenderer(shape)
+
+    def silhouettes(self, quats: np.ndarray, trans: np.ndarray | None = None) -> np.ndarray:
+        """A's silhouettes on the frame for K poses, (K, N, N) bool (translations default to zero)."""
+        quats = np.atleast_2d(normalize(quats))
+        trans = np.zeros((len(quats), 2)) if trans is None else np.atleast_2d(trans)
+        zero = np.zeros(len(quats), int)
+        return self.renderer.masks(quats, trans, self.frame, zero, zero, self.frame.resolution)
+
+    def holes(
+        self, quats: np.ndarray, trans: np.ndarray | None = None, base: np.ndarray | None = None
+    ) -> list[Hole]:
+        """The hole H for each pose: silhouette, dilated by the tolerance, holes filled.
+
+        Parameters
+        ----------
+        quats : (K, 4) ndarray
+        trans : (K, 2) ndarray, optional
+            Translations in scene units (default zero).
+        base : (N, N) bool ndarray, optional
+            Part of the hole made by other shapes (already dilated); each hole is its union with
+            this shape's dilated silhouette, then filled.
+        """
+        extra = [] if base is None else [base]
+        masks = self.silhouettes(quats, trans)
+
+        def one(m):
+            return build_hole([m], self.frame, self.tolerance, self.fill_holes, extra=extra)
+
+        if len(masks) < 2:
+            return [one(m) for m in masks]
+        # SciPy's distance transforms release the GIL: build the particles' holes in parallel.
+        return list(_pool().map(one, masks))
+
+    def search(
+        self,
+        player_b: PlayerB,
+        *,
+        method: str,
+        particles: int,
+        iterations: int,
+        starts: int,
+        steps: int,
+        learning_rate: float,
+        rng: np.random.Generator,
+        seed: int,
+        inertia: float = 0.25,
+        c_personal: float = 0.25,
+        c_global: float = 0.25,
+        progress: Callable[[int, float], None] | None = None,
+        canonical: int = 0,
+        polish: int = 0,
+        stage: Callable[[str], None] | None = None,
+    ):
+        """Global search over A's rotation: canonical views, then the swarm, then a local polish.
+
+        Parameters
+        ----------
+        canonical : int
+            Canonical views to evaluate first (:mod:`sieve_mi.geometry.canonical`); the best of them start
+            half of the swarm's particles (nlopt: the best one is its starting point).
+        polish : int
+            Rounds of :meth:`polish` after the global method (0: none).
+        stage : callable, optional
+            Called with "canonical", "swarm" and "polish" as each stage starts (progress bars).
+
+        Other parameters are the ``[solver]`` settings of the same names.
+
+        Returns
+        -------
+        quat : (4,) ndarray
+            Best rotation found.
+        value : float
+            Its game value (min over B of beta).
+        history : SwarmHistory
+            Best value after each iteration (PSO) or evaluation (nlopt); ``history.polish`` holds
+            the polish's record.
+        """
+
+        def evaluate(qs: np.ndarray) -> np.ndarray:
+            return self.values(player_b, qs, starts, steps, learning_rate, rng)
+
+        def say(name: str) -> None:
+            if stage is not None:
+                stage(name)
+
+        if canonical > 0:
+            say("canonical")
+        seeds, evaluated = self._canonical_seeds(evaluate, canonical, max(1, particles // 2))
+        say("swarm" if method == "pso" else method)
+        q, f, history = self._global(
+            evaluate, seeds, method, particles, iterations, rng, seed,
+            (inertia, c_personal, c_global), progress,
+        )  # fmt: skip
+        history.evaluations += evaluated
+        if polish > 0:
+            say("polish")
+            q, f, history.polish = self.polish(
+                player_b, q, starts=starts, steps=steps, learning_rate=learning_rate,
+                seed=seed, rounds=polish,
+            )  # fmt: skip
+        return q, f, history
+
+    def values(self, player_b: PlayerB, quats, starts, steps, learning_rate, rng) -> np.ndarray:
+        """The game value (min over B of β, eq. 10) of the holes of rotations (K, 4), one attack.
+
+        An empty raster hole (A seen edge-on, thinner than a pixel) blocks everything on the
+        raster but not on the plate: it gets -1, below every real hole.
+        """
+        holes = self.holes(quats)
+        values = player_b.attack(holes, starts, steps, learning_rate, rng).value()
+        return np.where([h.mask.any() for h in holes], values, -1.0)
+
+    def _canonical_seeds(self, evaluate, count: int, keep: int) -> tuple[np.ndarray, int]:
+        """The ``keep`` best of ``count`` canonical orientations (k, 4), evaluated in one batch,
+        and how many were evaluated."""
+        from sieve_mi.geometry.canonical import canonical_orientations
+
+        if count <= 0:
+            return np.zeros((0, 4)), 0
+        views = canonical_orientations(self.shape, count)
+        values = evaluate(views)
+        return views[np.argsort(-values, kind="stable")[:keep]], len(views)
+
+    def _global(self, evaluate, seeds, method, particles, iterations, rng, seed, pso, progress):
+        """The swarm (or nlopt) over A's rotation, started from ``seeds`` where given."""
+        if method == "pso":
+            x0 = random_uniform(particles, rng)
+            x0[: len(seeds)] = seeds[:particles]
+            inertia, c_personal, c_global = pso
+            return particle_swarm(
+                evaluate,
+                x0,
+                iterations,
+                rng,
+                inertia,
+                c_personal,
+                c_global,
+                project=normalize,
+                progress=progress,
+            )
+        lower, upper = -np.pi * np.ones(3), np.pi * np.ones(3)
+        x0 = rng.uniform(-np.pi, np.pi, 3)
+        if len(seeds):
+            x0 = np.clip(to_rotvec(seeds[0]), lower, upper)
+        x, f, history = nlopt_maximise(
+            lambda v: float(evaluate(from_rotvec(v)[None])[0]),
+            lower,
+            upper,
+            method,
+            particles * (iterations + 1),
+            x0,
+            seed,
+            progress,
+        )
+        return from_rotvec(x), f, history
+
+    def polish(
+        self,
+        player_b: PlayerB,
+        quat: np.ndarray,
+        *,
+        starts: int,
+        steps: int,
+        learning_rate: float,
+        seed: int,
+        rounds: int,
+        first: float = 1.0,
+        last: float = 0.05,
+        gain: float = 0.01,
+    ) -> tuple[np.ndarray, float, dict]:
+        """Refine A's rotation locally: a batched compass search on the view direction.
+
+        The starting rotation is evaluated once; then each round tilts the current one by ``step``
+        about the x and y axes, both ways (turning about z only turns the hole), and evaluates the
+        four holes in one attack whose B starts are the same every time (common random numbers, so differences come from
+        the holes, not from luck). A tilt that is better by more than ``gain`` (relative, and at
+        least 1e-3: less is a pixel's worth of raster noise) is taken; otherwise the step is
+        halved, from ``first`` down to ``last`` degrees.
+
+        Returns
+        -------
+        quat : (4,) ndarray
+        value : float
+            The value of ``quat`` with the common starts (comparable with ``record["before"]``).
+        record : dict
+            ``before`` and ``after`` values with the common starts, the rotation's ``moved``
+            angle (degrees) and the ``rounds`` run.
+        """
+        tilts = np.array([[1.0, 0, 0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0]])
+
+        def values(qs):
+            common = np.random.default_rng([int(seed), 0x501])
+            return self.values(player_b, qs, starts, steps, learning_rate, common)
+
+        start = normalize(np.asarray(quat, dtype=np.float64))
+        best, step, done = start, np.radians(first), 0
+        current = float(values(best[None])[0])
+        before = current
+        while done < rounds and step >= np.radians(last) * (1 - 1e-9):
+            tried = normalize(quat_multiply(from_rotvec(tilts * step), best))
+            v = values(tried)
+            done += 1
+            k = int(np.argmax(v))
+            if v[k] > current + max(1e-3, gain * abs(current)):
+                best, current = tried[k], float(v[k])
+            else:
+                step /= 2
+        moved = float(np.degrees(angle_between(best, start)))
+        record = {"before": before, "after": current, "moved": moved, "rounds": done}
+        return best, current, record

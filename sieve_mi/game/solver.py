@@ -1,0 +1,340 @@
+"""The whole game for one scene: player A's search, then the verdict (:mod:`sieve_mi.game.verdict`).
+
+:func:`search` chooses every A's rotation (each alone against all of B, Secs. 5.1-5.2) and, for
+several A in one hole, their placements (:func:`sieve_mi.game.layout.merge`, Sec. 5.3); the verdict
+re-runs player B for longer against the chosen hole and declares the winner.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sieve_mi.game.attack import AttackMemory
+from sieve_mi.game.layout import alternative_rotations, hole_frame, merge, union_frame
+from sieve_mi.game.players import PlayerA, PlayerB
+from sieve_mi.game.result import Result
+from sieve_mi.game.verdict import judge
+from sieve_mi.geometry.meshes import Shape, load_shape, shape_from_trimesh
+from sieve_mi.geometry.rotations import normalize
+from sieve_mi.optim import SwarmHistory
+from sieve_mi.scene import Scene
+
+
+@dataclass
+class Search:
+    """Player A's choice, as :func:`search` made it.
+
+    Attributes
+    ----------
+    quats : (m, 4) ndarray
+        Each A's rotation (w, x, y, z).
+    trans : (m, 2) ndarray
+        Each A's translation, scene units (zeros unless merged).
+    value : float
+        The game value of the last stage (NaN when every A was fixed).
+    history : SwarmHistory
+    stages : list of (str, int)
+    alone : list of float or None
+        Each A's own search value (None where fixed).
+    memory : AttackMemory or None
+        Player B's best poses remembered by the many-A placement (None otherwise).
+    polish : list of dict
+        Per searched A, the local polish's record (shape, before, after, moved degrees, rounds).
+    alternatives : dict of int to list of (4,) ndarray
+        Per searched A, other good rotations from its own search.
+    merged_blocks : bool
+        For a merged hole: every placement blocked all of B (else ``[layout] restarts`` apply).
+    """
+
+    quats: np.ndarray
+    trans: np.ndarray
+    value: float
+    history: SwarmHistory
+    stages: list
+    alone: list
+    memory: AttackMemory | None = None
+    polish: list = field(default_factory=list)
+    alternatives: dict = field(default_factory=dict)
+    merged_blocks: bool = True
+
+
+def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
+    """Read every mesh of the scene (raises SieveError on the first bad one)."""
+
+    def load(e):
+        if e.data is not None:  # a scene built in code (Scene.from_meshes)
+            return shape_from_trimesh(e.data, name=e.name, scale=e.scale)
+        return load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name)
+
+    passes = [load(e) for e in scene.passes]
+    blocks = [load(e) for e in scene.blocks]
+    return passes, blocks
+
+
+class _Bar:
+    """A tqdm progress bar on stderr, or nothing when quiet."""
+
+    def __init__(self, enabled: bool, total: int, desc: str, grow_by: int = 0):
+        self.bar = None
+        self.grow_by = grow_by
+        if enabled:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=desc, unit="it", leave=True, dynamic_ncols=True)
+
+    def update(self, n: int = 1, **postfix):
+        if self.bar is not None:
+            if self.bar.total is not None and self.grow_by and self.bar.n + n > self.bar.total:
+                self.bar.total += self.grow_by  # an extra round of work nobody could foresee
+            if postfix:
+                self.bar.set_postfix(postfix, refresh=False)
+            self.bar.update(n)
+            if n == 0:
+                self.bar.refresh()
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Bar, label: str):
+    """Player A's rotation for one shape alone against all of B (Secs. 5.1, 5.2)."""
+    s, fab = scene.solver, scene.fabrication
+    frame = hole_frame(a, fab.tolerance, s.resolution)
+    player_a = PlayerA(a, frame, fab.tolerance, fab.fill_holes)
+    player_b = PlayerB(blocks, frame, s.objective, freeze=s.freeze)
+
+    def report(it, best):
+        step = "swarm" if s.outer == "pso" else s.outer
+        bar.update(
+            s.particles if s.outer == "pso" else 1, best=f"{best:.4f}", stage=f"{label}: {step}"
+        )
+
+    return player_a.search(
+        player_b,
+        method=s.outer,
+        particles=s.particles,
+        iterations=s.iterations,
+        starts=s.starts,
+        steps=s.steps,
+        learning_rate=s.learning_rate,
+        rng=rng,
+        seed=seed,
+        inertia=s.inertia,
+        c_personal=s.c_personal,
+        c_global=s.c_global,
+        progress=report,
+        canonical=s.canonical,
+        polish=s.polish,
+        stage=lambda name: bar.update(0, stage=f"{label}: {name}"),
+    )
+
+
+def search(
+    scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: int, progress: bool
+) -> Search:
+    """Player A's placements: rotations (and translations for several shapes) of every A.
+
+    Parameters
+    ----------
+    scene : Scene
+    passes, blocks : list of Shape
+        A and B.
+    rng : numpy.random.Generator
+    seed : int
+        Seed for nlopt's own generator.
+    progress : bool
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    Search
+    """
+    s, lay = scene.solver, scene.layout
+    m = len(passes)
+    fixed = [e.rotation for e in scene.passes]
+    merged = m > 1 and lay.mode == "merged"
+    per_stage = s.particles * (s.iterations + 1)
+    stages_planned = sum(q is None for q in fixed) + (m - 1 if merged else 0)
+    bar = _Bar(progress, per_stage * stages_planned, "search", grow_by=per_stage)
+    out = _rotate_each(scene, passes, blocks, rng, seed, bar)
+    if merged:
+        _merge_with_restarts(scene, passes, blocks, out, rng, seed, bar)
+    bar.close()
+    return out
+
+
+def _merge_with_restarts(scene: Scene, passes, blocks, out: Search, rng, seed: int, bar) -> None:
+    """Merge every A into one hole (``out`` holds their rotations and receives the result).
+
+    While the merge still lets some B through, every A's rotation is searched again from another
+    seed (``[layout] restarts``) and merged again; the better merge is kept (blocking first, then
+    the game value).
+    """
+    searchable = any(e.rotation is None for e in scene.passes)
+    rotations = out
+    for restart in range(scene.layout.restarts + 1):
+        if restart:  # an independent search of every A's rotation from another seed
+            rotations = _rotate_each(scene, passes, blocks, np.random.default_rng([seed, restart]),
+                                     seed + restart, bar, f" (restart {restart})")  # fmt: skip
+            out.history.extend(rotations.history)
+            out.stages += rotations.stages
+            out.polish += rotations.polish
+        got = _merge(scene, passes, blocks, rotations.quats, rotations.alternatives, rng, bar)
+        out.history.extend(got.history)
+        out.stages += got.stages
+        if restart == 0 or (got.blocks, got.value) > (out.merged_blocks, out.value):
+            out.quats, out.trans, out.value, out.memory = (
+                got.quats,
+                got.trans,
+                got.value,
+                got.memory,
+            )
+            out.alone, out.merged_blocks = rotations.alone, got.blocks
+        if got.blocks or not searchable:
+            return
+
+
+def _rotate_each(scene: Scene, passes, blocks, rng, seed: int, bar: _Bar, tag: str = "") -> Search:
+    """Every A's rotation searched alone against all of B (fixed ones taken from the scene)."""
+    lay, m = scene.layout, len(passes)
+    out = Search(np.zeros((m, 4)), np.zeros((m, 2)), float("nan"), SwarmHistory(), [], [None] * m)
+    for i, entry in enumerate(scene.passes):
+        if entry.rotation is not None:
+            out.quats[i] = normalize(np.asarray(entry.rotation))
+            continue
+        out.quats[i], out.value, h = _search_one(
+            passes[i], blocks, scene, rng, seed, bar, passes[i].name
+        )
+        out.alone[i] = float(out.value)
+        out.alternatives[i] = alternative_rotations(h.finalists, out.quats[i], lay.alternatives)
+        out.history.extend(h)
+        out.stages.append((f"rotate {passes[i].name}{tag}", len(h.best)))
+        if h.polish is not None:
+            out.polish.append({"shape": passes[i].name, **h.polish})
+    return out
+
+
+def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: _Bar):
+    """Several A in one hole: the placements of :func:`sieve_mi.game.layout.merge` on the union frame."""
+    s, fab = scene.solver, scene.fabrication
+    frame = union_frame([p.radius for p in passes], fab.tolerance, s.resolution)
+    players = [PlayerA(p, frame, fab.tolerance, fab.fill_holes) for p in passes]
+    player_b = PlayerB(blocks, frame, s.objective, freeze=s.freeze)
+    return merge(
+        players,
+        player_b,
+        quats,
+        alternatives,
+        solver=s,
+        layout=scene.layout,
+        recheck=(scene.verdict.starts, scene.verdict.steps),
+        rng=rng,
+        progress=lambda label, best: bar.update(s.particles, best=f"{best:.3f}", stage=label),
+    )
+
+
+def solve(
+    scene: Scene, *, variant: str | None = None, seed: int | None = None, progress: bool = True
+) -> Result:
+    """Play the sieve game for a scene (the game only: :func:`sieve_mi.api.solve` returns it as a
+    :class:`sieve_mi.api.Result`, which can save its outputs).
+
+    Parameters
+    ----------
+    scene : Scene
+    variant : str, optional
+        Mitsuba variant ("llvm_ad_mono" or "cuda_ad_mono"); default ``$SIEVE_MI_VARIANT`` or
+        "llvm_ad_mono".
+    seed : int, optional
+        Overrides ``[solver] seed``.
+    progress : bool
+        Show progress bars on stderr.
+
+    Returns
+    -------
+    Result
+    """
+    from sieve_mi.backend import use_variant
+
+    t_init = time.perf_counter()
+    variant = use_variant(variant).variant()
+    t_load = time.perf_counter()
+    passes, blocks = load_shapes(scene)
+    seed = scene.solver.seed if seed is None else seed
+    rng = np.random.default_rng(seed)
+    timings = {"init_s": t_load - t_init, "load_s": time.perf_counter() - t_load}
+    t0 = time.perf_counter()
+    found = search(scene, passes, blocks, rng, seed, progress)
+    timings["search_s"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    bar = _Bar(progress, scene.verdict.steps, "verdict")
+    v = judge(
+        scene,
+        passes,
+        blocks,
+        found.quats,
+        found.trans,
+        rng,
+        progress=lambda n: bar.update(1),
+        memory=found.memory,
+    )
+    bar.close()
+    timings["verdict_s"] = time.perf_counter() - t1
+    certified, winner = [], v.winner
+    if scene.verdict.certify:
+        t2 = time.perf_counter()
+        certified = _certify(scene, passes, blocks, found.quats, v, progress)
+        timings["certify_s"] = time.perf_counter() - t2
+        if any(c is not None and c.status == "passage" for c in certified):
+            winner = "B"
+    return Result(
+        scene=scene,
+        winner=winner,
+        pass_shapes=passes,
+        block_shapes=blocks,
+        pass_quats=found.quats,
+        pass_trans=v.trans,
+        hole=v.hole,
+        a_masks=v.a_masks,
+        attack=v.attack,
+        block_masks=v.block_masks,
+        history=found.history,
+        search_value=found.value,
+        variant=variant,
+        stages=found.stages,
+        warnings=v.warnings,
+        timings=timings,
+        alone=found.alone,
+        seed=seed,
+        certified=certified,
+        outline=v.outline,
+        polish=found.polish,
+    )
+
+
+def _certify(scene, passes, blocks, quats, v, progress: bool) -> list:
+    """Certify the verdict's blocked B (:func:`sieve_mi.certify.blocks.certify_blocks`).
+
+    A passage found through the exact hole overrules the verdict: it is added to ``v.warnings``.
+    """
+    from sieve_mi.certify.blocks import certify_blocks
+
+    def say(line: str) -> None:
+        if progress:
+            print(line, file=sys.stderr, flush=True)
+
+    certified = certify_blocks(
+        scene, passes, blocks, quats, v.trans, v.attack.blocked()[0], progress=say
+    )
+    for shape, c in zip(blocks, certified):
+        if c is not None and c.status == "passage":
+            v.warnings.append(
+                f"{shape.name} passes the exact hole in a pose the verdict's attack missed "
+                "(found by certify; pose in report.json): B wins"
+            )
+    return certified

@@ -1,0 +1,200 @@
+"""The verdict: a long re-run of player B against the hole player A chose, which names the winner.
+
+Player B attacks the final hole (paper Sec. 6.1: 100 starts x 500 Adam steps by default); A wins
+iff no shape of B fits in any of its attempts. The attack runs on the raster; its best poses are
+then polished and scored exactly against the polygon H that gets printed (:mod:`sieve_mi.game.exact`),
+and only those exact scores decide. With ``[fabrication] block_margin``, B must also fail
+against the hole grown by that margin (paper Fig. 14). With ``[layout] mode = "separate"``, B is
+attacked on every hole and passes the sieve if it passes any one of them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from sieve_mi.errors import SieveError
+from sieve_mi.game.attack import Attack, AttackMemory
+from sieve_mi.game.exact import CANDIDATES, exact_rescore
+from sieve_mi.game.layout import frame_for, separate_layout
+from sieve_mi.game.players import PlayerA, PlayerB
+from sieve_mi.game.scoring import mask_window
+from sieve_mi.geometry.hole import Hole
+from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.outline import dilated, hole_outline, is_closed, union
+from sieve_mi.scene import Scene
+
+
+@dataclass
+class Judgement:
+    """What the verdict decided.
+
+    Attributes
+    ----------
+    winner : {"A", "B"}
+    hole : Hole
+        The raster of the final hole (all of A's holes together) at the verdict resolution, made
+        from ``outline`` (:meth:`Hole.from_outline`).
+    outline : manifold3d.CrossSection
+        The exact hole H that gets printed; every score in ``attack`` is against it.
+    trans : (m, 2) ndarray
+        Each A's translation, scene units (the separate layout's places, or the search's).
+    a_masks : list of (N, N) bool ndarrays
+        Each A's undilated silhouette at its place on ``hole``'s frame.
+    attack : Attack
+        One row: per B, its best attempt over the holes, scored exactly against ``outline``.
+    block_masks : list of MaskWindow
+        Each B's silhouette in that attempt.
+    warnings : list of str
+    """
+
+    winner: str
+    hole: Hole
+    outline: object
+    trans: np.ndarray
+    a_masks: list
+    attack: Attack
+    block_masks: list
+    warnings: list
+
+
+#: The exact polish is tried on poses that stick out by at most this many pixels.
+REACH = 3.0
+
+
+def _groups(count: int, separate: bool) -> list[list[int]]:
+    """Which A shapes make each hole: one each (separate) or all in one."""
+    return [[i] for i in range(count)] if separate else [list(range(count))]
+
+
+def exact_holes(
+    passes: list[Shape], quats: np.ndarray, trans: np.ndarray, groups: list[list[int]], fab
+) -> list:
+    """The exact outline of each hole (one per group of A), as manifold3d CrossSections.
+
+    Raises
+    ------
+    SieveError
+        When a hole has zero area (A seen edge-on with no tolerance): no hole, no verdict.
+    """
+    closed = [is_closed(p) for p in passes]
+    outlines = []
+    for g in groups:
+        o = hole_outline(
+            [passes[i] for i in g],
+            quats[g],
+            trans[g],
+            fab.tolerance,
+            fab.fill_holes,
+            closed=[closed[i] for i in g],
+        )
+        if o.is_empty() or o.area() <= 0:
+            names = ", ".join(passes[i].name for i in g)
+            raise SieveError(
+                f"the hole of {names} has zero area: the shape is seen edge-on and "
+                "[fabrication] tolerance is 0; set a positive tolerance or another rotation"
+            )
+        outlines.append(o)
+    return outlines
+
+
+def start_centres(outlines: list, trans: np.ndarray, groups: list[list[int]]) -> np.ndarray:
+    """Where each hole's verdict starts are centred: every piece of it and every A in it.
+
+    Returns
+    -------
+    (H, C, 2) ndarray
+        Scene units; holes with fewer than C places repeat theirs.
+    """
+    per_hole = []
+    for o, g in zip(outlines, groups):
+        places = [np.asarray(trans[i], dtype=np.float64) for i in g]
+        for piece in o.decompose():
+            lo, hi = np.asarray(piece.bounds()[:2]), np.asarray(piece.bounds()[2:])
+            places.append((lo + hi) / 2)
+        per_hole.append(np.array(places))
+    c = max(len(p) for p in per_hole)
+    return np.stack([np.resize(p, (c, 2)) for p in per_hole])
+
+
+def judge(
+    scene: Scene,
+    passes: list[Shape],
+    blocks: list[Shape],
+    quats: np.ndarray,
+    trans: np.ndarray,
+    rng: np.random.Generator,
+    progress: Callable[[int], None] | None = None,
+    memory: AttackMemory | None = None,
+) -> Judgement:
+    """Attack the hole made by A at its placements and declare the winner.
+
+    Player B's raster attack (Adam from ``[verdict] starts``, spread over every piece of the hole
+    and every placed A) proposes :data:`~sieve_mi.game.exact.CANDIDATES` poses per shape and hole;
+    each is polished and scored exactly against the polygon H (grown by the block margin), and
+    only those exact scores decide.
+
+    Parameters
+    ----------
+    scene : Scene
+        Its ``[verdict]``, ``[fabrication]`` and ``[layout]`` tables are used.
+    passes, blocks : list of Shape
+    quats : (m, 4) ndarray
+        Each A's rotation (w, x, y, z).
+    trans : (m, 2) ndarray
+        Each A's translation from the search, scene units (ignored for separate holes).
+    rng : numpy.random.Generator
+    progress : callable, optional
+        Called with the number of Adam steps done.
+    memory : AttackMemory, optional
+        Player B's best poses from the search (merged holes); the first starts begin there.
+        Ignored for separate holes, whose places the verdict chooses anew.
+
+    Returns
+    -------
+    Judgement
+    """
+    fab, v = scene.fabrication, scene.verdict
+    separate = len(passes) > 1 and scene.layout.mode == "separate"
+    if separate:
+        radii = [p.radius for p in passes]
+        trans, frame = separate_layout(radii, fab.tolerance, fab.border, v.resolution)
+    else:
+        trans = np.zeros((1, 2)) if len(passes) == 1 else np.asarray(trans, dtype=np.float64)
+        frame = frame_for(passes, fab.tolerance, v.resolution, trans)
+    players = [PlayerA(p, frame, fab.tolerance, fab.fill_holes) for p in passes]
+    a_masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(players, quats, trans)]
+    groups = _groups(len(passes), separate)
+    outlines = exact_holes(passes, np.asarray(quats), trans, groups, fab)
+    outline = union(outlines)
+    hole = Hole.from_outline(outline, frame)
+    warnings = []
+    if len(passes) > 1 and not separate and len(outline.decompose()) > 1:
+        warnings.append("the merged hole is not connected")
+    grown = [dilated(o, fab.block_margin) for o in outlines] if fab.block_margin > 0 else outlines
+    player_b = PlayerB(blocks, frame, "clearance", freeze=scene.solver.freeze)
+    # without a margin, one merged hole's raster is the one already built
+    same = fab.block_margin == 0 and not separate
+    attack = player_b.attack(
+        [hole] if same else [Hole.from_outline(g, frame) for g in grown],
+        v.starts,
+        v.steps,
+        scene.solver.learning_rate,
+        rng,
+        progress=progress,
+        centres=start_centres(grown, trans, groups),
+        memory=None if separate else memory,
+        keep=CANDIDATES,
+    )
+    margin = fab.block_margin > 0
+    attack = exact_rescore(
+        attack, blocks, union(grown), outline if margin else None, reach=REACH * frame.pixel_size
+    )
+    block_masks = [
+        mask_window(r, hole, attack.quats[0, j], attack.trans[0, j])
+        for j, r in enumerate(player_b.renderers)
+    ]
+    winner = "A" if bool(np.all(attack.blocked()[0])) else "B"
+    return Judgement(winner, hole, outline, trans, a_masks, attack, block_masks, warnings)

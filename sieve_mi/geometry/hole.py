@@ -1,0 +1,232 @@
+"""The sieve hole H as a raster, and how shapes compare with it.
+
+H is built from player A's silhouette(s): dilated by the fabrication tolerance and with its holes
+filled (paper Sec. 5.4). Because proj(A + ball_r) = proj(A) + disk_r, the dilation is done exactly
+in 2D with a Euclidean distance transform rather than the paper's 3D signed distance and marching
+cubes. Alongside the mask, a hole keeps its *outside distance*: for every pixel centre, the
+distance (scene units) to the nearest pixel centre of H, zero inside. It drives the clearance loss
+and measures protrusions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from sieve_mi.geometry.raster import Frame, crop_window
+
+
+@dataclass
+class Hole:
+    """A sieve hole on a raster frame.
+
+    Attributes
+    ----------
+    frame : Frame
+    mask : (N, N) ndarray of bool
+        True on pixel centres inside H.
+    outside : (N, N) ndarray of float32
+        Distance from each pixel centre to the nearest pixel centre of H, scene units (0 inside).
+    """
+
+    frame: Frame
+    mask: np.ndarray
+    outside: np.ndarray
+
+    @property
+    def area(self) -> float:
+        """Area of H in square scene units (pixel count times pixel area)."""
+        return float(self.mask.sum()) * self.frame.pixel_size**2
+
+    @classmethod
+    def from_mask(cls, mask: np.ndarray, frame: Frame) -> Hole:
+        """Wrap a binary mask (N x N) as a hole, computing its outside distance."""
+        mask = np.asarray(mask, dtype=bool)
+        if not mask.any():
+            outside = np.full(mask.shape, np.float32(frame.half_extent * 4), dtype=np.float32)
+        else:
+            outside = (ndimage.distance_transform_edt(~mask) * frame.pixel_size).astype(np.float32)
+        return cls(frame=frame, mask=mask, outside=outside)
+
+    @classmethod
+    def from_outline(cls, section, frame: Frame) -> Hole:
+        """The raster of an exact outline H (a manifold3d CrossSection) on ``frame``.
+
+        ``outside`` is the distance from each pixel centre to H itself (not to other pixel
+        centres), zero at centres inside H, so losses see sub-pixel detail; ``mask`` is
+        conservative: every pixel whose centre lies within half a pixel diagonal of H, so no
+        part of H (a slot thinner than a pixel) disappears from the raster.
+        """
+        from sieve_mi.geometry.outline import Boundary
+
+        n, h = frame.resolution, frame.pixel_size
+        boundary = Boundary(section, spacing=h / 16)
+        if len(boundary.a) == 0:
+            return cls.from_mask(np.zeros((n, n), dtype=bool), frame)
+        x, y = frame.centres()
+        xx, yy = np.meshgrid(x, y)
+        pts = np.column_stack([xx.ravel(), yy.ravel()])
+        inside = boundary.inside(pts).reshape(n, n)
+        if inside.any() and not inside.all():
+            # Distance transforms are within a pixel of the truth; within two pixels of the
+            # outline (where it matters) the distances are measured to the outline itself.
+            d_out = ndimage.distance_transform_edt(~inside) * h
+            d_in = ndimage.distance_transform_edt(inside) * h
+            signed = np.where(inside, -d_in, d_out)
+            band = np.abs(signed) <= 2 * h
+        else:  # H thinner than a pixel, or covering the frame: measure everywhere
+            signed = np.zeros((n, n))
+            band = np.ones((n, n), dtype=bool)
+        near = boundary.approx_distance(pts[band.ravel()])
+        signed[band] = np.where(inside[band], -near, near)
+        mask = signed <= h * np.sqrt(0.5)
+        outside = np.maximum(signed, 0.0).astype(np.float32)
+        return cls(frame=frame, mask=mask, outside=outside)
+
+    def outside_distance(self, xy: np.ndarray) -> np.ndarray:
+        """Distance from points ``xy`` (..., 2) to H, scene units, by bilinear lookup.
+
+        Points beyond the frame get the distance at the nearest frame point plus the distance to it,
+        which keeps the value growing (and the gradient pointing back) far from the hole.
+        """
+        n = self.frame.resolution
+        uv = self.frame.to_pixel(xy)
+        c = np.clip(uv, 0, n - 1)
+        extra = np.linalg.norm(uv - c, axis=-1) * self.frame.pixel_size
+        i0 = np.clip(np.floor(c).astype(int), 0, n - 2)
+        f = c - i0
+        d = self.outside
+        v = (
+            d[i0[..., 1], i0[..., 0]] * (1 - f[..., 0]) * (1 - f[..., 1])
+            + d[i0[..., 1], i0[..., 0] + 1] * f[..., 0] * (1 - f[..., 1])
+            + d[i0[..., 1] + 1, i0[..., 0]] * (1 - f[..., 0]) * f[..., 1]
+            + d[i0[..., 1] + 1, i0[..., 0] + 1] * f[..., 0] * f[..., 1]
+        )
+        return v + extra
+
+    def window(self, row0: int, col0: int, size: int) -> tuple[np.ndarray, np.ndarray]:
+        """The hole's mask and outside distance over a lattice window (padded beyond the frame).
+
+        Beyond the frame the mask is False and the outside distance is extended by the distance to
+        the frame's nearest pixel, as in :meth:`outside_distance`.
+        """
+        mask = crop_window(self.mask, row0, col0, size, fill=False)
+        x, y = self.frame.window_centres(np.array([row0]), np.array([col0]), size)
+        xx, yy = np.meshgrid(x[0], y[0])
+        dist = self.outside_distance(np.stack([xx, yy], -1)).astype(np.float32)
+        dist[mask] = 0.0
+        return mask, dist
+
+
+class HoleStack:
+    """Several holes on one frame as one flat Dr.Jit texture of outside distances, in pixels.
+
+    The texture holds hole ``k``'s pixel (row, col) at ``k N^2 + row N + col``; :meth:`gather` is
+    the one place that knows it. Losses and scores on the Dr.Jit side read holes only through it.
+
+    Parameters
+    ----------
+    holes : list of Hole
+        All on the same frame.
+
+    Attributes
+    ----------
+    frame : Frame
+    count : int
+        Number of holes.
+    texture : mi.Float
+        ``count * N^2`` outside distances in pixels (0 inside a hole).
+    """
+
+    #: The Dr.Jit array a frozen function (:func:`drjit.freeze`) must see as its input.
+    DRJIT_STRUCT = {"texture": object}
+
+    def __init__(self, holes: list[Hole]):
+        import mitsuba as mi
+
+        frame = holes[0].frame
+        if any(h.frame != frame for h in holes):
+            raise ValueError("all holes of a stack must share one frame")
+        self.frame = frame
+        self.count = len(holes)
+        stack = np.stack([h.outside for h in holes]) / frame.pixel_size
+        self.texture = mi.Float(stack.astype(np.float32).ravel())
+
+    def gather(self, hole, row, col, active=True):
+        """Outside distance in pixels at pixel (row, col) of hole ``hole``.
+
+        Parameters
+        ----------
+        hole, row, col : mi.UInt32
+            Hole index and pixel indices, each in range (no clamping here).
+        active : mi.Bool or bool
+            Lanes to read; inactive lanes give 0.
+
+        Returns
+        -------
+        mi.Float
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        n = self.frame.resolution
+        return dr.gather(mi.Float, self.texture, hole * (n * n) + row * n + col, active)
+
+
+def dilate(mask: np.ndarray, frame: Frame, tolerance: float) -> np.ndarray:
+    """Pixel centres within ``tolerance`` of the mask, rounded to the nearest half pixel.
+
+    On average the raster dilation then equals the tolerance instead of falling short of it.
+    """
+    if tolerance <= 0 or not mask.any():
+        return np.asarray(mask, dtype=bool)
+    return (
+        ndimage.distance_transform_edt(~mask) * frame.pixel_size
+        <= tolerance + 0.5 * frame.pixel_size
+    )
+
+
+def build_hole(
+    silhouettes: list[np.ndarray],
+    frame: Frame,
+    tolerance: float,
+    fill_holes: bool = True,
+    extra: list[np.ndarray] | None = None,
+) -> Hole:
+    """H from player A's silhouettes: their union, dilated by ``tolerance``, holes filled.
+
+    Parameters
+    ----------
+    silhouettes : list of (N, N) bool ndarrays
+        A's silhouettes (already placed) on ``frame``.
+    frame : Frame
+    tolerance : float
+        Dilation radius in scene units (printer clearance); 0 for none.
+    fill_holes : bool
+        Fill enclosed gaps so H is simply connected (paper Fig. 4).
+    extra : list of (N, N) bool ndarrays, optional
+        Already dilated parts (other shapes' holes) to join before filling.
+    """
+    union = np.zeros((frame.resolution, frame.resolution), dtype=bool)
+    for s in silhouettes:
+        union |= s
+    union = dilate(union, frame, tolerance)
+    for e in extra or []:
+        union |= e
+    if fill_holes:
+        union = ndimage.binary_fill_holes(union)
+    return Hole.from_mask(union, frame)
+
+
+def pieces(mask: np.ndarray) -> int:
+    """Number of 8-connected pieces of a mask (N, N) bool."""
+    return int(ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))[1])
+
+
+def split_pieces(mask: np.ndarray) -> list[np.ndarray]:
+    """The 8-connected pieces of a mask, each as its own (N, N) bool mask, largest first."""
+    labels, n = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
+    sizes = np.bincount(labels.ravel(), minlength=n + 1)[1:]
+    return [labels == (k + 1) for k in np.argsort(-sizes, kind="stable")]

@@ -1,0 +1,257 @@
+"""Exact binary silhouettes by ray casting in Mitsuba 3.
+
+A silhouette is sampled by one ray per pixel centre along z: the rays of Mitsuba's orthographic
+sensor that frames the raster (:meth:`sieve_mi.geometry.raster.Frame.sensor`), sampled at its film's pixel
+centres (``sensor.sample_ray``). Instead of moving the mesh for every
+pose (a new BVH each time), the rays are moved into the mesh's frame: for a pose (R, t) the ray
+through world point P starts at R^T (P - t) and runs along R^T e_z. One scene (one BVH) per shape
+then serves any number of poses in a single batched ``ray_test`` call; the rays are generated in
+Dr.Jit, in the same kernel as the intersection test.
+
+The masks that are written to disk are rendered by Mitsuba itself: ``mi.render`` with the
+:class:`silhouette <SilhouetteIntegrator>` integrator under the same kind of orthographic sensor
+(:meth:`SilhouetteRenderer.render`), one sample at each pixel centre. They equal the traced masks
+pixel for pixel (a test holds them together).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.rotations import to_matrix
+
+#: Variants in which the ``silhouette`` integrator has been registered with Mitsuba.
+_REGISTERED: set = set()
+
+
+def register_integrator() -> None:
+    """Register the ``silhouette`` integrator with Mitsuba for the current variant (idempotent).
+
+    After this, ``mi.load_dict({"type": "silhouette"})`` gives a :class:`SilhouetteIntegrator`.
+    """
+    import mitsuba as mi
+
+    if mi.variant() in _REGISTERED:
+        return
+
+    class SilhouetteIntegrator(mi.SamplingIntegrator):
+        """Binary coverage: 1 where the camera ray hits any shape, 0 elsewhere.
+
+        One shadow-ray test per sample (``scene.ray_test``): no shading, no emitters, no
+        bounces. Rendered with one centred sample per pixel (the sensors of
+        :meth:`sieve_mi.geometry.raster.Frame.window_sensor`), the image is the exact silhouette at the
+        pixel centres.
+        """
+
+        def sample(self, scene, sampler, ray, medium=None, active=True):
+            import drjit as dr
+
+            hit = scene.ray_test(ray, active)
+            return mi.Spectrum(dr.select(hit, 1.0, 0.0)), mi.Bool(True), []
+
+        def aov_names(self):
+            return []
+
+    mi.register_integrator("silhouette", lambda props: SilhouetteIntegrator(props))
+    _REGISTERED.add(mi.variant())
+
+
+def mesh_scene(vertices: np.ndarray, faces: np.ndarray, name: str = "shape", **extra):
+    """A Mitsuba scene holding one triangle mesh (one BVH), for ray tests and renders.
+
+    Parameters
+    ----------
+    vertices : (n, 3) ndarray
+        Scene units (stored as float32).
+    faces : (m, 3) ndarray of int
+    name : str
+        The mesh's id.
+    **extra
+        Further scene entries (e.g. ``integrator={"type": "silhouette"}``).
+    """
+    import mitsuba as mi
+
+    mesh = mi.Mesh(name, len(vertices), len(faces), has_vertex_normals=False)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = mi.Float(np.asarray(vertices, dtype=np.float32).ravel())
+    params["faces"] = mi.UInt32(np.asarray(faces, dtype=np.uint32).ravel())
+    params.update()
+    return mi.load_dict({"type": "scene", "shape": mesh, **extra})
+
+
+class SilhouetteRenderer:
+    """Renders binary silhouettes of one shape under many poses.
+
+    Parameters
+    ----------
+    shape : Shape
+        The mesh, centred, in scene units.
+    """
+
+    def __init__(self, shape: Shape):
+        import drjit as dr
+        import mitsuba as mi
+
+        self.shape = shape
+        self._scene = mesh_scene(shape.vertices, shape.faces, shape.name or "shape")
+        self._mi, self._dr = mi, dr
+
+    def trace(
+        self,
+        quats: np.ndarray,
+        trans: np.ndarray,
+        frame: Frame,
+        row0: np.ndarray,
+        col0: np.ndarray,
+        size: int,
+    ):
+        """Trace one ray per pixel centre of K windows of the frame's pixel lattice (Dr.Jit arrays).
+
+        Parameters
+        ----------
+        quats : (K, 4) ndarray
+            Rotations (w, x, y, z) about the shape's centre.
+        trans : (K, 2) ndarray
+            Translations in the xy-plane, scene units.
+        frame : Frame
+            Defines the pixel lattice (pixel size and origin).
+        row0, col0 : (K,) ndarrays of int
+            Lattice index of each window's top-left pixel (0, 0 is the frame's top-left pixel).
+        size : int
+            Window side in pixels.
+
+        Returns
+        -------
+        hit : mi.Bool
+            K * size * size entries, pose-major, then row, then column.
+        pose, row, col : mi.UInt32, mi.Int32, mi.Int32
+            Pose index and lattice row and column of every entry.
+        """
+        mi, dr = self._mi, self._dr
+        quats, trans = np.atleast_2d(quats), np.atleast_2d(trans)
+        rt = np.transpose(to_matrix(quats), (0, 2, 1)).reshape(len(quats), 9)  # R^T, row-major
+        cols = [mi.Float(rt[:, i].astype(np.float32)) for i in range(9)]
+        tx, ty = mi.Float(trans[:, 0].astype(np.float32)), mi.Float(trans[:, 1].astype(np.float32))
+        r0 = mi.Int32(np.asarray(row0, dtype=np.int32))
+        c0 = mi.Int32(np.asarray(col0, dtype=np.int32))
+        n_pix = size * size
+        idx = dr.arange(mi.UInt32, len(quats) * n_pix)
+        pose = idx // n_pix
+        p = idx % n_pix
+        row = dr.gather(mi.Int32, r0, pose) + mi.Int32(p // size)
+        col = dr.gather(mi.Int32, c0, pose) + mi.Int32(p % size)
+        h, n = frame.pixel_size, frame.resolution
+        film = mi.Point2f((mi.Float(col) + 0.5) / n, (mi.Float(row) + 0.5) / n)
+        world, _ = frame.sensor().sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
+        x = world.o.x - dr.gather(mi.Float, tx, pose)
+        y = world.o.y - dr.gather(mi.Float, ty, pose)
+        reach = self.shape.radius * 1.01 + h
+        g = [dr.gather(mi.Float, c, pose) for c in cols]
+        origin = mi.Point3f(
+            g[0] * x + g[1] * y - g[2] * reach,
+            g[3] * x + g[4] * y - g[5] * reach,
+            g[6] * x + g[7] * y - g[8] * reach,
+        )
+        ray = mi.Ray3f(origin, mi.Vector3f(g[2], g[5], g[8]))
+        ray.maxt = mi.Float(2.0 * reach)
+        return self._scene.ray_test(ray), pose, row, col
+
+    def masks(
+        self,
+        quats: np.ndarray,
+        trans: np.ndarray,
+        frame: Frame,
+        row0: np.ndarray,
+        col0: np.ndarray,
+        size: int,
+        chunk_rays: int = 1 << 24,
+    ) -> np.ndarray:
+        """Binary silhouettes of K poses, each in a size x size window of the frame's pixel lattice.
+
+        Parameters are those of :meth:`trace`; ``chunk_rays`` bounds the rays traced in one call.
+
+        Returns
+        -------
+        (K, size, size) ndarray of bool
+            True where the pixel-centre ray hits the mesh.
+        """
+        quats, trans = np.atleast_2d(quats), np.atleast_2d(trans)
+        row0, col0 = np.broadcast_to(row0, len(quats)), np.broadcast_to(col0, len(quats))
+        out = np.zeros((len(quats), size, size), dtype=bool)
+        per = max(1, chunk_rays // (size * size))
+        for s in range(0, len(quats), per):
+            sl = slice(s, min(len(quats), s + per))
+            hit = self.trace(quats[sl], trans[sl], frame, row0[sl], col0[sl], size)[0]
+            out[sl] = np.asarray(hit, dtype=bool).reshape(-1, size, size)
+        return out
+
+    def frame_mask(self, quat: np.ndarray, trans: np.ndarray, frame: Frame) -> np.ndarray:
+        """The silhouette of one pose over the whole frame, (N, N) bool."""
+        n = frame.resolution
+        return self.masks(
+            np.asarray(quat)[None],
+            np.asarray(trans)[None],
+            frame,
+            np.zeros(1, int),
+            np.zeros(1, int),
+            n,
+        )[0]
+
+    def render(
+        self,
+        quat: np.ndarray,
+        trans: np.ndarray,
+        frame: Frame,
+        row0: int = 0,
+        col0: int = 0,
+        size: int | None = None,
+    ) -> np.ndarray:
+        """One pose's silhouette rendered by ``mi.render``, on a window of the frame's lattice.
+
+        The mesh is moved into the pose (its top at z = -max(1, radius)) and rendered with the
+        ``silhouette`` integrator under :meth:`~sieve_mi.geometry.raster.Frame.window_sensor`. This builds a BVH per call, so it serves
+        the masks that are written, not the search (use :meth:`masks` for many poses).
+
+        Parameters
+        ----------
+        quat : (4,) ndarray
+            Rotation (w, x, y, z) about the shape's centre.
+        trans : (2,) ndarray
+            Translation in the xy-plane, scene units.
+        frame : Frame
+        row0, col0 : int
+            Lattice index of the window's top-left pixel (default: the frame's).
+        size : int, optional
+            Window side in pixels (default: the frame's resolution).
+
+        Returns
+        -------
+        (size, size) ndarray of bool
+            True where the pixel centre is covered; row 0 at the top.
+        """
+        import mitsuba as mi
+
+        register_integrator()
+        size = frame.resolution if size is None else size
+        v = self.shape.vertices @ to_matrix(np.asarray(quat)[None])[0].T
+        v[:, :2] += np.asarray(trans, dtype=np.float64)
+        v[:, 2] -= v[:, 2].max() + max(1.0, self.shape.radius)
+        scene = mesh_scene(v, self.shape.faces, "posed", integrator={"type": "silhouette"})
+        image = mi.render(scene, sensor=frame.window_sensor(row0, col0, size), spp=1)
+        return np.asarray(image, dtype=np.float32).reshape(size, size) > 0.5
+
+    def projected_extent(
+        self, quats: np.ndarray, trans: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned bounds of each pose's projection, from the convex hull's vertices.
+
+        Returns
+        -------
+        lo, hi : (K, 2) ndarrays
+            Lower and upper (x, y) corners in scene units.
+        """
+        p = np.einsum("kij,hj->khi", to_matrix(np.atleast_2d(quats))[:, :2, :], self.shape.hull)
+        p = p + np.atleast_2d(trans)[:, None, :]
+        return p.min(1), p.max(1)

@@ -1,0 +1,113 @@
+"""Player B's differentiable losses: the interface every objective implements, and the factory.
+
+An *objective* scores many poses of B's shapes against a stack of holes in one call. Player B
+(:class:`sieve_mi.game.players.PlayerB`) binds it once to the list of poses (which shape each pose is),
+then calls :meth:`Objective.loss` once per Adam step with all poses' quaternions and translations
+as Dr.Jit arrays, and differentiates the returned total.
+
+Three objectives exist:
+
+``"clearance"`` (:class:`sieve_mi.objectives.clearance.ClearanceObjective`)
+    Squared distance to H summed over samples on B's silhouette edges; zero iff B fits. The default:
+    one kernel for all poses, reproducible bit for bit.
+``"overlap"`` (:class:`sieve_mi.objectives.overlap.EdgeOverlapObjective`)
+    The paper's eq. 12: the fraction of B's silhouette outside H, from integrals over B's visible
+    outline (edge sampling), all poses at once; reproducible bit for bit.
+``"overlap-mitsuba"`` (:class:`sieve_mi.objectives.overlap_mitsuba.OverlapObjective`)
+    The same loss on an anti-aliased silhouette, differentiated by Mitsuba's projective sampling,
+    one render per pose (the reference for ``"overlap"``; orders of magnitude slower).
+
+Neither decides a winner: the verdict scores poses on the hole itself (:mod:`sieve_mi.game.scoring`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+
+if TYPE_CHECKING:  # kept light: scene.py reads OBJECTIVES from here
+    from sieve_mi.geometry.meshes import Shape
+    from sieve_mi.geometry.raster import Frame
+
+#: Names of the objectives, as ``[solver] objective`` accepts them.
+OBJECTIVES = ("clearance", "overlap", "overlap-mitsuba")
+
+
+class Objective(Protocol):
+    """What player B needs of a loss.
+
+    Attributes
+    ----------
+    frame : Frame
+        The raster frame of the holes it is evaluated against.
+    """
+
+    frame: Frame
+
+    def bind(self, pose_shape: np.ndarray) -> None:
+        """Fix which shape each pose belongs to, before any :meth:`loss` call.
+
+        Parameters
+        ----------
+        pose_shape : (K,) ndarray of int
+            Index into the objective's shape list for every pose.
+        """
+
+    def loss(self, q: tuple, t: tuple, holes: Any, pose_hole: Any) -> tuple:
+        """Total and per-pose loss of all K bound poses.
+
+        Parameters
+        ----------
+        q : tuple of 4 mi.Float
+            Quaternions (w, x, y, z), K entries each, possibly with gradients enabled; they need
+            not be normalised (the rotation uses q / |q|).
+        t : tuple of 2 mi.Float
+            Translations in the hole plane, scene units.
+        holes : HoleStack
+            The holes (:class:`sieve_mi.geometry.hole.HoleStack`), on this objective's frame.
+        pose_hole : mi.UInt32
+            Which hole of the stack each pose is tested against (K entries).
+
+        Returns
+        -------
+        total : mi.Float
+            One value, the sum over poses; ``dr.backward(total)`` gives each pose's gradient.
+        per_pose : mi.Float
+            K values, detached; 0 means the pose fits (up to the raster).
+        """
+
+
+def make_objective(
+    name: str, shapes: list[Shape], frame: Frame, samples_per_segment: int | None = None
+) -> Objective:
+    """The objective called ``name`` for ``shapes`` on ``frame``.
+
+    Parameters
+    ----------
+    name : {"clearance", "overlap", "overlap-mitsuba"}
+    shapes : list of Shape
+        Player B's shapes.
+    frame : Frame
+    samples_per_segment : int, optional
+        Clearance and overlap: edge samples per segment (default: from the edge lengths).
+
+    Examples
+    --------
+    >>> from sieve_mi.geometry.raster import Frame
+    >>> from sieve_mi.testing.shapes import sphere
+    >>> loss = make_objective("clearance", [sphere(5.0, 2)], Frame(16, 8.0))  # doctest: +SKIP
+    """
+    if name == "clearance":
+        from sieve_mi.objectives.clearance import ClearanceObjective
+
+        return ClearanceObjective(shapes, frame, samples_per_segment)
+    if name == "overlap":
+        from sieve_mi.objectives.overlap import EdgeOverlapObjective
+
+        return EdgeOverlapObjective(shapes, frame, samples_per_segment)
+    if name == "overlap-mitsuba":
+        from sieve_mi.objectives.overlap_mitsuba import OverlapObjective
+
+        return OverlapObjective(shapes, frame)
+    raise ValueError(f"unknown objective {name!r}; use one of {OBJECTIVES}")

@@ -1,0 +1,284 @@
+"""``passage.gif``: a short Mitsuba-rendered animation of every A sliding down through the plate and
+every B coming to rest on it (the motion of :mod:`sieve_mi.outputs.passage`).
+
+All frames are rendered by one ``mi.render`` call: the scene holds one copy of the plate and the
+shapes per frame (Mitsuba instances of shared shape groups, so the geometry is stored once), the
+copies far apart along x, and a ``batch`` sensor puts one perspective camera on each copy side by
+side on one film. :func:`write_gif` renders in colour: it switches Mitsuba to an RGB variant for
+the call, as :func:`sieve_mi.outputs.figure.render_figure` does, and restores the previous one (green:
+every A; red: a blocked B; orange: a B that gets through; grey: the plate). Where no RGB variant
+can be used (e.g. a packed GPU site without them) it renders in the monochrome variant in effect:
+grey frames (light: passes, dark: blocked, mid-grey: the plate).
+The sampler is seeded the same way every run and each sample lands in one pixel (box filter), so
+the same inputs give the same GIF (``tests/test_repro.py`` compares two processes' files).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sieve_mi.backend import select_rgb_variant
+from sieve_mi.outputs.passage import Passage
+
+#: Frames per slot of the motion (all of A, then each B: :mod:`sieve_mi.outputs.passage`), picture size
+#: (pixels) and samples per pixel of ``passage.gif``.
+FRAMES_PER_SLOT = 10
+WIDTH = 200
+HEIGHT = 260
+SPP = 16
+#: Frame duration, milliseconds (the last frame is held three times as long).
+FRAME_MS = 120
+#: Camera direction: azimuth from +x towards +y and elevation above the plate, degrees; field of view.
+AZIMUTH = -60.0
+ELEVATION = 22.0
+FOV = 35.0
+#: Diffuse reflectances in RGB variants (linear RGB) ...
+COLOURS = {
+    "plate": (0.35, 0.35, 0.35),
+    "pass": (0.10, 0.50, 0.16),
+    "blocked": (0.70, 0.07, 0.07),
+    "escaped": (0.90, 0.45, 0.06),
+}
+#: ... and in monochrome ones.
+PLATE_ALBEDO = 0.35
+PASS_ALBEDO = 0.6
+BLOCKED_ALBEDO = 0.12
+ESCAPED_ALBEDO = 0.6
+#: Sky radiance and the sun's irradiance.
+SKY = 0.55
+#: Mitsuba sampler of the frames (stratified: far less grain than independent samples at 16 spp).
+SAMPLER = "multijitter"
+SUN = 2.2
+
+
+def frame_count(passage: Passage) -> int:
+    """Number of frames of the passage's GIF: :data:`FRAMES_PER_SLOT` per slot."""
+    return FRAMES_PER_SLOT * (1 + sum(p.role == "block" for p in passage.pieces))
+
+
+def phases(frames: int) -> np.ndarray:
+    """The animation phases of the frames: ``frames`` values from 0 to 1."""
+    return np.linspace(0.0, 1.0, frames)
+
+
+def render_frames(
+    passage: Passage,
+    *,
+    phases: np.ndarray | None = None,
+    box: np.ndarray | None = None,
+    width: int = WIDTH,
+    height: int = HEIGHT,
+    spp: int = SPP,
+) -> np.ndarray:
+    """Render the passage's frames in one batch, in the Mitsuba variant in effect.
+
+    Parameters
+    ----------
+    passage : Passage
+    phases : (K,) array_like, optional
+        The frames' phases in [0, 1] (default: :func:`phases` of :func:`frame_count` frames).
+    box : (2, 3) ndarray, optional
+        The box the camera frames (default: ``passage.bounds()``), scene units.
+    width, height : int
+        Frame size, pixels.
+    spp : int
+        Samples per pixel.
+
+    Returns
+    -------
+    (K, height, width) or (K, height, width, 3) ndarray of float32
+        Linear radiance per frame (row 0 at the top): grey in a monochrome variant, RGB in an
+        RGB one.
+    """
+    import mitsuba as mi
+
+    s = globals()["phases"](frame_count(passage)) if phases is None else np.asarray(phases, float)
+    box = passage.bounds() if box is None else np.asarray(box, dtype=np.float64)
+    size = float(np.max(box[1] - box[0]))
+    spacing = 10.0 * size
+    colour = "rgb" in mi.variant()
+    scene = _scene(mi, passage, s, spacing, colour)
+    sensor = _batch_sensor(mi, box, len(s), spacing, width, height, spp, size)
+    image = np.asarray(mi.render(scene, sensor=sensor, spp=spp), dtype=np.float32)
+    image = image.reshape(height, len(s) * width, -1)
+    image = image[..., :3] if colour else image.mean(axis=2)
+    return np.stack([image[:, k * width : (k + 1) * width] for k in range(len(s))])
+
+
+def _group(mi, vertices: np.ndarray, faces: np.ndarray, albedo):
+    """A shape group (a dict for ``mi.load_dict``) holding one mesh with a two-sided diffuse
+    material; ``albedo`` is a float (monochrome) or an RGB triple."""
+    props = mi.Properties()
+    if np.ndim(albedo):
+        reflectance = {"type": "rgb", "value": [float(c) for c in albedo]}
+    else:
+        reflectance = {"type": "spectrum", "value": float(albedo)}
+    props["bsdf"] = mi.load_dict(
+        {"type": "twosided", "material": {"type": "diffuse", "reflectance": reflectance}}
+    )
+    m = mi.Mesh("m", len(vertices), len(faces), props=props)
+    params = mi.traverse(m)
+    params["vertex_positions"] = type(params["vertex_positions"])(
+        np.asarray(vertices, dtype=np.float32).ravel()
+    )
+    params["faces"] = type(params["faces"])(np.asarray(faces, dtype=np.uint32).ravel())
+    params.update()
+    return {"type": "shapegroup", "mesh": m}
+
+
+def _albedo(piece, colour: bool):
+    kind = "pass" if piece.role == "pass" else ("escaped" if piece.passes else "blocked")
+    if colour:
+        return COLOURS[kind]
+    return {"pass": PASS_ALBEDO, "escaped": ESCAPED_ALBEDO, "blocked": BLOCKED_ALBEDO}[kind]
+
+
+def _light(value: float, colour: bool) -> dict:
+    """A grey light: white RGB in RGB variants (a flat spectrum would be tinted pink in sRGB)."""
+    if colour:
+        return {"type": "rgb", "value": [value] * 3}
+    return {"type": "spectrum", "value": value}
+
+
+def _scene(mi, passage: Passage, phases: np.ndarray, spacing: float, colour: bool = False):
+    """One copy of the plate and the shapes per phase, the k-th moved by k * spacing along x."""
+    T = mi.ScalarTransform4f
+    plate = COLOURS["plate"] if colour else PLATE_ALBEDO
+    groups = [_group(mi, passage.plate_vertices, passage.plate_faces, plate)]
+    groups += [_group(mi, p.vertices, p.faces, _albedo(p, colour)) for p in passage.pieces]
+    az, el = math.radians(AZIMUTH - 35.0), math.radians(55.0)
+    sun = -np.array([math.cos(az) * math.cos(el), math.sin(az) * math.cos(el), math.sin(el)])
+    scene = {
+        "type": "scene",
+        "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 1},
+        "sky": {"type": "constant", "radiance": _light(SKY, colour)},
+        "sun": {
+            "type": "directional",
+            "direction": sun.tolist(),
+            "irradiance": _light(SUN, colour),
+        },
+    }
+    for g, group in enumerate(groups):
+        scene[f"group_{g}"] = group
+    for k, s in enumerate(phases):
+        x = k * spacing
+        scene[f"plate_{k}"] = {
+            "type": "instance",
+            "shapegroup": {"type": "ref", "id": "group_0"},
+            "to_world": T().translate([x, 0.0, 0.0]),
+        }
+        for i, p in enumerate(passage.pieces):
+            if not p.visible(s):
+                continue
+            scene[f"piece_{k}_{i}"] = {
+                "type": "instance",
+                "shapegroup": {"type": "ref", "id": f"group_{i + 1}"},
+                "to_world": T().translate([x, 0.0, p.offset(s)]),
+            }
+    return mi.load_dict(scene)
+
+
+def camera(box: np.ndarray, aspect: float) -> tuple[np.ndarray, np.ndarray]:
+    """Camera origin and target that frame the box ``(2, 3)`` from the fixed direction.
+
+    The camera looks at the box's centre from :data:`AZIMUTH`, :data:`ELEVATION` and stands as
+    close as the field of view (:data:`FOV` horizontally, ``FOV / aspect`` vertically, 8 % margin)
+    lets every corner of the box stay in the picture. Returns (3,) arrays, scene units.
+    """
+    centre = 0.5 * (box[0] + box[1])
+    az, el = math.radians(AZIMUTH), math.radians(ELEVATION)
+    back = np.array([math.cos(az) * math.cos(el), math.sin(az) * math.cos(el), math.sin(el)])
+    right = np.cross(-back, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -back)
+    corners = np.array(
+        [[box[i, 0], box[j, 1], box[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+    )
+    rel = corners - centre
+    tx = 0.92 * math.tan(math.radians(FOV) / 2)
+    ty = tx / aspect
+    need = np.maximum(np.abs(rel @ right) / tx, np.abs(rel @ up) / ty) + rel @ back
+    dist = max(float(need.max()), 1e-6)
+    return centre + dist * back, centre
+
+
+def _batch_sensor(mi, box, frames, spacing, width, height, spp, size):
+    """A batch sensor: one perspective camera per frame copy, side by side on one film."""
+    T = mi.ScalarTransform4f
+    origin, target = camera(box, width / height)
+    fmt = "luminance" if "mono" in mi.variant() else "rgb"
+    sensor = {
+        "type": "batch",
+        "sampler": {"type": SAMPLER, "sample_count": spp},
+        "film": {
+            "type": "hdrfilm",
+            "width": frames * width,
+            "height": height,
+            "rfilter": {"type": "box"},
+            "pixel_format": fmt,
+        },
+    }
+    for k in range(frames):
+        shift = np.array([k * spacing, 0.0, 0.0])
+        sensor[f"cam_{k}"] = {
+            "type": "perspective",
+            "fov": FOV,
+            "fov_axis": "x",
+            "film": {"type": "hdrfilm", "width": width, "height": height, "pixel_format": fmt},
+            "near_clip": 1e-3 * size,
+            "far_clip": 1e2 * size,
+            "to_world": T().look_at(
+                origin=(origin + shift).tolist(), target=(target + shift).tolist(), up=[0, 0, 1]
+            ),
+        }
+    return mi.load_dict(sensor)
+
+
+def to_gray8(frames: np.ndarray) -> np.ndarray:
+    """Linear radiance to 8-bit sRGB, one exposure for all frames (the sky maps to ~white); grey
+    or RGB as the input."""
+    x = np.clip(frames / (1.1 * SKY), 0.0, 1.0)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.round(255.0 * srgb).astype(np.uint8)
+
+
+def write_gif(path: str, passage: Passage) -> dict:
+    """Render ``passage.gif`` (:func:`render_frames`) and return what report.json records of it.
+
+    Returns
+    -------
+    dict
+        ``frames``, ``width``, ``height``, ``spp``, ``frame_ms`` and ``phases``.
+    """
+    import mitsuba as mi
+    from PIL import Image
+
+    s = phases(frame_count(passage))
+    before = mi.variant()
+    try:
+        variant = select_rgb_variant(mi, before)
+        images = to_gray8(render_frames(passage, phases=s))
+    finally:
+        if before is not None and mi.variant() != before:
+            mi.set_variant(before)
+    mode = "RGB" if images.ndim == 4 else "L"
+    pics = [Image.fromarray(im, mode=mode) for im in images]
+    if mode == "RGB":  # one adaptive palette per frame (PIL's default GIF palette tints greys)
+        pics = [
+            p.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+            for p in pics
+        ]
+    durations = [FRAME_MS] * (len(pics) - 1) + [3 * FRAME_MS]
+    pics[0].save(path, save_all=True, append_images=pics[1:], duration=durations, loop=0)
+    return {
+        "frames": len(pics),
+        "width": WIDTH,
+        "height": HEIGHT,
+        "spp": SPP,
+        "frame_ms": FRAME_MS,
+        "colour": mode == "RGB",
+        "variant": variant,
+        "phases": [float(x) for x in s],
+    }

@@ -1,0 +1,323 @@
+"""From a solved hole to a printable sieve (paper Sec. 5.4 and Supplemental B).
+
+The hole is the exact polygon of :mod:`sieve_mi.geometry.outline`. The plate is a rectangular block with
+that outline cut through it by a manifold3d boolean; its thickness defaults to the largest circumsphere diameter over all shapes, which rules out passing by
+wriggling (Supplemental Proposition B.1: a shape that passes through a prism at least as deep as
+its circumsphere's diameter must at some moment lie wholly inside it, so its projection fits H).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import zipfile
+from dataclasses import dataclass, field
+
+import manifold3d
+import numpy as np
+import trimesh
+
+from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.outline import placed_vertices, raster_agreement
+
+
+@dataclass
+class Plate:
+    """A printable sieve.
+
+    Attributes
+    ----------
+    mesh : trimesh.Trimesh
+        The plate, scene units: z from ``-thickness`` to 0, the hole around the xy origin.
+    outline : manifold3d.CrossSection
+        The hole's exact outline H (scene units, xy-plane).
+    thickness, border : float
+        Plate thickness and minimum border width around the hole, scene units.
+    warnings : list of str
+        Risks the user should know about (e.g. a plate thinner than Proposition B.1 asks).
+    """
+
+    mesh: trimesh.Trimesh
+    outline: manifold3d.CrossSection
+    thickness: float
+    border: float
+    warnings: list = field(default_factory=list)
+
+
+def circumsphere_diameter(shape: Shape) -> float:
+    """Diameter of a tight enclosing sphere of a shape's vertices, scene units; never below the true circumsphere's.
+
+    Every candidate centre gives an enclosing sphere (radius: the farthest vertex), so the smallest
+    over the Badoiu-Clarkson iterates, started from the bounding-box centre, is an upper bound that
+    approaches the minimum enclosing sphere.
+    """
+    pts = shape.hull
+    c = np.zeros(3)
+    best = 2.0 * float(np.linalg.norm(pts, axis=1).max())
+    for k in range(1, 400):
+        d = np.linalg.norm(pts - c, axis=1)
+        best = min(best, 2.0 * float(d.max()))
+        c = c + (pts[int(np.argmax(d))] - c) / (k + 1)
+    return best
+
+
+def default_thickness(shapes: list[Shape]) -> float:
+    """Plate thickness that Proposition B.1 asks for: the largest circumsphere diameter (scene units).
+
+    Uses :func:`circumsphere_diameter` (an upper bound, so the plate errs on the thick side), rounded
+    up to 0.1 scene units.
+    """
+    d = max(circumsphere_diameter(s) for s in shapes)
+    return math.ceil(d * 10.0) / 10.0
+
+
+def plate(
+    outline: manifold3d.CrossSection,
+    thickness: float,
+    border: float,
+    *,
+    required_thickness: float | None = None,
+) -> Plate:
+    """A rectangular plate with ``outline`` cut through it.
+
+    Parameters
+    ----------
+    outline : manifold3d.CrossSection
+        The hole, scene units.
+    thickness : float
+        Plate thickness, scene units (z from -thickness to 0).
+    border : float
+        Width of material between the hole's bounding box and the plate's edge, scene units.
+    required_thickness : float, optional
+        The thickness Proposition B.1 asks for; a thinner plate gets a warning.
+
+    Returns
+    -------
+    Plate
+    """
+    if outline.is_empty():
+        raise ValueError("the hole outline is empty")
+    if thickness <= 0 or border <= 0:
+        raise ValueError("thickness and border must be positive")
+    (x0, y0), (x1, y1) = _bounds(outline)
+    block = manifold3d.Manifold.cube(
+        [x1 - x0 + 2 * border, y1 - y0 + 2 * border, thickness]
+    ).translate([x0 - border, y0 - border, -thickness])
+    cut = manifold3d.Manifold.extrude(outline, thickness + 2.0).translate(
+        [0.0, 0.0, -thickness - 1.0]
+    )
+    body = block - cut
+    warnings = []
+    if required_thickness is not None and thickness < required_thickness - 1e-9:
+        warnings.append(
+            f"plate thickness {thickness:g} is less than the largest circumsphere diameter "
+            f"{required_thickness:g}: a blocked shape may pass by tilting and sliding inside the hole "
+            "(Supplemental Proposition B.1); use at least that thickness for a guaranteed block"
+        )
+    return Plate(
+        mesh=to_trimesh(body),
+        outline=outline,
+        thickness=float(thickness),
+        border=float(border),
+        warnings=warnings,
+    )
+
+
+def _bounds(section: manifold3d.CrossSection) -> tuple[tuple[float, float], tuple[float, float]]:
+    b = section.bounds()
+    return (float(b[0]), float(b[1])), (float(b[2]), float(b[3]))
+
+
+def to_trimesh(body: manifold3d.Manifold) -> trimesh.Trimesh:
+    """A manifold3d solid as a trimesh (float64 vertices, no processing that could alter it)."""
+    m = body.to_mesh()
+    return trimesh.Trimesh(
+        np.asarray(m.vert_properties, dtype=np.float64)[:, :3],
+        np.asarray(m.tri_verts, dtype=np.int64),
+        process=False,
+    )
+
+
+def shape_mesh(
+    shape: Shape, quat: np.ndarray, trans_xy: np.ndarray, lift: float
+) -> trimesh.Trimesh:
+    """A shape in a pose, raised so its lowest point is ``lift`` above the plate's top (z = 0)."""
+    v = placed_vertices(shape, quat, trans_xy)
+    v[:, 2] += lift - v[:, 2].min()
+    return trimesh.Trimesh(v, shape.faces, process=False)
+
+
+def write_3mf(path: str, mesh: trimesh.Trimesh, unit: str = "millimeter") -> None:
+    """Write one mesh as a 3MF package (core specification, one object, one build item).
+
+    Parameters
+    ----------
+    path : str
+    mesh : trimesh.Trimesh
+    unit : str
+        3MF unit name: micron, millimeter, centimeter, inch, foot or meter.
+    """
+    verts = "".join(
+        f'<vertex x="{x:.9g}" y="{y:.9g}" z="{z:.9g}"/>' for x, y, z in np.asarray(mesh.vertices)
+    )
+    tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in np.asarray(mesh.faces))
+    model = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        f'<model unit="{unit}" xml:lang="en-US" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
+        '<resources><object id="1" type="model"><mesh>'
+        f"<vertices>{verts}</vertices><triangles>{tris}</triangles>"
+        '</mesh></object></resources><build><item objectid="1"/></build></model>'
+    )
+    types = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
+        '<Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/>'
+        '<Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/></Types>'
+    )
+    rels = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
+        '<Relationship Target="/3D/3dmodel.model" Id="rel0" '
+        'Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/></Relationships>'
+    )
+    parts = (("[Content_Types].xml", types), ("_rels/.rels", rels), ("3D/3dmodel.model", model))
+    with zipfile.ZipFile(path, "w") as z:
+        for name, text in parts:  # a fixed timestamp: the same plate gives the same bytes
+            info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+            info.external_attr = 0o644 << 16
+            z.writestr(info, text, compress_type=zipfile.ZIP_DEFLATED)
+
+
+UNIT_NAMES = {
+    "mm": "millimeter",
+    "cm": "centimeter",
+    "m": "meter",
+    "in": "inch",
+    "inch": "inch",
+    "um": "micron",
+    "micron": "micron",
+    "ft": "foot",
+}
+
+
+def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
+    """Write the printable sieve and the placed shapes of a solve into ``out_dir``.
+
+    Files: ``sieve.stl``, ``sieve.3mf`` (the plate), ``hole.svg`` (the exact outline),
+    ``pass_<i>.stl`` (each A in its pass orientation above the hole), ``block_<j>.stl`` (each B in its
+    best attempt, above the hole at the attempt's position) and ``figure.png`` (a Mitsuba rendering).
+
+    Parameters
+    ----------
+    result : sieve_mi.game.result.Result
+    out_dir : str
+        An existing folder.
+    figure : bool
+        Render ``figure.png``.
+
+    Returns
+    -------
+    dict
+        The ``fabrication`` section of ``report.json``: thickness, border, plate size, outline area,
+        agreement with the raster, files and warnings.
+    """
+    scene = result.scene
+    fab = scene.fabrication
+    outline = result.outline
+    required = default_thickness(result.pass_shapes + result.block_shapes)
+    thickness = fab.thickness if fab.thickness is not None else required
+    sieve = plate(outline, thickness, fab.border, required_thickness=required)
+    sieve.mesh.export(os.path.join(out_dir, "sieve.stl"))
+    write_3mf(
+        os.path.join(out_dir, "sieve.3mf"), sieve.mesh, UNIT_NAMES.get(scene.units, "millimeter")
+    )
+    write_svg(os.path.join(out_dir, "hole.svg"), outline, scene.units)
+    lift = 0.25 * thickness
+    passes = []
+    for i, shape in enumerate(result.pass_shapes):
+        m = shape_mesh(shape, result.pass_quats[i], result.pass_trans[i], lift)
+        m.export(os.path.join(out_dir, f"pass_{i}.stl"))
+        passes.append(m)
+    blocks = []
+    for j, shape in enumerate(result.block_shapes):
+        m = shape_mesh(shape, result.attack.quats[0, j], result.attack.trans[0, j], lift)
+        m.export(os.path.join(out_dir, f"block_{j}.stl"))
+        blocks.append(m)
+    files = (
+        ["sieve.stl", "sieve.3mf", "hole.svg"]
+        + [f"pass_{i}.stl" for i in range(len(passes))]
+        + [f"block_{j}.stl" for j in range(len(blocks))]
+    )
+    if figure:
+        from sieve_mi.outputs.figure import render_figure
+
+        beside = beside_plate(sieve.mesh, blocks)
+        render_figure(
+            os.path.join(out_dir, "figure.png"),
+            sieve.mesh,
+            passes,
+            beside,
+            [bool(b) for b in result.attack.blocked()[0]],
+            title=f"{scene.name}: winner {result.winner}",
+        )
+        files.append("figure.png")
+    (x0, y0, z0), (x1, y1, z1) = sieve.mesh.bounds
+    return {
+        "thickness": sieve.thickness,
+        "required_thickness": required,
+        "border": sieve.border,
+        "plate_size": [float(x1 - x0), float(y1 - y0), float(z1 - z0)],
+        "outline": raster_agreement(outline, result.hole.mask, result.hole.frame),
+        "outline_vertices": int(outline.num_vert()),
+        "files": files,
+        "warnings": sieve.warnings,
+    }
+
+
+def beside_plate(
+    plate_mesh: trimesh.Trimesh, meshes: list[trimesh.Trimesh], gap: float | None = None
+) -> list[trimesh.Trimesh]:
+    """Copies of ``meshes`` standing in a row on the ground beside the plate (for the figure).
+
+    Parameters
+    ----------
+    plate_mesh : trimesh.Trimesh
+        The sieve plate; its bounding box fixes the row's start and the ground height (its bottom).
+    meshes : list of trimesh.Trimesh
+        Shapes in their poses; only translated.
+    gap : float, optional
+        Spacing between neighbours, scene units (default: 10 % of the plate's larger side).
+
+    Returns
+    -------
+    list of trimesh.Trimesh
+        The moved copies, in the order given.
+    """
+    (x0, y0, z0), (x1, y1, _) = plate_mesh.bounds
+    gap = 0.1 * max(x1 - x0, y1 - y0) if gap is None else gap
+    x = x1 + gap
+    out = []
+    for m in meshes:
+        (a0, b0, c0), (a1, b1, _) = m.bounds
+        shift = np.array([x - a0, 0.5 * (y0 + y1) - 0.5 * (b0 + b1), z0 - c0])
+        out.append(trimesh.Trimesh(np.asarray(m.vertices) + shift, m.faces, process=False))
+        x += (a1 - a0) + gap
+    return out
+
+
+def write_svg(path: str, outline: manifold3d.CrossSection, units: str = "mm") -> None:
+    """The outline as an SVG path (even-odd fill), 1 user unit = 1 scene unit, +y up."""
+    (x0, y0), (x1, y1) = _bounds(outline)
+    pad = 0.05 * max(x1 - x0, y1 - y0)
+    w, h = x1 - x0 + 2 * pad, y1 - y0 + 2 * pad
+    d = []
+    for c in outline.to_polygons():
+        pts = " L ".join(f"{x:.6g} {-y:.6g}" for x, y in np.asarray(c))
+        d.append(f"M {pts} Z")
+    svg_units = units if units in ("mm", "cm", "in") else ""
+    with open(path, "w") as fh:
+        fh.write(
+            f'<svg xmlns="http://www.w3.org/2000/svg" width="{w:.6g}{svg_units}" height="{h:.6g}{svg_units}" '
+            f'viewBox="{x0 - pad:.6g} {-(y1 + pad):.6g} {w:.6g} {h:.6g}">\n'
+            f'<path fill="black" fill-rule="evenodd" d="{" ".join(d)}"/>\n</svg>\n'
+        )

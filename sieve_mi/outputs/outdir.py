@@ -1,0 +1,382 @@
+"""Safe output folders: sieve-mi never deletes what it did not write.
+
+Every command that writes a folder (``solve``, ``check --out``) goes through :func:`writing`:
+
+* The destination is checked first (:func:`validate`). It may be missing, an empty folder, or
+  an earlier sieve-mi output: a folder with the marker file ``.sieve-mi``, a ``report.json`` and
+  nothing that the marker does not list. Anything else (a file, a folder of the user's files,
+  the working directory, the home folder, a filesystem root, a folder holding an input) is
+  refused with one :class:`~sieve_mi.errors.SieveError` line, and nothing is touched.
+* The outputs are written into a temporary folder ``.sieve-mi-tmp-<pid>-<host>-<random>``
+  beside the destination. At the end the marker is written, the destination is checked again,
+  and the new folder is swapped in atomically (``renameat2(RENAME_EXCHANGE)`` on Linux; else
+  rename the old aside, rename the new in, restore the old on failure); the old one is removed
+  last. SIGINT, SIGTERM and SIGHUP are held back during the swap and the clean-up.
+* Any exception, KeyboardInterrupt included, removes the temporary folder (and the parent
+  folders the run created, if they are empty). Temporary folders
+  of runs that were killed outright (their pid is gone) are removed by the next run that writes
+  into the same parent folder.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import errno
+import json
+import os
+import secrets
+import shutil
+import signal
+import socket
+import threading
+from collections.abc import Iterable, Iterator
+
+from sieve_mi.errors import SieveError
+
+MARKER = ".sieve-mi"
+"""Name of the marker file in every sieve-mi output folder."""
+
+TMP_PREFIX = ".sieve-mi-tmp-"
+"""Prefix of the temporary folders written beside a destination."""
+
+_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+
+
+# ------------------------------------------------------------------------------------------------
+# Checking a destination
+# ------------------------------------------------------------------------------------------------
+
+
+def validate(out_dir: str, *, inputs: Iterable[str] = (), option: str = "--out") -> str:
+    """Check that ``out_dir`` may be written (or replaced) by sieve-mi; touch nothing.
+
+    Parameters
+    ----------
+    out_dir : str
+        The destination folder as the user gave it.
+    inputs : iterable of str
+        Input files of the command (scene, meshes, plate, image): a folder that holds one of
+        them is refused.
+    option : str
+        The option name used in messages.
+
+    Returns
+    -------
+    str
+        The destination with symbolic links resolved (absolute).
+
+    Raises
+    ------
+    SieveError
+        One line saying why the folder is refused.
+    """
+    say = f"{option} {out_dir}"
+    if os.path.islink(out_dir) and not os.path.exists(out_dir):
+        raise SieveError(f"{say} is a broken symbolic link; choose another folder")
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise SieveError(f"{say} exists and is not a folder; choose another path")
+    dest = os.path.realpath(out_dir)
+    _refuse_protected(dest, say, inputs)
+    base = os.path.dirname(dest)
+    while not os.path.lexists(base):
+        base = os.path.dirname(base)
+    if not os.path.isdir(base) or not os.access(base, os.W_OK | os.X_OK):
+        raise SieveError(f"{say}: cannot write into {base}; choose another folder")
+    if os.path.isdir(dest) and os.listdir(dest) and not is_replaceable(dest):
+        raise SieveError(
+            f"{say} exists and holds files that sieve-mi did not write; choose another folder"
+        )
+    return dest
+
+
+def _contains(folder: str, path: str) -> bool:
+    """Whether ``path`` is ``folder`` or lies inside it (both resolved, absolute)."""
+    return path == folder or path.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def _refuse_protected(dest: str, say: str, inputs: Iterable[str]) -> None:
+    """Raise if ``dest`` (resolved) is a root, or is or contains the cwd, home or an input."""
+    if os.path.dirname(dest) == dest or os.path.ismount(dest):
+        raise SieveError(f"{say} is a filesystem root; choose another folder")
+    cwd = os.path.realpath(os.getcwd())
+    if dest == cwd:
+        raise SieveError(f"{say} is the working directory; choose another folder")
+    if _contains(dest, cwd):
+        raise SieveError(f"{say} contains the working directory; choose another folder")
+    home = os.path.realpath(os.path.expanduser("~"))
+    if _contains(dest, home):
+        raise SieveError(f"{say} is or contains your home folder; choose another folder")
+    for path in inputs:
+        if path and _contains(dest, os.path.realpath(path)):
+            raise SieveError(f"{say} holds the input file {path}; choose another folder")
+
+
+def _entries(root: str) -> tuple[set[str], set[str]]:
+    """Files and folders under ``root`` as relative paths with ``/`` (symlinks count as files)."""
+    files, folders = set(), set()
+    stack = [""]
+    while stack:
+        rel = stack.pop()
+        with os.scandir(os.path.join(root, rel)) as it:
+            for entry in it:
+                name = f"{rel}/{entry.name}" if rel else entry.name
+                if entry.is_dir(follow_symlinks=False):
+                    folders.add(name)
+                    stack.append(name)
+                else:
+                    files.add(name)
+    return files, folders
+
+
+def read_marker(folder: str) -> dict | None:
+    """The marker of a sieve-mi output folder, or None if it has none or it is unreadable."""
+    try:
+        with open(os.path.join(folder, MARKER)) as fh:
+            marker = json.load(fh)
+    except (OSError, ValueError):
+        return None
+    ok = isinstance(marker, dict) and all(
+        isinstance(marker.get(k), list) and all(isinstance(x, str) for x in marker[k])
+        for k in ("files", "folders")
+    )
+    return marker if ok else None
+
+
+def is_replaceable(folder: str) -> bool:
+    """Whether ``folder`` is a sieve-mi output holding only what its marker lists.
+
+    It needs the marker, a ``report.json``, and no file or folder that the marker does not
+    name (a user's ``notes.txt`` added to an old output makes it irreplaceable).
+    """
+    marker = read_marker(folder)
+    if marker is None or not os.path.isfile(os.path.join(folder, "report.json")):
+        return False
+    files, folders = _entries(folder)
+    return files - {MARKER} <= set(marker["files"]) and folders <= set(marker["folders"])
+
+
+# ------------------------------------------------------------------------------------------------
+# Writing and swapping
+# ------------------------------------------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def deferred_signals() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP back until the block ends (they arrive afterwards).
+
+    In the main thread the signals' Python handlers are swapped for one that only records them,
+    and the recorded signals are raised again once the old handlers are back. (Blocking them with
+    ``pthread_sigmask`` would not do: it blocks one thread only, and the kernel hands a signal
+    sent to the process to any thread that does not block it, such as Dr.Jit's workers, after
+    which Python runs the handler in the main thread anyway.) Elsewhere, where Python allows no
+    handlers, the calling thread's signal mask is used.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        if not hasattr(signal, "pthread_sigmask"):
+            yield
+            return
+        old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        return
+    pending: list[int] = []
+
+    def hold(signum, frame):
+        pending.append(signum)
+
+    old = {}
+    for sig in _SIGNALS:
+        if signal.getsignal(sig) is not None:  # None: a handler not installed from Python
+            old[sig] = signal.signal(sig, hold)
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(pending):
+            signal.raise_signal(sig)
+
+
+def _host() -> str:
+    """This machine's name, reduced to letters, digits and ``_`` (no ``-``: it separates)."""
+    return "".join(c if c.isalnum() else "_" for c in socket.gethostname())[:40] or "host"
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def remove_stale(parent: str) -> list[str]:
+    """Remove the temporary folders in ``parent`` left by killed runs on this machine.
+
+    A folder ``.sieve-mi-tmp-<pid>-<host>-...`` is removed when ``<host>`` is this machine and
+    no process ``<pid>`` is alive. Returns the names removed.
+    """
+    removed = []
+    try:
+        names = os.listdir(parent)
+    except OSError:
+        return removed
+    for name in names:
+        pid, _, rest = name[len(TMP_PREFIX) :].partition("-")
+        if not (name.startswith(TMP_PREFIX) and pid.isdigit() and rest.startswith(_host() + "-")):
+            continue
+        path = os.path.join(parent, name)
+        if int(pid) == os.getpid() or _pid_alive(int(pid)) or os.path.islink(path):
+            continue
+        shutil.rmtree(path, ignore_errors=True)
+        removed.append(name)
+    return removed
+
+
+def write_marker(folder: str, command: str) -> None:
+    """Write ``.sieve-mi`` into ``folder``: version, command and every file and folder in it."""
+    from sieve_mi.outputs.provenance import VERSION
+
+    files, folders = _entries(folder)
+    marker = {
+        "sieve_mi": VERSION,
+        "command": command,
+        "files": sorted(files - {MARKER}),
+        "folders": sorted(folders),
+    }
+    with open(os.path.join(folder, MARKER), "w") as fh:
+        json.dump(marker, fh, indent=1)
+
+
+def _exchange(a: str, b: str) -> bool:
+    """Swap two existing paths atomically (Linux ``renameat2``); False where not supported."""
+    try:
+        fn = ctypes.CDLL(None, use_errno=True).renameat2
+    except (AttributeError, OSError):
+        return False
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    at_fdcwd, rename_exchange = -100, 2
+    if fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP, errno.EXDEV):
+        return False
+    raise OSError(err, os.strerror(err), b)
+
+
+def swap_in(tmp: str, dest: str) -> None:
+    """Put the finished folder ``tmp`` at ``dest``; an old ``dest`` is removed last.
+
+    On failure the old ``dest`` is left (or put back) in place and ``tmp`` is left to the
+    caller. Call with signals deferred.
+    """
+    if not os.path.lexists(dest):
+        os.rename(tmp, dest)
+        return
+    if _exchange(tmp, dest):
+        shutil.rmtree(tmp, ignore_errors=True)  # now the old output
+        return
+    aside = tmp + "-old"  # a kill between the two renames leaves it to remove_stale
+    os.rename(dest, aside)
+    try:
+        os.rename(tmp, dest)
+    except BaseException:
+        os.rename(aside, dest)
+        raise
+    shutil.rmtree(aside, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def writing(
+    out_dir: str, *, command: str, inputs: Iterable[str] = (), option: str = "--out"
+) -> Iterator[str]:
+    """Yield a fresh temporary folder; when the block ends without error, make it ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir : str
+        The destination folder (see :func:`validate` for what is accepted).
+    command : str
+        The command writing it (``"solve"``, ``"check"``), recorded in the marker.
+    inputs : iterable of str
+        Input files of the command; a destination that holds one is refused.
+    option : str
+        The option name used in messages.
+
+    Yields
+    ------
+    str
+        The temporary folder to write into (beside the destination).
+
+    Raises
+    ------
+    SieveError
+        The destination is refused (before anything is written, or again just before the swap),
+        or the swap failed; the old destination is then unchanged.
+    """
+    inputs = list(inputs)
+    dest = validate(out_dir, inputs=inputs, option=option)
+    parent = os.path.dirname(dest)
+    created = _first_missing(parent)
+    tmp = None
+    try:
+        with deferred_signals():
+            try:
+                os.makedirs(parent, exist_ok=True)
+            except OSError as exc:
+                raise SieveError(f"{option} {out_dir}: cannot create its folder ({exc})") from None
+            remove_stale(parent)
+            tmp = _make_temp(parent)
+        yield tmp
+        write_marker(tmp, command)
+        with deferred_signals():
+            validate(out_dir, inputs=inputs, option=option)
+            try:
+                swap_in(tmp, dest)
+            except OSError as exc:
+                raise SieveError(f"{option} {out_dir}: could not be replaced ({exc})") from None
+    except BaseException:
+        with deferred_signals():
+            if tmp is not None:
+                shutil.rmtree(tmp, ignore_errors=True)
+            _remove_created(parent, created)
+        raise
+
+
+def _first_missing(path: str) -> str | None:
+    """The outermost folder that ``os.makedirs(path)`` would create, or None if it exists."""
+    missing = None
+    while not os.path.lexists(path):
+        missing, path = path, os.path.dirname(path)
+    return missing
+
+
+def _remove_created(parent: str, created: str | None) -> None:
+    """Remove the folders from ``parent`` up to ``created`` that a failed run made, if empty."""
+    while created is not None and _contains(created, parent):
+        try:
+            os.rmdir(parent)
+        except OSError:
+            return
+        parent = os.path.dirname(parent)
+
+
+def _make_temp(parent: str) -> str:
+    """Create an empty temporary folder in ``parent`` named after this process and machine."""
+    for _ in range(100):
+        path = os.path.join(parent, f"{TMP_PREFIX}{os.getpid()}-{_host()}-{secrets.token_hex(4)}")
+        try:
+            os.mkdir(path, 0o755)
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise SieveError(f"{parent}: cannot write an output folder here ({exc})") from None
+        return path
+    raise SieveError(f"{parent}: cannot create a temporary output folder")

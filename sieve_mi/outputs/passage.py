@@ -1,0 +1,216 @@
+"""The passage scene shared by ``report.html`` and ``passage.gif``: the plate, every A sliding down
+through its hole and every B's best attempt coming to rest on the plate.
+
+Coordinates are the fabrication's (:mod:`sieve_mi.outputs.fabrication`): scene units, the hole around the
+xy origin, the plate from z = -T to z = 0. Each shape keeps its pose's rotation and its xy
+translation; only its height changes with the animation's phase ``s`` in [0, 1]:
+
+* the phase is cut into equal slots, one for all of A and then one per B; a shape is shown only
+  during its slot (so the shapes never overlap), and moves with its slot's local phase u in [0, 1];
+* every A starts ``gap`` above the plate (its lowest point at z = gap) and ends ``gap`` below it
+  (its highest point at z = -T - gap), at constant speed;
+* a blocked B (as report.json says) starts the same way and descends at the speed it would need
+  to pass, until it rests on the plate: its lowest point over the plate's material touches z = 0
+  (:func:`rest_offset`); it stays there to the end of its slot. A B that is not blocked passes
+  like an A.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sieve_mi.geometry.outline import placed_vertices
+
+
+@dataclass
+class Piece:
+    """One shape of the passage.
+
+    Attributes
+    ----------
+    name : str
+    role : {"pass", "block"}
+    index : int
+        Position in the scene's list of that role.
+    vertices : (V, 3) ndarray of float64
+        The posed mesh at height offset 0 (rotated about its centre, moved by its xy translation),
+        scene units.
+    faces : (F, 3) ndarray of int64
+    start, end : float
+        Height offsets (added to z) at phase 0 and where the motion ends, scene units.
+    stop : float
+        Local phase u in [0, 1] at which the shape reaches ``end`` (1 for a shape that passes;
+        earlier for a B that comes to rest on the plate).
+    slot : (float, float)
+        The phases during which it is shown and moves.
+    passes : bool
+        Whether it goes through (every A; a B whose attempt fits the hole).
+    centre : (2,) ndarray
+        Its pose's xy translation, scene units.
+    """
+
+    name: str
+    role: str
+    index: int
+    vertices: np.ndarray
+    faces: np.ndarray
+    start: float
+    end: float
+    stop: float
+    passes: bool
+    centre: np.ndarray
+    slot: tuple = (0.0, 1.0)
+
+    def offset(self, s: float) -> float:
+        """Height offset at phase ``s`` in [0, 1], scene units."""
+        t0, t1 = self.slot
+        u = (float(s) - t0) / (t1 - t0)
+        f = min(max(u, 0.0), self.stop) / self.stop if self.stop > 0 else 1.0
+        return self.start + f * (self.end - self.start)
+
+    def visible(self, s: float) -> bool:
+        """Whether it is shown at phase ``s`` (within its slot; the last slot includes 1)."""
+        t0, t1 = self.slot
+        return t0 <= s < t1 or (t1 >= 1.0 and s >= 1.0)
+
+
+@dataclass
+class Passage:
+    """The plate and the moving shapes (see the module docstring).
+
+    Attributes
+    ----------
+    plate_vertices : (V, 3) ndarray
+    plate_faces : (F, 3) ndarray
+    thickness : float
+        Plate thickness T, scene units.
+    gap : float
+        Clearance above and below the plate at the ends of the motion, scene units.
+    pieces : list of Piece
+        Every A, then every B.
+    """
+
+    plate_vertices: np.ndarray
+    plate_faces: np.ndarray
+    thickness: float
+    gap: float
+    pieces: list
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) box around the plate and every shape over the whole motion, scene units."""
+        lo, hi = self.plate_vertices.min(0), self.plate_vertices.max(0)
+        for p in self.pieces:
+            for dz in (p.start, p.end):
+                v = p.vertices + [0.0, 0.0, dz]
+                lo, hi = np.minimum(lo, v.min(0)), np.maximum(hi, v.max(0))
+        return np.array([lo, hi])
+
+
+def inside(section, points: np.ndarray) -> np.ndarray:
+    """Which xy ``points`` (K, 2) lie inside a manifold3d CrossSection (even-odd over its contours)."""
+    from matplotlib.path import Path
+
+    count = np.zeros(len(points), dtype=np.int64)
+    for contour in section.to_polygons():
+        count += Path(np.asarray(contour, dtype=np.float64)).contains_points(points)
+    return count % 2 == 1
+
+
+def surface_points(vertices: np.ndarray, faces: np.ndarray, n: int = 4) -> np.ndarray:
+    """Points on every triangle: its corners and a barycentric lattice of ``n`` steps per edge.
+
+    Returns a (K, 3) array (deterministic, no random sampling).
+    """
+    tri = vertices[faces]  # (F, 3, 3)
+    ws = [(i / n, j / n, 1 - (i + j) / n) for i in range(n + 1) for j in range(n + 1 - i)]
+    w = np.array(ws)  # (W, 3)
+    return np.einsum("wk,fkc->fwc", w, tri).reshape(-1, 3)
+
+
+def rest_offset(
+    vertices: np.ndarray, faces: np.ndarray, hole, plate_box: np.ndarray
+) -> float | None:
+    """Height offset at which a posed shape rests on the plate, or None if it fits the hole.
+
+    The shape comes down vertically; it stops when a point of its surface over the plate's
+    material (outside the hole, inside the plate's xy box) reaches the plate's top z = 0. Points
+    are :func:`surface_points` (a visual approximation of the contact, accurate to the mesh's
+    triangle size / 4).
+
+    Parameters
+    ----------
+    vertices : (V, 3) ndarray
+        The posed shape, scene units.
+    faces : (F, 3) ndarray
+    hole : manifold3d.CrossSection
+        The exact hole H.
+    plate_box : (2, 2) ndarray
+        The plate's xy box ``[[x0, y0], [x1, y1]]``.
+    """
+    pts = surface_points(vertices, faces)
+    xy = pts[:, :2]
+    over = np.all((xy >= plate_box[0]) & (xy <= plate_box[1]), axis=1) & ~inside(hole, xy)
+    if not over.any():
+        return None
+    return -float(pts[over, 2].min())
+
+
+def build(result) -> Passage:
+    """The passage scene of a solve (:class:`sieve_mi.game.result.Result`).
+
+    The plate is :func:`sieve_mi.outputs.fabrication.plate` with the thickness and border of the printed
+    sieve (``sieve.stl``).
+    """
+    from sieve_mi.outputs.fabrication import default_thickness, plate
+
+    fab = result.scene.fabrication
+    required = default_thickness(result.pass_shapes + result.block_shapes)
+    thickness = fab.thickness if fab.thickness is not None else required
+    sieve = plate(result.outline, thickness, fab.border)
+    pv = np.asarray(sieve.mesh.vertices, dtype=np.float64)
+    box = np.array([pv[:, :2].min(0), pv[:, :2].max(0)])
+    size = float(np.max(pv.max(0) - pv.min(0)))
+    gap = 0.15 * size
+    pieces = []
+    n = 1 + len(result.block_shapes)
+    blocked = [
+        b.blocked for b in result.blocks
+    ]  # the report's verdict (a certified passage passes)
+    for i, shape in enumerate(result.pass_shapes):
+        v = placed_vertices(shape, result.pass_quats[i], result.pass_trans[i])
+        pieces.append(_falling(shape, "pass", i, v, thickness, gap, result.pass_trans[i]))
+        pieces[-1].slot = (0.0, 1.0 / n)
+    for j, shape in enumerate(result.block_shapes):
+        q, t = result.attack.quats[0, j], result.attack.trans[0, j]
+        v = placed_vertices(shape, q, t)
+        piece = _falling(shape, "block", j, v, thickness, gap, t)
+        piece.slot = ((j + 1) / n, (j + 2) / n)
+        if blocked[j]:
+            rest = rest_offset(v, shape.faces, result.outline, box)
+            rest = (
+                -float(v[:, 2].min()) if rest is None else rest
+            )  # a sliver: rest on its lowest point
+            piece.stop = (piece.start - rest) / (piece.start - piece.end)
+            piece.end, piece.passes = rest, False
+        pieces.append(piece)
+    return Passage(pv, np.asarray(sieve.mesh.faces, dtype=np.int64), float(thickness), gap, pieces)
+
+
+def _falling(shape, role: str, index: int, v: np.ndarray, thickness: float, gap: float, t) -> Piece:
+    """A shape that goes all the way through: from ``gap`` above the plate to ``gap`` below it."""
+    start = gap - float(v[:, 2].min())
+    end = -thickness - gap - float(v[:, 2].max())
+    return Piece(
+        name=shape.name,
+        role=role,
+        index=index,
+        vertices=v,
+        faces=np.asarray(shape.faces, dtype=np.int64),
+        start=start,
+        end=end,
+        stop=1.0,
+        passes=True,
+        centre=np.asarray(t, dtype=np.float64)[:2].copy(),
+    )

@@ -1,0 +1,474 @@
+"""Writing a solve's outputs: report.json, hole and mask images, convergence and overlay plots.
+
+Everything is written into a temporary folder beside the destination and swapped into place at
+the end by :mod:`sieve_mi.outputs.outdir`, so an interrupted or failed run never leaves half-written
+outputs, and a folder that sieve-mi did not write is never replaced.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+
+import numpy as np
+
+from sieve_mi.game.result import Result
+from sieve_mi.outputs import outdir
+from sieve_mi.outputs.provenance import provenance
+
+
+def _safe(name: str) -> str:
+    """A file-name-safe version of a shape name."""
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+
+
+def write_exr(path: str, image: np.ndarray) -> None:
+    """Write a single-channel float32 OpenEXR image with Mitsuba's Bitmap."""
+    import mitsuba as mi
+
+    mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32)).write(path)
+
+
+def write_layers(path: str, layers: dict, metadata: dict) -> None:
+    """Write a multi-layer OpenEXR: one named float32 channel per (N, N) array, plus metadata.
+
+    Parameters
+    ----------
+    path : str
+    layers : dict of str to (N, N) ndarray
+        Channel name to image (row 0 at the top); all of one size.
+    metadata : dict of str to float or str
+        Header attributes (e.g. the pixel size), shown by viewers such as tev.
+    """
+    import mitsuba as mi
+
+    names = list(layers)
+    stack = np.stack([np.asarray(layers[n], dtype=np.float32) for n in names], axis=-1)
+    bitmap = mi.Bitmap(
+        np.ascontiguousarray(stack),
+        pixel_format=mi.Bitmap.PixelFormat.MultiChannel,
+        channel_names=names,
+    )
+    header = bitmap.metadata()
+    for key, value in metadata.items():
+        header[key] = value
+    bitmap.write(path)
+
+
+def paste_window(window, frame) -> np.ndarray:
+    """A B attempt's mask window (:class:`~sieve_mi.game.scoring.MaskWindow`) on the frame's lattice.
+
+    The window is a piece of the same pixel lattice, possibly reaching beyond the frame; what lies
+    beyond is cut off. Returns an (N, N) bool array.
+    """
+    mask, n = window.mask, frame.resolution
+    row0, col0 = window_origin(window, frame)
+    out = np.zeros((n, n), dtype=bool)
+    r0, c0 = max(row0, 0), max(col0, 0)
+    r1, c1 = min(row0 + mask.shape[0], n), min(col0 + mask.shape[1], n)
+    if r1 > r0 and c1 > c0:
+        out[r0:r1, c0:c1] = mask[r0 - row0 : r1 - row0, c0 - col0 : c1 - col0]
+    return out
+
+
+def window_origin(window, frame) -> tuple[int, int]:
+    """Lattice (row, column) of a :class:`~sieve_mi.game.scoring.MaskWindow`'s top-left pixel."""
+    x0, _, _, y1 = window.extent
+    h = frame.pixel_size
+    return int(round((frame.half_extent - y1) / h)), int(round((x0 + frame.half_extent) / h))
+
+
+def rendered_masks(result: Result) -> tuple[list, list]:
+    """The silhouettes that get written, rendered by Mitsuba (``mi.render`` under the lattice's
+    orthographic sensors, :meth:`~sieve_mi.geometry.silhouettes.SilhouetteRenderer.render`).
+
+    Returns
+    -------
+    a : list of (N, N) bool ndarrays
+        Each A at its pass pose, on the hole's frame (equal to ``result.a_masks``).
+    b : list of MaskWindow
+        Each B in its best attempt, on the window of ``result.block_masks`` (equal to it).
+    """
+    from sieve_mi.game.scoring import MaskWindow
+    from sieve_mi.geometry.silhouettes import SilhouetteRenderer
+
+    frame = result.hole.frame
+    a = [
+        SilhouetteRenderer(shape).render(q, t, frame)
+        for shape, q, t in zip(result.pass_shapes, result.pass_quats, result.pass_trans)
+    ]
+    b = []
+    for j, (shape, window) in enumerate(zip(result.block_shapes, result.block_masks)):
+        row0, col0 = window_origin(window, frame)
+        q, t = result.attack.quats[0, j], result.attack.trans[0, j]
+        mask = SilhouetteRenderer(shape).render(q, t, frame, row0, col0, window.mask.shape[0])
+        b.append(MaskWindow(window.extent, mask))
+    return a, b
+
+
+def mask_layers(result: Result, rendered: tuple | None = None) -> dict:
+    """The layers of ``masks.exr``: the exact hole at pixel centres, the conservative raster the
+    attack used, player B's distance field (scene units), every A's silhouette and every B's best
+    attempt, all on the hole's lattice.
+
+    ``rendered`` is :func:`rendered_masks`'s answer (computed when not given).
+    """
+    from sieve_mi.geometry.outline import rasterize
+
+    hole = result.hole
+    a_masks, b_windows = rendered_masks(result) if rendered is None else rendered
+    layers = {
+        "hole": rasterize(result.outline, hole.frame),
+        "hole.cover": hole.mask,
+        "distance": hole.outside,
+    }
+    for i, (m, shape) in enumerate(zip(a_masks, result.pass_shapes)):
+        layers[f"a.{i}.{_safe(shape.name)}"] = m
+    for j, (shape, window) in enumerate(zip(result.block_shapes, b_windows)):
+        layers[f"b.{j}.{_safe(shape.name)}"] = paste_window(window, hole.frame)
+    return layers
+
+
+def write_png(path: str, mask: np.ndarray) -> None:
+    """Write a binary mask as an 8-bit grey PNG (white = inside)."""
+    from PIL import Image
+
+    Image.fromarray((np.asarray(mask) > 0).astype(np.uint8) * 255).save(path)
+
+
+def report_dict(result: Result) -> dict:
+    """The content of ``report.json``."""
+    scene = result.scene
+    attack = result.attack
+    passes = []
+    for i, (entry, shape) in enumerate(zip(scene.passes, result.pass_shapes)):
+        passes.append(
+            {
+                "mesh": entry.mesh,
+                "name": shape.name,
+                "rotation": [float(x) for x in result.pass_quats[i]],
+                "translation": [float(x) for x in result.pass_trans[i]],
+                "centre": [float(x) for x in shape.centre],
+                "faces": shape.face_count,
+            }
+        )
+        if i < len(result.alone) and result.alone[i] is not None:
+            passes[-1]["alone_loss"] = float(result.alone[i])
+    blocks = []
+    for j, (entry, shape) in enumerate(zip(scene.blocks, result.block_shapes)):
+        beta = float(attack.beta[0, j])
+        row = {
+            "mesh": entry.mesh,
+            "name": shape.name,
+            "beta": beta,
+            "loss": beta,  # the same β, under its old name (kept for compatibility)
+            "blocked": bool(attack.blocked()[0, j]),
+            "protrusion": float(attack.protrusion[0, j]),
+            "verdict": "exact-polygon",
+            "rotation": [float(x) for x in attack.quats[0, j]],
+            "translation": [float(x) for x in attack.trans[0, j]],
+            "fitting_starts": int(attack.fits[0, j]),
+            "centre": [float(x) for x in shape.centre],
+            "faces": shape.face_count,
+        }
+        c = result.certified[j] if j < len(result.certified) else None
+        if c is not None:
+            row["certified"] = c.status
+            row["certification"] = c.to_dict()
+            if c.status == "passage":  # the exact hole lets it through: not blocked after all
+                row["blocked"] = False
+        if attack.margin_beta is not None:
+            row["margin_beta"] = float(attack.margin_beta[0, j])
+            row["margin_loss"] = row["margin_beta"]
+            row["margin_protrusion"] = float(attack.margin_protrusion[0, j])
+        blocks.append(row)
+    hole = result.hole
+    return {
+        "name": scene.name,
+        "winner": result.winner,
+        "pass": passes,
+        "block": blocks,
+        "hole": {
+            "area": float(result.outline.area()),
+            "raster_area": hole.area,
+            "resolution": hole.frame.resolution,
+            "half_extent": hole.frame.half_extent,
+        },
+        "settings": scene.settings(),
+        "variant": result.variant,
+        "provenance": _provenance(result),
+        "search_value": None if np.isnan(result.search_value) else float(result.search_value),
+        "convergence": [float(x) for x in result.history.best],
+        "stages": [{"stage": label, "iterations": n} for label, n in result.stages],
+        "polish": list(result.polish),
+        "warnings": list(result.warnings),
+        "timings": {k: round(float(v), 4) for k, v in result.timings.items()},
+        "pixel_size": hole.frame.pixel_size,
+        "units": scene.units,
+        "conventions": "rotation q = (w, x, y, z) acts on the mesh's points about its centre (bounding-box centre, "
+        "given in file units times scale); the silhouette is the projection onto the xy-plane; "
+        "translations are in the xy-plane in scene units, relative to the hole's centre",
+    }
+
+
+def _provenance(result: Result) -> dict:
+    """report.json's provenance; a mesh built in code is hashed by its vertex and face bytes."""
+    import hashlib
+
+    scene = result.scene
+    entries = scene.passes + scene.blocks
+    files = [(e.mesh, scene.resolve(e.mesh)) for e in entries if e.data is None]
+    out = provenance(scene.path, files, result.variant, result.seed)
+    from_files = iter(out["meshes"])
+    meshes = []
+    for e in entries:
+        if e.data is None:
+            meshes.append(next(from_files))
+        else:
+            v = np.ascontiguousarray(e.data.vertices, dtype=np.float64).tobytes()
+            f = np.ascontiguousarray(e.data.faces, dtype=np.int64).tobytes()
+            meshes.append({"mesh": e.mesh, "sha256": hashlib.sha256(v + f).hexdigest()})
+    out["meshes"] = meshes
+    return out
+
+
+def _convergence_png(path: str, history: list[float]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5, 3.2), dpi=120)
+    if history:
+        ax.plot(range(len(history)), history, marker="o")
+    else:
+        ax.text(
+            0.5,
+            0.5,
+            "A's rotation was fixed: no search",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+        )
+    ax.set_xlabel("search iteration")
+    ax.set_ylabel("best game value (min beta)")
+    ax.set_title("Convergence of player A's search")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def _draw_section(ax, section, **style) -> None:
+    """Draw a manifold3d CrossSection (all its contours as one compound path) on an axis."""
+    from matplotlib.patches import PathPatch
+    from matplotlib.path import Path
+
+    verts, codes = [], []
+    for c in section.to_polygons():
+        c = np.asarray(c, dtype=np.float64)
+        verts += [*c, c[0]]
+        codes += [Path.MOVETO] + [Path.LINETO] * (len(c) - 1) + [Path.CLOSEPOLY]
+    if verts:
+        ax.add_patch(PathPatch(Path(np.array(verts), codes), **style))
+
+
+def _overlay_png(path: str, result: Result) -> None:
+    """The exact hole H with A's projection (dashed) and each B's best attempt drawn over it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    hole, a_sections, b_sections = result.overlay_sections()
+    lim = max(
+        [result.hole.frame.half_extent]
+        + [float(np.abs(s.bounds()).max()) for s in [hole, *b_sections] if not s.is_empty()]
+    )
+    n_b = len(result.block_shapes)
+    cols = max(1, n_b)
+    fig, axes = plt.subplots(1, cols, figsize=(4.2 * cols, 4.4), dpi=120, squeeze=False)
+    colours = plt.cm.tab10(np.arange(10))
+    for j in range(cols):
+        ax = axes[0, j]
+        ax.set_facecolor("#d8d8d8")
+        _draw_section(ax, hole, facecolor="white", edgecolor="#555555", linewidth=0.6)
+        for sec in a_sections:
+            _draw_section(ax, sec, fill=False, edgecolor="k", linewidth=0.8, linestyle="--")
+        if j < n_b:
+            _draw_section(ax, b_sections[j], facecolor=colours[j % 10], alpha=0.55, linewidth=0)
+            status = "blocked" if result.attack.blocked()[0, j] else "PASSES"
+            ax.set_title(
+                f"{result.block_shapes[j].name}: {status}\nbeta={result.attack.beta[0, j]:.4f}, "
+                f"protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}",
+                fontsize=9,
+            )
+        ax.set_xlim(-lim, lim)
+        ax.set_ylim(-lim, lim)
+        ax.set_aspect("equal")
+        ax.set_xlabel(result.scene.units)
+    fig.suptitle(
+        f"{result.scene.name}: winner {result.winner} (exact hole white, A dashed)", fontsize=10
+    )
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def input_paths(scene) -> list[str]:
+    """The scene file and every mesh it names (absolute): an output folder may not hold them."""
+    files = [scene.resolve(e.mesh) for e in (*scene.passes, *scene.blocks) if e.data is None]
+    return [scene.path, *files]
+
+
+def write_outputs(
+    result: Result,
+    out_dir: str,
+    *,
+    fabricate: bool = True,
+    figure: bool = True,
+    animation: bool = True,
+) -> dict:
+    """Write every output of a solve into ``out_dir`` (replacing it) and return the report dict.
+
+    Files: report.json, hole.png, hole.exr, masks/a_silhouette.exr, masks/block_<j>_<name>.exr,
+    convergence.png, overlay.png; with ``fabricate`` also the printable sieve (sieve.stl, sieve.3mf,
+    hole.svg), pass_<i>.stl, block_<j>.stl and, with ``figure``, figure.png (see
+    :func:`sieve_mi.outputs.fabrication.fabricate`), with ``animation`` passage.gif
+    (:mod:`sieve_mi.outputs.animation`), the page report.html (:mod:`sieve_mi.outputs.viewer`) and the marker
+    ``.sieve-mi``. Everything is written
+    into a temporary folder and swapped in at the end (:func:`sieve_mi.outputs.outdir.writing`): an
+    interrupted or failed run leaves the old folder as it was, and a folder that sieve-mi did not
+    write is refused (:class:`~sieve_mi.errors.SieveError`), never replaced.
+    """
+    report = report_dict(result)
+    with outdir.writing(out_dir, command="solve", inputs=input_paths(result.scene)) as tmp:
+        _write_images(result, tmp)
+        if fabricate:
+            from sieve_mi.outputs.fabrication import fabricate as make_sieve
+
+            t0 = time.perf_counter()
+            report["fabrication"] = make_sieve(result, tmp, figure=figure)
+            report["timings"]["fabrication_s"] = round(time.perf_counter() - t0, 4)
+        _write_passage(result, report, tmp, animation)
+    return report
+
+
+def _write_passage(result: Result, report: dict, tmp: str, animation: bool) -> None:
+    """passage.gif (with ``animation``), report.json and report.html into ``tmp``.
+
+    The GIF's record and its time go into ``report`` before report.json is written; the page,
+    written last, holds report.json's content and links every other file.
+    """
+    from sieve_mi.outputs.passage import build
+    from sieve_mi.outputs.viewer import page_files, write_page
+
+    passage = build(result)
+    if animation:
+        from sieve_mi.outputs.animation import write_gif
+
+        t0 = time.perf_counter()
+        report["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
+        report["timings"]["animation_s"] = round(time.perf_counter() - t0, 4)
+    with open(os.path.join(tmp, "report.json"), "w") as fh:
+        json.dump(report, fh, indent=2)
+    write_page(os.path.join(tmp, "report.html"), result, report, passage, page_files(tmp))
+
+
+def _write_images(result: Result, tmp: str) -> None:
+    """The hole and mask images and the convergence and overlay plots, into folder ``tmp``."""
+    os.makedirs(os.path.join(tmp, "masks"))
+    hole = result.hole
+    write_png(os.path.join(tmp, "hole.png"), hole.mask)
+    write_exr(os.path.join(tmp, "hole.exr"), hole.mask.astype(np.float32))
+    rendered = a_masks, b_windows = rendered_masks(result)
+    a_union = np.logical_or.reduce(a_masks)
+    write_exr(os.path.join(tmp, "masks", "a_silhouette.exr"), a_union.astype(np.float32))
+    if len(a_masks) > 1:
+        for i, (m, shape) in enumerate(zip(a_masks, result.pass_shapes)):
+            write_exr(
+                os.path.join(tmp, "masks", f"pass_{i}_{_safe(shape.name)}.exr"),
+                m.astype(np.float32),
+            )
+    for j, (shape, window) in enumerate(zip(result.block_shapes, b_windows)):
+        write_exr(
+            os.path.join(tmp, "masks", f"block_{j}_{_safe(shape.name)}.exr"),
+            window.mask.astype(np.float32),
+        )
+    frame = hole.frame
+    write_layers(
+        os.path.join(tmp, "masks.exr"),
+        mask_layers(result, rendered),
+        {
+            "pixel_size": float(frame.pixel_size),
+            "frame_origin": f"{-frame.half_extent!r} {frame.half_extent!r}",
+            "frame_note": "frame_origin is the top-left corner (x y); row 0 at the top, +y up",
+            "units": result.scene.units,
+        },
+    )
+    _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best)
+    _overlay_png(os.path.join(tmp, "overlay.png"), result)
+
+
+def summary_table(report: dict) -> str:
+    """A short plain-text table of the result, one row per shape."""
+    units = report["units"]
+    proofs = any("certified" in b for b in report["block"])
+    rows = [("role", "shape", "beta", f"protrusion ({units})", "result")]
+    rows[0] += ("certified",) if proofs else ()
+    for p in report["pass"]:
+        rows.append(("pass", p["name"], "-", "-", "passes (part of the hole)"))
+        rows[-1] += ("-",) if proofs else ()
+    for b in report["block"]:
+        rows.append(
+            (
+                "block",
+                b["name"],
+                f"{b.get('beta', b.get('loss')):.4f}",  # reports before 'beta' say 'loss'
+                f"{b['protrusion']:.3f}",
+                "blocked" if b["blocked"] else "PASSES",
+            )
+        )
+        if proofs:
+            rows[-1] += (_certified_cell(b),)
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    t = report["timings"]
+    lines.append("")
+    lines.append(
+        f"winner: {report['winner']}   search {t.get('search_s', 0):.1f} s, verdict {t.get('verdict_s', 0):.1f} s, "
+        f"pixel size {report['pixel_size']:.4g} {units}"
+    )
+    hint = merge_hint(report)
+    if hint:
+        lines.append(hint)
+    return "\n".join(lines)
+
+
+def _certified_cell(block: dict) -> str:
+    """The console's 'certified' cell of one B: the status and what it rests on."""
+    c = block.get("certification")
+    if c is None:
+        return "-"
+    if c["status"] == "undecided":
+        return f"undecided ({100 * c['excluded_fraction']:.1f} % excluded, {c['seconds']:.0f} s)"
+    return f"{c['status']} ({c['seconds']:.1f} s)"
+
+
+def merge_hint(report: dict) -> str | None:
+    """Advice when a merged hole of several pass shapes lets some B through but each shape alone did not."""
+    passes = report["pass"]
+    mode = report.get("settings", {}).get("layout", {}).get("mode", "merged")
+    if report["winner"] != "B" or len(passes) < 2 or mode != "merged":
+        return None
+    alone = [p.get("alone_loss") for p in passes]
+    if any(a is None or not a > 0 for a in alone):
+        return None
+    through = ", ".join(b["name"] for b in report["block"] if not b["blocked"])
+    each = ", ".join(f"{p['name']} {a:.3f}" for p, a in zip(passes, alone))
+    return (
+        f"hint: the merged hole lets {through} through, but each pass shape alone blocked every block shape "
+        f'(weakest loss: {each}); set [layout] mode = "separate" for a valid sieve, or try another --seed'
+    )
