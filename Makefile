@@ -29,6 +29,7 @@ lint: setup
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 	$(PY) tools/long_functions.py 80
+	$(PY) tools/layering.py
 
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow" tests

@@ -15,6 +15,19 @@ import sys
 
 from sieve_mi.errors import SieveError
 
+__all__ = [
+    "MIN_LLVM",
+    "RGB_VARIANTS",
+    "VARIANTS",
+    "VARIANT_ENV",
+    "configure_llvm",
+    "default_variant",
+    "find_llvm",
+    "gpu_available",
+    "select_rgb_variant",
+    "use_variant",
+]
+
 #: Variants sieve-mi supports: CPU (LLVM) and GPU (CUDA), both monochrome with autodiff.
 VARIANTS = ("llvm_ad_mono", "cuda_ad_mono")
 MIN_LLVM = 17

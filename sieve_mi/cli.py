@@ -11,6 +11,8 @@ import threading
 
 from sieve_mi.errors import SieveError
 
+__all__ = ["Terminated", "cmd_certify", "cmd_check", "cmd_solve", "cmd_view", "main"]
+
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(

@@ -7,6 +7,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+__all__ = [
+    "NLOPT_METHODS",
+    "POSE_KEYS",
+    "QUAT_KEYS",
+    "SwarmHistory",
+    "nlopt_maximise",
+    "particle_swarm",
+    "pose_adam",
+    "renormalise_quaternions",
+]
+
 #: Names of a pose's parameters in :func:`pose_adam`: quaternion (w, x, y, z), then translation.
 QUAT_KEYS = ("qw", "qx", "qy", "qz")
 POSE_KEYS = QUAT_KEYS + ("tx", "ty")

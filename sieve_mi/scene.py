@@ -30,6 +30,31 @@ from sieve_mi.errors import SieveError
 from sieve_mi.objectives import OBJECTIVES
 from sieve_mi.optim import NLOPT_METHODS
 
+__all__ = [
+    "Fabrication",
+    "LAYOUT_MODES",
+    "Layout",
+    "OUTERS",
+    "Reader",
+    "Scene",
+    "ShapeEntry",
+    "Solver",
+    "Spec",
+    "UNITS",
+    "Verdict",
+    "check_folder_name",
+    "describe",
+    "key_of",
+    "load_scene",
+    "read_file",
+    "read_shape",
+    "read_tables",
+    "setting",
+    "spec_of",
+    "table_fields",
+    "value_types",
+]
+
 #: Accepted ``units`` (a label for reports; meshes are not converted).
 UNITS = ("mm", "cm", "m", "in", "um")
 #: Accepted ``[solver] outer`` values: player A's optimiser (PSO or an nlopt global method).

@@ -14,6 +14,8 @@ Rules
 2. No upward import: a module imports no module of a unit above its own.
 3. No private import: no ``from m import _name`` and no ``m._name`` on an imported module,
    for ``m`` another module of sieve_mi.
+4. Every module declares ``__all__``, and a name imported from another module of sieve_mi is in
+   that module's ``__all__`` (or is one of its submodules).
 ``--graph`` prints the module graph's edges instead.
 """
 
@@ -74,7 +76,7 @@ def imports(module: str, path: pathlib.Path, known: dict) -> list[tuple[str, int
     """(imported module, line, private name or None) for every sieve_mi import in one file."""
     tree = ast.parse(path.read_text(encoding="utf-8"))
     base = module if path.name == "__init__.py" else module.rpartition(".")[0]
-    found, aliases = [], {}
+    found, aliases, names = [], {}, []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             for a in node.names:
@@ -97,6 +99,8 @@ def imports(module: str, path: pathlib.Path, known: dict) -> list[tuple[str, int
                 else:
                     private = a.name.startswith("_") and not a.name.startswith("__")
                     found.append((_resolve(src, known), node.lineno, a.name if private else None))
+                    if not private and _resolve(src, known) == src:
+                        names.append((src, node.lineno, a.name))
     for node in ast.walk(tree):
         if (
             isinstance(node, ast.Attribute)
@@ -107,7 +111,15 @@ def imports(module: str, path: pathlib.Path, known: dict) -> list[tuple[str, int
             and aliases[node.value.id] != module
         ):
             found.append((aliases[node.value.id], node.lineno, node.attr))
-    return found
+    return found, names
+
+
+def exported(path: pathlib.Path) -> list[str] | None:
+    """The literal ``__all__`` of a module, or None where it declares none."""
+    for node in ast.parse(path.read_text(encoding="utf-8")).body:
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", "") == "__all__" for t in node.targets):
+            return list(ast.literal_eval(node.value))
+    return None
 
 
 def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -148,11 +160,18 @@ def check(root: pathlib.Path) -> tuple[list[str], dict[str, set[str]]]:
     known = modules(root)
     graph: dict[str, set[str]] = {m: set() for m in known}
     problems = []
+    public = {m: exported(p) for m, p in known.items()}
     for module, path in known.items():
         if unit(module) not in UNITS:
             problems.append(f"{path}: unit {unit(module)!r} is not in the floor plan (UNITS)")
             continue
-        for target, line, private in imports(module, path, known):
+        if public[module] is None and path.name != "__main__.py":
+            problems.append(f"{path}: declares no __all__")
+        found, names = imports(module, path, known)
+        for target, line, name in names:
+            if target != module and public[target] is not None and name not in public[target]:
+                problems.append(f"{path}:{line}: {name} is not in {target}.__all__")
+        for target, line, private in found:
             if target == module:
                 continue
             graph[module].add(target)

@@ -1,4 +1,5 @@
 """Sorting a mixture of many shapes with a stack of sieves (a cascade), and seed/tolerance sweeps.
+Rule: a cascade plays whole games through :mod:`sieve_mi.api`; it does not reach into them.
 
 A cascade is a stack of sieves, coarsest on top: sieve k holds the shape(s) of tray k and lets
 every shape still to be split below it fall through. Each sieve is one game of the solver
@@ -22,3 +23,5 @@ outputs
 sweep
     ``sieve-mi sweep``: one scene over seeds and tolerances, the design with the largest margin.
 """
+
+__all__ = ["commands", "games", "mixture", "outputs", "plan", "size", "sort", "sweep"]

@@ -7,6 +7,17 @@ import sys
 
 from sieve_mi.errors import SieveError
 
+__all__ = [
+    "COMMANDS",
+    "VARIANT_HELP",
+    "add_parsers",
+    "cmd_sort",
+    "cmd_sweep",
+    "parse_seeds",
+    "parse_tolerances",
+    "tray_table",
+]
+
 VARIANT_HELP = "Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono"
 
 

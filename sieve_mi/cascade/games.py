@@ -24,6 +24,22 @@ from sieve_mi.errors import SieveError
 from sieve_mi.outputs import outdir
 from sieve_mi.scene import Scene
 
+__all__ = [
+    "Engine",
+    "FAULT_ENV",
+    "GAME_FILE",
+    "GameCache",
+    "GameSpec",
+    "Progress",
+    "Runner",
+    "cache_folder",
+    "check_address",
+    "game_key",
+    "play",
+    "ray_module",
+    "weakest",
+]
+
 #: Test hook: the first worker to see this path missing creates it and dies (Ray retries it).
 FAULT_ENV = "SIEVE_MI_FAULT_ONCE"
 #: The file in each cached game folder that holds its spec and summary.

@@ -23,6 +23,8 @@ from sieve_mi.scene import (
     table_fields,
 )
 
+__all__ = ["Mixture", "load_mixture"]
+
 
 @dataclass
 class Mixture:

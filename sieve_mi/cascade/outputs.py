@@ -10,6 +10,16 @@ import numpy as np
 
 from sieve_mi.cascade.plan import Plan
 
+__all__ = [
+    "cascade_dict",
+    "copy_games",
+    "sieve_rows",
+    "stacked_plates",
+    "write_figure",
+    "write_json",
+    "write_plates",
+]
+
 
 def sieve_rows(plan: Plan) -> list[dict]:
     """One row per sieve, top to bottom: what it holds and passes, winner, margins, folder.

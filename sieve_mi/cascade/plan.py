@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 
 from sieve_mi.errors import SieveError
 
+__all__ = ["Inseparable", "Plan", "Sieve", "flat", "plan_cascade", "won"]
+
 
 @dataclass
 class Sieve:

@@ -16,6 +16,8 @@ import numpy as np
 from sieve_mi.geometry.canonical import view_directions
 from sieve_mi.geometry.meshes import Shape
 
+__all__ = ["inscribed_radius", "passage_radius"]
+
 
 def inscribed_radius(points: np.ndarray) -> float:
     """Radius of the largest disk inside the convex hull of 2D points ``points`` (n, 2).

@@ -21,6 +21,8 @@ from sieve_mi.cascade.size import passage_radius
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.provenance import sha256
 
+__all__ = ["prepare", "sort_mixture"]
+
 
 def prepare(mixture: Mixture) -> tuple[dict, list, dict]:
     """Load every mesh into its entry (so games travel without files), hash the files, and

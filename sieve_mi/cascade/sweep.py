@@ -21,6 +21,8 @@ from sieve_mi.outputs import outdir
 from sieve_mi.outputs.provenance import sha256
 from sieve_mi.scene import Scene
 
+__all__ = ["margin", "sweep_scene", "sweep_table"]
+
 
 def margin(summary: dict) -> tuple:
     """A run's rank: (A won, weakest B's β, weakest B's protrusion); larger is better."""

@@ -1,4 +1,5 @@
 """Certified blocks: prove that a shape cannot pass a hole in any pose, or find a pose that passes.
+Rule: certify works on exact polygons and meshes only; it never trusts a raster or the game.
 
 Under the paper's model (the shape moves by translation along z through a thick plate), a shape B
 passes the hole H iff some rotation R and in-plane translation t put proj(R B) + t inside H.

@@ -11,6 +11,8 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import dilated, hole_outline, is_closed
 from sieve_mi.scene import Scene
 
+__all__ = ["certify_blocks"]
+
 
 def certify_blocks(
     scene: Scene,

@@ -21,6 +21,20 @@ import numpy as np
 
 from sieve_mi.geometry.meshes import Shape
 
+__all__ = [
+    "OffsetCache",
+    "RADIUS_STEP",
+    "ROUND_SEGMENTS",
+    "boundary_distance",
+    "contour_segments",
+    "directions",
+    "inscribed_ball",
+    "inside",
+    "no_disk_fits",
+    "translations_left",
+    "width_test",
+]
+
 #: Segments per full circle of the round joins of H's offsets (chords within 0.12 % of the radius).
 ROUND_SEGMENTS = 64
 #: Growth factor of the radius grid offsets are rounded up to (one cached offset per grid value).

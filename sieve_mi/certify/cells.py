@@ -19,6 +19,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+__all__ = [
+    "ANGLE_MARGIN",
+    "Cells",
+    "centres",
+    "corners",
+    "covering_angles",
+    "displacement",
+    "face_quaternions",
+    "roots",
+    "split",
+    "volumes",
+]
+
 #: Added to every covering angle (radians): covers rounding in the corner angles (~1e-15).
 ANGLE_MARGIN = 1e-12
 

@@ -31,6 +31,8 @@ import numpy as np
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape
 
+__all__ = ["Certification", "FORMAT", "build", "mesh_hash", "tree_to_dict"]
+
 FORMAT = "sieve-mi-certificate/1"
 
 

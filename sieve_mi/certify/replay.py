@@ -32,6 +32,20 @@ import numpy as np
 
 from sieve_mi.errors import SieveError
 
+__all__ = [
+    "Hole",
+    "MAX_BOXES",
+    "Replay",
+    "cell_angle",
+    "disk_never_fits",
+    "no_translation",
+    "points_in_triangles",
+    "quaternion",
+    "replay",
+    "rotation",
+    "segments_cross",
+]
+
 MAX_BOXES = 400_000
 
 

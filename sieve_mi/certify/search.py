@@ -20,6 +20,17 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import placed_vertices, projection
 from sieve_mi.geometry.rotations import from_matrix, to_matrix
 
+__all__ = [
+    "Node",
+    "Outcome",
+    "Search",
+    "Settings",
+    "count_open",
+    "even_odd_path",
+    "farthest_points",
+    "representative",
+]
+
 
 @dataclass
 class Settings:

@@ -16,6 +16,8 @@ import numpy as np
 
 from sieve_mi.errors import SieveError
 
+__all__ = ["parse_path", "read_svg_hole"]
+
 _TOKEN = re.compile(r"[MLZmlz]|[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 

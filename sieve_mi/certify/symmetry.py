@@ -26,6 +26,8 @@ import numpy as np
 
 from sieve_mi.geometry.meshes import Shape
 
+__all__ = ["HALF_TURNS", "OCTA_HALF", "QUARTER_TURNS", "detect", "domain", "maps_onto_itself"]
+
 #: Half-width of the face-0 box that holds the octahedral group's fundamental region.
 OCTA_HALF = 0.41422  # > sqrt(2) - 1 = 0.414213...
 

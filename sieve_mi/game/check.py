@@ -36,6 +36,23 @@ from sieve_mi.geometry.meshes import Shape, load_trimesh
 from sieve_mi.geometry.outline import filled, placed_vertices, projection, union
 from sieve_mi.geometry.raster import Frame
 
+__all__ = [
+    "AXES",
+    "CheckReport",
+    "CheckSettings",
+    "ShapeCheck",
+    "as_shape",
+    "attempt",
+    "check",
+    "fit_scale",
+    "frame_for_image",
+    "frame_for_polygons",
+    "holes_from_mesh",
+    "mask_from_image",
+    "scaled",
+    "summary",
+]
+
 AXES = {"x": 0, "y": 1, "z": 2}
 
 

@@ -39,6 +39,18 @@ from sieve_mi.geometry.outline import (
 )
 from sieve_mi.geometry.rotations import angle_between, from_rotvec, normalize, quat_multiply
 
+__all__ = [
+    "CANDIDATES",
+    "ExactAttempt",
+    "ExactScore",
+    "FIT_EPS",
+    "best_exact",
+    "exact_rescore",
+    "outline_points",
+    "polish",
+    "score",
+]
+
 #: A pose fits when nothing sticks out by more than this fraction of the hole's size (float noise).
 FIT_EPS = 1e-7
 #: Raster candidates kept per shape and hole for exact scoring (the best three are polished).

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 from sieve_mi.optim import POSE_KEYS, QUAT_KEYS, renormalise_quaternions
 
+__all__ = ["frozen_step"]
+
 
 def _step(opt, best, best_loss, overflow, loss, stack, pose_hole, key):
     """One Adam step; ``key`` = (scale, capacity, poses, pairs) are Python values (recording key)."""

@@ -42,6 +42,30 @@ from sieve_mi.geometry.rotations import angle_between, from_axis_angle, normaliz
 from sieve_mi.optim import SwarmHistory, particle_swarm
 from sieve_mi.scene import Layout, Solver
 
+__all__ = [
+    "ANGLES",
+    "DISTINCT_ANGLE",
+    "DISTINCT_SHIFT",
+    "FINALISTS",
+    "MIN_OVERLAP",
+    "Merged",
+    "PEAK_SPACING",
+    "PER_ANGLE",
+    "Placement",
+    "SCREEN",
+    "alternative_rotations",
+    "candidate_placements",
+    "compose",
+    "eq14",
+    "frame_for",
+    "hole_frame",
+    "merge",
+    "place",
+    "separate_layout",
+    "sort_by_area",
+    "union_frame",
+]
+
 #: In-plane rotations of a shape tried by :func:`candidate_placements` (every 5 degrees).
 ANGLES = 72
 #: Candidate translations kept per in-plane rotation (the strongest overlap peaks).

@@ -38,6 +38,8 @@ from sieve_mi.optim import (
     renormalise_quaternions,
 )
 
+__all__ = ["CPU_FREEZE_PAIRS", "PlayerA", "PlayerB"]
+
 #: On the CPU (LLVM variants) descents with more (pose, segment) pairs than this trace their steps
 #: even with ``freeze``: there a big step is bound by arithmetic and the frozen step's fixed-size
 #: buffer passes cost more than tracing saves (docs/performance.md: a 70k-face bunny at 100 poses,

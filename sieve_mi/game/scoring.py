@@ -17,6 +17,8 @@ from sieve_mi.geometry.hole import Hole
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 
+__all__ = ["MaskWindow", "PoseScores", "mask_window", "score_poses", "window_for"]
+
 
 class MaskWindow(NamedTuple):
     """A shape's silhouette on a window of a hole's pixel lattice (for images and figures)."""

@@ -23,6 +23,8 @@ from sieve_mi.geometry.rotations import normalize
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.scene import Scene
 
+__all__ = ["Search", "load_shapes", "search", "solve"]
+
 
 @dataclass
 class Search:

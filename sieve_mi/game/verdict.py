@@ -26,6 +26,8 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import dilated, hole_outline, is_closed, union
 from sieve_mi.scene import Scene
 
+__all__ = ["Judgement", "REACH", "exact_holes", "judge", "start_centres"]
+
 
 @dataclass
 class Judgement:

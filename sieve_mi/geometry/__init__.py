@@ -1,1 +1,22 @@
-"""TODO"""
+"""Geometry of shapes, rasters and holes. Rule: geometry knows nothing of the game.
+
+Modules
+-------
+rotations
+    Unit quaternions (w, x, y, z): products, matrices, axis-angle, alignment.
+meshes
+    Reading meshes into :class:`~sieve_mi.geometry.meshes.Shape` (vertices, faces, radius).
+raster
+    :class:`~sieve_mi.geometry.raster.Frame`: the square pixel lattice a hole is drawn on.
+outline
+    Exact polygons (manifold3d): projections, silhouettes, offsets, unions, signed distances
+    (:class:`~sieve_mi.geometry.outline.Boundary`), the hole polygon H.
+canonical
+    Canonical views of a shape: principal axes, thinnest and largest faces.
+silhouettes
+    Raster silhouettes rendered with Mitsuba (ray casting, the ``silhouette`` integrator).
+hole
+    Raster holes (:class:`~sieve_mi.geometry.hole.Hole`, stacks, distance fields).
+"""
+
+__all__ = ["canonical", "hole", "meshes", "outline", "raster", "rotations", "silhouettes"]

@@ -29,6 +29,14 @@ import numpy as np
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.rotations import align, from_matrix
 
+__all__ = [
+    "SAME_VIEW",
+    "canonical_orientations",
+    "principal_axes",
+    "principal_frames",
+    "view_directions",
+]
+
 #: Two view directions closer than this (radians, up to sign) count as one.
 SAME_VIEW = np.radians(0.5)
 

@@ -17,6 +17,8 @@ from scipy import ndimage
 
 from sieve_mi.geometry.raster import Frame, crop_window
 
+__all__ = ["Hole", "HoleStack", "build_hole", "dilate", "pieces", "split_pieces"]
+
 
 @dataclass
 class Hole:

@@ -15,6 +15,17 @@ import numpy as np
 
 from sieve_mi.errors import SieveError
 
+__all__ = [
+    "Segments",
+    "Shape",
+    "edge_topology",
+    "load_shape",
+    "load_trimesh",
+    "segments",
+    "shape_from_arrays",
+    "shape_from_trimesh",
+]
+
 
 @dataclass
 class Shape:

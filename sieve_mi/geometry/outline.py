@@ -29,6 +29,26 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import to_matrix
 
+__all__ = [
+    "ARC_ERROR",
+    "Boundary",
+    "SIMPLIFY",
+    "along",
+    "dilated",
+    "dilated_segments",
+    "edge_on_segments",
+    "filled",
+    "hole_outline",
+    "is_closed",
+    "placed_vertices",
+    "projection",
+    "raster_agreement",
+    "rasterize",
+    "round_segments",
+    "silhouette",
+    "union",
+]
+
 #: Largest distance by which a round join's chords may fall short of the true arc, as a fraction of
 #: the tolerance (the offset is raised by this much so the outline is never inside the exact one).
 ARC_ERROR = 0.002

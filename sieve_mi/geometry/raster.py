@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+__all__ = ["Frame", "crop_window"]
+
 #: Orthographic sensors by (resolution, half extent): :meth:`Frame.sensor`.
 _SENSORS: dict = {}
 

@@ -8,6 +8,20 @@ from __future__ import annotations
 
 import numpy as np
 
+__all__ = [
+    "align",
+    "angle_between",
+    "from_axis_angle",
+    "from_matrix",
+    "from_rotvec",
+    "normalize",
+    "quat_multiply",
+    "quat_rows",
+    "random_uniform",
+    "to_matrix",
+    "to_rotvec",
+]
+
 
 def normalize(q: np.ndarray) -> np.ndarray:
     """Unit quaternions with a non-negative w component (q and -q are the same rotation).

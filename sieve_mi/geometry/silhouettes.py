@@ -22,6 +22,8 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import to_matrix
 
+__all__ = ["SilhouetteRenderer", "mesh_scene", "register_integrator"]
+
 #: Variants in which the ``silhouette`` integrator has been registered with Mitsuba.
 _REGISTERED: set = set()
 

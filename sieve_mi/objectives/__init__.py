@@ -1,4 +1,5 @@
 """Player B's differentiable losses: the interface every objective implements, and the factory.
+Rule: an objective scores poses against holes; it knows the geometry, not the game.
 
 An *objective* scores many poses of B's shapes against a stack of holes in one call. Player B
 (:class:`sieve_mi.game.players.PlayerB`) binds it once to the list of poses (which shape each pose is),
@@ -29,6 +30,8 @@ import numpy as np
 if TYPE_CHECKING:  # kept light: scene.py reads OBJECTIVES from here
     from sieve_mi.geometry.meshes import Shape
     from sieve_mi.geometry.raster import Frame
+
+__all__ = ["OBJECTIVES", "Objective", "make_objective"]
 
 #: Names of the objectives, as ``[solver] objective`` accepts them.
 OBJECTIVES = ("clearance", "overlap", "overlap-mitsuba")

@@ -26,6 +26,16 @@ from sieve_mi.geometry.meshes import Shape, segments
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import quat_rows
 
+__all__ = [
+    "CHUNK",
+    "ClearanceObjective",
+    "PER_EDGE_RATIO",
+    "auto_samples",
+    "expand_ranges",
+    "pose_ranges",
+    "pose_sums",
+]
+
 #: Active (pose, segment) pairs that one thread sums in the first level of the per-pose reduction
 #: (:meth:`ClearanceObjective._pose_sums`). Fixed, so results do not depend on the machine.
 CHUNK = 16

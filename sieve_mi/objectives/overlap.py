@@ -51,6 +51,8 @@ from sieve_mi.geometry.rotations import quat_rows
 from sieve_mi.geometry.silhouettes import mesh_scene
 from sieve_mi.objectives.clearance import ClearanceObjective, pose_sums
 
+__all__ = ["EdgeOverlapObjective", "OUTLINE_SUMS", "SIDE_OFFSET"]
+
 #: The two side points of an outline sample are this many pixels from it.
 SIDE_OFFSET = 0.01
 #: Per-pose sums of :meth:`EdgeOverlapObjective._outline_sums`: area, area inside H, the 8 sums

@@ -62,6 +62,8 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import quat_rows
 
+__all__ = ["INTEGRATORS", "OverlapObjective"]
+
 #: Ways of rendering the silhouette: a minimal subclass of Mitsuba's ``direct_projective`` whose
 #: shading is "1 if the camera ray hits the mesh, else 0" (one ray per sample), or the stock
 #: ``direct_projective`` integrator with a black mesh in front of a uniform white emitter.

@@ -22,6 +22,31 @@ import numpy as np
 from sieve_mi.backend import select_rgb_variant
 from sieve_mi.outputs.passage import Passage
 
+__all__ = [
+    "AZIMUTH",
+    "BLOCKED_ALBEDO",
+    "COLOURS",
+    "ELEVATION",
+    "ESCAPED_ALBEDO",
+    "FOV",
+    "FRAMES_PER_SLOT",
+    "FRAME_MS",
+    "HEIGHT",
+    "PASS_ALBEDO",
+    "PLATE_ALBEDO",
+    "SAMPLER",
+    "SKY",
+    "SPP",
+    "SUN",
+    "WIDTH",
+    "camera",
+    "frame_count",
+    "phases",
+    "render_frames",
+    "to_gray8",
+    "write_gif",
+]
+
 #: Frames per slot of the motion (all of A, then each B: :mod:`sieve_mi.outputs.passage`), picture size
 #: (pixels) and samples per pixel of ``passage.gif``.
 FRAMES_PER_SLOT = 10

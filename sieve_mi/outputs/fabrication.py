@@ -20,6 +20,20 @@ import trimesh
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import placed_vertices, raster_agreement
 
+__all__ = [
+    "Plate",
+    "UNIT_NAMES",
+    "beside_plate",
+    "circumsphere_diameter",
+    "default_thickness",
+    "fabricate",
+    "plate",
+    "shape_mesh",
+    "to_trimesh",
+    "write_3mf",
+    "write_svg",
+]
+
 
 @dataclass
 class Plate:

@@ -21,6 +21,28 @@ import trimesh
 
 from sieve_mi import backend as _backend
 
+__all__ = [
+    "AZIMUTH",
+    "BLOCKED_RGB",
+    "CREASE_ANGLE",
+    "ELEVATION",
+    "ESCAPED_RGB",
+    "FOV",
+    "GROUND_GAP",
+    "GROUND_RGB",
+    "INTEGRATOR",
+    "MARGIN",
+    "PASS_RGB",
+    "PLATE_RGB",
+    "SAMPLER",
+    "SKY_RGB",
+    "SUN_AZIMUTH_OFFSET",
+    "SUN_ELEVATION",
+    "SUN_RGB",
+    "TITLE_BAND",
+    "render_figure",
+]
+
 #: Camera direction: azimuth (degrees, from +x towards +y) and elevation above the plate (degrees)
 #: of the camera as seen from the scene.
 AZIMUTH = -60.0

@@ -34,6 +34,19 @@ from collections.abc import Iterable, Iterator
 
 from sieve_mi.errors import SieveError
 
+__all__ = [
+    "MARKER",
+    "TMP_PREFIX",
+    "deferred_signals",
+    "is_replaceable",
+    "read_marker",
+    "remove_stale",
+    "swap_in",
+    "validate",
+    "write_marker",
+    "writing",
+]
+
 MARKER = ".sieve-mi"
 """Name of the marker file in every sieve-mi output folder."""
 

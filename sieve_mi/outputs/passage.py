@@ -23,6 +23,8 @@ import numpy as np
 
 from sieve_mi.geometry.outline import placed_vertices
 
+__all__ = ["Passage", "Piece", "build", "inside", "rest_offset", "surface_points"]
+
 
 @dataclass
 class Piece:

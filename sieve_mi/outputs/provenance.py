@@ -13,6 +13,8 @@ import platform
 import subprocess
 from importlib import metadata
 
+__all__ = ["PACKAGES", "VERSION", "git_commit", "machine", "provenance", "sha256", "versions"]
+
 #: sieve-mi's version (``sieve_mi.__version__``; pyproject.toml reads it from here).
 VERSION = "0.1.0"
 

@@ -17,6 +17,21 @@ from sieve_mi.game.result import Result
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.provenance import provenance
 
+__all__ = [
+    "input_paths",
+    "mask_layers",
+    "merge_hint",
+    "paste_window",
+    "rendered_masks",
+    "report_dict",
+    "summary_table",
+    "window_origin",
+    "write_exr",
+    "write_layers",
+    "write_outputs",
+    "write_png",
+]
+
 
 def _safe(name: str) -> str:
     """A file-name-safe version of a shape name."""

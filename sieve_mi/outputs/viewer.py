@@ -31,6 +31,26 @@ from importlib import resources
 
 import numpy as np
 
+__all__ = [
+    "COLOURS",
+    "DISPLAY_FACES",
+    "check_holes",
+    "check_table",
+    "convergence_svg",
+    "decode",
+    "display_mesh",
+    "hole_svg",
+    "image_outline",
+    "outline_svg",
+    "page_files",
+    "render_check_page",
+    "render_page",
+    "result_table",
+    "scene_data",
+    "timings_table",
+    "write_page",
+]
+
 #: Colours of the 3D and 2D views (sRGB, 0..1): plate, A, blocked B, B that gets through, background.
 COLOURS = {
     "plate": (0.62, 0.63, 0.66),

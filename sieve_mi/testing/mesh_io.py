@@ -7,6 +7,8 @@ import zipfile
 import numpy as np
 import trimesh
 
+__all__ = ["read_3mf"]
+
 
 def read_3mf(path: str) -> trimesh.Trimesh:
     """Read the first mesh object of a 3MF package written by :func:`write_3mf` (or a simple one)."""
