@@ -117,7 +117,9 @@ def imports(module: str, path: pathlib.Path, known: dict) -> list[tuple[str, int
 def exported(path: pathlib.Path) -> list[str] | None:
     """The literal ``__all__`` of a module, or None where it declares none."""
     for node in ast.parse(path.read_text(encoding="utf-8")).body:
-        if isinstance(node, ast.Assign) and any(getattr(t, "id", "") == "__all__" for t in node.targets):
+        if isinstance(node, ast.Assign) and any(
+            getattr(t, "id", "") == "__all__" for t in node.targets
+        ):
             return list(ast.literal_eval(node.value))
     return None
 
