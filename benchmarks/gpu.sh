@@ -6,11 +6,13 @@
 set -u
 out=${OUT:-benchmarks/results}
 mkdir -p "$out"
+scratch=$(mktemp -d)
+trap 'rm -rf "$scratch"' EXIT
 export PYTHONUNBUFFERED=1 SIEVE_MI_VARIANT=cuda_ad_mono
 nvidia-smi -L 2>/dev/null
 for seed in "${@:-0}"; do
   echo "== letters seed $seed"
-  python3 -m sieve_mi solve scenes/letters.toml --seed "$seed" --out "/tmp/letters_$seed" --quiet --no-figure 2>&1 | grep -E "letter_|winner"
+  python3 -m sieve_mi solve scenes/letters.toml --seed "$seed" --out "$scratch/letters_$seed" --quiet --no-figure 2>&1 | grep -E "letter_|winner"
 done
 python3 -m benchmarks.run --variant cuda_ad_mono --out "$out" --tag "${TAG:-gpu}" 2>&1 | grep -v '^|'
 python3 -m benchmarks.scaling --variant cuda_ad_mono --out "$out/scaling_b_cuda.png"

@@ -19,7 +19,10 @@ from sieve_mi.testing import shapes
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MESH_DIR = os.path.join(REPO, "scenes", "meshes")
-SHARED_MESHES = "/work/shared/meshes"
+#: Real meshes shared beside the checkout (../shared/meshes), or where $SIEVE_MI_SHARED_MESHES says.
+SHARED_MESHES = os.environ.get(
+    "SIEVE_MI_SHARED_MESHES", os.path.join(os.path.dirname(REPO), "shared", "meshes")
+)
 
 
 def shoelace(points: np.ndarray) -> float:

@@ -128,12 +128,23 @@ def test_page_meshes_are_the_printed_plate_and_the_posed_shapes(solved):
         assert piece["passes"] == (role == "pass" or not row["blocked"])
 
 
-def test_names_cannot_break_out_of_the_page(merged):
-    # Shape and scene names are text: escaped in the HTML, and "</script>" cannot end the data.
+@pytest.mark.parametrize(
+    "evil",
+    [
+        'x</script><img src="http://example.invalid/a.png">{{DATA}}',
+        "<!--<script>",  # an HTML comment opened in a script swallows the viewer's script
+        "a<script>b</SCRIPT>&amp;",
+    ],
+)
+def test_names_cannot_break_out_of_the_page(merged, evil):
+    # Shape and scene names are text: escaped in the HTML, and no name changes the page's
+    # structure: the same tags and comments as with plain names.
     result, report, out = merged
-    evil = 'x</script><img src="http://example.invalid/a.png">{{DATA}}'
     rep = dict(report, name=evil, block=[dict(b, name=evil) for b in report["block"]])
     page = viewer.render_page(result, rep, build(result), [])
+    plain = viewer.render_page(result, report, build(result), [])
+    for marker in ("<script", "</script>", "<!--", "-->", "<img"):
+        assert page.lower().count(marker.lower()) == plain.lower().count(marker.lower()), marker
     assert page.count("</script>") == 2  # the template's own data and script blocks
     assert '<img src="http://example.invalid' not in page  # never a live tag
     m = re.search(r'<script type="application/json" id="sieve-data">(.*?)</script>', page, re.S)

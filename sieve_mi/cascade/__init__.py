@@ -3,7 +3,7 @@ Rule: a cascade plays whole games through :mod:`sieve_mi.api`; it does not reach
 
 A cascade is a stack of sieves, coarsest on top: sieve k holds the shape(s) of tray k and lets
 every shape still to be split below it fall through. Each sieve is one game of the solver
-(:func:`sieve_mi.game.solver.solve`): the falling shapes are set A, the held ones set B. The games are
+(:func:`sieve_mi.api.solve`): the falling shapes are set A, the held ones set B. The games are
 independent, so they run in parallel on Ray (:mod:`sieve_mi.cascade.games`) where it is
 installed, one after another otherwise; finished games are kept, so an interrupted ``sort``
 resumes.
@@ -20,8 +20,12 @@ plan
     The cascade planner: order, alternatives when a game is lost, inseparable pairs.
 outputs
     ``cascade.json``, the stacked plates and the figure.
+sort
+    ``sieve-mi sort``: a mixture into trays (plan, play the games, write the cascade).
 sweep
     ``sieve-mi sweep``: one scene over seeds and tolerances, the design with the largest margin.
+commands
+    The ``sort`` and ``sweep`` subcommands of the command line.
 """
 
 __all__ = ["commands", "games", "mixture", "outputs", "plan", "size", "sort", "sweep"]

@@ -8,12 +8,9 @@ large as it can be, then its protrusion (scene units).
 from __future__ import annotations
 
 import copy
-import hashlib
 import os
 import shutil
 import time
-
-import numpy as np
 
 from sieve_mi.cascade.games import Engine, GameSpec, game_key, weakest
 from sieve_mi.cascade.outputs import copy_games, write_json
@@ -32,7 +29,7 @@ def margin(summary: dict) -> tuple:
 
 def _loaded(scene: Scene) -> tuple[Scene, dict]:
     """A copy of the scene with its meshes loaded into the entries, and their file digests."""
-    from sieve_mi.geometry.meshes import load_trimesh
+    from sieve_mi.geometry.meshes import load_trimesh, mesh_sha256
 
     scene = copy.deepcopy(scene)
     digests = {}
@@ -43,8 +40,7 @@ def _loaded(scene: Scene) -> tuple[Scene, dict]:
             e.data = load_trimesh(path)
             digests[e.name] = sha256(path)
         else:  # a mesh given in code: its arrays' bytes
-            arrays = np.asarray(e.data.vertices).tobytes() + np.asarray(e.data.faces).tobytes()
-            digests[e.name] = hashlib.sha256(arrays).hexdigest()
+            digests[e.name] = mesh_sha256(e.data.vertices, e.data.faces)
     return scene, digests
 
 

@@ -21,7 +21,6 @@ Certificate format (``"format": "sieve-mi-certificate/1"``; lengths in scene uni
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from dataclasses import dataclass, field
@@ -29,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sieve_mi.errors import SieveError
-from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.meshes import Shape, mesh_sha256
 
 __all__ = ["Certification", "FORMAT", "build", "mesh_hash", "tree_to_dict"]
 
@@ -38,10 +37,7 @@ FORMAT = "sieve-mi-certificate/1"
 
 def mesh_hash(shape: Shape) -> str:
     """SHA-256 of the shape's centred vertices (float64) and faces (int64), hex."""
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(shape.vertices, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(shape.faces, dtype=np.int64).tobytes())
-    return h.hexdigest()
+    return mesh_sha256(shape.vertices, shape.faces)
 
 
 @dataclass

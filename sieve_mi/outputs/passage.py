@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sieve_mi.geometry.outline import placed_vertices
+from sieve_mi.geometry.outline import Boundary, placed_vertices
 
-__all__ = ["Passage", "Piece", "build", "inside", "rest_offset", "surface_points"]
+__all__ = ["Passage", "Piece", "build", "rest_offset", "surface_points"]
 
 
 @dataclass
@@ -110,16 +110,6 @@ class Passage:
         return np.array([lo, hi])
 
 
-def inside(section, points: np.ndarray) -> np.ndarray:
-    """Which xy ``points`` (K, 2) lie inside a manifold3d CrossSection (even-odd over its contours)."""
-    from matplotlib.path import Path
-
-    count = np.zeros(len(points), dtype=np.int64)
-    for contour in section.to_polygons():
-        count += Path(np.asarray(contour, dtype=np.float64)).contains_points(points)
-    return count % 2 == 1
-
-
 def surface_points(vertices: np.ndarray, faces: np.ndarray, n: int = 4) -> np.ndarray:
     """Points on every triangle: its corners and a barycentric lattice of ``n`` steps per edge.
 
@@ -153,7 +143,7 @@ def rest_offset(
     """
     pts = surface_points(vertices, faces)
     xy = pts[:, :2]
-    over = np.all((xy >= plate_box[0]) & (xy <= plate_box[1]), axis=1) & ~inside(hole, xy)
+    over = np.all((xy >= plate_box[0]) & (xy <= plate_box[1]), axis=1) & ~Boundary(hole).inside(xy)
     if not over.any():
         return None
     return -float(pts[over, 2].min())

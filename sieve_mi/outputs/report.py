@@ -14,6 +14,7 @@ import time
 import numpy as np
 
 from sieve_mi.game.result import Result
+from sieve_mi.geometry.meshes import mesh_sha256
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.provenance import provenance
 
@@ -229,7 +230,6 @@ def report_dict(result: Result) -> dict:
 
 def _provenance(result: Result) -> dict:
     """report.json's provenance; a mesh built in code is hashed by its vertex and face bytes."""
-    import hashlib
 
     scene = result.scene
     entries = scene.passes + scene.blocks
@@ -241,9 +241,7 @@ def _provenance(result: Result) -> dict:
         if e.data is None:
             meshes.append(next(from_files))
         else:
-            v = np.ascontiguousarray(e.data.vertices, dtype=np.float64).tobytes()
-            f = np.ascontiguousarray(e.data.faces, dtype=np.int64).tobytes()
-            meshes.append({"mesh": e.mesh, "sha256": hashlib.sha256(v + f).hexdigest()})
+            meshes.append({"mesh": e.mesh, "sha256": mesh_sha256(e.data.vertices, e.data.faces)})
     out["meshes"] = meshes
     return out
 
@@ -347,8 +345,9 @@ def write_outputs(
 ) -> dict:
     """Write every output of a solve into ``out_dir`` (replacing it) and return the report dict.
 
-    Files: report.json, hole.png, hole.exr, masks/a_silhouette.exr, masks/block_<j>_<name>.exr,
-    convergence.png, overlay.png; with ``fabricate`` also the printable sieve (sieve.stl, sieve.3mf,
+    Files: report.json, hole.png, hole.exr, masks.exr (every mask as one multi-layer EXR, the A and
+    B layers rendered by ``mi.render``, :func:`rendered_masks`), masks/a_silhouette.exr,
+    masks/block_<j>_<name>.exr (single-layer copies), convergence.png, overlay.png; with ``fabricate`` also the printable sieve (sieve.stl, sieve.3mf,
     hole.svg), pass_<i>.stl, block_<j>.stl and, with ``figure``, figure.png (see
     :func:`sieve_mi.outputs.fabrication.fabricate`), with ``animation`` passage.gif
     (:mod:`sieve_mi.outputs.animation`), the page report.html (:mod:`sieve_mi.outputs.viewer`) and the marker

@@ -32,6 +32,7 @@ from importlib import resources
 import numpy as np
 
 __all__ = [
+    "script_json",
     "COLOURS",
     "DISPLAY_FACES",
     "check_holes",
@@ -59,6 +60,21 @@ COLOURS = {
     "escaped": (0.96, 0.55, 0.10),
     "background": (0.97, 0.97, 0.98),
 }
+
+
+def script_json(data) -> str:
+    """JSON for an inline ``<script>``: ``<``, ``>`` and ``&`` written as ``\\u003c`` etc.
+
+    No name in the data can then open or close a tag or an HTML comment (``</script>``,
+    ``<!--``, ``<script``) and change the page's structure; JSON.parse reads the same strings.
+
+    Examples
+    --------
+    >>> script_json({"name": "<!--<script>"})
+    '{"name":"\\\\u003c!--\\\\u003cscript\\\\u003e"}'
+    """
+    text = json.dumps(data, separators=(",", ":"))
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
 def _b64(array: np.ndarray, dtype: str) -> str:
@@ -378,7 +394,7 @@ def render_page(result, report: dict, passage, files: list[str]) -> str:
     """
     data = scene_data(passage, report)
     blocked = [bool(b["blocked"]) for b in report["block"]]
-    payload = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
+    payload = script_json(data)
     gif = (
         '<figure><img src="passage.gif" alt="Mitsuba-rendered passage animation" '
         'width="200" height="260"><figcaption>passage.gif (Mitsuba)</figcaption></figure>'
