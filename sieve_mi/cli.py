@@ -267,6 +267,7 @@ def cmd_certify(args) -> int:
     import json
 
     from sieve_mi.certify import certify, read_svg_hole, replay
+    from sieve_mi.certify.certificate import writable_certificate
 
     if args.replay is not None:
         if args.shape or args.certificate:
@@ -291,8 +292,9 @@ def cmd_certify(args) -> int:
         raise SieveError(f"--scale {args.scale}: must be a positive number")
     if not (0 < args.budget < float("inf")):
         raise SieveError(f"--budget {args.budget}: must be a positive number of seconds")
-    if args.certificate and not os.path.isdir(os.path.dirname(os.path.abspath(args.certificate))):
-        raise SieveError(f"--certificate {args.certificate}: its folder does not exist")
+    inputs = (args.shape, args.sieve, args.hole)
+    if args.certificate:
+        writable_certificate(args.certificate, inputs)  # before any work, and again when written
     from sieve_mi.game.check import holes_from_mesh
     from sieve_mi.geometry.meshes import load_shape
 
@@ -300,7 +302,7 @@ def cmd_certify(args) -> int:
     holes = holes_from_mesh(args.sieve, args.axis) if args.sieve else [read_svg_hole(args.hole)]
     result = certify(shape, holes, budget_s=args.budget, scale=args.scale)
     if args.certificate:
-        result.write_certificate(args.certificate)
+        result.write_certificate(args.certificate, inputs)
     if args.json:
         print(json.dumps(result.to_dict(), indent=2))
     else:

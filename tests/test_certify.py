@@ -12,6 +12,7 @@ Known answers used here:
 from __future__ import annotations
 
 import copy
+import hashlib
 import json
 import math
 import os
@@ -256,6 +257,61 @@ def test_cli_certifies_writes_and_replays(tmp_path, cube_hole):
     assert json.loads(run.stdout)["status"] == "proved"
     again = _cli("--replay", cert, "--json")
     assert again.returncode == 0 and json.loads(again.stdout)["proved"]
+
+
+def _digests(folder) -> dict:
+    return {
+        f.name: hashlib.sha256(f.read_bytes()).hexdigest() for f in folder.iterdir() if f.is_file()
+    }
+
+
+@pytest.mark.parametrize(
+    "target, message",
+    [
+        ("s.stl", "is an input of this run"),  # the mesh itself (it was replaced by JSON)
+        ("h.svg", "is an input of this run"),
+        ("notes.txt", "is not a sieve-mi certificate"),
+        ("other.json", "is not a sieve-mi certificate"),
+        ("sub", "is a folder"),
+    ],
+)
+def test_cli_certificate_never_overwrites_a_file_it_did_not_write(
+    tmp_path, cube_hole, target, message
+):
+    from sieve_mi.outputs.fabrication import write_svg
+
+    shapes.sphere(12.0).export(str(tmp_path / "s.stl"))
+    write_svg(str(tmp_path / "h.svg"), cube_hole)
+    (tmp_path / "notes.txt").write_text("mine")
+    (tmp_path / "other.json").write_text('{"format": "something else"}')
+    (tmp_path / "sub").mkdir()
+    before = _digests(tmp_path)
+    run = _cli(str(tmp_path / "s.stl"), "--hole", str(tmp_path / "h.svg"), "--certificate",
+               str(tmp_path / target))  # fmt: skip
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], run.stderr
+    assert _digests(tmp_path) == before  # every file byte-identical, nothing added
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "h.svg",
+        "notes.txt",
+        "other.json",
+        "s.stl",
+        "sub",
+    ]
+    assert not any((tmp_path / "sub").iterdir())
+
+
+def test_cli_certificate_replaces_its_own_earlier_certificate(tmp_path, cube_hole):
+    from sieve_mi.outputs.fabrication import write_svg
+
+    mesh, svg, cert = tmp_path / "s.stl", str(tmp_path / "h.svg"), str(tmp_path / "c.json")
+    shapes.sphere(12.0).export(str(mesh))
+    write_svg(svg, cube_hole)
+    for _ in range(2):  # the second run replaces the first run's certificate
+        run = _cli(str(mesh), "--hole", svg, "--certificate", cert)
+        assert run.returncode == 0, run.stderr
+    assert json.loads(open(cert).read())["format"] == "sieve-mi-certificate/1"
 
 
 @pytest.mark.parametrize(

@@ -30,7 +30,14 @@ import numpy as np
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape, mesh_sha256
 
-__all__ = ["Certification", "FORMAT", "build", "mesh_hash", "tree_to_dict"]
+__all__ = [
+    "Certification",
+    "FORMAT",
+    "build",
+    "mesh_hash",
+    "tree_to_dict",
+    "writable_certificate",
+]
 
 FORMAT = "sieve-mi-certificate/1"
 
@@ -91,15 +98,62 @@ class Certification:
             "passage": self.passage,
         }
 
-    def write_certificate(self, path: str) -> None:
-        """Write the certificate (JSON) to ``path``, atomically (a temporary file, then renamed)."""
-        folder = os.path.dirname(os.path.abspath(path))
-        if not os.path.isdir(folder):
-            raise SieveError(f"{path}: folder {folder} does not exist")
+    def write_certificate(self, path: str, inputs: tuple[str, ...] = ()) -> None:
+        """Write the certificate (JSON) to ``path``, atomically (a temporary file, then renamed).
+
+        ``path`` is checked first with :func:`writable_certificate` (never a file sieve-mi did
+        not write, never one of ``inputs``); a failed write leaves no temporary file behind.
+        """
+        writable_certificate(path, inputs)
         tmp = f"{path}.tmp{os.getpid()}"
-        with open(tmp, "w") as fh:
-            json.dump(self.certificate, fh)
-        os.replace(tmp, path)
+        try:
+            with open(tmp, "w") as fh:
+                json.dump(self.certificate, fh)
+            os.replace(tmp, path)
+        except OSError as e:
+            raise SieveError(f"{path}: cannot write the certificate ({e.strerror})") from None
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+
+
+def _is_certificate(path: str) -> bool:
+    """Whether the file at ``path`` is a certificate sieve-mi wrote (its JSON names :data:`FORMAT`)."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            head = fh.read(4096)
+            if f'"format": "{FORMAT}"' not in head and f'"format":"{FORMAT}"' not in head:
+                return json.loads(head + fh.read()).get("format") == FORMAT
+            return True
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+        return False
+
+
+def writable_certificate(path: str, inputs: tuple[str, ...] = ()) -> None:
+    """Refuse, in one line, a certificate path that writing would lose data at.
+
+    The same rule as ``--out``: sieve-mi replaces only a certificate it wrote itself, never one of
+    the run's ``inputs`` (mesh, plate, SVG), a folder, or any other file.
+
+    Raises
+    ------
+    SieveError
+    """
+    folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        raise SieveError(f"--certificate {path}: is a folder; name a file (e.g. {path}/cert.json)")
+    if not os.path.isdir(folder):
+        raise SieveError(f"--certificate {path}: its folder {folder} does not exist")
+    if not os.path.lexists(path):
+        return
+    for given in inputs:
+        if given and os.path.exists(given) and os.path.samefile(path, given):
+            raise SieveError(f"--certificate {path}: is an input of this run; name another file")
+    if not os.path.isfile(path) or not _is_certificate(path):
+        raise SieveError(
+            f"--certificate {path}: exists and is not a sieve-mi certificate; name another file "
+            "(sieve-mi never overwrites a file it did not write)"
+        )
 
 
 def tree_to_dict(node) -> dict:
