@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 import trimesh
@@ -163,3 +165,31 @@ def test_a_frozen_solve_gives_the_same_result(write_scene):
     np.testing.assert_array_equal(frozen.pass_quats, traced.pass_quats)
     np.testing.assert_array_equal(frozen.attack.beta, traced.attack.beta)
     np.testing.assert_array_equal(frozen.attack.protrusion, traced.attack.protrusion)
+
+
+@pytest.mark.parametrize("interrupt", ["ctrl-c", "sigterm"])
+def test_an_interrupt_while_recording_stops_the_run(mi, shapes, monkeypatch, interrupt):
+    """Ctrl-C or SIGTERM inside a frozen step's recording: Dr.Jit wraps it in a RuntimeError,
+    which must not turn into the trace-instead fallback (the run would go on for minutes)."""
+    import drjit as dr
+
+    import sieve_mi.game.frozen
+    from sieve_mi.cli import Terminated
+
+    raised = KeyboardInterrupt() if interrupt == "ctrl-c" else Terminated(15)
+
+    def interrupted():
+        @dr.freeze
+        def step(opt, best, best_loss, *rest):
+            raise raised
+
+        return step
+
+    monkeypatch.setattr(sieve_mi.game.frozen, "frozen_step", interrupted)
+    player = PlayerB(shapes, FRAME, freeze=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "drjit.freeze failed" warning either
+        with pytest.raises(KeyboardInterrupt) as caught:
+            _descend(player)
+    assert caught.value is raised
+    assert player.freeze  # not mistaken for a Dr.Jit failure

@@ -51,6 +51,21 @@ class _BufferOverflow(Exception):
     """A frozen descent's active-pair buffer overflowed: its results are wrong."""
 
 
+def _interruption(exc: BaseException) -> BaseException | None:
+    """The interrupt (KeyboardInterrupt, SystemExit, a termination signal) behind ``exc``, if any.
+
+    Dr.Jit re-raises whatever a frozen function raised while recording as a RuntimeError whose
+    cause is the original exception; a signal that arrived then must still stop the run.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if not isinstance(exc, Exception):
+            return exc
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 class _FrozenStepFailed(Exception):
     """Dr.Jit failed to record or replay a frozen step (the cause is chained)."""
 
@@ -269,6 +284,9 @@ class PlayerB:
         except Exception as exc:  # drjit.freeze is experimental: trace instead of failing
             if frozen is None:
                 raise
+            interrupt = _interruption(exc)
+            if interrupt is not None:  # Ctrl-C or SIGTERM while Dr.Jit recorded: never eaten
+                raise interrupt from None
             raise _FrozenStepFailed from exc
         if frozen is not None and frozen.overflowed():
             raise _BufferOverflow
