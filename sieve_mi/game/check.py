@@ -176,16 +176,7 @@ def mask_from_image(path: str) -> np.ndarray:
             mask = img > 0.5
         else:
             with Image.open(path) as im:
-                if im.mode in ("RGBA", "LA") or "transparency" in im.info:
-                    alpha = np.asarray(im.convert("RGBA"))[..., 3]
-                    grey = np.asarray(im.convert("L"))
-                    mask = (
-                        (alpha > 127) & (grey > 127)
-                        if (alpha < 255).any() and (grey < 128).any()
-                        else alpha > 127
-                    )
-                else:
-                    mask = np.asarray(im.convert("L")) > 127
+                mask = _image_mask(im)
     except (UnidentifiedImageError, OSError, RuntimeError) as exc:
         raise SieveError(
             f"{path}: could not be read as an image ({exc.__class__.__name__})"
@@ -197,6 +188,27 @@ def mask_from_image(path: str) -> np.ndarray:
             f"{path}: every pixel is hole; the hole must be white on a black background"
         )
     return mask
+
+
+def _image_mask(im) -> np.ndarray:
+    """The hole pixels of a PIL image, at the image's own bit depth.
+
+    Greyscale of any depth (8 or 16 bits, integer or float): pixels above half the range
+    (255, 65535 or 1.0) are hole. With transparency that is used: the opaque pixels are the hole,
+    or, where the opaque pixels hold both dark and light ones, the opaque light pixels.
+    """
+    if im.mode in ("RGBA", "LA", "PA") or "transparency" in im.info:
+        rgba = np.asarray(im.convert("RGBA"))
+        opaque = rgba[..., 3] > 127
+        if (rgba[..., 3] < 255).any():
+            light = np.asarray(im.convert("L")) > 127
+            both = (light & opaque).any() and (~light & opaque).any()
+            return opaque & light if both else opaque
+    if im.mode.startswith("I;16") or im.mode in ("I", "F"):
+        grey = np.asarray(im, dtype=np.float64)
+        top = 1.0 if im.mode == "F" else (255.0 if grey.max() <= 255 else 65535.0)
+        return grey > top / 2
+    return np.asarray(im.convert("L")) > 127
 
 
 def frame_for_polygons(
