@@ -9,16 +9,75 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
+import os
 
+from sieve_mi import scene as _scene
 from sieve_mi.errors import SieveError
+from sieve_mi.game import check as _check
 from sieve_mi.game import result as _game_result
 from sieve_mi.game import solver as _solver
-from sieve_mi.game.check import check
-from sieve_mi.geometry.meshes import load_shape
+from sieve_mi.geometry import meshes as _meshes
 from sieve_mi.outputs.report import write_outputs
-from sieve_mi.scene import Scene, load_scene
+from sieve_mi.scene import Scene
 
-__all__ = ["Result", "Scene", "SieveError", "check", "load_scene", "load_shape", "solve"]
+__all__ = [
+    "MAX_SEED",
+    "Result",
+    "Scene",
+    "SieveError",
+    "check",
+    "check_seed",
+    "load_scene",
+    "load_shape",
+    "solve",
+]
+
+#: Seeds are integers in [0, MAX_SEED] (nlopt's generator takes an unsigned 64-bit seed).
+MAX_SEED = 2**64 - 1
+
+
+def _path(value, what: str) -> str:
+    """``value`` as a file path, or a one-line SieveError naming ``what``."""
+    if isinstance(value, os.PathLike):
+        value = os.fspath(value)
+    if not isinstance(value, str) or not value.strip():
+        raise SieveError(f"{what}: expected a file path (str), got {value!r:.60}")
+    return value
+
+
+def check_seed(seed, what: str = "seed") -> int | None:
+    """``seed`` if it is None or an integer in [0, :data:`MAX_SEED`]; else a one-line SieveError."""
+    if seed is None:
+        return None
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise SieveError(f"{what} {seed!r:.60}: must be an integer >= 0")
+    if not 0 <= seed <= MAX_SEED:
+        raise SieveError(f"{what} {seed}: must be an integer from 0 to 2**64 - 1")
+    return seed
+
+
+@functools.wraps(_scene.load_scene)
+def load_scene(path) -> Scene:
+    return _scene.load_scene(_path(path, "load_scene"))
+
+
+@functools.wraps(_meshes.load_shape)
+def load_shape(path, *args, **kwargs):
+    return _meshes.load_shape(_path(path, "load_shape"), *args, **kwargs)
+
+
+@functools.wraps(_check.check)
+def check(shape, **kwargs):
+    if shape is None or isinstance(shape, bytes | int | float):
+        raise SieveError(
+            f"check: expected a mesh file path, a trimesh mesh or a Shape, got {shape!r:.60}"
+        )
+    if kwargs.get("sieve") is None and kwargs.get("image") is None:
+        raise SieveError("check: give sieve=PLATE (a plate mesh) or image=HOLE with pixel_size=MM")
+    if kwargs.get("image") is not None and kwargs.get("pixel_size") is None:
+        raise SieveError("check: image= needs pixel_size= (scene units per pixel)")
+    return _check.check(shape, **kwargs)
 
 
 class Result(_game_result.Result):
@@ -38,6 +97,7 @@ class Result(_game_result.Result):
         ``fabricate=False`` skips the plate files, ``figure=False`` figure.png (as
         ``--no-figure``), ``animation=False`` passage.gif (as ``--no-animation``).
         """
+        out_dir = _path(out_dir, "Result.save")
         return write_outputs(self, out_dir, fabricate=fabricate, figure=figure, animation=animation)
 
 
@@ -61,4 +121,10 @@ def solve(
     -------
     Result
     """
+    if not isinstance(scene, Scene):
+        hint = " (read a file with sieve_mi.load_scene(path))" if isinstance(scene, str) else ""
+        raise SieveError(f"solve: expected a Scene, got {scene!r:.60}{hint}")
+    if variant is not None and not isinstance(variant, str):
+        raise SieveError(f"solve: variant {variant!r:.60} must be a string such as 'llvm_ad_mono'")
+    seed = check_seed(seed, "solve: seed")
     return Result.of(_solver.solve(scene, variant=variant, seed=seed, progress=progress))

@@ -9,6 +9,7 @@ from sieve_mi.errors import SieveError
 
 __all__ = [
     "COMMANDS",
+    "MAX_SEEDS",
     "VARIANT_HELP",
     "add_parsers",
     "cmd_sort",
@@ -57,20 +58,33 @@ def add_parsers(sub) -> None:
     _engine_options(w)
 
 
+#: Most seeds one sweep plays (each is a whole solve: 1,000 default solves take about an hour).
+MAX_SEEDS = 1000
+
+
 def parse_seeds(text: str) -> list[int]:
-    """``"0-9"`` -> [0, ..., 9]; ``"0,3,7"`` -> [0, 3, 7]; a one-line SieveError otherwise."""
-    out = []
+    """``"0-9"`` -> [0, ..., 9]; ``"0,3,7"`` -> [0, 3, 7]; a one-line SieveError otherwise.
+
+    At most :data:`MAX_SEEDS` seeds, each from 0 to 2**64 - 1 (counted before any list is built).
+    """
+    from sieve_mi.api import MAX_SEED  # the API (and the solver) only when a command runs
+
+    ranges = []
     try:
         for part in text.split(","):
             lo, dash, hi = part.strip().partition("-")
-            out += list(range(int(lo), int(hi) + 1)) if dash else [int(lo)]
+            ranges.append((int(lo), int(hi) if dash else int(lo)))
     except ValueError:
         raise SieveError(
             f"--seeds {text}: expected a range like 0-9 or a list like 0,3,7"
         ) from None
-    if not out or min(out) < 0:
-        raise SieveError(f"--seeds {text}: give at least one seed, all >= 0")
-    return sorted(set(out))
+    if not ranges or any(lo < 0 or hi < lo or hi > MAX_SEED for lo, hi in ranges):
+        raise SieveError(
+            f"--seeds {text}: give at least one seed, all from 0 to 2**64 - 1, ranges low-high"
+        )
+    if sum(hi - lo + 1 for lo, hi in ranges) > MAX_SEEDS:
+        raise SieveError(f"--seeds {text}: more than {MAX_SEEDS} seeds; sweep fewer at a time")
+    return sorted({s for lo, hi in ranges for s in range(lo, hi + 1)})
 
 
 def parse_tolerances(text: str | None) -> list[float] | None:
@@ -87,10 +101,10 @@ def parse_tolerances(text: str | None) -> list[float] | None:
 
 
 def _engine(args) -> dict:
+    from sieve_mi.api import check_seed
     from sieve_mi.cascade.games import check_address, ray_module
 
-    if args.seed is not None and args.seed < 0:
-        raise SieveError(f"--seed {args.seed}: must be >= 0")
+    check_seed(args.seed, "--seed")
     if args.workers is not None and args.workers < 1:
         raise SieveError(f"--workers {args.workers}: must be at least 1")
     if args.serial and args.address:
