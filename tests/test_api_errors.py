@@ -108,3 +108,16 @@ def test_seed_two_to_the_64_is_one_line_from_the_cli(tmp_path):
     lines = run.stderr.strip().splitlines()
     assert len(lines) == 1 and "--seed" in lines[0] and "2**64" in lines[0], run.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_report_settings_record_the_seed_that_ran():
+    # --seed 7 (or solve(seed=7)) overrides [solver] seed: report.json's settings say 7, as its
+    # provenance does, so the settings replay the run.
+    from sieve_mi.outputs.report import report_dict
+
+    rupert = os.path.join(os.path.dirname(DEFAULT), "rupert.toml")
+    scene = sm.load_scene(rupert)
+    assert scene.solver.seed != 7
+    rep = report_dict(sm.solve(scene, seed=7, progress=False))
+    assert rep["settings"]["solver"]["seed"] == 7 == rep["provenance"]["seed"]
+    assert scene.solver.seed != 7  # the scene itself is not changed

@@ -211,7 +211,7 @@ def report_dict(result: Result) -> dict:
             "resolution": hole.frame.resolution,
             "half_extent": hole.frame.half_extent,
         },
-        "settings": scene.settings(),
+        "settings": _settings(result),
         "variant": result.variant,
         "provenance": _provenance(result),
         "search_value": None if np.isnan(result.search_value) else float(result.search_value),
@@ -226,6 +226,14 @@ def report_dict(result: Result) -> dict:
         "given in file units times scale); the silhouette is the projection onto the xy-plane; "
         "translations are in the xy-plane in scene units, relative to the hole's centre",
     }
+
+
+def _settings(result: Result) -> dict:
+    """The settings that ran: the scene's, with the seed that was used (``--seed`` overrides)."""
+    out = result.scene.settings()
+    if result.seed is not None and "solver" in out:
+        out["solver"] = dict(out["solver"], seed=int(result.seed))
+    return out
 
 
 def _provenance(result: Result) -> dict:
