@@ -279,6 +279,8 @@ def test_solve_refuses_a_folder_of_foreign_files(scene_dir, precious, tmp_path):
         ("{scene}/meshes", "holds the input file"),
         ("{home}", "your home folder"),
         ("/", "filesystem root"),
+        ("/proc/x", "cannot write into /proc"),  # root may "access" it; refused before the solve
+        ("/sys/x", "cannot write into /sys"),
     ],
 )
 def test_solve_refuses_protected_folders(scene_dir, tmp_path, tmp_path_factory, out, needle):

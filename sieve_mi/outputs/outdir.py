@@ -29,6 +29,7 @@ import secrets
 import shutil
 import signal
 import socket
+import tempfile
 import threading
 from collections.abc import Iterable, Iterator
 
@@ -61,6 +62,19 @@ _SIGNALS = tuple(
 # ------------------------------------------------------------------------------------------------
 # Checking a destination
 # ------------------------------------------------------------------------------------------------
+
+
+def _can_create(folder: str) -> bool:
+    """Whether a folder can really be made in ``folder`` (a probe, removed at once).
+
+    ``os.access`` says yes for root everywhere, also in /proc and /sys, where nothing can be
+    written; so the refusal would come only after the whole solve.
+    """
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".sieve-mi-probe-", dir=folder))
+    except OSError:
+        return False
+    return True
 
 
 def validate(out_dir: str, *, inputs: Iterable[str] = (), option: str = "--out") -> str:
@@ -96,7 +110,7 @@ def validate(out_dir: str, *, inputs: Iterable[str] = (), option: str = "--out")
     base = os.path.dirname(dest)
     while not os.path.lexists(base):
         base = os.path.dirname(base)
-    if not os.path.isdir(base) or not os.access(base, os.W_OK | os.X_OK):
+    if not os.path.isdir(base) or not os.access(base, os.W_OK | os.X_OK) or not _can_create(base):
         raise SieveError(f"{say}: cannot write into {base}; choose another folder")
     if os.path.isdir(dest) and os.listdir(dest) and not is_replaceable(dest):
         raise SieveError(
