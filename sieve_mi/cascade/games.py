@@ -25,6 +25,7 @@ from sieve_mi.outputs import outdir
 from sieve_mi.scene import Scene
 
 __all__ = [
+    "RAY_CLIENT_PORT",
     "Engine",
     "FAULT_ENV",
     "GAME_FILE",
@@ -181,22 +182,47 @@ class GameCache:
         return record
 
 
-def check_address(address: str) -> None:
-    """Raise a one-line SieveError unless something listens at a Ray ``host:port`` address."""
-    if address == "auto" or (address.startswith("ray://") and ":" not in address[6:]):
-        return  # Ray finds the cluster itself / a Ray client address on its default port
+#: Port of a Ray client server (``ray://host`` without a port).
+RAY_CLIENT_PORT = 10001
+#: The HTTP/2 connection preface and an empty SETTINGS frame: Ray's GCS and client servers speak
+#: gRPC, which answers with a SETTINGS frame of its own.
+_HTTP2_HELLO = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+
+
+def check_address(address: str, timeout: float = 3.0) -> None:
+    """Raise a one-line SieveError unless a Ray cluster answers at ``address``.
+
+    ``host:port`` (a head's GCS) or ``ray://host[:port]`` (a Ray client server): something must
+    listen there and answer as gRPC (HTTP/2) within ``timeout`` seconds, so a port of some other
+    service is refused at once instead of hanging in ``ray.init``. ``auto`` is checked when Ray
+    starts (a one-line error where no cluster runs).
+    """
+    if address == "auto":
+        return
     hostport = address[6:] if address.startswith("ray://") else address
-    host, _, port = hostport.rpartition(":")
-    if not host or not port.isdigit():
-        raise SieveError(f"--address {address}: expected host:port (e.g. 10.0.0.5:6379) or 'auto'")
-    try:
-        with socket.create_connection((host, int(port)), timeout=3.0):
-            pass
-    except OSError as exc:
+    host, colon, port = hostport.rpartition(":")
+    if address.startswith("ray://") and not colon:
+        host, port = hostport, str(RAY_CLIENT_PORT)
+    if not host or not port.isdigit() or not 0 < int(port) < 65536 or len(host) > 253:
         raise SieveError(
-            f"--address {address}: nothing is listening there ({exc.strerror or exc}); "
+            f"--address {address[:80]}: expected host:port (e.g. 10.0.0.5:6379) or 'auto'"
+        )
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout) as conn:
+            conn.settimeout(timeout)
+            conn.sendall(_HTTP2_HELLO)
+            head = conn.recv(9)
+    except (OSError, UnicodeError, ValueError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        raise SieveError(
+            f"--address {address[:80]}: nothing is listening there ({reason}); "
             "start a Ray head with 'ray start --head' or leave --address out"
         ) from None
+    if len(head) < 9 or head[3] != 4:  # not an HTTP/2 SETTINGS frame: not gRPC, not Ray
+        raise SieveError(
+            f"--address {address[:80]}: something listens there but it is not a Ray cluster "
+            "(no gRPC answer); give the head's GCS address (host:6379) or ray://host:10001"
+        )
 
 
 def ray_module():
@@ -292,7 +318,13 @@ class Runner:
                     kwargs["num_cpus"] = self.workers
                 # local workers import sieve_mi from where the driver does
                 kwargs["runtime_env"] = {"env_vars": {"PYTHONPATH": os.pathsep.join(sys.path)}}
-            ray.init(**kwargs)
+            try:
+                ray.init(**kwargs)
+            except Exception as exc:  # noqa: BLE001 - Ray raises many kinds; one line for all
+                where = f"--address {self.address}" if self.address else "local Ray"
+                raise SieveError(
+                    f"{where}: Ray could not start or connect ({_first_line(exc)})"
+                ) from None
             self._started = True
         self._ray = ray
         return ray
