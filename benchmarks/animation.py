@@ -18,19 +18,10 @@ import time
 
 import numpy as np
 
+from sieve_mi.testing.settings import TINY_SOLVER, TINY_VERDICT, settings_toml
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SMALL = """
-[solver]
-resolution = 64
-particles = 3
-iterations = 1
-starts = 4
-steps = 20
-[verdict]
-starts = 8
-steps = 40
-resolution = 128
-"""
+SMALL = settings_toml(solver=TINY_SOLVER, verdict={**TINY_VERDICT, "resolution": 128})
 
 
 def _timed(fn, repeat: int = 1) -> tuple[float, object]:

@@ -18,26 +18,14 @@ import time
 
 import trimesh
 
-SETTINGS = """
-[fabrication]
-tolerance = 0.5
-[solver]
-particles = 3
-iterations = 2
-starts = 4
-steps = 40
-resolution = 64
-canonical = 6
-polish = 0
-[verdict]
-starts = 24
-steps = 150
-resolution = 128
-[layout]
-rounds = 1
-alternatives = 0
-restarts = 0
-"""
+from sieve_mi.testing.settings import CASCADE_SOLVER, TINY_LAYOUT, settings_toml
+
+SETTINGS = settings_toml(
+    fabrication={"tolerance": 0.5},
+    solver={**CASCADE_SOLVER, "iterations": 2, "steps": 40},
+    verdict={"starts": 24, "steps": 150, "resolution": 128},
+    layout=TINY_LAYOUT,
+)
 
 SHAPES = {
     "cube28": lambda: trimesh.creation.box((28.0, 28.0, 28.0)),

@@ -37,9 +37,9 @@ def atomic_loss(obj, q, t, holes, pose_hole):
 
     from sieve_mi.geometry.rotations import quat_rows
 
-    pair_pose, pair_seg = obj._pairs
+    pair_pose, pair_seg = obj.pairs
     rows = quat_rows(*q)
-    active = obj._active_pairs(rows)
+    active = obj.active_pairs(q)
     if dr.width(active) == 0:
         zero = dr.zeros(mi.Float, obj.pose_count)
         return dr.sum(zero), zero
@@ -52,7 +52,7 @@ def atomic_loss(obj, q, t, holes, pose_hole):
     g = [dr.gather(mi.Float, r, pose) for r in rows[:6]]
     x = g[0] * p.x + g[1] * p.y + g[2] * p.z + dr.gather(mi.Float, t[0], pose)
     y = g[3] * p.x + g[4] * p.y + g[5] * p.z + dr.gather(mi.Float, t[1], pose)
-    dist = obj._lookup(x, y, holes, dr.gather(mi.UInt32, pose_hole, pose))[0]
+    dist = obj.hole_distance(x, y, holes, dr.gather(mi.UInt32, pose_hole, pose))[0]
     value = dist * dist
     per_pose = dr.zeros(mi.Float, obj.pose_count)
     dr.scatter_reduce(dr.ReduceOp.Add, per_pose, dr.detach(value), pose)
@@ -67,7 +67,7 @@ def hand_adam_descend(player, holes, pose_hole, q0, t0, steps, lr, loss_fn=atomi
     from sieve_mi.geometry.hole import HoleStack
     from sieve_mi.geometry.rotations import normalize
 
-    obj, stack, scale = player._loss_fn(), HoleStack(holes), player.frame.half_extent
+    obj, stack, scale = player.objective, HoleStack(holes), player.frame.half_extent
     x0 = np.concatenate([q0, np.asarray(t0) / scale], axis=1).astype(np.float32)
     params = [mi.Float(x0[:, i]) for i in range(6)]
     m = [dr.zeros(mi.Float, len(q0)) for _ in params]
@@ -124,7 +124,7 @@ def time_loss(player, holes, q0, t0, loss_fn, repeat):
 
     from sieve_mi.geometry.hole import HoleStack
 
-    obj, stack = player._loss_fn(), HoleStack(holes)
+    obj, stack = player.objective, HoleStack(holes)
     obj.bind(np.zeros(len(q0), int))
     pose_hole = mi.UInt32(np.arange(len(q0), dtype=np.uint32) % len(holes))
     times = []
@@ -161,12 +161,12 @@ def descents(player, holes, q0, t0, steps, repeat, config: str):
             qs, ts = player.descend(holes, pose_hole, zeros, q0, t0, steps, 0.05)
             x = np.concatenate([qs, ts], axis=1)
         else:
-            player._loss_fn().bind(zeros)
+            player.objective.bind(zeros)
             fn = atomic_loss if config == "before" else ClearanceObjective.loss
             x = hand_adam_descend(player, holes, pose_hole, q0, t0, steps, 0.05, fn)
         times.append(time.perf_counter() - start)
         results.add(x.tobytes())
-    obj = player._loss_fn()
+    obj = player.objective
     qs = [mi.Float(x[:, i].astype(np.float32)) for i in range(4)]
     ts = (mi.Float(x[:, 4].astype(np.float32)), mi.Float(x[:, 5].astype(np.float32)))
     ph = mi.UInt32(pose_hole.astype(np.uint32))

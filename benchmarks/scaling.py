@@ -43,27 +43,23 @@ def main(argv=None) -> int:
     from sieve_mi.game.layout import hole_frame
     from sieve_mi.game.players import PlayerA, PlayerB
     from sieve_mi.geometry.meshes import load_shape
+    from sieve_mi.scene import Solver
+
+    search = Solver(canonical=0, polish=0)  # the [solver] defaults: the swarm alone
 
     a = load_shape(os.path.join(MESHES, "cube.stl"))
     frame = hole_frame(a, 1.0, 256)
     rows = []
-    print(f"variant {args.variant}; search 10 particles x 11 evaluations, 10 starts x 100 steps")
+    print(
+        f"variant {args.variant}; search {search.particles} particles x "
+        f"{search.iterations + 1} evaluations, {search.starts} starts x {search.steps} steps"
+    )
     print(f"{'B shapes':>8s} {'faces':>7s} {'search s':>9s} {'s per B':>8s}")
     for n in range(1, args.max_b + 1):
         blocks = [load_shape(os.path.join(MESHES, POOL[i % len(POOL)])) for i in range(n)]
         pa, pb = PlayerA(a, frame, 1.0), PlayerB(blocks, frame)
         t = time.perf_counter()
-        pa.search(
-            pb,
-            method="pso",
-            particles=10,
-            iterations=10,
-            starts=10,
-            steps=100,
-            learning_rate=0.05,
-            rng=np.random.default_rng(0),
-            seed=0,
-        )
+        pa.search(pb, search, rng=np.random.default_rng(0), seed=0)
         dt = time.perf_counter() - t
         rows.append((n, sum(b.face_count for b in blocks), dt))
         print(f"{n:8d} {rows[-1][1]:7d} {dt:9.1f} {dt / n:8.1f}", flush=True)

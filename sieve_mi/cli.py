@@ -15,6 +15,8 @@ __all__ = ["Terminated", "cmd_certify", "cmd_check", "cmd_solve", "cmd_view", "m
 
 
 def _parser() -> argparse.ArgumentParser:
+    from sieve_mi.scene import Check, CheckInputs
+
     p = argparse.ArgumentParser(
         prog="sieve-mi", description="Design shape-aware sieves (Mitsuba 3 + Dr.Jit)."
     )
@@ -46,38 +48,9 @@ def _parser() -> argparse.ArgumentParser:
     src.add_argument(
         "--hole", help="hole image (white = hole, black = material); needs --pixel-size"
     )
-    c.add_argument(
-        "--pixel-size", type=float, help="size of one pixel of --hole, in scene units (mm)"
-    )
-    c.add_argument(
-        "--axis",
-        choices=("x", "y", "z"),
-        default="z",
-        help="direction the shape moves through the plate (default z)",
-    )
-    c.add_argument(
-        "--scale", type=float, default=1.0, help="uniform scale of the shape (file units to mm)"
-    )
-    c.add_argument(
-        "--starts", type=int, default=100, help="random starts of the fitting search (default 100)"
-    )
-    c.add_argument("--steps", type=int, default=500, help="Adam steps per start (default 500)")
-    c.add_argument("--learning-rate", type=float, default=0.05)
-    c.add_argument(
-        "--resolution",
-        type=int,
-        default=256,
-        help="raster side in pixels for --sieve (default 256)",
-    )
-    c.add_argument("--seed", type=int, default=0)
-    c.add_argument("--no-fit", action="store_true", help="skip the fit-scale search")
-    c.add_argument(
-        "--fit-tolerance",
-        type=float,
-        default=0.01,
-        help="relative precision of the fit scale (default 0.01)",
-    )
-    c.add_argument("--units", default="mm", help="unit name for the report (default mm)")
+    _settings(c, CheckInputs, "pixel_size", "axis", "scale")
+    _settings(c, Check)
+    _settings(c, CheckInputs, "units")
     c.add_argument(
         "--variant",
         help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono",
@@ -96,6 +69,101 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _settings(parser, cls: type, *names: str, flags: dict | None = None) -> None:
+    """Add the options of fields ``names`` (default: every field) of a settings class.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        A command's parser.
+    cls : type
+        A dataclass of :mod:`sieve_mi.scene` (:class:`~sieve_mi.scene.Check`, ...).
+    names : str
+        Its fields to add, in this order.
+    flags : dict of str to str, optional
+        An option's name where it is not ``--`` and the field's name with dashes.
+
+    Notes
+    -----
+    Everything comes from the field: the option's default, its help (the Spec's meaning, unit,
+    accepted values and default) and its type; a bool field that defaults to true is turned off
+    by ``--no-NAME``. The value lands in ``args.<field name>`` and is checked after parsing
+    (:func:`_check_settings`) exactly as a scene file's key is.
+    """
+    from dataclasses import MISSING, fields
+
+    from sieve_mi.scene import field_of, spec_of, value_types
+
+    for name in names or [f.name for f in fields(cls)]:
+        f, kind = field_of(cls, name), value_types(cls)[name]
+        spec, default = spec_of(f), (None if f.default is MISSING else f.default)
+        flag = (flags or {}).get(name, "--" + name.replace("_", "-"))
+        if kind is bool:
+            off = default is True
+            parser.add_argument(
+                f"--no-{flag[2:]}" if off else flag,
+                dest=name,
+                action="store_false" if off else "store_true",
+                help=f"turn {'off' if off else 'on'} {spec.doc}".replace("%", "%%"),
+            )
+        else:
+            choices = "{" + ",".join(spec.choices) + "}" if spec.choices else None
+            parser.add_argument(
+                flag,
+                dest=name,
+                type=_given_as(kind),
+                default=default,
+                metavar=choices or flag[2:].upper().replace("-", "_"),
+                help=_option_help(cls, f, default),
+            )
+        options = parser.get_default("setting_options") or ()
+        parser.set_defaults(setting_options=(*options, (flag, cls, name)))
+
+
+def _given_as(kind: type):
+    """argparse's ``type`` for a setting of ``kind``: the text as an int or float where it is
+    one, else the text itself, which :func:`_check_settings` then refuses in one line."""
+    if kind not in (int, float):
+        return None
+
+    def convert(text: str):
+        try:
+            return kind(text)
+        except ValueError:
+            return text
+
+    convert.__name__ = kind.__name__
+    return convert
+
+
+def _option_help(cls: type, f, default) -> str:
+    """An option's help from its field: meaning; accepted values (range, unit, default)."""
+    from sieve_mi.scene import describe, spec_of
+
+    spec = spec_of(f)
+    text = spec.doc + (f"; one of {', '.join(spec.choices)}" if spec.choices else "")
+    shown = spec.default_doc if spec.default_doc is not None else default
+    notes = [describe(cls, f)] if spec.minimum is not None or spec.maximum is not None else []
+    notes += ([spec.unit] if spec.unit else []) + [f"default {shown}"]
+    return f"{text} ({', '.join(notes)})".replace("%", "%%")
+
+
+def _check_settings(args) -> None:
+    """Check every option that :func:`_settings` added, as a scene file's keys are checked.
+
+    Raises
+    ------
+    SieveError
+        The first bad value, in one line naming the command and the option.
+    """
+    from sieve_mi.scene import read_value
+
+    for flag, cls, name in getattr(args, "setting_options", ()):
+        value = getattr(args, name)
+        if value is not None:
+            setattr(args, name, read_value(cls, name, value, args.command, flag))
+
+
 def _skip_flags(s) -> None:
     """``solve``'s flags that skip an optional output."""
     s.add_argument("--no-figure", action="store_true", help="skip the Mitsuba rendering figure.png")
@@ -112,6 +180,8 @@ def _view_parser(sub) -> None:
 
 def _certify_parser(sub) -> None:
     """``sieve-mi certify SHAPE (--sieve PLATE | --hole SVG)`` and ``sieve-mi certify --replay CERT``."""
+    from sieve_mi.scene import CheckInputs, Verdict
+
     k = sub.add_parser(
         "certify",
         help="prove that a shape cannot pass a sieve in any pose (or find a pose that passes)",
@@ -121,13 +191,8 @@ def _certify_parser(sub) -> None:
     src.add_argument("--sieve", help="sieve plate mesh; its through-holes along --axis are used")
     src.add_argument("--hole", help="hole outline as SVG (the hole.svg that solve writes)")
     src.add_argument("--replay", help="re-check a certificate file independently")
-    k.add_argument(
-        "--axis", choices=("x", "y", "z"), default="z", help="direction through the plate"
-    )
-    k.add_argument(
-        "--scale", type=float, default=1.0, help="uniform scale of the shape (default 1)"
-    )
-    k.add_argument("--budget", type=float, default=30.0, help="time budget in seconds (default 30)")
+    _settings(k, CheckInputs, "axis", "scale")
+    _settings(k, Verdict, "certify_budget", flags={"certify_budget": "--budget"})
     k.add_argument("--certificate", help="write the certificate (JSON) to this file")
     k.add_argument("--json", action="store_true", help="print the result as JSON")
 
@@ -140,8 +205,7 @@ def cmd_solve(args) -> int:
     scene = sm.load_scene(args.scene)
     out_dir = args.out or os.path.join("out", scene.name)
     validate(out_dir, inputs=input_paths(scene))  # again just before the swap
-    if args.seed is not None and args.seed < 0:
-        raise SieveError(f"--seed {args.seed}: must be >= 0")
+    sm.check_seed(args.seed, "--seed")
     result = sm.solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
     report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
     print(summary_table(report))
@@ -153,6 +217,7 @@ def cmd_solve(args) -> int:
 
 def cmd_check(args) -> int:
     import json
+    from dataclasses import fields
 
     from sieve_mi.backend import use_variant
     from sieve_mi.game.check import CheckSettings, check, summary
@@ -163,33 +228,12 @@ def cmd_check(args) -> int:
         raise SieveError(
             f"--hole {args.hole}: also give --pixel-size (the image's pixel size in scene units)"
         )
-    for name, value, minimum in (
-        ("--starts", args.starts, 1),
-        ("--steps", args.steps, 1),
-        ("--resolution", args.resolution, 16),
-    ):
-        if value < minimum:
-            raise SieveError(f"{name} {value}: must be at least {minimum}")
-    if not (args.scale > 0 and args.scale < float("inf")):
-        raise SieveError(f"--scale {args.scale}: must be a positive number")
-    if not (0 < args.fit_tolerance < 1):
-        raise SieveError(f"--fit-tolerance {args.fit_tolerance}: must be between 0 and 1")
-    if args.seed < 0:
-        raise SieveError(f"--seed {args.seed}: must be >= 0")
     inputs = [p for p in (args.shape, args.sieve, args.hole) if p]
     if args.out is not None:
         outdir.validate(args.out, inputs=inputs)  # again just before the swap
     use_variant(args.variant)
     shape = load_shape(args.shape, scale=args.scale)
-    settings = CheckSettings(
-        starts=args.starts,
-        steps=args.steps,
-        learning_rate=args.learning_rate,
-        resolution=args.resolution,
-        seed=args.seed,
-        fit=not args.no_fit,
-        fit_tolerance=args.fit_tolerance,
-    )
+    settings = CheckSettings(**{f.name: getattr(args, f.name) for f in fields(CheckSettings)})
     rep = check(
         shape,
         sieve=args.sieve,
@@ -288,10 +332,6 @@ def cmd_certify(args) -> int:
         return 0
     if not args.shape or (args.sieve is None and args.hole is None):
         raise SieveError("certify needs SHAPE and --sieve PLATE or --hole SVG (or --replay CERT)")
-    if not (0 < args.scale < float("inf")):
-        raise SieveError(f"--scale {args.scale}: must be a positive number")
-    if not (0 < args.budget < float("inf")):
-        raise SieveError(f"--budget {args.budget}: must be a positive number of seconds")
     inputs = (args.shape, args.sieve, args.hole)
     if args.certificate:
         writable_certificate(args.certificate, inputs)  # before any work, and again when written
@@ -300,7 +340,7 @@ def cmd_certify(args) -> int:
 
     shape = load_shape(args.shape, scale=args.scale)
     holes = holes_from_mesh(args.sieve, args.axis) if args.sieve else [read_svg_hole(args.hole)]
-    result = certify(shape, holes, budget_s=args.budget, scale=args.scale)
+    result = certify(shape, holes, budget_s=args.certify_budget, scale=args.scale)
     if args.certificate:
         result.write_certificate(args.certificate, inputs)
     if args.json:
@@ -326,6 +366,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         with _termination_as_interrupt():
+            _check_settings(args)
             if args.command == "solve":
                 return cmd_solve(args)
             if args.command == "check":

@@ -10,6 +10,7 @@ import numpy as np
 __all__ = [
     "NLOPT_METHODS",
     "POSE_KEYS",
+    "PSO_COEFFICIENT",
     "QUAT_KEYS",
     "SwarmHistory",
     "nlopt_maximise",
@@ -21,6 +22,9 @@ __all__ = [
 #: Names of a pose's parameters in :func:`pose_adam`: quaternion (w, x, y, z), then translation.
 QUAT_KEYS = ("qw", "qx", "qy", "qz")
 POSE_KEYS = QUAT_KEYS + ("tx", "ty")
+#: The default inertia and both accelerations of :func:`particle_swarm` (omega, psi_1, psi_2;
+#: the paper's Sec. 6 value for each, and the ``[solver]`` defaults).
+PSO_COEFFICIENT = 0.25
 
 
 def pose_adam(q0: np.ndarray, t0: np.ndarray, lr: float):
@@ -94,9 +98,9 @@ def particle_swarm(
     x0: np.ndarray,
     iterations: int,
     rng: np.random.Generator,
-    inertia: float = 0.25,
-    c_personal: float = 0.25,
-    c_global: float = 0.25,
+    inertia: float = PSO_COEFFICIENT,
+    c_personal: float = PSO_COEFFICIENT,
+    c_global: float = PSO_COEFFICIENT,
     v0: np.ndarray | None = None,
     project: Callable[[np.ndarray], np.ndarray] | None = None,
     progress: Callable[[int, float], None] | None = None,
@@ -114,7 +118,7 @@ def particle_swarm(
         Number of velocity updates after the initial evaluation.
     rng : numpy.random.Generator
     inertia, c_personal, c_global : float
-        omega, psi_1 and psi_2 (paper: 0.25 each).
+        omega, psi_1 and psi_2 (default :data:`PSO_COEFFICIENT` each, the paper's value).
     v0 : (P, D) ndarray, optional
         Initial velocities (zeros by default).
     project : callable, optional

@@ -11,6 +11,12 @@ docs, which the test asks for), e.g.::
 
 Paths are relative to the scene file. Every problem is reported as one
 :class:`~sieve_mi.errors.SieveError` line naming the file and the key.
+
+Settings given on the command line are declared the same way, in classes that are not tables of
+a scene file (:class:`Check`, :class:`CheckInputs`; ``certify --budget`` is
+:attr:`Verdict.certify_budget`): ``sieve_mi.cli`` builds each option (default, help, type) from
+its field and checks the value with :func:`read_value`, so a bad option gets the one-line error a
+bad key gets.
 """
 
 from __future__ import annotations
@@ -28,9 +34,12 @@ import numpy as np
 
 from sieve_mi.errors import SieveError
 from sieve_mi.objectives import OBJECTIVES
-from sieve_mi.optim import NLOPT_METHODS
+from sieve_mi.optim import NLOPT_METHODS, PSO_COEFFICIENT
 
 __all__ = [
+    "AXIS_NAMES",
+    "Check",
+    "CheckInputs",
     "Fabrication",
     "LAYOUT_MODES",
     "Layout",
@@ -44,11 +53,13 @@ __all__ = [
     "Verdict",
     "check_folder_name",
     "describe",
+    "field_of",
     "key_of",
     "load_scene",
     "read_file",
     "read_shape",
     "read_tables",
+    "read_value",
     "setting",
     "spec_of",
     "table_fields",
@@ -61,6 +72,8 @@ UNITS = ("mm", "cm", "m", "in", "um")
 OUTERS = ("pso", *NLOPT_METHODS)
 #: Accepted ``[layout] mode`` values.
 LAYOUT_MODES = ("merged", "separate")
+#: Accepted ``check --axis`` and ``certify --axis`` values: the plate's axis a shape moves along.
+AXIS_NAMES = ("x", "y", "z")
 
 
 @dataclass(frozen=True)
@@ -74,9 +87,11 @@ class Spec:
     unit : str or None
         Unit of a number (``"scene units"``, ``"s"``), None where it has none.
     minimum, maximum : int or float or None
-        Inclusive bounds of a number (``minimum`` is exclusive where ``exclusive_min``).
+        Inclusive bounds of a number (exclusive where ``exclusive_min``, ``exclusive_max``).
     exclusive_min : bool
         Whether the value must be strictly greater than ``minimum``.
+    exclusive_max : bool
+        Whether the value must be strictly less than ``maximum``.
     choices : tuple of str or None
         The accepted values of a string.
     default_doc : str or None
@@ -90,6 +105,7 @@ class Spec:
     minimum: float | None = None
     maximum: float | None = None
     exclusive_min: bool = False
+    exclusive_max: bool = False
     choices: tuple[str, ...] | None = None
     default_doc: str | None = None
     key: str | None = None
@@ -106,7 +122,7 @@ def setting(default=MISSING, doc: str = "", **spec):
         One-line meaning.
     **spec
         The other fields of :class:`Spec` (``unit``, ``minimum``, ``maximum``, ``exclusive_min``,
-        ``choices``, ``default_doc``, ``key``).
+        ``exclusive_max``, ``choices``, ``default_doc``, ``key``).
 
     Returns
     -------
@@ -118,6 +134,18 @@ def setting(default=MISSING, doc: str = "", **spec):
 def spec_of(f: dataclasses.Field) -> Spec | None:
     """The :class:`Spec` of a dataclass field, or None for a field that is not a scene key."""
     return f.metadata.get("spec")
+
+
+def field_of(cls: type, name: str) -> dataclasses.Field:
+    """The field ``name`` of dataclass ``cls``."""
+    return next(f for f in fields(cls) if f.name == name)
+
+
+def _like(cls: type, name: str, **changes):
+    """A field declared as ``cls``'s field ``name`` (its default and :class:`Spec`), with
+    ``changes`` to the Spec: one setting's default and meaning, used by a second class."""
+    f = field_of(cls, name)
+    return field(default=f.default, metadata={"spec": dataclasses.replace(spec_of(f), **changes)})
 
 
 def key_of(f: dataclasses.Field) -> str:
@@ -157,12 +185,13 @@ def describe(cls: type, f: dataclasses.Field) -> str:
     spec, kind = spec_of(f), value_types(cls)[f.name]
     words = {bool: "bool", int: "int", float: "number", str: "string", list[float]: "[w, x, y, z]"}
     word = words.get(kind, "tables")
-    if spec.minimum is not None and spec.maximum is not None and not spec.exclusive_min:
+    exclusive = spec.exclusive_min or spec.exclusive_max
+    if spec.minimum is not None and spec.maximum is not None and not exclusive:
         return f"{word} {spec.minimum}–{spec.maximum}"
     if spec.minimum is not None:
         word += f" {'>' if spec.exclusive_min else '≥'} {spec.minimum}"
     if spec.maximum is not None:
-        word += f" ≤ {spec.maximum}"
+        word += f" {'<' if spec.exclusive_max else '≤'} {spec.maximum}"
     return word
 
 
@@ -259,9 +288,13 @@ class Solver:
     steps: int = setting(100, "Adam steps per start", minimum=0)
     learning_rate: float = setting(0.05, "Adam's learning rate", minimum=0, exclusive_min=True)
     seed: int = setting(0, "random seed (--seed overrides)", minimum=0)
-    inertia: float = setting(0.25, "PSO inertia", minimum=0)
-    c_personal: float = setting(0.25, "PSO acceleration towards a particle's best", minimum=0)
-    c_global: float = setting(0.25, "PSO acceleration towards the swarm's best", minimum=0)
+    inertia: float = setting(PSO_COEFFICIENT, "PSO inertia", minimum=0)
+    c_personal: float = setting(
+        PSO_COEFFICIENT, "PSO acceleration towards a particle's best", minimum=0
+    )
+    c_global: float = setting(
+        PSO_COEFFICIENT, "PSO acceleration towards the swarm's best", minimum=0
+    )
     canonical: int = setting(
         20, "canonical views of each A evaluated before the swarm (0: none)", minimum=0
     )
@@ -320,6 +353,54 @@ class Layout:
         minimum=0,
         maximum=100,
     )
+
+
+@_documented
+@dataclass
+class Check:
+    """``sieve-mi check``'s search: player B's budget (the verdict's defaults) and the fit scale.
+
+    Not a table of a scene file: the options ``--starts``, ``--steps``, ``--learning-rate``,
+    ``--resolution``, ``--seed``, ``--no-fit`` and ``--fit-tolerance`` of ``sieve-mi check``, and
+    :class:`sieve_mi.game.check.CheckSettings` (this class) in code, where values are not checked.
+    """
+
+    starts: int = _like(Verdict, "starts", doc="random starts of the fitting search")
+    steps: int = _like(Verdict, "steps", minimum=1)
+    learning_rate: float = _like(Solver, "learning_rate", maximum=1.0)
+    resolution: int = _like(Verdict, "resolution", doc="raster side in pixels for --sieve")
+    seed: int = _like(Solver, "seed", doc="random seed")
+    fit: bool = setting(True, "the fit-scale search (the largest scale that passes)")
+    fit_tolerance: float = setting(
+        0.01,
+        "relative precision of the fit scale",
+        minimum=0,
+        exclusive_min=True,
+        maximum=1,
+        exclusive_max=True,
+    )
+
+
+@_documented
+@dataclass
+class CheckInputs:
+    """How ``sieve-mi check`` reads its part and its sieve (``certify``: ``scale`` and ``axis``).
+
+    Not a table of a scene file: command-line options only.
+    """
+
+    scale: float = _like(ShapeEntry, "scale", maximum=1_000_000)
+    axis: str = setting("z", "direction the shape moves through the plate", choices=AXIS_NAMES)
+    pixel_size: float | None = setting(
+        None,
+        "size of one pixel of --hole",
+        unit="scene units",
+        minimum=0,
+        exclusive_min=True,
+        maximum=1_000_000,
+        default_doc="none; required with --hole",
+    )
+    units: str = setting("mm", "unit name for the report")
 
 
 @_documented
@@ -439,6 +520,10 @@ class Reader:
                 values[f.name] = _READERS[kinds[f.name]](self, key_of(f), spec)
         return values
 
+    def value(self, cls: type, name: str, key: str):
+        """The value under ``key`` of this table, checked as field ``name`` of ``cls``."""
+        return _READERS[value_types(cls)[name]](self, key, spec_of(field_of(cls, name)))
+
     def number(self, key: str, spec: Spec, integer: bool = False):
         value = self.table[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -454,8 +539,10 @@ class Reader:
             raise self.error(
                 key, f"must be {'>' if spec.exclusive_min else '>='} {low}, got {value!r}"
             )
-        if high is not None and value > high:
-            raise self.error(key, f"must be <= {high}, got {value!r}")
+        if high is not None and (value >= high if spec.exclusive_max else value > high):
+            raise self.error(
+                key, f"must be {'<' if spec.exclusive_max else '<='} {high}, got {value!r}"
+            )
         return int(value) if integer else float(value)
 
     def integer(self, key: str, spec: Spec) -> int:
@@ -503,6 +590,43 @@ _READERS = {
     str: Reader.string,
     list[float]: Reader.quaternion,
 }
+
+
+def read_value(cls: type, name: str, value, where: str, key: str | None = None):
+    """A value of field ``name`` of ``cls`` given outside a scene file, checked as a key of one.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass of this module (:class:`Check`, :class:`Verdict`, ...).
+    name : str
+        The field.
+    value : bool, int, float, str or list
+        The value as given; text that should have been a number is reported as such.
+    where : str
+        What gave it, for the message (e.g. ``"check"``, the command).
+    key : str, optional
+        The name it was given under (e.g. ``"--learning-rate"``); default its TOML key.
+
+    Returns
+    -------
+    bool, int, float, str or list
+        The value (a whole float for an int field as int, an int for a float field as float).
+
+    Raises
+    ------
+    SieveError
+        ``"{where}: {key}: {what}"``, the line a bad key of a scene file gets.
+
+    Examples
+    --------
+    >>> read_value(Check, "learning_rate", 0.0, "check", "--learning-rate")
+    Traceback (most recent call last):
+    ...
+    sieve_mi.errors.SieveError: check: --learning-rate: must be > 0, got 0.0
+    """
+    key = key or key_of(field_of(cls, name))
+    return Reader(where, {key: value}, "").value(cls, name, key)
 
 
 def read_shape(path: str, table, where: str) -> ShapeEntry:

@@ -17,6 +17,7 @@ from sieve_mi.geometry.rotations import (
     to_matrix,
     to_rotvec,
 )
+from sieve_mi.testing.settings import tiny_solver
 from sieve_mi.testing.shapes import box
 
 Z = np.array([0.0, 0.0, 1.0])
@@ -121,7 +122,7 @@ def test_polish_turns_a_tilted_cube_face_on():
     a = PlayerA(cube, frame, 0.5)
     b = PlayerB([ball], frame)
     q0 = from_axis_angle(np.array([1.0, 0.3, 0.0]), np.radians(2.5))
-    q, value, record = a.polish(b, q0, starts=8, steps=80, learning_rate=0.05, seed=0, rounds=12)
+    q, value, record = a.polish(b, q0, tiny_solver(starts=8, steps=80, polish=12), seed=0)
     tilt = np.degrees(np.arccos(min(1.0, np.abs(_view(q)).max())))
     # Below about a pixel over the cube's size (0.2 mm / 20 mm, 0.6°) the raster cannot tell
     # tilts apart; exactly face-on comes from the canonical starts.
@@ -138,11 +139,10 @@ def test_search_announces_its_stages_and_counts_canonical_evaluations():
     ball = shape_from_trimesh(trimesh.creation.icosphere(2, radius=12.0), name="ball")
     frame = hole_frame(cube, 1.0, 48)
     seen = []
+    solver = tiny_solver(particles=2, iterations=1, starts=2, steps=3, canonical=20, polish=1)
     q, value, history = PlayerA(cube, frame, 1.0).search(
-        PlayerB([ball], frame), method="pso", particles=2, iterations=1, starts=2, steps=3,
-        learning_rate=0.05, rng=np.random.default_rng(0), seed=0, canonical=20, polish=1,
-        stage=seen.append,
-    )  # fmt: skip
+        PlayerB([ball], frame), solver, rng=np.random.default_rng(0), seed=0, stage=seen.append
+    )
     assert seen == ["canonical", "swarm", "polish"]
     assert history.evaluations == 2 * 2 + 3  # the swarm's budget and the cube's three views
     assert history.polish["rounds"] == 1 and value == history.polish["after"]
@@ -178,9 +178,9 @@ def test_the_search_turns_a_box_exactly_face_on():
     cube = shape_from_trimesh(box(20, 20, 20), name="cube")
     ball = shape_from_trimesh(trimesh.creation.icosphere(3, radius=11.5), name="ball")
     frame = hole_frame(cube, 1.0, 128)
+    solver = tiny_solver(particles=4, iterations=2, starts=6, steps=60, canonical=20, polish=10)
     q, value, history = PlayerA(cube, frame, 1.0).search(
-        PlayerB([ball], frame), method="pso", particles=4, iterations=2, starts=6, steps=60,
-        learning_rate=0.05, rng=np.random.default_rng(0), seed=0, canonical=20, polish=10,
-    )  # fmt: skip
+        PlayerB([ball], frame), solver, rng=np.random.default_rng(0), seed=0
+    )
     tilt = np.degrees(np.arccos(min(1.0, np.abs(_view(q)).max())))
     assert tilt < 0.1 and value > 0

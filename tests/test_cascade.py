@@ -18,27 +18,14 @@ from sieve_mi.cascade.size import inscribed_radius, passage_radius
 from sieve_mi.cascade.sort import sort_mixture
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.testing.settings import CASCADE_SOLVER, TINY_LAYOUT, settings_toml
 
-SMALL = """
-[fabrication]
-tolerance = 0.5
-[solver]
-particles = 3
-iterations = 1
-starts = 4
-steps = 30
-resolution = 64
-canonical = 6
-polish = 0
-[verdict]
-starts = 16
-steps = 100
-resolution = 96
-[layout]
-rounds = 1
-alternatives = 0
-restarts = 0
-"""
+SMALL = settings_toml(
+    fabrication={"tolerance": 0.5},
+    solver=CASCADE_SOLVER,
+    verdict={"starts": 16, "steps": 100, "resolution": 96},
+    layout=TINY_LAYOUT,
+)
 
 
 def _mixture(tmp_path, meshes: dict, name="mix", extra="") -> str:

@@ -83,14 +83,14 @@ def test_clearance_uses_exactly_the_silhouette_edges(mi, seed):
     import drjit as dr
     from scipy.spatial import ConvexHull
 
-    from sieve_mi.geometry.rotations import quat_rows, random_uniform, to_matrix
+    from sieve_mi.geometry.rotations import random_uniform, to_matrix
 
     b = sphere(8.0, 2)
     obj = ClearanceObjective([b], Frame.covering(9.0, 128))
     obj.bind(np.zeros(1, int))
     q = random_uniform(1, np.random.default_rng(seed))[0]
-    rows = quat_rows(*(mi.Float(float(v)) for v in q))
-    keep = dr.gather(mi.UInt32, obj._pairs[1], obj._active_pairs(rows)).numpy()
+    qa = tuple(mi.Float(float(v)) for v in q)
+    keep = dr.gather(mi.UInt32, obj.pairs[1], obj.active_pairs(qa)).numpy()
     r = to_matrix(q)[:2]
     a = np.stack([c.numpy() for c in (obj.a.x, obj.a.y, obj.a.z)], 1)[keep] @ r.T
     d = np.stack([c.numpy() for c in (obj.d.x, obj.d.y, obj.d.z)], 1)[keep] @ r.T
@@ -103,7 +103,7 @@ def test_clearance_uses_exactly_the_silhouette_edges(mi, seed):
 
 
 def test_expand_ranges_lists_every_range_in_order(mi):
-    from sieve_mi.objectives.clearance import expand_ranges
+    from sieve_mi.objectives.edges import expand_ranges
 
     out = expand_ranges(mi.UInt32([3, 10, 20]), mi.UInt32([2, 3, 1]))
     assert np.array(out).tolist() == [3, 4, 10, 11, 12, 20]
@@ -111,7 +111,7 @@ def test_expand_ranges_lists_every_range_in_order(mi):
 
 
 def test_pose_ranges_lists_each_poses_items_in_order(mi):
-    from sieve_mi.objectives.clearance import pose_ranges
+    from sieve_mi.objectives.edges import pose_ranges
 
     pose, item = pose_ranges(np.array([3, 10, 7, 0]), np.array([2, 0, 3, 1]))
     assert np.array(pose).tolist() == [0, 0, 2, 2, 2, 3]
@@ -133,7 +133,7 @@ def test_bound_pairs_are_every_poses_segments_and_edges(mi, cube20):
     obj = ClearanceObjective(shapes, Frame(128, 20.0))
     pose_shape = np.array([2, 0, 0, 1, 2, 1, 0])
     obj.bind(pose_shape)
-    e = obj._edges
+    e = obj.edge_table
     want_pose, want_seg, want_epose, want_edge, want_first, want_pieces = [], [], [], [], [], []
     first_pair = 0
     for k, sh in enumerate(pose_shape):
@@ -146,7 +146,7 @@ def test_bound_pairs_are_every_poses_segments_and_edges(mi, cube20):
         want_first += (first_pair + e["first_local"][edges]).tolist()
         want_pieces += e["pieces"][edges].tolist()
         first_pair += len(segs)
-    got = [np.array(a).tolist() for a in (*obj._pairs, *obj._edge_pairs)]
+    got = [np.array(a).tolist() for a in (*obj.pairs, *obj.edge_pairs)]
     want = [want_pose, want_seg, want_epose, want_edge, want_first, want_pieces]
     for g, w in zip(got, want):
         assert g == w
@@ -160,7 +160,7 @@ def test_per_edge_silhouette_test_keeps_exactly_the_per_segment_pairs(mi, cube20
     import trimesh
 
     from sieve_mi.geometry.meshes import shape_from_trimesh
-    from sieve_mi.geometry.rotations import normalize, quat_rows
+    from sieve_mi.geometry.rotations import normalize
 
     torus = shape_from_trimesh(trimesh.creation.torus(8.0, 2.5), name="torus")
     open_box = trimesh.creation.box((10.0, 6.0, 4.0))
@@ -173,7 +173,7 @@ def test_per_edge_silhouette_test_keeps_exactly_the_per_segment_pairs(mi, cube20
     pose_shape = rng.integers(0, len(shapes), size=300)
     obj.bind(pose_shape)
     q = normalize(rng.normal(size=(300, 4)))
-    rows = quat_rows(*[mi.Float(q[:, i].astype(np.float32)) for i in range(4)])
-    fast = np.array(obj._active_pairs(rows))
-    slow = np.array(mi.UInt32(__import__("drjit").compress(obj._silhouette_flags(rows))))
+    qa = tuple(mi.Float(q[:, i].astype(np.float32)) for i in range(4))
+    fast = np.array(obj.active_pairs(qa))
+    slow = np.array(mi.UInt32(__import__("drjit").compress(obj.silhouette_flags(qa))))
     assert len(fast) > 1000 and np.array_equal(fast, slow)

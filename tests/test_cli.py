@@ -10,7 +10,9 @@ import sys
 import numpy as np
 import pytest
 import trimesh
-from helpers import TINY
+
+from sieve_mi.errors import SieveError
+from sieve_mi.testing.settings import TINY
 
 SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
 
@@ -237,3 +239,161 @@ def test_awkward_but_valid_meshes_are_accepted(name):
 
     s = load_shape(os.path.join(SCENES, "meshes", name))
     assert s.face_count > 0 and s.radius > 0
+
+
+# --- check's and certify's settings options: built from sieve_mi.scene, checked like its keys ---
+
+#: (command, option, bad value, words of the message after "sieve-mi: error: COMMAND: OPTION: ").
+BAD_OPTIONS = [
+    *[
+        ("check", "--learning-rate", v, w)
+        for v, w in [
+            ("0", "must be > 0"),
+            ("-1", "must be > 0"),
+            ("nan", "finite number"),
+            ("inf", "finite number"),
+            ("1e300", "must be <= 1.0"),
+            ("fast", "expected a number, got 'fast'"),
+        ]
+    ],
+    ("check", "--resolution", "8", "must be >= 16"),
+    ("check", "--resolution", "5000", "must be <= 4096"),
+    ("check", "--resolution", "1.5", "expected a whole number"),
+    ("check", "--seed", "-1", "must be >= 0"),
+    ("check", "--seed", "1e3", "expected a whole number"),
+    ("check", "--starts", "0", "must be >= 1"),
+    ("check", "--steps", "0", "must be >= 1"),
+    ("check", "--fit-tolerance", "0", "must be > 0"),
+    ("check", "--fit-tolerance", "1", "must be < 1"),
+    ("check", "--fit-tolerance", "nan", "finite number"),
+    ("check", "--scale", "0", "must be > 0"),
+    ("check", "--scale", "inf", "finite number"),
+    ("check", "--scale", "1e300", "must be <="),
+    ("check", "--pixel-size", "-1", "must be > 0"),
+    ("check", "--pixel-size", "nan", "finite number"),
+    ("check", "--pixel-size", "1e300", "must be <="),
+    ("check", "--axis", "w", "'w' is not one of: x, y, z"),
+    ("check", "--units", "", "non-empty string"),
+    ("certify", "--budget", "0", "must be > 0"),
+    ("certify", "--budget", "-1", "must be > 0"),
+    ("certify", "--budget", "nan", "finite number"),
+    ("certify", "--budget", "inf", "finite number"),
+    ("certify", "--scale", "-2", "must be > 0"),
+    ("certify", "--axis", "q", "is not one of"),
+]
+
+
+def _command_line(tmp_path, command: str, option: str, value: str) -> tuple[list[str], str]:
+    """A command line with one bad option, and the output it must not write."""
+    from PIL import Image
+
+    trimesh.creation.box((10, 10, 10)).export(str(tmp_path / "cube.stl"))
+    img = np.zeros((40, 40), np.uint8)
+    img[5:35, 5:35] = 255
+    Image.fromarray(img).save(tmp_path / "h.png")
+    (tmp_path / "h.svg").write_text("<svg/>")
+    cube = str(tmp_path / "cube.stl")
+    if command == "check":
+        out = str(tmp_path / "o")
+        head = ["check", cube, "--hole", str(tmp_path / "h.png"), "--pixel-size", "0.5"]
+        return [*head, "--steps", "5", "--out", out, option, value], out
+    out = str(tmp_path / "cert.json")
+    return [
+        "certify",
+        cube,
+        "--hole",
+        str(tmp_path / "h.svg"),
+        "--certificate",
+        out,
+        option,
+        value,
+    ], out
+
+
+@pytest.mark.parametrize("command, option, value, words", BAD_OPTIONS)
+def test_bad_setting_options_fail_with_one_line(tmp_path, capsys, command, option, value, words):
+    from sieve_mi.cli import main
+
+    argv, out = _command_line(tmp_path, command, option, value)
+    assert main(argv) == 2
+    err = capsys.readouterr()
+    lines = [ln for ln in err.err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err.err
+    assert lines[0].startswith(f"sieve-mi: error: {command}: {option}: "), lines[0]
+    assert words in lines[0] and err.out == ""
+    assert not os.path.exists(out)
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "inf", "1e300"])
+def test_check_refuses_a_bad_learning_rate_in_one_line(tmp_path, value):
+    # Before: 0 reported a passing cube as blocked (Adam never moved); the others crashed.
+    argv, out = _command_line(tmp_path, "check", "--learning-rate", value)
+    _assert_clean_error(run_cli(*argv), "check: --learning-rate: ", out=out)
+
+
+def test_a_bad_option_gets_the_message_of_a_bad_scene_key(tmp_path):
+    from sieve_mi.scene import Check, read_value
+
+    scene = tmp_path / "s.toml"
+    scene.write_text('[[pass]]\nmesh = "a.stl"\n[[block]]\nmesh = "a.stl"\n[solver]\nsteps = -2\n')
+    p = run_cli("solve", str(scene), "--out", str(tmp_path / "o"))
+    _assert_clean_error(p, f"{scene}: solver.steps: must be >= 0, got -2")
+    argv, _ = _command_line(tmp_path, "check", "--steps", "-2")
+    _assert_clean_error(run_cli(*argv), "check: --steps: must be >= 1, got -2")
+    with pytest.raises(SieveError, match=r"^check: --steps: must be >= 1, got -2$"):
+        read_value(Check, "steps", -2, "check", "--steps")
+
+
+def test_check_and_certify_options_keep_their_defaults(capsys):
+    from dataclasses import asdict
+
+    from sieve_mi.cli import main
+    from sieve_mi.game.check import CheckSettings
+    from sieve_mi.scene import Check, Verdict
+
+    # The options' defaults are the declarations' (and what they were before).
+    assert asdict(Check()) == {
+        "starts": 100, "steps": 500, "learning_rate": 0.05, "resolution": 256, "seed": 0,
+        "fit": True, "fit_tolerance": 0.01,
+    }  # fmt: skip
+    assert CheckSettings is Check and Verdict().certify_budget == 30.0
+    helps = {
+        "check": [
+            "random starts of the fitting search (int ≥ 1, default 100)",
+            "Adam steps per start (int ≥ 1, default 500)",
+            "Adam's learning rate (number > 0 ≤ 1.0, default 0.05)",
+            "(int 16–4096, default 256)",
+            "random seed (int ≥ 0, default 0)",
+            "--no-fit turn off the fit-scale search",
+            "(number > 0 < 1, default 0.01)",
+            "one of x, y, z (default z)",
+            "(number > 0 ≤ 1000000, default 1.0)",
+            "(default mm)",
+        ],
+        "certify": ["time budget of each proof, seconds (number > 0, default 30.0)"],
+    }
+    for command, defaults in helps.items():
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        assert all(d in text for d in defaults), (command, text)
+
+
+def test_check_options_make_the_check_settings():
+    from dataclasses import asdict
+
+    from sieve_mi.cli import _check_settings, _parser
+    from sieve_mi.scene import Check
+
+    args = _parser().parse_args(["check", "a.stl", "--sieve", "p.stl"])
+    _check_settings(args)
+    assert {k: getattr(args, k) for k in asdict(Check())} == asdict(Check())
+    assert (args.scale, args.axis, args.pixel_size, args.units) == (1.0, "z", None, "mm")
+    argv = ["check", "a.stl", "--sieve", "p.stl", "--no-fit", "--learning-rate", "0.1"]
+    args = _parser().parse_args([*argv, "--starts", "7", "--axis", "x"])
+    _check_settings(args)
+    assert (args.fit, args.learning_rate, args.starts, args.axis) == (False, 0.1, 7, "x")
+    assert type(args.learning_rate) is float and type(args.starts) is int
+    args = _parser().parse_args(["certify", "a.stl", "--hole", "h.svg", "--budget", "5"])
+    _check_settings(args)
+    assert args.certify_budget == 5.0

@@ -111,7 +111,6 @@ def test_the_fixed_size_loss_equals_the_loss(mi, shapes, per_edge):
     import drjit as dr
 
     from sieve_mi.geometry.hole import HoleStack
-    from sieve_mi.geometry.rotations import quat_rows
     from sieve_mi.objectives import make_objective
 
     obj = make_objective("clearance", shapes, FRAME)
@@ -123,13 +122,12 @@ def test_the_fixed_size_loss_equals_the_loss(mi, shapes, per_edge):
     ta = tuple(mi.Float(rng(10).uniform(-0.3, 0.3, k).astype(np.float32)) for _ in range(2))
     stack, ph = HoleStack(_holes()), mi.UInt32(np.arange(k, dtype=np.uint32) % 2)
     capacity = obj.capacity(qa)
-    rows = quat_rows(*qa)
-    want = obj._active_pairs(rows).numpy()
-    buffer, count, overflow = obj._active_fixed(rows, capacity)
+    want = obj.active_pairs(qa).numpy()
+    buffer, count, overflow = obj.active_fixed(qa, capacity)
     assert not bool(overflow[0]) and 0 < len(want) < capacity
     np.testing.assert_array_equal(buffer.numpy()[: len(want)], want)
     assert not buffer.numpy()[len(want) :].any()
-    poses = obj._pairs[0].numpy()[want]
+    poses = obj.pairs[0].numpy()[want]
     np.testing.assert_array_equal(count.numpy(), np.bincount(poses, minlength=k))
     total, per = obj.loss(qa, ta, stack, ph)
     total_f, per_f, overflow = obj.loss_fixed(qa, ta, stack, ph, capacity)

@@ -147,13 +147,15 @@ def test_every_outer_method_solves_end_to_end(write_scene, outer):
     # three canonical (face-on) views; the search's value is the polish's final one.
     from sieve_mi.api import solve
     from sieve_mi.scene import load_scene
+    from sieve_mi.testing.settings import TINY_SOLVER, TINY_VERDICT, settings_toml
 
     ball = trimesh.creation.icosphere(2, 16.0)
     cube = trimesh.creation.box((20.0, 20.0, 20.0))
     path = write_scene(
         'name = "t"\n[[pass]]\nmesh = "meshes/cube.stl"\n[[block]]\nmesh = "meshes/ball.stl"\n'
-        f'[solver]\nouter = "{outer}"\nresolution = 64\nparticles = 3\niterations = 1\n'
-        "starts = 4\nsteps = 20\n[verdict]\nstarts = 8\nsteps = 40\nresolution = 64\n",
+        + settings_toml(
+            solver={"outer": outer, **TINY_SOLVER}, verdict={**TINY_VERDICT, "resolution": 64}
+        ),
         {"cube.stl": cube, "ball.stl": ball},
     )
     r = solve(load_scene(path), progress=False)

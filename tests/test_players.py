@@ -9,6 +9,7 @@ from helpers import rng, sphere
 from sieve_mi.game.players import PlayerA, PlayerB
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.optim import nlopt_maximise, particle_swarm
+from sieve_mi.testing.settings import tiny_solver
 
 
 def _cube_hole(cube20, resolution=128):
@@ -86,17 +87,8 @@ def test_player_a_search_prefers_the_face_on_cube(cube20):
     f = Frame.covering(cube20.radius + 1.0, 96)
     a = PlayerA(cube20, f, tolerance=1.0)
     b = PlayerB([sphere(12.0, 2)], f)
-    q, value, history = a.search(
-        b,
-        method="pso",
-        particles=8,
-        iterations=4,
-        starts=6,
-        steps=60,
-        learning_rate=0.05,
-        rng=rng(3),
-        seed=3,
-    )
+    solver = tiny_solver(particles=8, iterations=4, starts=6, steps=60)
+    q, value, history = a.search(b, solver, rng=rng(3), seed=3)
     assert value > 0
     assert len(history.best) == 5
 
@@ -143,3 +135,18 @@ def test_attack_memory_replays_a_remembered_passage(cube20):
     warm = b.attack([hole], starts=2, steps=0, learning_rate=0.05, rng=rng(5), memory=memory)
     assert warm.beta[0, 0] == 0.0 and warm.fits[0, 0] == 1
     assert len(memory.poses(0)[0]) == 2 and memory.poses(0)[0][0].tolist() == [1.0, 0, 0, 0]
+
+
+def test_player_b_objective_is_public_and_made_once(cube20):
+    from sieve_mi.objectives.clearance import ClearanceObjective
+    from sieve_mi.scene import Solver
+
+    f, _, hole = _cube_hole(cube20, 64)
+    b = PlayerB([sphere(12.0, 2)], f)
+    assert b.objective_name == "clearance" and b._loss is None  # made on first use
+    assert isinstance(b.objective, ClearanceObjective) and b.objective is b.objective
+    b.attack([hole], starts=2, steps=2, learning_rate=0.05, rng=rng(0))
+    assert b.objective is b._loss  # the descent used this one
+    other = PlayerB.from_settings([sphere(12.0, 2)], f, Solver(objective="overlap", freeze=False))
+    assert (other.objective_name, other.freeze) == ("overlap", False)
+    assert PlayerB.from_settings([], f, Solver(), objective="clearance").freeze is True

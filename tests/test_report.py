@@ -11,6 +11,7 @@ import pytest
 from sieve_mi.api import solve
 from sieve_mi.outputs.report import paste_window, report_dict, summary_table, write_outputs
 from sieve_mi.scene import load_scene
+from sieve_mi.testing.settings import TINY_SOLVER, TINY_VERDICT, settings_toml
 
 MESHES = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
 SCENE = f"""name = "report test"
@@ -20,17 +21,7 @@ mesh = "{MESHES}/cube.stl"
 mesh = "{MESHES}/sphere.stl"
 [[block]]
 mesh = "{MESHES}/small_sphere.stl"
-[solver]
-resolution = 64
-particles = 3
-iterations = 1
-starts = 4
-steps = 20
-[verdict]
-starts = 8
-steps = 60
-resolution = 96
-"""
+""" + settings_toml(solver=TINY_SOLVER, verdict={**TINY_VERDICT, "steps": 60})
 
 
 @pytest.fixture(scope="module")

@@ -12,13 +12,14 @@ import sys
 import numpy as np
 import pytest
 import trimesh
-from helpers import TINY, sphere
+from helpers import sphere
 
 from sieve_mi.game.players import PlayerA
 from sieve_mi.geometry.hole import HoleStack
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import random_uniform
 from sieve_mi.objectives.clearance import ClearanceObjective
+from sieve_mi.testing.settings import TINY
 
 SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
 MESHES = os.path.abspath(os.path.join(SCENES, "meshes"))
@@ -87,7 +88,7 @@ def test_per_pose_loss_equals_the_sum_over_its_samples(mi, cube20):
     pts = np.concatenate([a_ + d_ * (j + 0.5) / 4 for j in range(4)])
     assert len(pts) == 4 * 4 * int(np.ceil(26 / f.pixel_size / 4))  # 4 edges, <= 4 px segments
     x, y = (mi.Float(pts[:, i].astype(np.float32)) for i in (0, 1))
-    d = obj._lookup(x, y, stack, mi.UInt32(0))[0].numpy().astype(np.float64)
+    d = obj.hole_distance(x, y, stack, mi.UInt32(0))[0].numpy().astype(np.float64)
     assert d.min() > 0  # the whole outline is outside the 22 mm hole
     assert per[0] == pytest.approx(np.sum(d * d), rel=1e-5)
 

@@ -529,3 +529,101 @@ def test_class_docstrings_list_every_key():
     for cls in [ShapeEntry, *(value_types(Scene)[f.name] for f in scene.table_fields())]:
         for f in fields(cls):
             assert f"\n    {f.name} : " in cls.__doc__, (cls.__name__, f.name)
+
+
+# --- settings given outside a scene file (sieve-mi check, certify) ----------------------------
+
+
+@pytest.mark.parametrize(
+    "table, key, value",
+    [
+        ("solver", "learning_rate", "0"),
+        ("solver", "particles", "2.5"),
+        ("solver", "outer", '"newton"'),
+        ("verdict", "resolution", "8"),
+        ("verdict", "certify_budget", "nan"),
+        ("fabrication", "fill_holes", "1"),
+    ],
+)
+def test_read_value_gives_the_message_of_a_scene_key(tmp_path, table, key, value):
+    # One checker for both: a value given elsewhere (a command-line option) gets the message a
+    # scene file's key gets, with the option's name for the key.
+    message = _error(tmp_path, MINIMAL + f"[{table}]\n{key} = {value}\n")
+    cls = value_types(Scene)[table]
+    given = tomllib.loads(f"v = {value}")["v"]
+    with pytest.raises(SieveError) as exc:
+        scene.read_value(cls, key, given, "cmd", f"--{key}")
+    assert str(exc.value) == "cmd: " + message.replace(f"{table}.{key}:", f"--{key}:")
+
+
+def test_read_value_converts_like_the_reader():
+    assert scene.read_value(scene.Check, "starts", 3.0, "check") == 3
+    assert type(scene.read_value(scene.Check, "learning_rate", 1, "check")) is float
+    with pytest.raises(SieveError, match=r"^check: starts: expected a whole number, got '3x'$"):
+        scene.read_value(scene.Check, "starts", "3x", "check")
+
+
+def test_an_exclusive_maximum_is_checked_and_described():
+    f = scene.field_of(scene.Check, "fit_tolerance")
+    assert spec_of(f).exclusive_max and scene.describe(scene.Check, f) == "number > 0 < 1"
+    assert scene.read_value(scene.Check, "fit_tolerance", 0.999, "x") == 0.999
+    with pytest.raises(SieveError, match=r"^x: fit_tolerance: must be < 1, got 1.0$"):
+        scene.read_value(scene.Check, "fit_tolerance", 1.0, "x")
+    lr = scene.field_of(scene.Check, "learning_rate")
+    assert scene.describe(scene.Check, lr) == "number > 0 ≤ 1.0"
+
+
+def test_check_settings_are_declared_once(tmp_path):
+    # check's budget is the verdict's, its learning rate and seed the solver's: one default each.
+    check, verdict, solver = scene.Check(), scene.Verdict(), scene.Solver()
+    assert (check.starts, check.steps, check.resolution) == (
+        verdict.starts,
+        verdict.steps,
+        verdict.resolution,
+    )
+    assert (check.learning_rate, check.seed) == (solver.learning_rate, solver.seed)
+    same = {"starts": scene.Verdict, "resolution": scene.Verdict, "learning_rate": scene.Solver}
+    for name, cls in same.items():
+        assert spec_of(scene.field_of(scene.Check, name)).minimum == (
+            spec_of(scene.field_of(cls, name)).minimum
+        )
+    assert scene.CheckInputs().scale == ShapeEntry.__dataclass_fields__["scale"].default
+    # Neither is a table of a scene file.
+    assert {scene.Check, scene.CheckInputs}.isdisjoint(
+        value_types(Scene)[f.name] for f in scene.table_fields()
+    )
+    assert _error(tmp_path, MINIMAL + "[check]\nstarts = 3\n").startswith("check: unknown key")
+
+
+def test_the_pso_default_lives_in_one_place():
+    import inspect
+
+    from sieve_mi.optim import PSO_COEFFICIENT, particle_swarm
+
+    defaults = inspect.signature(particle_swarm).parameters
+    s = scene.Solver()
+    assert (s.inertia, s.c_personal, s.c_global) == (PSO_COEFFICIENT,) * 3
+    assert all(
+        defaults[k].default == PSO_COEFFICIENT for k in ("inertia", "c_personal", "c_global")
+    )
+
+
+def test_the_testing_settings_are_valid_scene_settings(tmp_path):
+    from sieve_mi.testing import settings
+
+    s = load_scene(_write(tmp_path, MINIMAL + settings.TINY))
+    assert {k: getattr(s.solver, k) for k in settings.TINY_SOLVER} == dict(settings.TINY_SOLVER)
+    assert {k: getattr(s.verdict, k) for k in settings.TINY_VERDICT} == dict(settings.TINY_VERDICT)
+    text = settings.settings_toml(
+        solver={**settings.CASCADE_SOLVER, "outer": "crs2", "freeze": False},
+        layout=settings.TINY_LAYOUT,
+    )
+    s = load_scene(_write(tmp_path, MINIMAL + text))
+    assert (s.solver.outer, s.solver.freeze, s.solver.canonical, s.layout.restarts) == (
+        "crs2",
+        False,
+        6,
+        0,
+    )
+    tiny = settings.tiny_solver(particles=8)
+    assert (tiny.particles, tiny.steps, tiny.canonical, tiny.polish) == (8, 20, 0, 0)

@@ -13,7 +13,6 @@ import manifold3d
 import numpy as np
 import pytest
 import trimesh
-from helpers import TINY
 
 from sieve_mi.api import solve
 from sieve_mi.geometry.outline import is_closed, placed_vertices, rasterize, silhouette
@@ -21,6 +20,7 @@ from sieve_mi.geometry.raster import Frame
 from sieve_mi.outputs import animation, viewer
 from sieve_mi.outputs.passage import Passage, build
 from sieve_mi.scene import load_scene
+from sieve_mi.testing.settings import TINY
 
 MESHES = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
 # Several A shapes merged into one hole (A wins: the 24 mm sphere is blocked) ...

@@ -35,6 +35,7 @@ from sieve_mi.geometry.hole import Hole, split_pieces
 from sieve_mi.geometry.meshes import Shape, load_trimesh
 from sieve_mi.geometry.outline import filled, placed_vertices, projection, union
 from sieve_mi.geometry.raster import Frame
+from sieve_mi.scene import AXIS_NAMES, Check
 
 __all__ = [
     "AXES",
@@ -53,34 +54,13 @@ __all__ = [
     "summary",
 ]
 
-AXES = {"x": 0, "y": 1, "z": 2}
+#: The index of each plate axis (``--axis``) among x, y, z.
+AXES = {name: i for i, name in enumerate(AXIS_NAMES)}
 
-
-@dataclass
-class CheckSettings:
-    """Player B's budget for one check (the verdict's defaults) and the fit-scale search.
-
-    Attributes
-    ----------
-    starts, steps : int
-        Random starts and Adam steps per evaluation.
-    learning_rate : float
-    resolution : int
-        Raster side in pixels for sieves given as meshes.
-    seed : int
-    fit : bool
-        Also find the fit scale.
-    fit_tolerance : float
-        Relative width of the final fit-scale bracket.
-    """
-
-    starts: int = 100
-    steps: int = 500
-    learning_rate: float = 0.05
-    resolution: int = 256
-    seed: int = 0
-    fit: bool = True
-    fit_tolerance: float = 0.01
+#: Player B's budget for one check (the verdict's defaults) and the fit-scale search: the
+#: settings of ``sieve-mi check``, declared once (defaults, ranges, meanings) as
+#: :class:`sieve_mi.scene.Check`, whose ``--options`` the command line is built from.
+CheckSettings = Check
 
 
 @dataclass

@@ -314,19 +314,15 @@ def place(
     base: np.ndarray,
     quat: np.ndarray,
     *,
-    particles: int,
-    iterations: int,
-    starts: int,
-    steps: int,
-    learning_rate: float,
-    settings: Layout,
+    solver: Solver,
+    layout: Layout,
     rng: np.random.Generator,
     progress: Callable[[int, float], None] | None = None,
     recheck: tuple[int, int] | None = None,
     finalists: int = FINALISTS,
     screen: int = SCREEN,
     memory: AttackMemory | None = None,
-    rounds: int = 3,
+    rounds: int | None = None,
 ):
     """Place one more A shape into a hole (one step of the sequential scheme).
 
@@ -340,12 +336,11 @@ def place(
         The current hole (dilated, filled).
     quat : (4,) ndarray
         The shape's best rotation when it was solved alone.
-    particles, iterations : int
-        Placement swarm size and iterations.
-    starts, steps, learning_rate :
-        Player B's attack settings for every candidate hole.
-    settings : sieve_mi.scene.Layout
-        Eq. 14's tau, rho, eta, alpha and the swarm's accelerations.
+    solver : sieve_mi.scene.Solver
+        Its ``particles`` and ``iterations`` are the placement swarm's; its ``starts``,
+        ``steps`` and ``learning_rate`` player B's attack on every candidate hole.
+    layout : sieve_mi.scene.Layout
+        Eq. 14's tau, rho, eta, alpha, the swarm's accelerations and ``rounds``.
     rng, progress :
         Random generator; per-iteration callback of the swarm.
     recheck : (int, int), optional
@@ -359,23 +354,25 @@ def place(
         the best ``particles`` of them start the swarm.
     memory : AttackMemory, optional
         B's best poses so far (shared across placements); every attack starts from them too.
-    rounds : int
-        Screening + swarm + re-ranking is repeated (at most this many times) while every
-        re-ranked placement still lets some B through; each round's attacks start from the
-        passing poses the previous rounds found.
+    rounds : int, optional
+        Screening + swarm + re-ranking is repeated (at most this many times, default
+        ``layout.rounds``) while every re-ranked placement still lets some B through; each
+        round's attacks start from the passing poses the previous rounds found.
 
     Returns
     -------
     Placement
     """
     reach = player.frame.half_extent / 2.0  # centres stay within the largest radius of the origin
+    starts, steps, particles = solver.starts, solver.steps, solver.particles
     if memory is None:
         memory = AttackMemory.for_starts(len(player_b.shapes), starts)
-    game = _PlacementGame(player, player_b, base, reach, memory, settings, learning_rate, rng)
+    game = _PlacementGame(player, player_b, base, reach, memory, layout, solver.learning_rate, rng)
     pool = _candidate_pool(player, base, quat, reach, screen * particles)
     recheck = recheck if recheck is not None else (3 * starts, 3 * steps)
+    rounds = layout.rounds if rounds is None else rounds
     return game.play(
-        pool, particles, iterations, (starts, steps), recheck, finalists, rounds, progress
+        pool, particles, solver.iterations, (starts, steps), recheck, finalists, rounds, progress
     )
 
 
@@ -641,10 +638,8 @@ def merge(
 
         def place_one(base, q, rounds, _i=i, _label=label):
             return place(
-                players[_i], player_b, base, q, particles=solver.particles,
-                iterations=solver.iterations, starts=solver.starts, steps=solver.steps,
-                learning_rate=solver.learning_rate, settings=layout, rng=rng, progress=_label,
-                memory=memory, recheck=recheck, rounds=rounds,
+                players[_i], player_b, base, q, solver=solver, layout=layout, rng=rng,
+                progress=_label, memory=memory, recheck=recheck, rounds=rounds,
             )  # fmt: skip
 
         kept, kept_base = _best_try(

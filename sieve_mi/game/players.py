@@ -28,7 +28,7 @@ from sieve_mi.geometry.rotations import (
     to_rotvec,
 )
 from sieve_mi.geometry.silhouettes import SilhouetteRenderer
-from sieve_mi.objectives import OBJECTIVES, make_objective
+from sieve_mi.objectives import OBJECTIVES, Objective, make_objective
 from sieve_mi.optim import (
     POSE_KEYS,
     QUAT_KEYS,
@@ -37,6 +37,7 @@ from sieve_mi.optim import (
     pose_adam,
     renormalise_quaternions,
 )
+from sieve_mi.scene import Fabrication, Solver
 
 __all__ = ["CPU_FREEZE_PAIRS", "PlayerA", "PlayerB"]
 
@@ -101,16 +102,30 @@ class PlayerB:
             raise ValueError(f"unknown objective {objective!r}")
         self.shapes = shapes
         self.frame = frame
-        self.objective = objective
+        #: The objective's name (a key of :data:`sieve_mi.objectives.OBJECTIVES`).
+        self.objective_name = objective
         self.renderers = [SilhouetteRenderer(s) for s in shapes]
         self._samples = samples_per_segment
         self._loss = None
         self.freeze = bool(freeze)
         self._frozen = None
 
-    def _loss_fn(self):
+    @classmethod
+    def from_settings(
+        cls, shapes: list[Shape], frame: Frame, solver: Solver, objective: str | None = None
+    ) -> PlayerB:
+        """Player B with the ``[solver]`` table's ``objective`` (unless given) and ``freeze``."""
+        return cls(shapes, frame, objective or solver.objective, freeze=solver.freeze)
+
+    @property
+    def objective(self) -> Objective:
+        """The objective bound to this player's shapes and frame, made on first use.
+
+        Its :meth:`~sieve_mi.objectives.Objective.loss` is what Adam minimises (see
+        :mod:`sieve_mi.objectives`); each descent binds it to its poses first.
+        """
         if self._loss is None:
-            self._loss = make_objective(self.objective, self.shapes, self.frame, self._samples)
+            self._loss = make_objective(self.objective_name, self.shapes, self.frame, self._samples)
         return self._loss
 
     def attack(
@@ -248,7 +263,7 @@ class PlayerB:
 
         from sieve_mi.geometry.hole import HoleStack
 
-        loss = self._loss_fn()
+        loss = self.objective
         stack = HoleStack(holes)
         loss.bind(pose_shape)
         scale = self.frame.half_extent
@@ -415,6 +430,11 @@ class PlayerA:
         self.fill_holes = fill_holes
         self.renderer = SilhouetteRenderer(shape)
 
+    @classmethod
+    def from_settings(cls, shape: Shape, frame: Frame, fabrication: Fabrication) -> PlayerA:
+        """Player A with the ``[fabrication]`` table's ``tolerance`` and ``fill_holes``."""
+        return cls(shape, frame, fabrication.tolerance, fabrication.fill_holes)
+
     def silhouettes(self, quats: np.ndarray, trans: np.ndarray | None = None) -> np.ndarray:
         """A's silhouettes on the frame for K poses, (K, N, N) bool (translations default to zero)."""
         quats = np.atleast_2d(normalize(quats))
@@ -450,36 +470,35 @@ class PlayerA:
     def search(
         self,
         player_b: PlayerB,
+        solver: Solver,
         *,
-        method: str,
-        particles: int,
-        iterations: int,
-        starts: int,
-        steps: int,
-        learning_rate: float,
         rng: np.random.Generator,
-        seed: int,
-        inertia: float = 0.25,
-        c_personal: float = 0.25,
-        c_global: float = 0.25,
+        seed: int | None = None,
         progress: Callable[[int, float], None] | None = None,
-        canonical: int = 0,
-        polish: int = 0,
         stage: Callable[[str], None] | None = None,
     ):
         """Global search over A's rotation: canonical views, then the swarm, then a local polish.
 
         Parameters
         ----------
-        canonical : int
-            Canonical views to evaluate first (:mod:`sieve_mi.geometry.canonical`); the best of them start
-            half of the swarm's particles (nlopt: the best one is its starting point).
-        polish : int
-            Rounds of :meth:`polish` after the global method (0: none).
+        player_b : PlayerB
+            The shapes to block, on this player's frame.
+        solver : sieve_mi.scene.Solver
+            The ``[solver]`` table: ``outer`` (PSO or an nlopt method) with ``particles``,
+            ``iterations``, ``inertia``, ``c_personal`` and ``c_global``; B's ``starts``, ``steps``
+            and ``learning_rate`` for every evaluation; ``canonical`` views evaluated first
+            (:mod:`sieve_mi.geometry.canonical`; the best of them start half of the swarm's
+            particles, nlopt starts from the best one); ``polish`` rounds of :meth:`polish` after
+            the global method (0: none). Its ``resolution``, ``objective`` and ``freeze`` are
+            the frame's and player B's.
+        rng : numpy.random.Generator
+        seed : int, optional
+            Seed of nlopt's own generator and of the polish's common starts (default
+            ``solver.seed``).
+        progress : callable, optional
+            Called as ``progress(iteration, best)`` by the global method.
         stage : callable, optional
             Called with "canonical", "swarm" and "polish" as each stage starts (progress bars).
-
-        Other parameters are the ``[solver]`` settings of the same names.
 
         Returns
         -------
@@ -492,28 +511,25 @@ class PlayerA:
             the polish's record.
         """
 
+        s = solver
+        seed = s.seed if seed is None else seed
+
         def evaluate(qs: np.ndarray) -> np.ndarray:
-            return self.values(player_b, qs, starts, steps, learning_rate, rng)
+            return self.values(player_b, qs, s.starts, s.steps, s.learning_rate, rng)
 
         def say(name: str) -> None:
             if stage is not None:
                 stage(name)
 
-        if canonical > 0:
+        if s.canonical > 0:
             say("canonical")
-        seeds, evaluated = self._canonical_seeds(evaluate, canonical, max(1, particles // 2))
-        say("swarm" if method == "pso" else method)
-        q, f, history = self._global(
-            evaluate, seeds, method, particles, iterations, rng, seed,
-            (inertia, c_personal, c_global), progress,
-        )  # fmt: skip
+        seeds, evaluated = self._canonical_seeds(evaluate, s.canonical, max(1, s.particles // 2))
+        say("swarm" if s.outer == "pso" else s.outer)
+        q, f, history = self._global(evaluate, seeds, s, rng, seed, progress)
         history.evaluations += evaluated
-        if polish > 0:
+        if s.polish > 0:
             say("polish")
-            q, f, history.polish = self.polish(
-                player_b, q, starts=starts, steps=steps, learning_rate=learning_rate,
-                seed=seed, rounds=polish,
-            )  # fmt: skip
+            q, f, history.polish = self.polish(player_b, q, s, seed=seed)
         return q, f, history
 
     def values(self, player_b: PlayerB, quats, starts, steps, learning_rate, rng) -> np.ndarray:
@@ -537,20 +553,20 @@ class PlayerA:
         values = evaluate(views)
         return views[np.argsort(-values, kind="stable")[:keep]], len(views)
 
-    def _global(self, evaluate, seeds, method, particles, iterations, rng, seed, pso, progress):
-        """The swarm (or nlopt) over A's rotation, started from ``seeds`` where given."""
+    def _global(self, evaluate, seeds, solver: Solver, rng, seed: int, progress):
+        """The swarm (or nlopt) of ``solver`` over A's rotation, started from ``seeds`` where given."""
+        particles, iterations, method = solver.particles, solver.iterations, solver.outer
         if method == "pso":
             x0 = random_uniform(particles, rng)
             x0[: len(seeds)] = seeds[:particles]
-            inertia, c_personal, c_global = pso
             return particle_swarm(
                 evaluate,
                 x0,
                 iterations,
                 rng,
-                inertia,
-                c_personal,
-                c_global,
+                solver.inertia,
+                solver.c_personal,
+                solver.c_global,
                 project=normalize,
                 progress=progress,
             )
@@ -574,12 +590,9 @@ class PlayerA:
         self,
         player_b: PlayerB,
         quat: np.ndarray,
+        solver: Solver,
         *,
-        starts: int,
-        steps: int,
-        learning_rate: float,
-        seed: int,
-        rounds: int,
+        seed: int | None = None,
         first: float = 1.0,
         last: float = 0.05,
         gain: float = 0.01,
@@ -593,6 +606,21 @@ class PlayerA:
         least 1e-3: less is a pixel's worth of raster noise) is taken; otherwise the step is
         halved, from ``first`` down to ``last`` degrees.
 
+        Parameters
+        ----------
+        player_b : PlayerB
+        quat : (4,) ndarray
+            The rotation to start from.
+        solver : sieve_mi.scene.Solver
+            B's ``starts``, ``steps`` and ``learning_rate`` for every attack; at most ``polish``
+            rounds.
+        seed : int, optional
+            Seed of the common starts (default ``solver.seed``).
+        first, last : float
+            The first and the smallest tilt, degrees.
+        gain : float
+            Relative improvement a tilt must bring to be taken.
+
         Returns
         -------
         quat : (4,) ndarray
@@ -604,9 +632,13 @@ class PlayerA:
         """
         tilts = np.array([[1.0, 0, 0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0]])
 
+        seed, rounds = (solver.seed if seed is None else seed), solver.polish
+
         def values(qs):
             common = np.random.default_rng([int(seed), 0x501])
-            return self.values(player_b, qs, starts, steps, learning_rate, common)
+            return self.values(
+                player_b, qs, solver.starts, solver.steps, solver.learning_rate, common
+            )
 
         start = normalize(np.asarray(quat, dtype=np.float64))
         best, step, done = start, np.radians(first), 0

@@ -107,8 +107,8 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Ba
     """Player A's rotation for one shape alone against all of B (Secs. 5.1, 5.2)."""
     s, fab = scene.solver, scene.fabrication
     frame = hole_frame(a, fab.tolerance, s.resolution)
-    player_a = PlayerA(a, frame, fab.tolerance, fab.fill_holes)
-    player_b = PlayerB(blocks, frame, s.objective, freeze=s.freeze)
+    player_a = PlayerA.from_settings(a, frame, fab)
+    player_b = PlayerB.from_settings(blocks, frame, s)
 
     def report(it, best):
         step = "swarm" if s.outer == "pso" else s.outer
@@ -118,20 +118,10 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Ba
 
     return player_a.search(
         player_b,
-        method=s.outer,
-        particles=s.particles,
-        iterations=s.iterations,
-        starts=s.starts,
-        steps=s.steps,
-        learning_rate=s.learning_rate,
+        s,
         rng=rng,
         seed=seed,
-        inertia=s.inertia,
-        c_personal=s.c_personal,
-        c_global=s.c_global,
         progress=report,
-        canonical=s.canonical,
-        polish=s.polish,
         stage=lambda name: bar.update(0, stage=f"{label}: {name}"),
     )
 
@@ -225,8 +215,8 @@ def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: _Bar):
     """Several A in one hole: the placements of :func:`sieve_mi.game.layout.merge` on the union frame."""
     s, fab = scene.solver, scene.fabrication
     frame = union_frame([p.radius for p in passes], fab.tolerance, s.resolution)
-    players = [PlayerA(p, frame, fab.tolerance, fab.fill_holes) for p in passes]
-    player_b = PlayerB(blocks, frame, s.objective, freeze=s.freeze)
+    players = [PlayerA.from_settings(p, frame, fab) for p in passes]
+    player_b = PlayerB.from_settings(blocks, frame, s)
     return merge(
         players,
         player_b,

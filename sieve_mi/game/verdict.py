@@ -166,7 +166,7 @@ def judge(
     else:
         trans = np.zeros((1, 2)) if len(passes) == 1 else np.asarray(trans, dtype=np.float64)
         frame = frame_for(passes, fab.tolerance, v.resolution, trans)
-    players = [PlayerA(p, frame, fab.tolerance, fab.fill_holes) for p in passes]
+    players = [PlayerA.from_settings(p, frame, fab) for p in passes]
     a_masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(players, quats, trans)]
     groups = _groups(len(passes), separate)
     outlines = exact_holes(passes, np.asarray(quats), trans, groups, fab)
@@ -176,7 +176,7 @@ def judge(
     if len(passes) > 1 and not separate and len(outline.decompose()) > 1:
         warnings.append("the merged hole is not connected")
     grown = [dilated(o, fab.block_margin) for o in outlines] if fab.block_margin > 0 else outlines
-    player_b = PlayerB(blocks, frame, "clearance", freeze=scene.solver.freeze)
+    player_b = PlayerB.from_settings(blocks, frame, scene.solver, objective="clearance")
     # without a margin, one merged hole's raster is the one already built
     same = fab.block_margin == 0 and not separate
     attack = player_b.attack(

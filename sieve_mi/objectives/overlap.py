@@ -6,7 +6,7 @@ For a pose (R, t) of a shape B with silhouette S, the loss is the fraction of S 
 
 with H the union of the hole raster's pixel cells whose centre lies in H (outside distance 0).
 Both areas and their derivatives are integrals over B's *visible outline* ∂S, which lies on B's
-silhouette edges (:class:`sieve_mi.objectives.clearance.ClearanceObjective` cuts them into segments of at most
+silhouette edges (:class:`sieve_mi.objectives.edges.EdgeSampledObjective` cuts them into segments of at most
 ``samples_per_segment`` pixels and samples them at most a pixel apart; dl is a sample's share of
 its segment's projected length).
 
@@ -29,7 +29,7 @@ its segment's projected length).
   dβ/dθ = (d area(S \\ H) - β d area(S)) / area(S). The outline point is
   x = R_{0,:} p + t_x, y = R_{1,:} p + t_y for its mesh-frame point p, so v·n is linear in the
   first two rows of R and in t; the 16 per-pose sums of n_x, n_y, n_x p and n_y p (with and
-  without 1_out) are added in a fixed order (:func:`sieve_mi.objectives.clearance.pose_sums`) and chained to
+  without 1_out) are added in a fixed order (:func:`sieve_mi.objectives.edges.pose_sums`) and chained to
   the quaternion by per-pose arithmetic, as for the clearance loss: the results are reproducible
   bit for bit.
 
@@ -49,7 +49,7 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import quat_rows
 from sieve_mi.geometry.silhouettes import mesh_scene
-from sieve_mi.objectives.clearance import ClearanceObjective, pose_sums
+from sieve_mi.objectives.edges import EdgeSampledObjective, pose_sums
 
 __all__ = ["EdgeOverlapObjective", "OUTLINE_SUMS", "SIDE_OFFSET"]
 
@@ -60,12 +60,12 @@ SIDE_OFFSET = 0.01
 OUTLINE_SUMS = 18
 
 
-class EdgeOverlapObjective(ClearanceObjective):
+class EdgeOverlapObjective(EdgeSampledObjective):
     """Overlap loss β (paper eq. 12) of several shapes for many poses at once, by edge sampling.
 
     An :class:`~sieve_mi.objectives.Objective` (see there for :meth:`bind` and :meth:`loss`); the
-    method is in the module docstring. It shares the clearance objective's edge segments and its
-    silhouette-edge test.
+    method is in the module docstring. Its edge segments, (pose, segment) pairs and
+    silhouette-edge test are those of the clearance objective (:class:`EdgeSampledObjective`).
 
     Parameters
     ----------
@@ -74,11 +74,8 @@ class EdgeOverlapObjective(ClearanceObjective):
     frame : Frame
         The hole's raster frame; samples are at most a pixel apart.
     samples_per_segment : int, optional
-        As for :class:`~sieve_mi.objectives.clearance.ClearanceObjective`.
+        As for :class:`~sieve_mi.objectives.edges.EdgeSampledObjective`.
     """
-
-    #: The inherited :meth:`loss_fixed` is the clearance loss: steps on this one are not frozen.
-    freezable = False
 
     def __init__(self, shapes: list[Shape], frame: Frame, samples_per_segment: int | None = None):
         super().__init__(shapes, frame, samples_per_segment)
@@ -89,36 +86,20 @@ class EdgeOverlapObjective(ClearanceObjective):
         self._prefix_cache = None
 
     def bind(self, pose_shape: np.ndarray) -> None:
-        """Fix which shape each pose belongs to.
+        """See :meth:`sieve_mi.objectives.Objective.bind`.
 
-        Parameters
-        ----------
-        pose_shape : (K,) ndarray of int
-            Index into ``shapes`` for every pose.
+        Also keeps each pose's shape index on the device, for the visibility rays.
         """
         super().bind(pose_shape)
         self._pose_shape = self.mi.UInt32(np.asarray(pose_shape).astype(np.uint32))
 
     def loss(self, q, t, holes: HoleStack, pose_hole):
-        """Total and per-pose overlap loss β (fraction of each silhouette outside its hole).
+        """See :meth:`sieve_mi.objectives.Objective.loss`.
 
-        Parameters
-        ----------
-        q : tuple of 4 mi.Float
-            Quaternions (w, x, y, z), one entry per pose, possibly with gradients enabled.
-        t : tuple of 2 mi.Float
-            Translations in scene units.
-        holes : HoleStack
-        pose_hole : mi.UInt32
-            Which hole of the stack each pose is tested against.
-
-        Returns
-        -------
-        total : mi.Float
-            Sum of β over all poses; its gradient with respect to ``q`` and ``t`` is the
-            edge-sampled one (module docstring).
-        per_pose : mi.Float
-            β of each pose (detached), in [0, 1]; 1 for a pose whose outline has no length.
+        ``per_pose`` is β, the fraction of each silhouette outside its hole, in [0, 1]; 1 for a
+        pose whose outline has no length. The gradient of ``total`` with respect to ``q`` and
+        ``t`` is the edge-sampled one (module docstring). Raises ValueError when ``holes`` is on
+        another frame.
         """
         dr = self.dr
         if holes.frame != self.frame:
@@ -134,14 +115,7 @@ class EdgeOverlapObjective(ClearanceObjective):
             raw = s[1] / safe
             per_pose = dr.select(ok, dr.clip(raw, 0.0, 1.0), 1.0)
             coef = [dr.select(ok, (s[10 + i] - raw * s[2 + i]) / safe, 0.0) for i in range(8)]
-        total = dr.sum(per_pose)
-        if dr.grad_enabled(q, t):
-            link = t[0] * coef[0] + t[1] * coef[1]
-            for i in range(6):
-                link = link + rows[i] * coef[2 + i]
-            link = dr.sum(link)
-            total = total + (link - dr.detach(link))
-        return total, per_pose
+        return self._link(dr.sum(per_pose), q, t, rows, coef), per_pose
 
     def _covered(self, x, y, g, shape, active=True):
         """Whether world points (x, y) are covered by their pose's shape (one ray each).
@@ -215,20 +189,6 @@ class EdgeOverlapObjective(ClearanceObjective):
         cell = dr.select(self._in_hole(col, row, holes, hole), 0.0, h)
         return dr.select(row_on, left + (uc - mi.Float(col)) * cell + (u - uc) * h, u * h)
 
-    def _context(self, rows, t, pose_hole):
-        """``prepare`` for :func:`pose_sums`: the pose's 11 numbers, its hole and its shape."""
-        dr, mi = self.dr, self.mi
-
-        def prepare(pose):
-            g = [dr.gather(mi.Float, x, pose) for x in list(rows) + list(t)]
-            return (
-                g,
-                dr.gather(mi.UInt32, pose_hole, pose),
-                dr.gather(mi.UInt32, self._pose_shape, pose),
-            )
-
-        return prepare
-
     def _outline_sums(self, active, rows, t, holes: HoleStack, pose_hole) -> list:
         """The 18 per-pose sums over the outline samples of the active (pose, segment) pairs.
 
@@ -240,14 +200,13 @@ class EdgeOverlapObjective(ClearanceObjective):
             restricted to outline points outside H. Scene units.
         """
         dr, mi = self.dr, self.mi
-        fracs = [(j + 0.5) / self.samples for j in range(self.samples)]
+        fracs = self._fractions()
         off = SIDE_OFFSET * self.frame.pixel_size
         prefix = self._prefix(holes)
 
         def accumulate(pair, ctx, acc):
             g, hole, shape = ctx
-            seg = dr.gather(mi.UInt32, self._pairs[1], pair)
-            a, d = dr.gather(mi.Vector3f, self.a, seg), dr.gather(mi.Vector3f, self.d, seg)
+            seg, a, d = self._segment(pair)
             ex = g[0] * d.x + g[1] * d.y + g[2] * d.z
             ey = g[3] * d.x + g[4] * d.y + g[5] * d.z
             length = dr.sqrt(ex * ex + ey * ey)
@@ -292,7 +251,7 @@ class EdgeOverlapObjective(ClearanceObjective):
             self._pairs[0],
             self.pose_count,
             OUTLINE_SUMS,
-            self._context(rows, t, pose_hole),
+            self._context(rows, t, pose_hole, self._pose_shape),
             accumulate,
             "overlap outline",
         )

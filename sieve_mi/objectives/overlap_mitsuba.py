@@ -247,12 +247,9 @@ class OverlapObjective:
         return desc
 
     def bind(self, pose_shape: np.ndarray) -> None:
-        """Fix which shape each pose belongs to.
+        """See :meth:`sieve_mi.objectives.Objective.bind`.
 
-        Parameters
-        ----------
-        pose_shape : (K,) ndarray of int
-            Index into ``shapes`` for every pose.
+        Raises ValueError when an index lies outside the shape list.
         """
         pose_shape = np.asarray(pose_shape, dtype=np.int64)
         if pose_shape.size and (pose_shape.min() < 0 or pose_shape.max() >= len(self._scenes)):
@@ -302,28 +299,18 @@ class OverlapObjective:
             return mi.TensorXf(self._coverage(img), (self.size, self.size))
 
     def loss(self, q, t, holes, pose_hole, seed: int | None = None):
-        """Total and per-pose overlap loss (fraction of each silhouette outside its hole).
+        """See :meth:`sieve_mi.objectives.Objective.loss`.
+
+        ``per_pose`` is the fraction of each silhouette outside its hole, in [0, 1]. The gradient
+        of ``total`` with respect to ``q`` and ``t`` is Mitsuba's (see the module docstring: the
+        derivatives are computed here, pose by pose, and attached to ``total``). Raises
+        RuntimeError before :meth:`bind` and ValueError when ``holes`` is on another frame.
 
         Parameters
         ----------
-        q : tuple of 4 mi.Float
-            Quaternions (w, x, y, z), one entry per pose, possibly with gradients enabled.
-        t : tuple of 2 mi.Float
-            Translations in scene units.
-        holes : HoleStack
-        pose_hole : mi.UInt32
-            Which hole of the stack each pose is tested against.
         seed : int, optional
             Seed of the Monte Carlo estimates (fixed seeds give common random numbers, e.g. for
             finite differences); by default every call uses new seeds.
-
-        Returns
-        -------
-        total : mi.Float
-            Sum over all poses; its gradient with respect to q and t is Mitsuba's (see the module
-            docstring: the derivatives are computed here, pose by pose, and attached to ``total``).
-        per_pose : mi.Float
-            Loss of each pose (detached), in [0, 1].
         """
         dr, mi = self.dr, self.mi
         if self._pose_shape is None:

@@ -1,7 +1,8 @@
 """Helpers for tests, benchmarks and tools. Rule: nothing in sieve_mi outside testing imports it.
 
 :mod:`sieve_mi.testing.shapes` builds test solids with known answers (letters, Nieuwland's cube,
-prisms, coins); :mod:`sieve_mi.testing.mesh_io` reads back what the solver writes.
+prisms, coins); :mod:`sieve_mi.testing.mesh_io` reads back what the solver writes;
+:mod:`sieve_mi.testing.settings` holds the small solver settings tests and benchmarks run with.
 """
 
-__all__ = ["mesh_io", "shapes"]
+__all__ = ["mesh_io", "settings", "shapes"]
