@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import trimesh
 
 from sieve_mi.geometry.meshes import Shape, shape_from_trimesh
+
+#: The checkout's root (scenes/, docs/ and tools/ are found from it).
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def sphere(radius: float, subdivisions: int = 3) -> Shape:

@@ -8,10 +8,11 @@ import os
 
 import pytest
 import trimesh
+from helpers import REPO
 
 import sieve_mi as sm
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+ROOT = REPO
 
 
 def test_public_names_resolve_to_the_api_not_to_modules():

@@ -8,13 +8,12 @@ import sys
 import time
 
 import pytest
+from helpers import REPO
 
 import sieve_mi as sm
 from sieve_mi.cascade.commands import parse_seeds
 
-DEFAULT = os.path.join(
-    os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "scenes", "default.toml"
-)
+DEFAULT = os.path.join(REPO, "scenes", "default.toml")
 
 
 @pytest.fixture(scope="module")
@@ -94,7 +93,7 @@ def test_seed_two_to_the_64_is_one_line_from_the_cli(tmp_path):
             "-m",
             "sieve_mi",
             "solve",
-            "scenes/default.toml",
+            DEFAULT,
             "--seed",
             str(2**64),
             "--out",

@@ -10,11 +10,12 @@ import sys
 import numpy as np
 import pytest
 import trimesh
+from helpers import REPO
 
 from sieve_mi.errors import SieveError
 from sieve_mi.testing.settings import TINY
 
-SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
+SCENES = os.path.join(REPO, "scenes")
 
 
 def run_cli(*args, cwd=None):

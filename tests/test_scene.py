@@ -15,12 +15,13 @@ import tomllib
 from dataclasses import MISSING, fields
 
 import pytest
+from helpers import REPO
 
 from sieve_mi import scene
 from sieve_mi.errors import SieveError
 from sieve_mi.scene import Scene, ShapeEntry, key_of, load_scene, spec_of, value_types
 
-DOCS = os.path.join(os.path.dirname(__file__), "..", "docs", "scene-format.md")
+DOCS = os.path.join(REPO, "docs", "scene-format.md")
 MINIMAL = '[[pass]]\nmesh = "a.stl"\n[[block]]\nmesh = "b.stl"\n'
 
 

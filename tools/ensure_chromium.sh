@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Best effort: installs Debian's headless Chromium for the browser tests of report.html
-# (tests/test_viewer.py skips them where no browser is found). Never fails the set-up.
+# (tests/outputs/test_viewer.py skips them where no browser is found). Never fails the set-up.
 set -u
 for b in chromium chromium-browser google-chrome google-chrome-stable; do
   if command -v "$b" >/dev/null 2>&1; then echo "browser for the page tests: $(command -v "$b")"; exit 0; fi

@@ -222,7 +222,7 @@ class OffsetCache:
     Round joins place their vertices on the arc of the offset distance (to the 1e-8 coordinate
     grid of manifold3d), so chords fall inside the arc by at most the sagitta; offsetting by
     r / cos(pi / n) + eta puts every chord outside the arc of radius r: the polygon contains
-    H + disk(r) (docs/certify.md; ``tests/test_certify.py`` checks it on this manifold3d).
+    H + disk(r) (docs/certify.md; ``tests/certify/test_certify.py`` checks it on this manifold3d).
     """
 
     def __init__(self, hole: manifold3d.CrossSection, eta: float, r_min: float):

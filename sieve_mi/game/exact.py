@@ -111,7 +111,7 @@ def score(
     Examples
     --------
     A 1 x 1 square peg turned 45° in a 1.2 x 1.2 square hole sticks out at its four corners by
-    sqrt(2)/2 - 0.6 each (see ``tests/test_exact.py``).
+    sqrt(2)/2 - 0.6 each (see ``tests/game/test_exact.py``).
     """
     s = silhouette(shape, quat, trans, closed)
     eps = FIT_EPS * max(boundary.size, shape.radius)

@@ -10,7 +10,7 @@ every A; red: a blocked B; orange: a B that gets through; grey: the plate). Wher
 can be used (e.g. a packed GPU site without them) it renders in the monochrome variant in effect:
 grey frames (light: passes, dark: blocked, mid-grey: the plate).
 The sampler is seeded the same way every run and each sample lands in one pixel (box filter), so
-the same inputs give the same GIF (``tests/test_repro.py`` compares two processes' files).
+the same inputs give the same GIF (``tests/game/test_repro.py`` compares two processes' files).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 import trimesh
-from helpers import sphere
+from helpers import REPO, sphere
 
 from sieve_mi.game.players import PlayerA
 from sieve_mi.geometry.hole import HoleStack
@@ -21,7 +21,7 @@ from sieve_mi.geometry.rotations import random_uniform
 from sieve_mi.objectives.clearance import ClearanceObjective
 from sieve_mi.testing.settings import TINY
 
-SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
+SCENES = os.path.join(REPO, "scenes")
 MESHES = os.path.abspath(os.path.join(SCENES, "meshes"))
 
 

@@ -7,6 +7,7 @@ import itertools
 import numpy as np
 import pytest
 import trimesh
+from helpers import REPO
 
 from sieve_mi.geometry.canonical import canonical_orientations, principal_frames, view_directions
 from sieve_mi.geometry.meshes import shape_from_trimesh
@@ -158,7 +159,7 @@ def test_letters_win_at_reduced_settings():
     from sieve_mi.api import solve
     from sieve_mi.scene import load_scene
 
-    scene = load_scene(os.path.join(os.path.dirname(__file__), "..", "scenes", "letters.toml"))
+    scene = load_scene(os.path.join(REPO, "scenes", "letters.toml"))
     s, v = scene.solver, scene.verdict
     s.resolution, s.particles, s.iterations, s.starts, s.steps = 128, 6, 4, 8, 80
     v.starts, v.steps, v.resolution = 40, 250, 192

@@ -17,6 +17,7 @@ import time
 import numpy as np
 import pytest
 import trimesh
+from helpers import REPO
 from PIL import Image
 
 from sieve_mi import cli
@@ -43,7 +44,7 @@ CHECK_SMALL = ["--starts", "2", "--steps", "5", "--no-fit"]
 REFUSED = "exists and holds files that sieve-mi did not write; choose another folder"
 
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = REPO
 
 
 def _env(env=None) -> dict:

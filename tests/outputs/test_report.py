@@ -7,13 +7,14 @@ import os
 
 import numpy as np
 import pytest
+from helpers import REPO
 
 from sieve_mi.api import solve
 from sieve_mi.outputs.report import paste_window, report_dict, summary_table, write_outputs
 from sieve_mi.scene import load_scene
 from sieve_mi.testing.settings import TINY_SOLVER, TINY_VERDICT, settings_toml
 
-MESHES = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
+MESHES = os.path.abspath(os.path.join(REPO, "scenes", "meshes"))
 SCENE = f"""name = "report test"
 [[pass]]
 mesh = "{MESHES}/cube.stl"

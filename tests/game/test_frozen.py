@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 import trimesh
-from helpers import rng, sphere
+from helpers import REPO, rng, sphere
 
 from sieve_mi.game.players import PlayerB
 from sieve_mi.geometry.hole import Hole
@@ -146,7 +146,7 @@ def test_a_frozen_solve_gives_the_same_result(write_scene):
     from sieve_mi.api import solve
     from sieve_mi.scene import load_scene
 
-    meshes = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
+    meshes = os.path.abspath(os.path.join(REPO, "scenes", "meshes"))
     body = (
         f'name = "t"\n[[pass]]\nmesh = "{meshes}/cube.stl"\n[[block]]\nmesh = "{meshes}/sphere.stl"\n'
         "[solver]\nresolution = 96\nparticles = 4\niterations = 2\nstarts = 6\nsteps = 40\n"

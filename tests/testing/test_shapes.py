@@ -13,11 +13,12 @@ import os
 import numpy as np
 import pytest
 import trimesh
+from helpers import REPO
 from scipy.spatial import cKDTree
 
 from sieve_mi.testing import shapes
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+REPO = REPO
 MESH_DIR = os.path.join(REPO, "scenes", "meshes")
 #: Real meshes shared beside the checkout (../shared/meshes), or where $SIEVE_MI_SHARED_MESHES says.
 SHARED_MESHES = os.environ.get(

@@ -6,13 +6,14 @@ import os
 
 import numpy as np
 import pytest
+from helpers import REPO
 
 from sieve_mi.api import solve
 from sieve_mi.geometry.hole import pieces
 from sieve_mi.geometry.rotations import align, to_matrix
 from sieve_mi.scene import load_scene
 
-SCENES = os.path.join(os.path.dirname(__file__), "..", "scenes")
+SCENES = os.path.join(REPO, "scenes")
 FAST = """
 [solver]
 resolution = 128

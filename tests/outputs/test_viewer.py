@@ -13,6 +13,7 @@ import manifold3d
 import numpy as np
 import pytest
 import trimesh
+from helpers import REPO
 
 from sieve_mi.api import solve
 from sieve_mi.geometry.outline import is_closed, placed_vertices, rasterize, silhouette
@@ -22,7 +23,7 @@ from sieve_mi.outputs.passage import Passage, build
 from sieve_mi.scene import load_scene
 from sieve_mi.testing.settings import TINY
 
-MESHES = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "scenes", "meshes"))
+MESHES = os.path.abspath(os.path.join(REPO, "scenes", "meshes"))
 # Several A shapes merged into one hole (A wins: the 24 mm sphere is blocked) ...
 MERGED = (
     f'name = "merged"\n[[pass]]\nmesh = "{MESHES}/cube.stl"\n[[pass]]\nmesh = "{MESHES}/prism.stl"\n'
