@@ -19,7 +19,7 @@ from sieve_mi.game import result as _game_result
 from sieve_mi.game import solver as _solver
 from sieve_mi.geometry import meshes as _meshes
 from sieve_mi.outputs.report import write_outputs
-from sieve_mi.scene import Scene
+from sieve_mi.scene import SEED_MAX, Scene
 
 __all__ = [
     "MAX_SEED",
@@ -34,7 +34,7 @@ __all__ = [
 ]
 
 #: Seeds are integers in [0, MAX_SEED] (nlopt's generator takes an unsigned 64-bit seed).
-MAX_SEED = 2**64 - 1
+MAX_SEED = SEED_MAX
 
 
 def _path(value, what: str) -> str:

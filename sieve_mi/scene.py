@@ -37,6 +37,8 @@ from sieve_mi.objectives import OBJECTIVES
 from sieve_mi.optim import NLOPT_METHODS, PSO_COEFFICIENT
 
 __all__ = [
+    "LENGTH_MAX",
+    "SEED_MAX",
     "AXIS_NAMES",
     "Check",
     "CheckInputs",
@@ -72,6 +74,11 @@ UNITS = ("mm", "cm", "m", "in", "um")
 OUTERS = ("pso", *NLOPT_METHODS)
 #: Accepted ``[layout] mode`` values.
 LAYOUT_MODES = ("merged", "separate")
+#: Largest length a scene accepts (scales, tolerances, margins, plate sizes): a kilometre in mm.
+#: Beyond it the polygon offsets and rasters overflow; nothing real is that large.
+LENGTH_MAX = 1_000_000
+#: Largest seed (nlopt's generator takes an unsigned 64-bit seed).
+SEED_MAX = 2**64 - 1
 #: Accepted ``check --axis`` and ``certify --axis`` values: the plate's axis a shape moves along.
 AXIS_NAMES = ("x", "y", "z")
 
@@ -188,11 +195,12 @@ def describe(cls: type, f: dataclasses.Field) -> str:
     exclusive = spec.exclusive_min or spec.exclusive_max
     if spec.minimum is not None and spec.maximum is not None and not exclusive:
         return f"{word} {spec.minimum}–{spec.maximum}"
+    bounds = []
     if spec.minimum is not None:
-        word += f" {'>' if spec.exclusive_min else '≥'} {spec.minimum}"
+        bounds.append(f"{'>' if spec.exclusive_min else '≥'} {spec.minimum}")
     if spec.maximum is not None:
-        word += f" {'<' if spec.exclusive_max else '≤'} {spec.maximum}"
-    return word
+        bounds.append(f"{'<' if spec.exclusive_max else '≤'} {spec.maximum}")
+    return " ".join([word, ", ".join(bounds)]) if bounds else word
 
 
 def _documented(cls: type) -> type:
@@ -233,7 +241,11 @@ class ShapeEntry:
 
     mesh: str = setting(doc="mesh file, relative to the scene file (anything trimesh reads)")
     scale: float = setting(
-        1.0, "uniform scale from file units to scene units", minimum=0, exclusive_min=True
+        1.0,
+        "uniform scale from file units to scene units",
+        minimum=0,
+        exclusive_min=True,
+        maximum=LENGTH_MAX,
     )
     rotation: list[float] | None = setting(
         None,
@@ -250,7 +262,11 @@ class Fabrication:
     """``[fabrication]``: how the hole is made physical."""
 
     tolerance: float = setting(
-        1.0, "A's silhouette is dilated by this much", unit="scene units", minimum=0
+        1.0,
+        "A's silhouette is dilated by this much",
+        unit="scene units",
+        minimum=0,
+        maximum=LENGTH_MAX,
     )
     fill_holes: bool = setting(True, "fill holes of the silhouette so H is simply connected")
     block_margin: float = setting(
@@ -258,6 +274,7 @@ class Fabrication:
         "B counts as blocked only if it also fails against H grown by this margin",
         unit="scene units",
         minimum=0,
+        maximum=LENGTH_MAX,
     )
     thickness: float | None = setting(
         None,
@@ -265,10 +282,16 @@ class Fabrication:
         unit="scene units",
         minimum=0,
         exclusive_min=True,
+        maximum=LENGTH_MAX,
         default_doc="largest circumsphere diameter",
     )
     border: float = setting(
-        5.0, "plate material around the hole", unit="scene units", minimum=0, exclusive_min=True
+        5.0,
+        "plate material around the hole",
+        unit="scene units",
+        minimum=0,
+        exclusive_min=True,
+        maximum=LENGTH_MAX,
     )
 
 
@@ -282,12 +305,14 @@ class Solver:
     resolution: int = setting(
         256, "raster side in pixels during the search", minimum=16, maximum=4096
     )
-    particles: int = setting(10, "PSO particles", minimum=1)
-    iterations: int = setting(10, "PSO iterations", minimum=0)
-    starts: int = setting(10, "random starts of each B per evaluation", minimum=1)
-    steps: int = setting(100, "Adam steps per start", minimum=0)
-    learning_rate: float = setting(0.05, "Adam's learning rate", minimum=0, exclusive_min=True)
-    seed: int = setting(0, "random seed (--seed overrides)", minimum=0)
+    particles: int = setting(10, "PSO particles", minimum=1, maximum=10_000)
+    iterations: int = setting(10, "PSO iterations", minimum=0, maximum=100_000)
+    starts: int = setting(10, "random starts of each B per evaluation", minimum=1, maximum=10_000)
+    steps: int = setting(100, "Adam steps per start", minimum=0, maximum=1_000_000)
+    learning_rate: float = setting(
+        0.05, "Adam's learning rate", minimum=0, exclusive_min=True, maximum=1
+    )
+    seed: int = setting(0, "random seed (--seed overrides)", minimum=0, maximum=SEED_MAX)
     inertia: float = setting(PSO_COEFFICIENT, "PSO inertia", minimum=0)
     c_personal: float = setting(
         PSO_COEFFICIENT, "PSO acceleration towards a particle's best", minimum=0
@@ -296,14 +321,28 @@ class Solver:
         PSO_COEFFICIENT, "PSO acceleration towards the swarm's best", minimum=0
     )
     canonical: int = setting(
-        20, "canonical views of each A evaluated before the swarm (0: none)", minimum=0
+        20,
+        "canonical views of each A evaluated before the swarm (0: none)",
+        minimum=0,
+        maximum=1000,
     )
     polish: int = setting(
-        10, "rounds of the local polish of A's best rotation (0: none)", minimum=0
+        10,
+        "rounds of the local polish of A's best rotation (0: none)",
+        minimum=0,
+        maximum=1000,
     )
     freeze: bool = setting(
         True,
         "record player B's Adam step once and replay it (drjit.freeze; same results)",
+    )
+    memory: float = setting(
+        0.0,
+        "memory one attack of player B may hold at once; more poses run in chunks (same "
+        "results); 0: a quarter of the machine's available memory",
+        unit="GB",
+        minimum=0,
+        maximum=1_000_000,
     )
 
 
@@ -312,8 +351,8 @@ class Solver:
 class Verdict:
     """``[verdict]``: the long re-run of player B that declares the winner."""
 
-    starts: int = setting(100, "random starts per B", minimum=1)
-    steps: int = setting(500, "Adam steps per start", minimum=0)
+    starts: int = setting(100, "random starts per B", minimum=1, maximum=100_000)
+    steps: int = setting(500, "Adam steps per start", minimum=0, maximum=1_000_000)
     resolution: int = setting(
         256, "raster side in pixels for the final hole and scores", minimum=16, maximum=4096
     )
@@ -321,7 +360,11 @@ class Verdict:
         False, "after the verdict, try to prove that each blocked B cannot pass the exact hole"
     )
     certify_budget: float = setting(
-        30.0, "time budget of each proof, seconds", minimum=0, exclusive_min=True
+        30.0,
+        "time budget of each proof, seconds",
+        minimum=0,
+        exclusive_min=True,
+        maximum=86_400,
     )
 
 

@@ -86,7 +86,8 @@ def _doc_rows(text: str) -> dict[type, dict[str, dict[str, str]]]:
 
 
 _TYPE = re.compile(
-    r"(number|int|bool|string|tables|\[w, x, y, z\])(?: (≥|>) (-?[\d.]+)| (-?[\d.]+)–(-?[\d.]+))?"
+    r"(number|int|bool|string|tables|\[w, x, y, z\])"
+    r"(?: (≥|>) (-?[\d.]+)(?:, ≤ (-?[\d.]+))?| (-?[\d.]+)–(-?[\d.]+))?"
 )
 _KINDS = {
     "number": float,
@@ -103,8 +104,9 @@ def _doc_type(cell: str):
     m = _TYPE.fullmatch(cell)
     if m is None:
         return None
-    word, op, low, low2, high = m.groups()
+    word, op, low, high1, low2, high = m.groups()
     low = low if low is not None else low2
+    high = high if high is not None else high1
     return (
         _KINDS[word],
         None if low is None else float(low),
@@ -165,20 +167,26 @@ def test_docs_and_dataclasses_agree():
     "old, new",
     [
         ("| `tau` | number > 0 |", "| `tau` | number ≥ 0 |"),  # exclusive vs inclusive bound
-        ("| `particles` | int ≥ 1 | `10` |", "| `particles` | int ≥ 1 | `11` |"),  # default
+        ("| `particles` | int 1–10000 | `10` |", "| `particles` | int 1–10000 | `11` |"),  # default
         (
-            "| `tolerance` | number ≥ 0 | `1.0` |",
-            "| `tolerance` | number ≥ 0 | `1` |",
+            "| `tolerance` | number 0–1000000 | `1.0` |",
+            "| `tolerance` | number 0–1000000 | `1` |",
         ),  # int vs float
         ("| `resolution` | int 16–4096 |", "| `resolution` | int 16–2048 |"),  # upper bound
-        ("| `steps` | int ≥ 0 | `500` |", "| `steps` | int ≥ 1 | `500` |"),  # lower bound
+        (
+            "| `steps` | int 0–1000000 | `500` |",
+            "| `steps` | int 1–1000000 | `500` |",
+        ),  # lower bound
         ("| `border` |", "| `margin` |"),  # a key the code does not have, and one undocumented
         (", `ags`", ""),  # an accepted outer method left out
         ("| `fill_holes` | bool | `true` |", "| `fill_holes` | bool | `false` |"),
-        ("| `thickness` | number > 0 | largest", "| `thickness` | number > 0 | smallest"),
         (
-            "| `block_margin` | number ≥ 0 | `0.0` | scene units",
-            "| `block_margin` | number ≥ 0 | `0.0` | mm",
+            "| `thickness` | number > 0, ≤ 1000000 | largest",
+            "| `thickness` | number > 0, ≤ 1000000 | smallest",
+        ),
+        (
+            "| `block_margin` | number 0–1000000 | `0.0` | scene units",
+            "| `block_margin` | number 0–1000000 | `0.0` | mm",
         ),
         ("## `[verdict]`", "## verdict"),  # a whole table no longer found
     ],
@@ -566,12 +574,12 @@ def test_read_value_converts_like_the_reader():
 
 def test_an_exclusive_maximum_is_checked_and_described():
     f = scene.field_of(scene.Check, "fit_tolerance")
-    assert spec_of(f).exclusive_max and scene.describe(scene.Check, f) == "number > 0 < 1"
+    assert spec_of(f).exclusive_max and scene.describe(scene.Check, f) == "number > 0, < 1"
     assert scene.read_value(scene.Check, "fit_tolerance", 0.999, "x") == 0.999
     with pytest.raises(SieveError, match=r"^x: fit_tolerance: must be < 1, got 1.0$"):
         scene.read_value(scene.Check, "fit_tolerance", 1.0, "x")
     lr = scene.field_of(scene.Check, "learning_rate")
-    assert scene.describe(scene.Check, lr) == "number > 0 ≤ 1.0"
+    assert scene.describe(scene.Check, lr) == "number > 0, ≤ 1.0"
 
 
 def test_check_settings_are_declared_once(tmp_path):
@@ -628,3 +636,32 @@ def test_the_testing_settings_are_valid_scene_settings(tmp_path):
     )
     tiny = settings.tiny_solver(particles=8)
     assert (tiny.particles, tiny.steps, tiny.canonical, tiny.polish) == (8, 20, 0, 0)
+
+
+@pytest.mark.parametrize(
+    "table, key, value, expected",
+    [
+        # each crashed with a traceback, ran out of memory or never ended (hostile retest)
+        ("solver", "learning_rate", "1e300", "must be <= 1"),
+        ("solver", "particles", "100000000", "must be <= 10000"),
+        ("solver", "starts", "100000000", "must be <= 10000"),
+        ("solver", "iterations", "100000000", "must be <= 100000"),
+        ("solver", "seed", str(2**64), "must be <= 18446744073709551615"),
+        ("verdict", "starts", "100000000", "must be <= 100000"),
+        ("verdict", "steps", "1000000000", "must be <= 1000000"),
+        ("fabrication", "tolerance", "1e300", "must be <= 1000000"),
+        ("fabrication", "border", "1e300", "must be <= 1000000"),
+        ("fabrication", "thickness", "1e300", "must be <= 1000000"),
+        ("fabrication", "block_margin", "1e300", "must be <= 1000000"),
+    ],
+)
+def test_values_beyond_any_use_are_refused_in_one_line(tmp_path, table, key, value, expected):
+    message = _error(tmp_path, MINIMAL + f"[{table}]\n{key} = {value}\n")
+    assert message.startswith(f"{table}.{key}: {expected}"), message
+
+
+def test_a_scale_beyond_any_use_is_refused_in_one_line(tmp_path):
+    text = MINIMAL.replace('mesh = "a.stl"', 'mesh = "a.stl"\nscale = 1e20', 1)
+    assert "scale = 1e20" in text
+    message = _error(tmp_path, text)
+    assert "scale: must be <= 1000000" in message, message

@@ -14,6 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import Attack, AttackMemory
 from sieve_mi.game.scoring import score_poses
 from sieve_mi.geometry.hole import Hole, build_hole
@@ -39,7 +40,15 @@ from sieve_mi.optim import (
 )
 from sieve_mi.scene import Fabrication, Solver
 
-__all__ = ["CPU_FREEZE_PAIRS", "PlayerA", "PlayerB"]
+__all__ = [
+    "BYTES_PER_PAIR",
+    "MEMORY_SHARE",
+    "available_memory",
+    "pair_budget",
+    "CPU_FREEZE_PAIRS",
+    "PlayerA",
+    "PlayerB",
+]
 
 #: On the CPU (LLVM variants) descents with more (pose, segment) pairs than this trace their steps
 #: even with ``freeze``: there a big step is bound by arithmetic and the frozen step's fixed-size
@@ -50,6 +59,38 @@ CPU_FREEZE_PAIRS = 5_000_000
 
 class _BufferOverflow(Exception):
     """A frozen descent's active-pair buffer overflowed: its results are wrong."""
+
+
+#: Memory one (pose, segment) pair of a descent holds, bytes: 32 measured on the CPU at 5M pairs
+#: (traced or frozen, docs/performance.md), doubled for the AD graph, buffers and allocator slack.
+BYTES_PER_PAIR = 64
+#: Share of the machine's available memory player B's descents use by default (``[solver] memory
+#: = 0``).
+MEMORY_SHARE = 0.25
+
+
+def available_memory() -> int:
+    """Bytes of memory available to new allocations (Linux's MemAvailable; else physical memory)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 8 << 30
+
+
+def pair_budget(memory_gb: float = 0.0) -> int:
+    """(pose, segment) pairs one descent may bind at once, for a memory budget in GB.
+
+    ``0`` means :data:`MEMORY_SHARE` of :func:`available_memory`, as measured now.
+    """
+    budget = memory_gb * 2**30 if memory_gb > 0 else MEMORY_SHARE * available_memory()
+    return max(1, int(budget // BYTES_PER_PAIR))
 
 
 def _interruption(exc: BaseException) -> BaseException | None:
@@ -97,6 +138,7 @@ class PlayerB:
         objective: str = "clearance",
         samples_per_segment: int | None = None,
         freeze: bool = True,
+        memory: float = 0.0,
     ):
         if objective not in OBJECTIVES:
             raise ValueError(f"unknown objective {objective!r}")
@@ -109,13 +151,20 @@ class PlayerB:
         self._loss = None
         self.freeze = bool(freeze)
         self._frozen = None
+        #: Memory budget of one descent, GB (0: a share of the machine's available memory).
+        self.memory = float(memory)
+        #: (pose, segment) pairs one descent binds at once; more poses run in chunks.
+        self.max_pairs = pair_budget(self.memory)
 
     @classmethod
     def from_settings(
         cls, shapes: list[Shape], frame: Frame, solver: Solver, objective: str | None = None
     ) -> PlayerB:
-        """Player B with the ``[solver]`` table's ``objective`` (unless given) and ``freeze``."""
-        return cls(shapes, frame, objective or solver.objective, freeze=solver.freeze)
+        """Player B with the ``[solver]`` table's ``objective`` (unless given), ``freeze`` and
+        ``memory``."""
+        return cls(
+            shapes, frame, objective or solver.objective, freeze=solver.freeze, memory=solver.memory
+        )
 
     @property
     def objective(self) -> Objective:
@@ -232,7 +281,69 @@ class PlayerB:
         Frozen steps (:mod:`sieve_mi.game.frozen`) whose buffer overflowed make this descent run again
         traced; if Dr.Jit fails to record or replay one, this player warns and traces from then
         on. Either way the result is the traced one.
+
+        Poses whose (pose, segment) pairs exceed :attr:`max_pairs` descend in chunks of
+        consecutive poses (:meth:`chunks`), one after another: every pose's descent is its own
+        (Adam is per parameter, the loss a sum of per-pose terms), so the poses are the same bit
+        for bit, and the memory no longer grows with shapes x starts x holes x segments.
         """
+        parts = self.chunks(pose_shape)
+        if len(parts) == 1:
+            return self._descend_falling_back(
+                holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress
+            )
+        quats, trans = np.empty((len(q0), 4)), np.empty((len(q0), 2))
+        for i, part in enumerate(parts):  # the progress bar follows the last chunk
+            quats[part], trans[part] = self._descend_falling_back(
+                holes, pose_hole[part], pose_shape[part], np.asarray(q0)[part],
+                np.asarray(t0)[part], steps, learning_rate,
+                progress if i == len(parts) - 1 else None,
+            )  # fmt: skip
+        return quats, trans
+
+    def chunks(self, pose_shape: np.ndarray) -> list[slice]:
+        """Consecutive ranges of poses whose (pose, segment) pairs fit :attr:`max_pairs` each.
+
+        Parameters
+        ----------
+        pose_shape : (K,) ndarray of int
+
+        Returns
+        -------
+        list of slice
+            Covering ``range(K)`` in order; one slice where everything fits (or the objective
+            is not edge-sampled).
+
+        Raises
+        ------
+        SieveError
+            When one pose alone needs more than the budget (the scene cannot fit).
+        """
+        pose_shape = np.asarray(pose_shape, dtype=np.int64)
+        counts = getattr(self.objective, "counts", None)
+        if counts is None or len(pose_shape) == 0:
+            return [slice(0, len(pose_shape))]
+        per = np.asarray(counts)[pose_shape]
+        if per.max() > self.max_pairs:
+            worst = self.shapes[int(pose_shape[int(np.argmax(per))])].name
+            need = per.max() * BYTES_PER_PAIR / 2**30
+            raise SieveError(
+                f"[solver] memory: one pose of {worst} needs {need:.2f} GB ({int(per.max()):,} "
+                f"edge segments), more than the {self.max_pairs * BYTES_PER_PAIR / 2**30:.2f} GB "
+                "budget; raise [solver] memory or lower [solver] resolution"
+            )
+        ends = np.cumsum(per)
+        bounds = [0]
+        while bounds[-1] < len(per):
+            start = bounds[-1]
+            base = ends[start - 1] if start else 0
+            bounds.append(int(np.searchsorted(ends, base + self.max_pairs, side="right")))
+        return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+    def _descend_falling_back(
+        self, holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress=None
+    ):
+        """One descent of all given poses at once, with the frozen steps' fallbacks."""
         args = (holes, pose_hole, pose_shape, q0, t0, steps, learning_rate)
         try:
             return self._descend(*args, progress)

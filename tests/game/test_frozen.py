@@ -191,3 +191,38 @@ def test_an_interrupt_while_recording_stops_the_run(mi, shapes, monkeypatch, int
             _descend(player)
     assert caught.value is raised
     assert player.freeze  # not mistaken for a Dr.Jit failure
+
+
+@pytest.mark.parametrize("freeze", [False, True])
+def test_a_descent_in_chunks_gives_the_same_poses(mi, shapes, freeze):
+    """Poses over the memory budget descend in chunks of consecutive poses: same bits."""
+    whole = PlayerB(shapes, FRAME, freeze=freeze)
+    expected = _descend(whole)
+    chunked = PlayerB(shapes, FRAME, freeze=freeze)
+    per_pose = chunked.objective.counts
+    chunked.max_pairs = int(2.5 * per_pose.max())  # two or three poses per chunk
+    k = 2 * len(shapes) * 3
+    parts = chunked.chunks(np.tile(np.repeat(np.arange(len(shapes)), 3), 2))
+    assert len(parts) >= k // 3 and parts[0].start == 0 and parts[-1].stop == k
+    assert all(a.stop == b.start for a, b in zip(parts[:-1], parts[1:]))  # consecutive, no gaps
+    got = _descend(chunked)
+    np.testing.assert_array_equal(got[0], expected[0])
+    np.testing.assert_array_equal(got[1], expected[1])
+
+
+def test_a_pose_larger_than_the_budget_is_refused_in_one_line(mi, shapes):
+    from sieve_mi.errors import SieveError
+
+    player = PlayerB(shapes, FRAME)
+    player.max_pairs = int(player.objective.counts.max()) - 1
+    with pytest.raises(SieveError, match=r"\[solver\] memory: one pose of .* needs"):
+        _descend(player)
+
+
+def test_the_default_budget_is_a_share_of_available_memory():
+    from sieve_mi.game.players import BYTES_PER_PAIR, MEMORY_SHARE, available_memory, pair_budget
+
+    assert pair_budget(2.0) == 2 * 2**30 // BYTES_PER_PAIR
+    free = available_memory()
+    assert 0 < free < 1 << 50  # bytes, a real machine's
+    assert pair_budget(0.0) == pytest.approx(MEMORY_SHARE * free / BYTES_PER_PAIR, rel=0.2)
