@@ -30,7 +30,7 @@ MESHES = [
 ]
 
 
-def scene(count: int):
+def scene(count: int, screen: bool = True):
     """The scene with ``count`` B shapes (scales vary by a few percent, so no two are equal)."""
     import trimesh
 
@@ -45,16 +45,17 @@ def scene(count: int):
         blocks.append({"mesh": mesh, "name": name, "scale": scale * (1.0 + 0.01 * j)})
     s = sm.Scene.from_meshes([ball], blocks, name=f"ball-vs-{count}")
     s.fabrication.tolerance = 0.5
+    s.solver.screen = screen
     return s
 
 
-def run_one(count: int, variant: str) -> dict:
+def run_one(count: int, variant: str, screen: bool = True) -> dict:
     """Solve the scene with ``count`` B in this process; its times, winner and peak RSS."""
     import resource
 
     import sieve_mi as sm
 
-    result = sm.solve(scene(count), variant=variant, progress=False)
+    result = sm.solve(scene(count, screen), variant=variant, progress=False)
     t = result.timings
     return {
         "count": count,
@@ -64,6 +65,7 @@ def run_one(count: int, variant: str) -> dict:
         "total_s": round(sum(t.values()), 1),
         "winner": result.winner,
         "unblocked": sum(not b.blocked for b in result.blocks),
+        "proved": sum(c is not None and c.status == "proved" for c in result.certified),
         "peak_gb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, 2),
     }
 
@@ -94,16 +96,22 @@ def main(argv=None) -> int:
     p.add_argument("--counts", default="1,10,20,50")
     p.add_argument("--variant", default="llvm_ad_mono")
     p.add_argument("--out", help="write the plot here (PNG)")
+    p.add_argument(
+        "--no-screen", action="store_true", help="[solver] screen = false: every B plays the game"
+    )
     p.add_argument("--one", type=int, help=argparse.SUPPRESS)  # the child process's count
     args = p.parse_args(argv)
     if args.one is not None:
-        print(json.dumps(run_one(args.one, args.variant)))
+        print(json.dumps(run_one(args.one, args.variant, not args.no_screen)))
         return 0
     rows = []
-    print("| B | faces of B | search s | verdict s | total s | winner | unblocked | peak GB |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    print(
+        "| B | faces of B | search s | verdict s | total s | winner | unblocked | proved | peak GB |"
+    )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for count in [int(c) for c in args.counts.split(",")]:
         cmd = [sys.executable, "-m", "benchmarks.stress", "--one", str(count)]
+        cmd += ["--no-screen"] if args.no_screen else []
         proc = subprocess.run(
             cmd + ["--variant", args.variant], capture_output=True, text=True, cwd=ROOT
         )
@@ -114,7 +122,7 @@ def main(argv=None) -> int:
         rows.append(r)
         print(
             f"| {r['count']} | {r['faces']:,} | {r['search_s']} | {r['verdict_s']} | {r['total_s']} "
-            f"| {r['winner']} | {r['unblocked']} | {r['peak_gb']} |",
+            f"| {r['winner']} | {r['unblocked']} | {r['proved']} | {r['peak_gb']} |",
             flush=True,
         )
     if args.out and rows:

@@ -336,6 +336,11 @@ class Solver:
         True,
         "record player B's Adam step once and replay it (drjit.freeze; same results)",
     )
+    screen: bool = setting(
+        True,
+        "prove before the game that B holding a ball larger than any hole A can make are "
+        "blocked; A then plays against the others only",
+    )
     memory: float = setting(
         0.0,
         "memory one attack of player B may hold at once; more poses run in chunks (same "

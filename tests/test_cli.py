@@ -360,18 +360,18 @@ def test_check_and_certify_options_keep_their_defaults(capsys):
     assert CheckSettings is Check and Verdict().certify_budget == 30.0
     helps = {
         "check": [
-            "random starts of the fitting search (int ≥ 1, default 100)",
-            "Adam steps per start (int ≥ 1, default 500)",
-            "Adam's learning rate (number > 0 ≤ 1.0, default 0.05)",
+            "random starts of the fitting search (int 1–100000, default 100)",
+            "Adam steps per start (int 1–1000000, default 500)",
+            "Adam's learning rate (number > 0, ≤ 1.0, default 0.05)",
             "(int 16–4096, default 256)",
-            "random seed (int ≥ 0, default 0)",
+            "random seed (int 0–18446744073709551615, default 0)",
             "--no-fit turn off the fit-scale search",
-            "(number > 0 < 1, default 0.01)",
+            "(number > 0, < 1, default 0.01)",
             "one of x, y, z (default z)",
-            "(number > 0 ≤ 1000000, default 1.0)",
+            "(number > 0, ≤ 1000000, default 1.0)",
             "(default mm)",
         ],
-        "certify": ["time budget of each proof, seconds (number > 0, default 30.0)"],
+        "certify": ["time budget of each proof, seconds (number > 0, ≤ 86400, default 30.0)"],
     }
     for command, defaults in helps.items():
         with pytest.raises(SystemExit):

@@ -116,25 +116,45 @@ def _winding_number(p: np.ndarray, tri: np.ndarray) -> float:
     return float(np.arctan2(num, den).sum() / (2.0 * np.pi))
 
 
-def inscribed_ball(shape: Shape) -> tuple[np.ndarray, float] | None:
+def inscribed_ball(shape: Shape, grid: int = 6, exact: int = 4) -> tuple[np.ndarray, float] | None:
     """A ball (centre, radius) inside the solid bounded by the shape, or None.
 
     Only for closed meshes (every edge shared by exactly two triangles, consistently oriented):
     then the winding number is constant off the surface, a point with winding number != 0 is
-    enclosed, and every line through it meets the surface. The centre is the shape's centre; the
-    radius is the exact distance to the nearest triangle, lowered by a relative 1e-9 for rounding.
+    enclosed, and every line through it meets the surface. Candidate centres are the shape's
+    centre and a ``grid`` x ``grid`` x ``grid`` lattice over its bounding box, ranked by their
+    distance to the nearest vertex or face centre (a k-d tree, only to choose); the ``exact`` best
+    inside ones (winding test) get the exact distance to the nearest triangle, and the largest
+    ball wins. The radius is that exact distance lowered by a relative 1e-9 for rounding, so the ball
+    is rigorous whichever centre is chosen (a CAD part's bounding-box centre may lie in a notch).
     """
     import trimesh
+    from scipy.spatial import cKDTree
 
     mesh = trimesh.Trimesh(shape.vertices, shape.faces, process=False)
     if not (mesh.is_watertight and mesh.is_winding_consistent):
         return None
     tri = shape.vertices[shape.faces]
-    centre = np.zeros(3)
-    rho = float(_triangle_distance(centre, tri).min())
-    if rho <= 1e-9 * shape.radius or abs(round(_winding_number(centre, tri))) < 1:
-        return None
-    return centre, rho * (1.0 - 1e-9)
+    lo, hi = shape.vertices.min(0), shape.vertices.max(0)
+    axes = [lo[i] + (hi[i] - lo[i]) * (np.arange(grid) + 0.5) / grid for i in range(3)]
+    lattice = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    candidates = np.vstack([np.zeros((1, 3)), lattice])
+    near = cKDTree(np.vstack([shape.vertices, tri.mean(1)])).query(candidates)[0]
+    best = None
+    tried = 0
+    for k in np.concatenate([[0], 1 + np.argsort(-near[1:], kind="stable")]):
+        if tried >= exact:
+            break
+        centre = candidates[k]
+        if k and abs(round(_winding_number(centre, tri))) < 1:
+            continue  # outside: not a candidate (only inside points count towards ``exact``)
+        tried += 1
+        rho = float(_triangle_distance(centre, tri).min())
+        if rho <= 1e-9 * shape.radius or abs(round(_winding_number(centre, tri))) < 1:
+            continue
+        if best is None or rho > best[1]:
+            best = (np.array(centre, dtype=np.float64), rho)
+    return None if best is None else (best[0], best[1] * (1.0 - 1e-9))
 
 
 def no_disk_fits(segs: np.ndarray, rho: float, *, max_boxes: int = 200_000) -> bool:

@@ -17,9 +17,13 @@ from sieve_mi.game.attack import AttackMemory
 from sieve_mi.game.layout import alternative_rotations, hole_frame, merge, union_frame
 from sieve_mi.game.players import PlayerA, PlayerB
 from sieve_mi.game.result import Result
+from sieve_mi.game.scoring import mask_window
+from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved
 from sieve_mi.game.verdict import judge
 from sieve_mi.geometry.meshes import Shape, load_shape, shape_from_trimesh
+from sieve_mi.geometry.outline import dilated
 from sieve_mi.geometry.rotations import normalize
+from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.scene import Scene
 
@@ -261,29 +265,17 @@ def solve(
     rng = np.random.default_rng(seed)
     timings = {"init_s": t_load - t_init, "load_s": time.perf_counter() - t_load}
     t0 = time.perf_counter()
-    found = search(scene, passes, blocks, rng, seed, progress)
-    timings["search_s"] = time.perf_counter() - t0
-    t1 = time.perf_counter()
-    bar = _Bar(progress, scene.verdict.steps, "verdict")
-    v = judge(
-        scene,
-        passes,
-        blocks,
-        found.quats,
-        found.trans,
-        rng,
-        progress=lambda n: bar.update(1),
-        memory=found.memory,
+    sure = proved_by_size(scene, passes, blocks)
+    timings["screen_s"] = time.perf_counter() - t0
+    open_blocks = [b for j, b in enumerate(blocks) if j not in sure]
+    t0 = time.perf_counter()
+    found = (
+        search(scene, passes, open_blocks, rng, seed, progress)
+        if open_blocks
+        else _unsearched(scene)
     )
-    bar.close()
-    timings["verdict_s"] = time.perf_counter() - t1
-    certified, winner = [], v.winner
-    if scene.verdict.certify:
-        t2 = time.perf_counter()
-        certified = _certify(scene, passes, blocks, found.quats, v, progress)
-        timings["certify_s"] = time.perf_counter() - t2
-        if any(c is not None and c.status == "passage" for c in certified):
-            winner = "B"
+    timings["search_s"] = time.perf_counter() - t0
+    v, certified, winner = _verdict(scene, passes, blocks, sure, found, rng, progress, timings)
     return Result(
         scene=scene,
         winner=winner,
@@ -307,6 +299,76 @@ def solve(
         outline=v.outline,
         polish=found.polish,
     )
+
+
+def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progress, timings):
+    """The verdict on the B not proved before the game, completed with those that were, and the
+    optional certification: (judgement, certifications or [], winner); ``timings`` gains
+    ``verdict_s`` (and ``certify_s``)."""
+    t1 = time.perf_counter()
+    certified = [None] * len(blocks)
+    while True:
+        rows = [j for j in range(len(blocks)) if j not in sure]
+        bar = _Bar(progress and bool(rows), scene.verdict.steps, "verdict")
+        v = judge(scene, passes, [blocks[j] for j in rows], found.quats, found.trans, rng,
+                  progress=lambda n, bar=bar: bar.update(1), memory=found.memory)  # fmt: skip
+        bar.close()
+        failed = _with_screened(scene, blocks, rows, sure, v, certified) if sure else []
+        if not failed:
+            break
+        sure = {j: r for j, r in sure.items() if j not in failed}  # play them after all
+    timings["verdict_s"] = time.perf_counter() - t1
+    winner = v.winner
+    if scene.verdict.certify:
+        t2 = time.perf_counter()
+        for j, c in enumerate(_certify(scene, passes, blocks, found.quats, v, progress)):
+            certified[j] = certified[j] if j in sure else c
+        timings["certify_s"] = time.perf_counter() - t2
+    if any(c is not None and c.status == "passage" for c in certified):
+        winner = "B"
+    return v, (certified if any(c is not None for c in certified) else []), winner
+
+
+def _unsearched(scene: Scene) -> Search:
+    """A's rotations when every B was proved before the game: the scene's fixed ones, else the
+    identity (any rotation makes a hole that blocks them all)."""
+    m = len(scene.passes)
+    quats = np.array([normalize(np.asarray(e.rotation)) if e.rotation is not None else
+                      [1.0, 0.0, 0.0, 0.0] for e in scene.passes])  # fmt: skip
+    return Search(quats, np.zeros((m, 2)), float("nan"), SwarmHistory(), [], [None] * m)
+
+
+def _with_screened(scene: Scene, blocks, rows, sure: dict, v, certified: list):
+    """Complete the verdict ``v`` with the B proved before the game (:mod:`sieve_mi.game.screen`):
+    each is certified on the exact hole (into ``certified``) and gets one exact attempt's row.
+
+    Returns the screened B whose proof failed on the exact hole (then ``v`` is left as it was
+    and the caller plays them); normally none.
+    """
+    fab = scene.fabrication
+    proofs = prove_proved(scene, blocks, sure, v.outline)
+    failed = [j for j, c in proofs.items() if c.status != "proved"]
+    if failed:  # not expected (the bound says the ball test holds): they play the verdict
+        v.warnings.append("screened but not proved on the exact hole, played: "
+                          + ", ".join(blocks[j].name for j in failed))  # fmt: skip
+        return failed
+    for j, c in proofs.items():
+        certified[j] = c
+    grown = dilated(v.outline, fab.block_margin) if fab.block_margin > 0 else None
+    v.attack = with_proved(v.attack, rows, blocks, v.outline, grown, v.trans[0])
+    masks = dict(zip(rows, v.block_masks))
+    v.block_masks = [
+        masks[j] if j in masks else
+        mask_window(SilhouetteRenderer(b), v.hole, v.attack.quats[0, j], v.attack.trans[0, j])
+        for j, b in enumerate(blocks)
+    ]  # fmt: skip
+    v.winner = "A" if bool(np.all(v.attack.blocked()[0])) else "B"
+    names = ", ".join(blocks[j].name for j in sorted(sure))
+    v.warnings.append(
+        f"proved blocked before the game by size (a ball inside larger than any hole A can make; "
+        f"not attacked, β is one exact attempt's): {names}"
+    )
+    return []
 
 
 def _certify(scene, passes, blocks, quats, v, progress: bool) -> list:

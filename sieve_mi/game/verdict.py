@@ -121,6 +121,28 @@ def start_centres(outlines: list, trans: np.ndarray, groups: list[list[int]]) ->
     return np.stack([np.resize(p, (c, 2)) for p in per_hole])
 
 
+def _holes(passes, quats, trans, frame, groups, fab):
+    """A's silhouettes, the exact holes, their union H, its raster and the warnings about it."""
+    players = [PlayerA.from_settings(p, frame, fab) for p in passes]
+    a_masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(players, quats, trans)]
+    outlines = exact_holes(passes, np.asarray(quats), trans, groups, fab)
+    outline = union(outlines)
+    hole = Hole.from_outline(outline, frame)
+    warnings = []
+    if len(passes) > 1 and len(groups) == 1 and len(outline.decompose()) > 1:
+        warnings.append("the merged hole is not connected")
+    return a_masks, outlines, outline, hole, warnings
+
+
+def _no_attack(margin: bool) -> Attack:
+    """An attack on no shape (one row, zero columns)."""
+    out = Attack(np.ones((1, 0)), np.zeros((1, 0)), np.zeros((1, 0, 4)), np.zeros((1, 0, 2)),
+                 np.zeros((1, 0), dtype=np.int64))  # fmt: skip
+    if margin:
+        out.margin_beta, out.margin_protrusion = np.ones((1, 0)), np.zeros((1, 0))
+    return out
+
+
 def judge(
     scene: Scene,
     passes: list[Shape],
@@ -166,16 +188,12 @@ def judge(
     else:
         trans = np.zeros((1, 2)) if len(passes) == 1 else np.asarray(trans, dtype=np.float64)
         frame = frame_for(passes, fab.tolerance, v.resolution, trans)
-    players = [PlayerA.from_settings(p, frame, fab) for p in passes]
-    a_masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(players, quats, trans)]
     groups = _groups(len(passes), separate)
-    outlines = exact_holes(passes, np.asarray(quats), trans, groups, fab)
-    outline = union(outlines)
-    hole = Hole.from_outline(outline, frame)
-    warnings = []
-    if len(passes) > 1 and not separate and len(outline.decompose()) > 1:
-        warnings.append("the merged hole is not connected")
+    a_masks, outlines, outline, hole, warnings = _holes(passes, quats, trans, frame, groups, fab)
     grown = [dilated(o, fab.block_margin) for o in outlines] if fab.block_margin > 0 else outlines
+    if not blocks:  # every B was proved before the game (sieve_mi.game.screen)
+        attack = _no_attack(fab.block_margin > 0)
+        return Judgement("A", hole, outline, trans, a_masks, attack, [], warnings)
     player_b = PlayerB.from_settings(blocks, frame, scene.solver, objective="clearance")
     # without a margin, one merged hole's raster is the one already built
     same = fab.block_margin == 0 and not separate
