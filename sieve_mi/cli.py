@@ -272,6 +272,14 @@ def cmd_view(args) -> int:
         raise SieveError(
             f"{folder}: has no report.html (write it with sieve-mi solve or check --out)"
         )
+    from sieve_mi.outputs.outdir import read_marker
+
+    marker = read_marker(folder)
+    if marker is None or "report.html" not in marker.get("files", []):
+        raise SieveError(
+            f"{folder}: its report.html was not written by sieve-mi (no .sieve-mi marker lists "
+            "it); open it with a browser yourself if you trust it"
+        )
     url = pathlib.Path(os.path.abspath(page)).as_uri()
     if not webbrowser.open(url):
         raise SieveError(f"{page}: no browser could be started; open {url} by hand")

@@ -53,7 +53,10 @@ __all__ = [
     "Spec",
     "UNITS",
     "Verdict",
+    "NAME_MAX",
+    "SCENE_FILE_MAX",
     "check_folder_name",
+    "check_name",
     "describe",
     "field_of",
     "key_of",
@@ -684,7 +687,10 @@ def read_shape(path: str, table, where: str) -> ShapeEntry:
     r.check_keys({key_of(f) for f in fields(ShapeEntry)})
     if "mesh" not in table:
         raise r.error("mesh", "missing; give the path of a mesh file (relative to the scene file)")
-    return ShapeEntry(**r.read(ShapeEntry))
+    entry = ShapeEntry(**r.read(ShapeEntry))
+    if entry.name is not None:
+        check_name(path, f"{where}.name", entry.name)
+    return entry
 
 
 def _read_shapes(path: str, data: dict, key: str) -> list[ShapeEntry]:
@@ -698,8 +704,28 @@ def _read_shapes(path: str, data: dict, key: str) -> list[ShapeEntry]:
     return [read_shape(path, t, f"{key}[{i}]") for i, t in enumerate(data[key])]
 
 
+#: Largest scene file read, bytes (a scene is a few hundred bytes; meshes are separate files).
+SCENE_FILE_MAX = 10 << 20
+#: Longest name a scene or shape may have (names go into file and folder names, 255 bytes at most).
+NAME_MAX = 100
+
+
+def check_name(path: str, where: str, name: str) -> None:
+    """Raise unless ``name`` is a usable label: at most :data:`NAME_MAX` characters, no control
+    characters (newlines, tabs, NUL), not blank and not padded with spaces."""
+    if len(name) > NAME_MAX:
+        raise SieveError(f"{path}: {where}: {len(name)} characters; use at most {NAME_MAX}")
+    if any(ord(c) < 32 or ord(c) == 127 for c in name) or name != name.strip() or not name:
+        raise SieveError(
+            f"{path}: {where}: {name[:40]!r} has control characters or blank space at its ends; "
+            "use letters, digits, '-' and '_'"
+        )
+
+
 def check_folder_name(path: str, name: str) -> None:
-    """Raise unless ``name`` can be one folder's name (no separators, NUL, '.' or '..')."""
+    """Raise unless ``name`` can be one folder's name: a usable label (:func:`check_name`) with
+    no separators, NUL, '.' or '..'."""
+    check_name(path, "name", name)
     if any(c in name for c in "/\\\0") or name in (".", ".."):
         raise SieveError(
             f"{path}: name: {name!r} is used as a folder name; use letters, digits, '-' and '_'"
@@ -710,9 +736,16 @@ def read_file(path: str) -> dict:
     """The TOML document at ``path``; a missing, unreadable or invalid file is a SieveError."""
     if not os.path.exists(path):
         raise SieveError(f"{path}: scene file not found")
+    if not os.path.isfile(path):
+        raise SieveError(f"{path}: not a regular file; give a scene file (TOML)")
+    if os.path.getsize(path) > SCENE_FILE_MAX:
+        raise SieveError(
+            f"{path}: {os.path.getsize(path):,} bytes; a scene file is a short TOML text"
+        )
     try:
         with open(path, "rb") as fh:
-            return tomllib.load(fh)
+            text = fh.read(SCENE_FILE_MAX + 1).decode("utf-8")
+        return tomllib.loads(text.removeprefix("\ufeff"))  # a byte-order mark is not TOML's
     except tomllib.TOMLDecodeError as exc:
         raise SieveError(f"{path}: not valid TOML ({exc})") from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -170,7 +170,7 @@ def test_missing_scene_file(tmp_path):
         ),
         (
             'name = "a\\u0000b"\n[[pass]]\nmesh = "MESH"\n[[block]]\nmesh = "MESH"\n',
-            ["scene.toml: name:", "folder name"],
+            ["scene.toml: name:", "control characters"],
         ),
     ],
 )

@@ -466,7 +466,8 @@ def test_block_rotation_is_refused(tmp_path):
 @pytest.mark.parametrize("name", ["a/b", "a\\\\b", ".", "..", "a\\u0000b"])
 def test_name_that_cannot_be_a_folder(tmp_path, name):
     message = _error(tmp_path, f'name = "{name}"\n' + MINIMAL)
-    assert message.startswith("name: ") and "is used as a folder name" in message
+    refused = "is used as a folder name" in message or "has control characters" in message
+    assert message.startswith("name: ") and refused, message
 
 
 @pytest.mark.parametrize("name", ["cube-vs_sphere 2", "v1.2", "..x"])
@@ -526,7 +527,7 @@ def test_missing_unreadable_and_invalid_files(tmp_path):
     missing = str(tmp_path / "nope.toml")
     with pytest.raises(SieveError, match=r"nope\.toml: scene file not found$"):
         load_scene(missing)
-    with pytest.raises(SieveError, match=r": could not be read \("):
+    with pytest.raises(SieveError, match=r": not a regular file; give a scene file"):
         load_scene(str(tmp_path))  # a folder
     assert _error(tmp_path, "name = \n").startswith("not valid TOML (")
     (tmp_path / "latin1.toml").write_bytes(b'name = "\xe9"\n')
@@ -665,3 +666,34 @@ def test_a_scale_beyond_any_use_is_refused_in_one_line(tmp_path):
     assert "scale = 1e20" in text
     message = _error(tmp_path, text)
     assert "scale: must be <= 1000000" in message, message
+
+
+@pytest.mark.parametrize(
+    "line, expected",
+    [
+        ('name = "   "', "name: '   ' has control characters or blank space"),
+        ('name = "a\\nb"', "name: 'a\\nb' has control characters"),
+        ('name = " padded"', "blank space at its ends"),
+        (f'name = "{"n" * 300}"', "name: 300 characters; use at most 100"),
+    ],
+)
+def test_names_that_cannot_be_folder_or_file_names_are_refused(tmp_path, line, expected):
+    assert expected in _error(tmp_path, line + "\n" + MINIMAL)
+
+
+def test_a_shape_name_is_checked_too(tmp_path):
+    text = MINIMAL + f'name = "{"b" * 101}"\n'
+    assert _error(tmp_path, text) == "block[0].name: 101 characters; use at most 100"
+
+
+def test_a_byte_order_mark_is_read_as_utf8(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + ('name = "é"\n' + MINIMAL).encode("utf-8"))
+    assert load_scene(str(path)).name == "é"
+
+
+@pytest.mark.parametrize("special", ["/dev/zero", "folder"])
+def test_a_scene_path_that_is_not_a_file_is_refused_at_once(tmp_path, special):
+    path = str(tmp_path) if special == "folder" else special
+    with pytest.raises(SieveError, match="not a regular file"):
+        load_scene(path)

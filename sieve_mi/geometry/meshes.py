@@ -70,6 +70,25 @@ def _fail(path: str, what: str) -> SieveError:
     return SieveError(f"{path}: {what}")
 
 
+def _check_binary_stl(path: str) -> None:
+    """Raise if ``path`` is a binary STL shorter than its header's triangle count says (cut off
+    while copying or downloading); other files pass."""
+    if not path.lower().endswith(".stl"):
+        return
+    size = os.path.getsize(path)
+    with open(path, "rb") as fh:
+        head = fh.read(84)
+    if len(head) < 84 or head[:5].lower() == b"solid":  # ASCII STL (or too short to tell)
+        return
+    count = int.from_bytes(head[80:84], "little")
+    if size < 84 + 50 * count:
+        raise _fail(
+            path,
+            f"is a truncated binary STL: its header says {count:,} triangles "
+            f"({84 + 50 * count:,} bytes), the file has {size:,} bytes; copy or export it again",
+        )
+
+
 def load_trimesh(path: str):
     """Read a triangle mesh with trimesh, merging scenes into one mesh.
 
@@ -84,6 +103,9 @@ def load_trimesh(path: str):
         raise _fail(path, "mesh file not found; check the 'mesh' path (relative to the scene file)")
     if os.path.isdir(path):
         raise _fail(path, "is a directory, not a mesh file")
+    if not os.path.isfile(path):
+        raise _fail(path, "is not a regular file; give a mesh file")
+    _check_binary_stl(path)
     try:
         loaded = trimesh.load(path, process=False)
     except Exception as exc:  # trimesh raises many exception types for bad files

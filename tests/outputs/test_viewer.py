@@ -485,9 +485,13 @@ def test_view_opens_the_page_and_refuses_what_is_not_an_output(merged, tmp_path)
     p = run_cli("view", str(out), env=env)
     assert p.returncode == 0, p.stderr
     assert log.read_text().strip() == (out / "report.html").resolve().as_uri()
+    foreign = tmp_path / "downloads"  # someone else's page: not opened
+    foreign.mkdir()
+    (foreign / "report.html").write_text("<script>alert(1)</script>")
     for folder, needle in (
         (tmp_path / "nope", "no such output folder"),
         (tmp_path, "no report.html"),
+        (foreign, "was not written by sieve-mi"),
     ):
         p = run_cli("view", str(folder), env=env)
         assert p.returncode == 2 and needle in p.stderr
