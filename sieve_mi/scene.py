@@ -230,6 +230,26 @@ def _documented(cls: type) -> type:
     return cls
 
 
+def _checked(where: str):
+    """Class decorator: assigning a field of a made instance checks the value like a scene
+    file's key (:func:`read_value`), so ``scene.solver.particles = -5`` is the same one-line
+    :class:`~sieve_mi.errors.SieveError` as ``particles = -5`` in the file, at once."""
+
+    def decorate(cls: type) -> type:
+        checked = {f.name for f in fields(cls) if spec_of(f) is not None}
+
+        def __setattr__(self, name, value):
+            if name in checked and name in self.__dict__:  # set again, after __init__
+                value = read_value(cls, name, value, where)
+            object.__setattr__(self, name, value)
+
+        cls.__setattr__ = __setattr__
+        return cls
+
+    return decorate
+
+
+@_checked("shape")
 @_documented
 @dataclass
 class ShapeEntry:
@@ -259,6 +279,7 @@ class ShapeEntry:
     data: object = field(default=None, repr=False, compare=False)
 
 
+@_checked("fabrication")
 @_documented
 @dataclass
 class Fabrication:
@@ -298,6 +319,7 @@ class Fabrication:
     )
 
 
+@_checked("solver")
 @_documented
 @dataclass
 class Solver:
@@ -354,6 +376,7 @@ class Solver:
     )
 
 
+@_checked("verdict")
 @_documented
 @dataclass
 class Verdict:
@@ -376,6 +399,7 @@ class Verdict:
     )
 
 
+@_checked("layout")
 @_documented
 @dataclass
 class Layout:
@@ -406,6 +430,7 @@ class Layout:
     )
 
 
+@_checked("check")
 @_documented
 @dataclass
 class Check:
@@ -432,6 +457,7 @@ class Check:
     )
 
 
+@_checked("check")
 @_documented
 @dataclass
 class CheckInputs:
@@ -485,15 +511,17 @@ class Scene:
         Parameters
         ----------
         passes, blocks : list
-            Each a ``trimesh.Trimesh`` or a dict with ``"mesh"`` (the Trimesh) and optional
-            ``"name"``, ``"scale"`` and (``passes`` only) ``"rotation"`` (w, x, y, z).
+            One or more each: a ``trimesh.Trimesh``, a mesh file's path, or a dict with ``"mesh"``
+            (either) and optional ``"name"``, ``"scale"`` and (``passes`` only) ``"rotation"``
+            (w, x, y, z).
         name : str
             The scene's name (output folder ``out/<name>``).
         directory : str, optional
             Folder that relative paths refer to (default: the working directory).
 
-        Settings are attributes afterwards (``scene.fabrication.tolerance = 0.5``); unlike a
-        TOML file they are not checked when set.
+        An entry may also be a mesh file's path (relative to ``directory``). Everything is checked
+        as in a scene file, with the same one-line :class:`~sieve_mi.errors.SieveError`; settings
+        are attributes afterwards (``scene.fabrication.tolerance = 0.5``), checked when set.
 
         Examples
         --------
@@ -507,26 +535,18 @@ class Scene:
         ['pass_0', 'ball']
         """
 
-        def entries(items, role):
-            out = []
-            for i, item in enumerate(items):
-                spec = item if isinstance(item, dict) else {"mesh": item}
-                label = spec.get("name") or f"{role}_{i}"
-                out.append(
-                    ShapeEntry(
-                        mesh=f"<in memory: {label}>",
-                        scale=float(spec.get("scale", 1.0)),
-                        rotation=spec.get("rotation"),
-                        name=label,
-                        data=spec["mesh"],
-                    )
-                )
-            return out
-
+        where = "Scene.from_meshes"
+        if not isinstance(name, str):
+            raise SieveError(f"{where}: name: expected a string, got {name!r:.40}")
+        check_folder_name(where, name)
         path = os.path.join(os.path.abspath(directory or os.getcwd()), f"{name}.toml")
-        return cls(
-            path=path, name=name, passes=entries(passes, "pass"), blocks=entries(blocks, "block")
-        )
+        passes = [
+            _entry(item, f"pass[{i}]", "pass") for i, item in enumerate(_items(passes, "passes"))
+        ]
+        blocks = [
+            _entry(item, f"block[{i}]", "block") for i, item in enumerate(_items(blocks, "blocks"))
+        ]
+        return cls(path=path, name=name, passes=passes, blocks=blocks)
 
     def resolve(self, mesh: str) -> str:
         """A mesh path relative to the scene file, made absolute."""
@@ -545,6 +565,43 @@ def table_fields() -> list[dataclasses.Field]:
     """The fields of :class:`Scene` that are settings tables (``[fabrication]``, ``[solver]``, ...)."""
     kinds = value_types(Scene)
     return [f for f in fields(Scene) if dataclasses.is_dataclass(kinds[f.name])]
+
+
+def _items(items, what: str) -> list:
+    """``items`` as a non-empty list, or a one-line SieveError."""
+    if isinstance(items, str | bytes | dict) or not hasattr(items, "__len__") or not len(items):
+        raise SieveError(
+            f"Scene.from_meshes: {what}: give a list of one or more meshes (trimesh.Trimesh, a "
+            f"mesh file's path, or a dict with 'mesh'), got {items!r:.40}"
+        )
+    return list(items)
+
+
+def _entry(item, where: str, role: str) -> ShapeEntry:
+    """One shape of :meth:`Scene.from_meshes`, checked like a ``[[pass]]``/``[[block]]`` table."""
+    import trimesh
+
+    at = f"Scene.from_meshes: {where}"
+    spec = dict(item) if isinstance(item, dict) else {"mesh": item}
+    unknown = set(spec) - {"mesh", "name", "scale", "rotation"}
+    if unknown or "mesh" not in spec:
+        raise SieveError(f"{at}: expected 'mesh' and optional 'name', 'scale', 'rotation', got "
+                         f"{sorted(map(str, spec))}")  # fmt: skip
+    mesh = spec["mesh"]
+    if role == "block" and spec.get("rotation") is not None:
+        raise SieveError(f"{at}.rotation: shapes to block are tried in every orientation")
+    values = {k: read_value(ShapeEntry, k, spec[k], at) for k in ("name", "scale", "rotation")
+              if spec.get(k) is not None}  # fmt: skip
+    if "name" in values:
+        check_name(at, "name", values["name"])
+    if isinstance(mesh, str | os.PathLike):
+        return ShapeEntry(mesh=read_value(ShapeEntry, "mesh", os.fspath(mesh), at), **values)
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise SieveError(f"{at}.mesh: expected a trimesh.Trimesh or a file path, got "
+                         f"{type(mesh).__name__}")  # fmt: skip
+    label = values.get("name") or where.replace("[", "_").rstrip("]")
+    return ShapeEntry(mesh=f"<in memory: {label}>", name=label, data=mesh,
+                      **{k: v for k, v in values.items() if k != "name"})  # fmt: skip
 
 
 class Reader:

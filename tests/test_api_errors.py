@@ -8,6 +8,7 @@ import sys
 import time
 
 import pytest
+import trimesh
 from helpers import REPO
 
 import sieve_mi as sm
@@ -120,3 +121,69 @@ def test_report_settings_record_the_seed_that_ran():
     rep = report_dict(sm.solve(scene, seed=7, progress=False))
     assert rep["settings"]["solver"]["seed"] == 7 == rep["provenance"]["seed"]
     assert scene.solver.seed != 7  # the scene itself is not changed
+
+
+@pytest.mark.parametrize(
+    "table, key, value, needle",
+    [
+        ("solver", "particles", -5, "solver: particles: must be >= 1, got -5"),
+        ("solver", "particles", "ten", "solver: particles: expected a whole number, got 'ten'"),
+        ("solver", "objective", "bogus", "solver: objective: 'bogus' is not one of"),
+        ("solver", "learning_rate", float("nan"), "solver: learning_rate: expected a finite"),
+        ("verdict", "steps", "10", "verdict: steps: expected a whole number, got '10'"),
+        ("fabrication", "tolerance", 1e300, "fabrication: tolerance: must be <= 1000000"),
+        ("layout", "mode", "stacked", "layout: mode: 'stacked' is not one of"),
+    ],
+)
+def test_settings_are_checked_when_set(scene, table, key, value, needle):
+    # The same Spec and one-line error as the TOML path, at the assignment (not deep in a solve).
+    settings = getattr(scene, table)
+    before = getattr(settings, key)
+    with pytest.raises(sm.SieveError) as e:
+        setattr(settings, key, value)
+    _one_line(e, needle)
+    assert getattr(settings, key) == before  # unchanged
+
+
+def test_good_settings_are_set_and_converted(scene):
+    scene.solver.particles = 3.0  # a whole float is an int, as in a scene file
+    assert scene.solver.particles == 3 and isinstance(scene.solver.particles, int)
+    scene.fabrication.tolerance = 1  # an int is a float
+    assert scene.fabrication.tolerance == 1.0 and isinstance(scene.fabrication.tolerance, float)
+
+
+@pytest.mark.parametrize(
+    "passes, blocks, needle",
+    [
+        ([], ["B"], "passes: give a list of one or more meshes"),
+        (["A"], [], "blocks: give a list of one or more meshes"),
+        ("x", ["B"], "passes: give a list"),
+        ([None], ["B"], "pass[0].mesh: expected a trimesh.Trimesh or a file path"),
+        ([{"mesh": "A", "scale": -1}], ["B"], "pass[0]: scale: must be > 0, got -1"),
+        ([{"mesh": "A", "colour": 1}], ["B"], "pass[0]: expected 'mesh' and optional"),
+        (["A"], [{"mesh": "B", "rotation": [1, 0, 0, 0]}], "block[0].rotation: shapes to block"),
+        ([{"mesh": "A", "name": "a\nb"}], ["B"], "pass[0]: name: 'a\\nb' has control characters"),
+    ],
+)
+def test_scenes_built_in_code_are_checked_like_files(passes, blocks, needle):
+    box, ball = trimesh.creation.box((20, 20, 20)), trimesh.creation.icosphere(3, 12.0)
+
+    def real(x):
+        if isinstance(x, dict):
+            return {k: real(v) for k, v in x.items()}
+        return {"A": box, "B": ball}.get(x, x) if isinstance(x, str) else x
+
+    args = [real(x) for x in passes] if isinstance(passes, list) else passes
+    with pytest.raises(sm.SieveError) as e:
+        sm.Scene.from_meshes(args, [real(x) for x in blocks])
+    _one_line(e, "Scene.from_meshes: " + needle)
+
+
+def test_a_scene_built_in_code_takes_mesh_files_too():
+    meshes = os.path.join(os.path.dirname(DEFAULT), "meshes")
+    scene = sm.Scene.from_meshes(["cube.stl"], ["sphere.stl"], directory=meshes)
+    assert scene.resolve(scene.passes[0].mesh) == os.path.join(meshes, "cube.stl")
+    from sieve_mi.game.solver import load_shapes
+
+    passes, blocks = load_shapes(scene)
+    assert passes[0].face_count == 12 and passes[0].radius == pytest.approx(10 * 3**0.5, rel=1e-6)
