@@ -450,8 +450,7 @@ class Check:
     fit_tolerance: float = setting(
         0.01,
         "relative precision of the fit scale",
-        minimum=0,
-        exclusive_min=True,
+        minimum=1e-6,
         maximum=1,
         exclusive_max=True,
     )
@@ -779,13 +778,13 @@ def check_name(path: str, where: str, name: str) -> None:
         )
 
 
-def check_folder_name(path: str, name: str) -> None:
-    """Raise unless ``name`` can be one folder's name: a usable label (:func:`check_name`) with
-    no separators, NUL, '.' or '..'."""
-    check_name(path, "name", name)
+def check_folder_name(path: str, name: str, key: str = "name") -> None:
+    """Raise unless ``name`` (given as ``key``) can be one folder's name: a usable label
+    (:func:`check_name`) with no separators, NUL, '.' or '..'."""
+    check_name(path, key, name)
     if any(c in name for c in "/\\\0") or name in (".", ".."):
         raise SieveError(
-            f"{path}: name: {name!r} is used as a folder name; use letters, digits, '-' and '_'"
+            f"{path}: {key}: {name!r} is used as a folder name; use letters, digits, '-' and '_'"
         )
 
 

@@ -187,3 +187,66 @@ def test_a_scene_built_in_code_takes_mesh_files_too():
 
     passes, blocks = load_shapes(scene)
     assert passes[0].face_count == 12 and passes[0].radius == pytest.approx(10 * 3**0.5, rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    "text, needle",
+    [("1e300", "must be <= 1000000"), ("-1", "must be >= 0"), ("nan", "finite number"),
+     ("0.5,x", "expected numbers"), (",".join(["1"] * 101), "more than 100 tolerances")],
+)  # fmt: skip
+def test_sweep_tolerances_are_checked_like_the_scene_key(text, needle):
+    from sieve_mi.cascade.commands import parse_tolerances
+
+    with pytest.raises(sm.SieveError) as e:
+        parse_tolerances(text)
+    _one_line(e, needle)
+    assert parse_tolerances("0.5,1") == [0.5, 1.0]
+
+
+def test_sweep_takes_seed_or_seeds_not_both(tmp_path):
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sieve_mi",
+            "sweep",
+            DEFAULT,
+            "--seed",
+            "5",
+            "--seeds",
+            "5-2",
+            "--out",
+            str(tmp_path / "o"),
+        ],  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and "give one of them" in lines[0], run.stderr
+
+
+def test_a_missing_mesh_names_the_scene_file_and_key(tmp_path):
+    scene = tmp_path / "l.toml"
+    cube = os.path.join(os.path.dirname(DEFAULT), "meshes", "cube.stl")
+    scene.write_text(f'[[pass]]\nmesh = "{cube}"\n[[block]]\nmesh = "nope.stl"\n')
+    run = subprocess.run(
+        [sys.executable, "-m", "sieve_mi", "solve", str(scene), "--out", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    lines = run.stderr.strip().splitlines()
+    assert run.returncode == 2 and len(lines) == 1, run.stderr
+    assert f"{scene}: block[0].mesh: " in lines[0] and "nope.stl: mesh file not found" in lines[0]
+
+
+def test_a_mixture_shape_name_is_reported_under_its_key(tmp_path):
+    from sieve_mi.cascade.mixture import load_mixture
+
+    path = tmp_path / "m.toml"
+    path.write_text('[[shape]]\nmesh = "a.stl"\nname = "../x"\n[[shape]]\nmesh = "a.stl"\n')
+    with pytest.raises(sm.SieveError) as e:
+        load_mixture(str(path))
+    _one_line(e, "shape[0].name: '../x' is used as a folder name")

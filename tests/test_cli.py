@@ -264,7 +264,8 @@ BAD_OPTIONS = [
     ("check", "--seed", "1e3", "expected a whole number"),
     ("check", "--starts", "0", "must be >= 1"),
     ("check", "--steps", "0", "must be >= 1"),
-    ("check", "--fit-tolerance", "0", "must be > 0"),
+    ("check", "--fit-tolerance", "0", "must be >= 1e-06"),
+    ("check", "--fit-tolerance", "1e-300", "must be >= 1e-06"),  # endless before
     ("check", "--fit-tolerance", "1", "must be < 1"),
     ("check", "--fit-tolerance", "nan", "finite number"),
     ("check", "--scale", "0", "must be > 0"),
@@ -366,7 +367,7 @@ def test_check_and_certify_options_keep_their_defaults(capsys):
             "(int 16–4096, default 256)",
             "random seed (int 0–18446744073709551615, default 0)",
             "--no-fit turn off the fit-scale search",
-            "(number > 0, < 1, default 0.01)",
+            "(number ≥ 1e-06, < 1, default 0.01)",
             "one of x, y, z (default z)",
             "(number > 0, ≤ 1000000, default 1.0)",
             "(default mm)",

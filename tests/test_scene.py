@@ -575,7 +575,7 @@ def test_read_value_converts_like_the_reader():
 
 def test_an_exclusive_maximum_is_checked_and_described():
     f = scene.field_of(scene.Check, "fit_tolerance")
-    assert spec_of(f).exclusive_max and scene.describe(scene.Check, f) == "number > 0, < 1"
+    assert spec_of(f).exclusive_max and scene.describe(scene.Check, f) == "number ≥ 1e-06, < 1"
     assert scene.read_value(scene.Check, "fit_tolerance", 0.999, "x") == 0.999
     with pytest.raises(SieveError, match=r"^x: fit_tolerance: must be < 1, got 1.0$"):
         scene.read_value(scene.Check, "fit_tolerance", 1.0, "x")

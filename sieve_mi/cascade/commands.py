@@ -10,6 +10,7 @@ from sieve_mi.errors import SieveError
 __all__ = [
     "COMMANDS",
     "MAX_SEEDS",
+    "MAX_TOLERANCES",
     "VARIANT_HELP",
     "add_parsers",
     "cmd_sort",
@@ -52,7 +53,7 @@ def add_parsers(sub) -> None:
     )
     w.add_argument("scene", help="scene file (TOML)")
     w.add_argument(
-        "--seeds", default="0-4", help="seeds: a range 0-9 or a list 0,3,7 (default 0-4)"
+        "--seeds", help="seeds: a range 0-9 or a list 0,3,7 (default 0-4; not with --seed)"
     )
     w.add_argument("--tolerance", help="tolerances to try, comma-separated (default: the scene's)")
     _engine_options(w)
@@ -87,17 +88,24 @@ def parse_seeds(text: str) -> list[int]:
     return sorted({s for lo, hi in ranges for s in range(lo, hi + 1)})
 
 
+#: Most tolerances one sweep tries (each is a solve per seed).
+MAX_TOLERANCES = 100
+
+
 def parse_tolerances(text: str | None) -> list[float] | None:
     """``"0.5,1.0"`` -> [0.5, 1.0]; None stays None (the scene's own tolerance)."""
     if text is None:
         return None
+    from sieve_mi.scene import Fabrication, read_value
+
+    parts = text.split(",")
+    if len(parts) > MAX_TOLERANCES:
+        raise SieveError(f"--tolerance {text[:60]}: more than {MAX_TOLERANCES} tolerances")
     try:
-        values = [float(x) for x in text.split(",")]
+        values = [float(x) for x in parts]
     except ValueError:
-        raise SieveError(f"--tolerance {text}: expected numbers like 0.5,1.0") from None
-    if any(not (v >= 0 and v < float("inf")) for v in values):
-        raise SieveError(f"--tolerance {text}: every tolerance must be >= 0")
-    return values
+        raise SieveError(f"--tolerance {text[:60]}: expected numbers like 0.5,1.0") from None
+    return [read_value(Fabrication, "tolerance", v, "sweep", "--tolerance") for v in values]
 
 
 def _engine(args) -> dict:
@@ -166,7 +174,9 @@ def cmd_sweep(args) -> int:
     from sieve_mi.cascade.sweep import sweep_scene, sweep_table
     from sieve_mi.scene import load_scene
 
-    seeds = parse_seeds(args.seeds) if args.seed is None else [args.seed]
+    if args.seed is not None and args.seeds is not None:
+        raise SieveError(f"--seed {args.seed} and --seeds {args.seeds}: give one of them")
+    seeds = parse_seeds(args.seeds or "0-4") if args.seed is None else [args.seed]
     tolerances = parse_tolerances(args.tolerance)
     scene = load_scene(args.scene)
     engine = _engine(args)

@@ -407,7 +407,13 @@ class Engine:
     """
 
     def __init__(self, out_dir: str, *, use_ray, address=None, workers=None, progress=True):
-        self.cache = GameCache(cache_folder(out_dir), also=(os.path.join(out_dir, "games"),))
+        folder = cache_folder(out_dir)
+        if os.path.lexists(folder) and not os.path.isdir(folder):  # found before any game
+            raise SieveError(
+                f"{folder}: exists and is not a folder; sieve-mi keeps finished games there "
+                "until the output is written: move it or choose another --out"
+            )
+        self.cache = GameCache(folder, also=(os.path.join(out_dir, "games"),))
         self.bar = Progress(progress)
         self.runner = Runner(
             self.cache, use_ray=use_ray, address=address, workers=workers, on_done=self.bar.done

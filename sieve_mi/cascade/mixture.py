@@ -138,5 +138,5 @@ def _shape(path: str, table, i: int) -> ShapeEntry:
     entry = read_shape(path, table, where)
     if entry.name is None:
         entry.name = os.path.splitext(os.path.basename(entry.mesh))[0]
-    check_folder_name(path, entry.name)
+    check_folder_name(path, entry.name, f"{where}.name")
     return entry

@@ -40,6 +40,7 @@ from sieve_mi.geometry.outline import (
 from sieve_mi.geometry.rotations import angle_between, from_rotvec, normalize, quat_multiply
 
 __all__ = [
+    "MAX_SAMPLES",
     "CANDIDATES",
     "ExactAttempt",
     "ExactScore",
@@ -53,6 +54,9 @@ __all__ = [
 
 #: A pose fits when nothing sticks out by more than this fraction of the hole's size (float noise).
 FIT_EPS = 1e-7
+#: Most samples on the outline of S \\ H for the protrusion (normal shapes need thousands; only a
+#: shape thousands of holes across gets a coarser spacing, the protrusion still a lower bound).
+MAX_SAMPLES = 1_000_000
 #: Raster candidates kept per shape and hole for exact scoring (the best three are polished).
 CANDIDATES = 8
 
@@ -126,7 +130,9 @@ def score(
     prot = 0.0
     if not out.is_empty():
         edges = Boundary(out)
-        pts = along(edges.a, edges.b, boundary.spacing)[0]
+        perimeter = float(np.linalg.norm(edges.b - edges.a, axis=1).sum())
+        spacing = max(boundary.spacing, perimeter / MAX_SAMPLES)  # a shape kilometres across
+        pts = along(edges.a, edges.b, spacing)[0]
         prot = float(max(0.0, boundary.signed(pts).max())) if len(pts) else 0.0
     if prot <= eps:
         return ExactScore(beta=0.0, protrusion=0.0, outside_area=out_area)

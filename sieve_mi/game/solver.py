@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import AttackMemory
 from sieve_mi.game.layout import alternative_rotations, hole_frame, merge, union_frame
 from sieve_mi.game.players import PlayerA, PlayerB
@@ -71,13 +72,16 @@ class Search:
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
     """Read every mesh of the scene (raises SieveError on the first bad one)."""
 
-    def load(e):
-        if e.data is not None:  # a scene built in code (Scene.from_meshes)
-            return shape_from_trimesh(e.data, name=e.name, scale=e.scale)
-        return load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name)
+    def load(e, key: str):
+        try:
+            if e.data is not None:  # a scene built in code (Scene.from_meshes)
+                return shape_from_trimesh(e.data, name=e.name, scale=e.scale)
+            return load_shape(scene.resolve(e.mesh), scale=e.scale, name=e.name)
+        except SieveError as exc:  # name the scene file and its key too
+            raise SieveError(f"{scene.path}: {key}.mesh: {exc}") from None
 
-    passes = [load(e) for e in scene.passes]
-    blocks = [load(e) for e in scene.blocks]
+    passes = [load(e, f"pass[{i}]") for i, e in enumerate(scene.passes)]
+    blocks = [load(e, f"block[{j}]") for j, e in enumerate(scene.blocks)]
     return passes, blocks
 
 

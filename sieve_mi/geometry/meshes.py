@@ -100,7 +100,7 @@ def load_trimesh(path: str):
     import trimesh
 
     if not os.path.exists(path):
-        raise _fail(path, "mesh file not found; check the 'mesh' path (relative to the scene file)")
+        raise _fail(path, "mesh file not found")
     if os.path.isdir(path):
         raise _fail(path, "is a directory, not a mesh file")
     if not os.path.isfile(path):

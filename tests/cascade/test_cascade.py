@@ -7,6 +7,7 @@ import os
 import socket
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -222,3 +223,18 @@ def test_bad_mixtures_and_addresses_are_one_line_errors(tmp_path):
     _one_error_line(_cli("sweep", two, "--seeds", "3-x", cwd=tmp_path), "--seeds 3-x")
     with pytest.raises(SieveError, match="expected host:port"):
         games_mod.check_address("nowhere")
+
+
+def test_a_file_where_the_games_wait_is_refused_before_any_game(tmp_path):
+    two = _mixture(
+        tmp_path,
+        {"a": trimesh.creation.box((1.0, 1.0, 1.0)), "b": trimesh.creation.box((2.0, 2.0, 2.0))},
+        name="two",
+    )
+    mine = tmp_path / "out.games"
+    mine.write_text("my notes")
+    t0 = time.perf_counter()
+    proc = _cli("sort", two, "--out", str(tmp_path / "out"), "--serial", cwd=tmp_path)
+    _one_error_line(proc, "out.games: exists and is not a folder")
+    assert time.perf_counter() - t0 < 60  # no game played
+    assert mine.read_text() == "my notes" and not (tmp_path / "out").exists()

@@ -95,3 +95,13 @@ def test_screen_false_plays_every_block():
     assert sorted(proved_by_size(scene, passes, shapes)) == [0]
     scene.solver.screen = False
     assert proved_by_size(scene, passes, shapes) == {}
+
+
+@pytest.mark.slow
+def test_a_block_kilometres_across_is_proved_without_running_out_of_memory():
+    # A 24 mm ball scaled 1e5 (2.4 km) against a 20 mm ball's hole: it used to fill the memory
+    # (the protrusion's outline samples every 1/2000 of the hole along a 7.5 km outline).
+    scene = _scene([{"mesh": trimesh.creation.icosphere(3, 12.0), "name": "huge", "scale": 1e5}])
+    result = sm.solve(scene, progress=False)
+    assert result.winner == "A" and result.certified[0].status == "proved"
+    assert result.blocks[0].protrusion > 1e6  # metres out, in mm
