@@ -90,6 +90,8 @@ class Result:
         The seed the run used.
     polish : list of dict
         Per searched A, the local polish of its rotation (see :class:`Search`).
+    started : float or None
+        ``time.perf_counter()`` when the solve started.
     certified : list of Certification or None
         With ``[verdict] certify``: per B, the proof attempt against the exact hole (None where
         the verdict let it through); empty otherwise.
@@ -117,6 +119,8 @@ class Result:
     certified: list = field(default_factory=list)
     outline: object = None
     polish: list = field(default_factory=list)
+    #: ``time.perf_counter()`` when the solve started (report.json's ``total_s`` counts from it).
+    started: float | None = None
 
     @property
     def blocks(self) -> list[BlockAttempt]:

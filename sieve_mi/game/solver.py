@@ -302,6 +302,7 @@ def solve(
         certified=certified,
         outline=v.outline,
         polish=found.polish,
+        started=t_init,
     )
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 import zipfile
 from dataclasses import dataclass, field
 
@@ -262,9 +263,11 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
         + [f"pass_{i}.stl" for i in range(len(passes))]
         + [f"block_{j}.stl" for j in range(len(blocks))]
     )
+    figure_s = 0.0
     if figure:
         from sieve_mi.outputs.figure import render_figure
 
+        t_figure = time.perf_counter()
         beside = beside_plate(sieve.mesh, blocks)
         render_figure(
             os.path.join(out_dir, "figure.png"),
@@ -275,8 +278,10 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
             title=f"{scene.name}: winner {result.winner}",
         )
         files.append("figure.png")
+        figure_s = time.perf_counter() - t_figure
     (x0, y0, z0), (x1, y1, z1) = sieve.mesh.bounds
     return {
+        "figure_s": figure_s,
         "thickness": sieve.thickness,
         "required_thickness": required,
         "border": sieve.border,

@@ -19,6 +19,8 @@ from sieve_mi.outputs import outdir
 from sieve_mi.outputs.provenance import provenance
 
 __all__ = [
+    "STAGES",
+    "stage_line",
     "input_paths",
     "mask_layers",
     "merge_hint",
@@ -364,15 +366,22 @@ def write_outputs(
     interrupted or failed run leaves the old folder as it was, and a folder that sieve-mi did not
     write is refused (:class:`~sieve_mi.errors.SieveError`), never replaced.
     """
+    t_start = time.perf_counter()
     report = report_dict(result)
+    timings = report["timings"]
     with outdir.writing(out_dir, command="solve", inputs=input_paths(result.scene)) as tmp:
+        t0 = time.perf_counter()
         _write_images(result, tmp)
+        timings["images_s"] = round(time.perf_counter() - t0 + (t0 - t_start), 4)
         if fabricate:
             from sieve_mi.outputs.fabrication import fabricate as make_sieve
 
             t0 = time.perf_counter()
-            report["fabrication"] = make_sieve(result, tmp, figure=figure)
-            report["timings"]["fabrication_s"] = round(time.perf_counter() - t0, 4)
+            report["fabrication"] = made = make_sieve(result, tmp, figure=figure)
+            figure_s = made.pop("figure_s")
+            timings["fabrication_s"] = round(time.perf_counter() - t0 - figure_s, 4)
+            if figure:
+                timings["figure_s"] = round(figure_s, 4)
         _write_passage(result, report, tmp, animation)
     return report
 
@@ -386,16 +395,24 @@ def _write_passage(result: Result, report: dict, tmp: str, animation: bool) -> N
     from sieve_mi.outputs.passage import build
     from sieve_mi.outputs.viewer import page_files, write_page
 
+    timings = report["timings"]
+    t0 = time.perf_counter()
     passage = build(result)
+    timings["passage_s"] = round(time.perf_counter() - t0, 4)
     if animation:
         from sieve_mi.outputs.animation import write_gif
 
         t0 = time.perf_counter()
         report["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
-        report["timings"]["animation_s"] = round(time.perf_counter() - t0, 4)
+        timings["animation_s"] = round(time.perf_counter() - t0, 4)
+    t0 = time.perf_counter()
+    files = page_files(tmp) + ["report.json"]
+    write_page(os.path.join(tmp, "report.html"), result, report, passage, sorted(set(files)))
+    timings["page_s"] = round(time.perf_counter() - t0, 4)  # the page shows the times before it
+    if result.started is not None:
+        timings["total_s"] = round(time.perf_counter() - result.started, 4)
     with open(os.path.join(tmp, "report.json"), "w") as fh:
         json.dump(report, fh, indent=2)
-    write_page(os.path.join(tmp, "report.html"), result, report, passage, page_files(tmp))
 
 
 def _write_images(result: Result, tmp: str) -> None:
@@ -463,10 +480,27 @@ def summary_table(report: dict) -> str:
         f"winner: {report['winner']}   search {t.get('search_s', 0):.1f} s, verdict {t.get('verdict_s', 0):.1f} s, "
         f"pixel size {report['pixel_size']:.4g} {units}"
     )
+    if "total_s" in t:
+        lines.append(stage_line(t))
     hint = merge_hint(report)
     if hint:
         lines.append(hint)
     return "\n".join(lines)
+
+
+#: report.json's stage timings, in the order they run, with the console's labels.
+STAGES = (
+    ("init_s", "init"), ("load_s", "load"), ("screen_s", "screen"), ("search_s", "search"),
+    ("verdict_s", "verdict"), ("certify_s", "certify"), ("images_s", "images"),
+    ("fabrication_s", "plate"), ("figure_s", "figure"), ("passage_s", "passage"),
+    ("animation_s", "gif"), ("page_s", "page"),
+)  # fmt: skip
+
+
+def stage_line(timings: dict) -> str:
+    """``time: 12.3 s = search 4.1 + verdict 3.2 + ...`` from report.json's timings."""
+    parts = [f"{label} {timings[key]:.1f}" for key, label in STAGES if timings.get(key, 0) >= 0.05]
+    return f"time: {timings['total_s']:.1f} s = " + " + ".join(parts) + " s"
 
 
 def _certified_cell(block: dict) -> str:

@@ -139,3 +139,29 @@ def test_layered_exr_has_every_layer_on_one_lattice(solved, tmp_path):
         box = manifold3d.CrossSection.square([2 * frame.half_extent] * 2, center=True)
         inside = (sil ^ box).area()
         assert abs(len(pts) * h * h - inside) <= 0.1 * inside
+
+
+@pytest.mark.slow
+def test_every_stage_is_timed_and_they_sum_to_the_wall_time(tmp_path):
+    # A fresh solve (its start is recorded), saved with the plate, the figure and the GIF: the
+    # stages in report.json add up to its total within 5 %, and the console's line says so.
+    import time
+
+    scene_path = tmp_path / "scene.toml"
+    scene_path.write_text(SCENE)
+    t0 = time.perf_counter()
+    result = solve(load_scene(str(scene_path)), progress=False)
+    report = result.save(str(tmp_path / "out"), figure=True, animation=True)
+    wall = time.perf_counter() - t0
+    t = report["timings"]
+    for key in ("load_s", "search_s", "verdict_s", "images_s", "fabrication_s", "figure_s",
+                "passage_s", "animation_s", "page_s", "total_s"):  # fmt: skip
+        assert key in t, key
+    stages = sum(v for k, v in t.items() if k != "total_s")
+    assert stages == pytest.approx(t["total_s"], rel=0.05)
+    assert t["total_s"] <= wall + 0.01  # the total is measured inside this wall time
+    assert t["total_s"] >= 0.9 * wall
+    with open(tmp_path / "out" / "report.json") as fh:
+        assert json.load(fh)["timings"] == t
+    line = summary_table(report).splitlines()[-1]
+    assert line.startswith(f"time: {t['total_s']:.1f} s = ") and "figure" in line and "gif" in line
