@@ -399,3 +399,34 @@ def test_check_options_make_the_check_settings():
     args = _parser().parse_args(["certify", "a.stl", "--hole", "h.svg", "--budget", "5"])
     _check_settings(args)
     assert args.certify_budget == 5.0
+
+
+def test_version():
+    from sieve_mi import __version__
+
+    run = subprocess.run([sys.executable, "-m", "sieve_mi", "--version"], capture_output=True,
+                         text=True, timeout=60)  # fmt: skip
+    assert run.returncode == 0 and run.stdout.strip() == f"sieve-mi {__version__}"
+
+
+def test_progress_into_a_log_is_plain_lines(tmp_path):
+    # stderr is a pipe here, as in a log file: one line per stage, no tqdm '\r' frames.
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sieve_mi",
+            "solve",
+            os.path.join(SCENES, "rupert.toml"),
+            "--out",
+            str(tmp_path / "o"),
+            "--no-figure",
+            "--no-animation",
+        ],  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert run.returncode == 0, run.stderr
+    assert "\r" not in run.stderr
+    assert "verdict: done in " in run.stderr

@@ -351,7 +351,8 @@ class Progress:
 
     def __init__(self, enabled: bool):
         self.enabled, self.bar = enabled, None
-        if enabled:
+        self.plain = enabled and not sys.stderr.isatty()  # a log: lines, no \r frames
+        if enabled and not self.plain:
             from tqdm import tqdm
 
             self.bar = tqdm(total=0, desc="games", unit="game", dynamic_ncols=True, file=sys.stderr)
@@ -362,17 +363,22 @@ class Progress:
             self.bar.refresh()
 
     def done(self, record: dict, reused: bool) -> None:
-        if self.bar is None:
+        if self.bar is None and not self.plain:
             return
         s, label = record["summary"], record["label"]
         weak = weakest(s)
-        self.bar.write(
+        (
+            self.bar.write
+            if self.bar is not None
+            else lambda t: print(t, file=sys.stderr, flush=True)
+        )(
             f"  hold {'+'.join(label.get('holds', [])) or '-':<20} pass "
             f"{'+'.join(label.get('passes', [])) or '-':<28} winner {s['winner']}  "
             f"weakest {weak['name']} beta {weak['beta']:.4f}  "
             + ("reused" if reused else f"{s.get('game_s', 0):.1f} s")
         )
-        self.bar.update(1)
+        if self.bar is not None:
+            self.bar.update(1)
 
     def close(self) -> None:
         if self.bar is not None:

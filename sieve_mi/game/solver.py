@@ -86,17 +86,21 @@ def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
 
 
 class _Bar:
-    """A tqdm progress bar on stderr, or nothing when quiet."""
+    """Progress on stderr: a tqdm bar on a terminal; elsewhere (a log file, a pipe) one plain line
+    per stage and one when done, without tqdm's carriage-return frames; nothing when quiet."""
 
     def __init__(self, enabled: bool, total: int, desc: str, grow_by: int = 0):
-        self.bar = None
-        self.grow_by = grow_by
-        if enabled:
+        self.bar, self.plain = None, enabled and not sys.stderr.isatty()
+        self.grow_by, self.desc, self.stage, self.t0 = grow_by, desc, None, time.perf_counter()
+        if enabled and not self.plain:
             from tqdm import tqdm
 
             self.bar = tqdm(total=total, desc=desc, unit="it", leave=True, dynamic_ncols=True)
 
     def update(self, n: int = 1, **postfix):
+        if self.plain and postfix.get("stage", self.stage) != self.stage:
+            self.stage = postfix["stage"]
+            print(f"{self.desc}: {self.stage}", file=sys.stderr, flush=True)
         if self.bar is not None:
             if self.bar.total is not None and self.grow_by and self.bar.n + n > self.bar.total:
                 self.bar.total += self.grow_by  # an extra round of work nobody could foresee
@@ -107,6 +111,9 @@ class _Bar:
                 self.bar.refresh()
 
     def close(self):
+        if self.plain:
+            took = time.perf_counter() - self.t0
+            print(f"{self.desc}: done in {took:.1f} s", file=sys.stderr, flush=True)
         if self.bar is not None:
             self.bar.close()
 
