@@ -39,7 +39,10 @@ def _parser() -> argparse.ArgumentParser:
         help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono",
     )
     s.add_argument("--seed", type=int, help="random seed (overrides [solver] seed)")
-    s.add_argument("--quiet", action="store_true", help="no progress bars")
+    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    s.add_argument(
+        "--json", action="store_true", help="print report.json on stdout instead of the table"
+    )
     _skip_flags(s)
     c = sub.add_parser(
         "check",
@@ -59,6 +62,7 @@ def _parser() -> argparse.ArgumentParser:
         help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono",
     )
     c.add_argument("--json", action="store_true", help="print the result as JSON")
+    c.add_argument("--quiet", action="store_true", help="no progress on stderr")
     c.add_argument(
         "--out",
         help="also write the result as DIR/report.json (same rules as solve --out: only a new, "
@@ -198,6 +202,7 @@ def _certify_parser(sub) -> None:
     _settings(k, Verdict, "certify_budget", flags={"certify_budget": "--budget"})
     k.add_argument("--certificate", help="write the certificate (JSON) to this file")
     k.add_argument("--json", action="store_true", help="print the result as JSON")
+    k.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
 
 def cmd_solve(args) -> int:
@@ -211,11 +216,22 @@ def cmd_solve(args) -> int:
     sm.check_seed(args.seed, "--seed")
     result = sm.solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
     report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
-    print(summary_table(report))
+    if args.json:  # report.json's content, for scripts (jq); everything else on stderr
+        import json
+
+        print(json.dumps(report, indent=2))
+    else:
+        print(summary_table(report))
     for w in report["warnings"] + report.get("fabrication", {}).get("warnings", []):
         print(f"sieve-mi: warning: {w}", file=sys.stderr)
-    print(f"outputs: {out_dir}/")
+    print(f"outputs: {out_dir}/", file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def _say_fit(v) -> None:
+    """One stderr line per scale that ``check`` tried (it runs a whole attack each time)."""
+    what = "passes" if v.passes else f"blocked (beta {v.beta:.4f}, sticks out {v.protrusion:.3f})"
+    print(f"check: scale {v.scale:.4f}: {what}", file=sys.stderr, flush=True)
 
 
 def cmd_check(args) -> int:
@@ -245,6 +261,7 @@ def cmd_check(args) -> int:
         pixel_size=args.pixel_size,
         units=args.units,
         settings=settings,
+        progress=None if args.quiet else _say_fit,
     )
     text = json.dumps(rep.to_dict(), indent=2, default=lambda x: None if x != x else str(x))
     if args.out is not None:

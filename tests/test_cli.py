@@ -430,3 +430,48 @@ def test_progress_into_a_log_is_plain_lines(tmp_path):
     assert run.returncode == 0, run.stderr
     assert "\r" not in run.stderr
     assert "verdict: done in " in run.stderr
+
+
+def test_solve_json_prints_report_json_on_stdout(tmp_path):
+    out = tmp_path / "o"
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sieve_mi",
+            "solve",
+            os.path.join(SCENES, "rupert.toml"),
+            "--out",
+            str(out),
+            "--no-figure",
+            "--no-animation",
+            "--json",
+            "--quiet",
+        ],  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert run.returncode == 0, run.stderr
+    printed = json.loads(run.stdout)  # nothing else on stdout
+    with open(out / "report.json") as fh:
+        assert printed == json.load(fh)
+    assert printed["winner"] == "B" and "outputs:" in run.stderr
+
+
+@pytest.mark.parametrize("command", ["solve", "check", "certify", "sort", "sweep"])
+def test_every_working_subcommand_takes_quiet(command):
+    from sieve_mi.cli import _parser
+
+    assert "--quiet" in _parser()._subparsers._group_actions[0].choices[command].format_help()
+
+
+def test_check_says_each_scale_it_tries(capsys):
+    from sieve_mi.cli import _say_fit
+    from sieve_mi.game.check import ShapeCheck
+
+    _say_fit(ShapeCheck(1.0, True, 0.0, 0.0, [1, 0, 0, 0], [0, 0], 0, 3))
+    _say_fit(ShapeCheck(1.25, False, 0.0312, 0.5, [1, 0, 0, 0], [0, 0], 0, 0))
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["check: scale 1.0000: passes",
+                   "check: scale 1.2500: blocked (beta 0.0312, sticks out 0.500)"]  # fmt: skip
