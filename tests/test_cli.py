@@ -475,3 +475,17 @@ def test_check_says_each_scale_it_tries(capsys):
     err = capsys.readouterr().err.splitlines()
     assert err == ["check: scale 1.0000: passes",
                    "check: scale 1.2500: blocked (beta 0.0312, sticks out 0.500)"]  # fmt: skip
+
+
+def test_every_option_of_every_subcommand_has_help():
+    from sieve_mi.cli import _parser
+
+    commands = _parser()._subparsers._group_actions[0].choices
+    missing = [
+        (name, a.option_strings or a.dest)
+        for name, sub in commands.items()
+        for a in sub._actions
+        if not a.help and "-h" not in a.option_strings
+    ]
+    assert missing == []
+    assert "-sweep" not in commands["sort"].format_help()  # sort's --out is not sweep's

@@ -23,9 +23,9 @@ __all__ = [
 VARIANT_HELP = "Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono"
 
 
-def _engine_options(p) -> None:
-    """Options shared by ``sort`` and ``sweep``: where the games run."""
-    p.add_argument("--out", help="output folder (default: out/<name>/ or out/<name>-sweep/)")
+def _engine_options(p, default_out: str) -> None:
+    """Options shared by ``sort`` and ``sweep``: where the games run and the output folder."""
+    p.add_argument("--out", help=f"output folder (default: {default_out})")
     p.add_argument("--variant", help=VARIANT_HELP)
     p.add_argument("--seed", type=int, help="random seed of every game (overrides [solver] seed)")
     p.add_argument(
@@ -46,7 +46,7 @@ def add_parsers(sub) -> None:
         "sort", help="design a cascade of sieves that sorts a mixture of [[shape]]s into trays"
     )
     s.add_argument("mixture", help="mixture file (TOML with [[shape]] tables)")
-    _engine_options(s)
+    _engine_options(s, "out/<name>/")
     w = sub.add_parser(
         "sweep",
         help="solve one scene over several seeds (and tolerances) and keep the largest margin",
@@ -56,7 +56,7 @@ def add_parsers(sub) -> None:
         "--seeds", help="seeds: a range 0-9 or a list 0,3,7 (default 0-4; not with --seed)"
     )
     w.add_argument("--tolerance", help="tolerances to try, comma-separated (default: the scene's)")
-    _engine_options(w)
+    _engine_options(w, "out/<name>-sweep/")
 
 
 #: Most seeds one sweep plays (each is a whole solve: 1,000 default solves take about an hour).
