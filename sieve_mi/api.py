@@ -22,7 +22,6 @@ from sieve_mi.outputs.report import write_outputs
 from sieve_mi.scene import SEED_MAX, Scene
 
 __all__ = [
-    "MAX_SEED",
     "Result",
     "Scene",
     "SieveError",
@@ -32,9 +31,6 @@ __all__ = [
     "load_shape",
     "solve",
 ]
-
-#: Seeds are integers in [0, MAX_SEED] (nlopt's generator takes an unsigned 64-bit seed).
-MAX_SEED = SEED_MAX
 
 
 def _path(value, what: str) -> str:
@@ -47,12 +43,12 @@ def _path(value, what: str) -> str:
 
 
 def check_seed(seed, what: str = "seed") -> int | None:
-    """``seed`` if it is None or an integer in [0, :data:`MAX_SEED`]; else a one-line SieveError."""
+    """``seed`` if it is None or an integer in [0, :data:`sieve_mi.scene.SEED_MAX`]; else a one-line SieveError."""
     if seed is None:
         return None
     if isinstance(seed, bool) or not isinstance(seed, int):
         raise SieveError(f"{what} {seed!r:.60}: must be an integer >= 0")
-    if not 0 <= seed <= MAX_SEED:
+    if not 0 <= seed <= SEED_MAX:
         raise SieveError(f"{what} {seed}: must be an integer from 0 to 2**64 - 1")
     return seed
 

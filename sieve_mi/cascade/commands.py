@@ -68,7 +68,7 @@ def parse_seeds(text: str) -> list[int]:
 
     At most :data:`MAX_SEEDS` seeds, each from 0 to 2**64 - 1 (counted before any list is built).
     """
-    from sieve_mi.api import MAX_SEED  # the API (and the solver) only when a command runs
+    from sieve_mi.scene import SEED_MAX
 
     ranges = []
     try:
@@ -79,7 +79,7 @@ def parse_seeds(text: str) -> list[int]:
         raise SieveError(
             f"--seeds {text}: expected a range like 0-9 or a list like 0,3,7"
         ) from None
-    if not ranges or any(lo < 0 or hi < lo or hi > MAX_SEED for lo, hi in ranges):
+    if not ranges or any(lo < 0 or hi < lo or hi > SEED_MAX for lo, hi in ranges):
         raise SieveError(
             f"--seeds {text}: give at least one seed, all from 0 to 2**64 - 1, ranges low-high"
         )
