@@ -333,7 +333,7 @@ def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progr
     winner = v.winner
     if scene.verdict.certify:
         t2 = time.perf_counter()
-        for j, c in enumerate(_certify(scene, passes, blocks, found.quats, v, progress)):
+        for j, c in enumerate(_certify(scene, passes, blocks, found.quats, v, progress, sure)):
             certified[j] = certified[j] if j in sure else c
         timings["certify_s"] = time.perf_counter() - t2
     if any(c is not None and c.status == "passage" for c in certified):
@@ -383,8 +383,9 @@ def _with_screened(scene: Scene, blocks, rows, sure: dict, v, certified: list):
     return []
 
 
-def _certify(scene, passes, blocks, quats, v, progress: bool) -> list:
-    """Certify the verdict's blocked B (:func:`sieve_mi.certify.blocks.certify_blocks`).
+def _certify(scene, passes, blocks, quats, v, progress: bool, proved=()) -> list:
+    """Certify the verdict's blocked B (:func:`sieve_mi.certify.blocks.certify_blocks`), except
+    those in ``proved`` (already certified before the game; None there).
 
     A passage found through the exact hole overrules the verdict: it is added to ``v.warnings``.
     """
@@ -394,9 +395,8 @@ def _certify(scene, passes, blocks, quats, v, progress: bool) -> list:
         if progress:
             print(line, file=sys.stderr, flush=True)
 
-    certified = certify_blocks(
-        scene, passes, blocks, quats, v.trans, v.attack.blocked()[0], progress=say
-    )
+    todo = v.attack.blocked()[0] & ~np.isin(np.arange(len(blocks)), list(proved))
+    certified = certify_blocks(scene, passes, blocks, quats, v.trans, todo, progress=say)
     for shape, c in zip(blocks, certified):
         if c is not None and c.status == "passage":
             v.warnings.append(
