@@ -248,24 +248,9 @@ def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: _Bar):
 def solve(
     scene: Scene, *, variant: str | None = None, seed: int | None = None, progress: bool = True
 ) -> Result:
-    """Play the sieve game for a scene (the game only: :func:`sieve_mi.api.solve` returns it as a
-    :class:`sieve_mi.api.Result`, which can save its outputs).
-
-    Parameters
-    ----------
-    scene : Scene
-    variant : str, optional
-        Mitsuba variant ("llvm_ad_mono" or "cuda_ad_mono"); default ``$SIEVE_MI_VARIANT`` or
-        "llvm_ad_mono".
-    seed : int, optional
-        Overrides ``[solver] seed``.
-    progress : bool
-        Show progress bars on stderr.
-
-    Returns
-    -------
-    Result
-    """
+    """Play the sieve game for a scene; parameters as :func:`sieve_mi.api.solve`, which checks
+    them and returns this game's :class:`~sieve_mi.game.result.Result` as a
+    :class:`sieve_mi.api.Result` (one that can save its outputs)."""
     from sieve_mi.backend import use_variant
 
     t_init = time.perf_counter()
