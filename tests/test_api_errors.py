@@ -22,6 +22,13 @@ def scene():
     return sm.load_scene(DEFAULT)
 
 
+def _cli(*args) -> subprocess.CompletedProcess:
+    """``python -m sieve_mi ARGS`` with its output captured."""
+    return subprocess.run(
+        [sys.executable, "-m", "sieve_mi", *args], capture_output=True, text=True, timeout=300
+    )
+
+
 def _one_line(exc: pytest.ExceptionInfo, needle: str) -> None:
     text = str(exc.value)
     assert "\n" not in text and needle in text, text
@@ -88,22 +95,7 @@ def test_sweep_seeds_are_bounded_before_any_list_is_built(text):
 
 
 def test_seed_two_to_the_64_is_one_line_from_the_cli(tmp_path):
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "sieve_mi",
-            "solve",
-            DEFAULT,
-            "--seed",
-            str(2**64),
-            "--out",
-            str(tmp_path / "o"),
-        ],  # fmt: skip
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    run = _cli("solve", DEFAULT, "--seed", str(2**64), "--out", str(tmp_path / "o"))
     assert run.returncode == 2
     lines = run.stderr.strip().splitlines()
     assert len(lines) == 1 and "--seed" in lines[0] and "2**64" in lines[0], run.stderr
@@ -204,24 +196,7 @@ def test_sweep_tolerances_are_checked_like_the_scene_key(text, needle):
 
 
 def test_sweep_takes_seed_or_seeds_not_both(tmp_path):
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "sieve_mi",
-            "sweep",
-            DEFAULT,
-            "--seed",
-            "5",
-            "--seeds",
-            "5-2",
-            "--out",
-            str(tmp_path / "o"),
-        ],  # fmt: skip
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    run = _cli("sweep", DEFAULT, "--seed", "5", "--seeds", "5-2", "--out", str(tmp_path / "o"))
     assert run.returncode == 2
     lines = run.stderr.strip().splitlines()
     assert len(lines) == 1 and "give one of them" in lines[0], run.stderr
@@ -231,12 +206,7 @@ def test_a_missing_mesh_names_the_scene_file_and_key(tmp_path):
     scene = tmp_path / "l.toml"
     cube = os.path.join(os.path.dirname(DEFAULT), "meshes", "cube.stl")
     scene.write_text(f'[[pass]]\nmesh = "{cube}"\n[[block]]\nmesh = "nope.stl"\n')
-    run = subprocess.run(
-        [sys.executable, "-m", "sieve_mi", "solve", str(scene), "--out", str(tmp_path / "o")],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    run = _cli("solve", str(scene), "--out", str(tmp_path / "o"))
     lines = run.stderr.strip().splitlines()
     assert run.returncode == 2 and len(lines) == 1, run.stderr
     assert f"{scene}: block[0].mesh: " in lines[0] and "nope.stl: mesh file not found" in lines[0]

@@ -404,28 +404,19 @@ def test_check_options_make_the_check_settings():
 def test_version():
     from sieve_mi import __version__
 
-    run = subprocess.run([sys.executable, "-m", "sieve_mi", "--version"], capture_output=True,
-                         text=True, timeout=60)  # fmt: skip
+    run = run_cli("--version")
     assert run.returncode == 0 and run.stdout.strip() == f"sieve-mi {__version__}"
 
 
 def test_progress_into_a_log_is_plain_lines(tmp_path):
     # stderr is a pipe here, as in a log file: one line per stage, no tqdm '\r' frames.
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "sieve_mi",
-            "solve",
-            os.path.join(SCENES, "rupert.toml"),
-            "--out",
-            str(tmp_path / "o"),
-            "--no-figure",
-            "--no-animation",
-        ],  # fmt: skip
-        capture_output=True,
-        text=True,
-        timeout=300,
+    run = run_cli(
+        "solve",
+        os.path.join(SCENES, "rupert.toml"),
+        "--out",
+        str(tmp_path / "o"),
+        "--no-figure",
+        "--no-animation",
     )
     assert run.returncode == 0, run.stderr
     assert "\r" not in run.stderr
@@ -434,23 +425,15 @@ def test_progress_into_a_log_is_plain_lines(tmp_path):
 
 def test_solve_json_prints_report_json_on_stdout(tmp_path):
     out = tmp_path / "o"
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "sieve_mi",
-            "solve",
-            os.path.join(SCENES, "rupert.toml"),
-            "--out",
-            str(out),
-            "--no-figure",
-            "--no-animation",
-            "--json",
-            "--quiet",
-        ],  # fmt: skip
-        capture_output=True,
-        text=True,
-        timeout=300,
+    run = run_cli(
+        "solve",
+        os.path.join(SCENES, "rupert.toml"),
+        "--out",
+        str(out),
+        "--no-figure",
+        "--no-animation",
+        "--json",
+        "--quiet",
     )
     assert run.returncode == 0, run.stderr
     printed = json.loads(run.stdout)  # nothing else on stdout
