@@ -14,9 +14,9 @@ import os
 
 from sieve_mi import scene as _scene
 from sieve_mi.errors import SieveError
-from sieve_mi.game import check as _check
 from sieve_mi.game import result as _game_result
 from sieve_mi.game import solver as _solver
+from sieve_mi.game.check import check
 from sieve_mi.geometry import meshes as _meshes
 from sieve_mi.outputs.report import write_outputs
 from sieve_mi.scene import SEED_MAX, Scene
@@ -61,19 +61,6 @@ def load_scene(path) -> Scene:
 @functools.wraps(_meshes.load_shape)
 def load_shape(path, *args, **kwargs):
     return _meshes.load_shape(_path(path, "load_shape"), *args, **kwargs)
-
-
-@functools.wraps(_check.check)
-def check(shape, **kwargs):
-    if shape is None or isinstance(shape, bytes | int | float):
-        raise SieveError(
-            f"check: expected a mesh file path, a trimesh mesh or a Shape, got {shape!r:.60}"
-        )
-    if kwargs.get("sieve") is None and kwargs.get("image") is None:
-        raise SieveError("check: give sieve=PLATE (a plate mesh) or image=HOLE with pixel_size=MM")
-    if kwargs.get("image") is not None and kwargs.get("pixel_size") is None:
-        raise SieveError("check: image= needs pixel_size= (scene units per pixel)")
-    return _check.check(shape, **kwargs)
 
 
 class Result(_game_result.Result):

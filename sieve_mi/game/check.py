@@ -390,6 +390,10 @@ def check(
     -------
     CheckReport
     """
+    if sieve is None and image is None:
+        raise SieveError("check: give sieve=PLATE (a plate mesh) or image=HOLE with pixel_size=MM")
+    if image is not None and pixel_size is None:
+        raise SieveError("check: image= needs pixel_size= (scene units per pixel)")
     shape = as_shape(shape)
     settings = settings or CheckSettings()
     t0 = time.perf_counter()
@@ -435,6 +439,10 @@ def as_shape(part) -> Shape:
         return part
     if isinstance(part, (str, os.PathLike)):
         return load_shape(os.fspath(part))
+    if part is None or isinstance(part, bytes | int | float):
+        raise SieveError(
+            f"check: expected a mesh file path, a trimesh mesh or a Shape, got {part!r:.60}"
+        )
     return shape_from_trimesh(part, name=getattr(part, "metadata", {}).get("name", "part"))
 
 
