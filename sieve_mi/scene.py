@@ -203,7 +203,10 @@ def describe(cls: type, f: dataclasses.Field) -> str:
         bounds.append(f"{'>' if spec.exclusive_min else '≥'} {spec.minimum}")
     if spec.maximum is not None:
         bounds.append(f"{'<' if spec.exclusive_max else '≤'} {spec.maximum}")
-    return " ".join([word, ", ".join(bounds)]) if bounds else word
+    text = " ".join([word, ", ".join(bounds)]) if bounds else word
+    if spec.choices and kind is float:  # a number, or one of a few words
+        text += " or " + " or ".join(f'"{c}"' for c in spec.choices)
+    return text
 
 
 def _documented(cls: type) -> type:
@@ -224,7 +227,7 @@ def _documented(cls: type) -> type:
             f"    {f.name} : {describe(cls, f)}, default {default}",
             f"        {spec.doc[:1].upper()}{spec.doc[1:]}{unit}.",
         ]
-        if spec.choices:
+        if spec.choices and value_types(cls)[f.name] is not float:
             lines.append(f"        One of: {', '.join(spec.choices)}.")
     cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n" + "\n".join(lines) + "\n"
     return cls
@@ -300,14 +303,16 @@ class Fabrication:
         minimum=0,
         maximum=LENGTH_MAX,
     )
-    thickness: float | None = setting(
+    thickness: float | str | None = setting(
         None,
-        "sieve plate thickness",
+        "sieve plate thickness; \"thinnest\" searches for the thinnest sheet where no B was "
+        "found to pass (not proved; docs/fabrication.md)",
         unit="scene units",
         minimum=0,
         exclusive_min=True,
         maximum=LENGTH_MAX,
-        default_doc="largest circumsphere diameter",
+        choices=("thinnest",),
+        default_doc="the largest diameter of a B (the thinnest proved plate)",
     )
     border: float = setting(
         5.0,
@@ -393,6 +398,13 @@ class Verdict:
     certify_budget: float = setting(
         30.0,
         "time budget of each proof, seconds",
+        minimum=0,
+        exclusive_min=True,
+        maximum=86_400,
+    )
+    thin_budget: float = setting(
+        10.0,
+        "seconds of motion search (OMPL) per B thicker than the plate, searched in parallel",
         minimum=0,
         exclusive_min=True,
         maximum=86_400,
@@ -633,6 +645,11 @@ class Reader:
 
     def number(self, key: str, spec: Spec, integer: bool = False):
         value = self.table[key]
+        if isinstance(value, str) and spec.choices and not integer:
+            if value in spec.choices:
+                return value
+            words = " or ".join(repr(c) for c in spec.choices)
+            raise self.error(key, f"expected a number or {words}, got {value!r}")
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(
                 key, f"expected a {'whole number' if integer else 'number'}, got {value!r}"

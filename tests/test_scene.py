@@ -101,7 +101,7 @@ _KINDS = {
 
 def _doc_type(cell: str):
     """(kind, minimum, exclusive, maximum) from a type cell such as ``int 16–4096``."""
-    m = _TYPE.fullmatch(cell)
+    m = _TYPE.fullmatch(re.sub(r'( or "[a-z]+")+$', "", cell))  # a number or a word
     if m is None:
         return None
     word, op, low, high1, low2, high = m.groups()
@@ -181,8 +181,8 @@ def test_docs_and_dataclasses_agree():
         (", `ags`", ""),  # an accepted outer method left out
         ("| `fill_holes` | bool | `true` |", "| `fill_holes` | bool | `false` |"),
         (
-            "| `thickness` | number > 0, ≤ 1000000 | largest",
-            "| `thickness` | number > 0, ≤ 1000000 | smallest",
+            '| `thickness` | number > 0, ≤ 1000000 or "thinnest" | the largest',
+            '| `thickness` | number > 0, ≤ 1000000 or "thinnest" | the smallest',
         ),
         (
             "| `block_margin` | number 0–1000000 | `0.0` | scene units",
@@ -242,7 +242,7 @@ def _settings_keys() -> list:
 
 def _other_value(f, kind, spec):
     """A valid value that is not the default."""
-    if spec.choices:
+    if spec.choices and kind is not float:  # a number field's words are tested on their own
         return next(c for c in spec.choices if c != f.default)
     if kind is bool:
         return not f.default
@@ -303,6 +303,8 @@ def test_wrong_type_is_one_line_naming_the_key(tmp_path, table, f, kind, spec):
         float: "expected a number, got '1mm'",
         str: "expected a non-empty string, got 3",
     }[kind]
+    if spec.choices and kind is float:
+        expected = f"expected a number or {' or '.join(map(repr, spec.choices))}, got '1mm'"
     text = MINIMAL + f"[{table}]\n{f.name} = {wrong}\n"
     assert _error(tmp_path, text) == f"{table}.{f.name}: {expected}"
 
@@ -323,6 +325,25 @@ def test_wrong_type_is_one_line_naming_the_key(tmp_path, table, f, kind, spec):
 )
 def test_bad_solver_values(tmp_path, key, value, expected):
     assert _error(tmp_path, MINIMAL + f"[solver]\n{key} = {value}\n") == f"solver.{key}: {expected}"
+
+
+@pytest.mark.parametrize(
+    "value, expected",
+    [
+        ('"thinnest"', None),
+        ("2", None),
+        ('"thin"', "expected a number or 'thinnest', got 'thin'"),
+        ('"2"', "expected a number or 'thinnest', got '2'"),
+        ("0", "must be > 0, got 0"),
+    ],
+)
+def test_thickness_is_a_number_or_thinnest(tmp_path, value, expected):
+    text = MINIMAL + f"[fabrication]\nthickness = {value}\n"
+    if expected is None:
+        thickness = load_scene(_write(tmp_path, text)).fabrication.thickness
+        assert thickness == tomllib.loads(f"v = {value}")["v"]
+    else:
+        assert _error(tmp_path, text) == f"fabrication.thickness: {expected}"
 
 
 def test_whole_float_is_an_int(tmp_path):

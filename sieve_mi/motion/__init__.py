@@ -1,0 +1,15 @@
+"""Thin plates: can a shape pass a plate thinner than its diameter by tilting and turning on the way?
+Rule: motion decides with exact collisions (coal) between the mesh and the plate's convex prisms, plans
+with OMPL, and counts a passage only after a conservative continuous re-check; never a raster.
+
+A plate at least as thick as a shape's diameter blocks it iff no projection fits the hole
+(:func:`sieve_mi.geometry.plate.safe_thickness`); on a thinner plate the shape may thread through.
+:func:`thin_plate` answers ``"safe"``, ``"passage"`` (with a verified motion) or
+``"no passage found"`` (with what was searched: a heuristic answer, never a proof).
+"""
+
+from __future__ import annotations
+
+from sieve_mi.motion.thin import ThinPlate, thin_plate, thin_plates
+
+__all__ = ["ThinPlate", "thin_plate", "thin_plates"]

@@ -1,0 +1,223 @@
+"""Search for a rigid motion through a thin plate: seeded straight descents, then OMPL's RRT-Connect on SE(3).
+
+The hole is a narrow passage of SE(3), so uniform sampling rarely lands in it. The search
+therefore (1) tries straight descents in seed orientations (player B's best attempts, flat views),
+(2) plans directly from above to below, and (3) samples *crossing poses* — poses whose centre lies
+in the plate's slab inside the hole's prism and that meet no material — and plans from above to
+each and from each to below. Every planned path is re-checked continuously
+(:func:`sieve_mi.motion.path.verify`) before it counts. OMPL is imported here only, inside the
+worker that plans.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sieve_mi.geometry.rotations import random_uniform
+from sieve_mi.motion.path import Verified, verify
+
+__all__ = ["Search", "Window", "search_passage"]
+
+
+@dataclass
+class Window:
+    """Where the shape's centre may go: a box around the hole's prism, scene units.
+
+    Attributes
+    ----------
+    lo, hi : (3,) float
+        Corners of the box.
+    above, below : float
+        The centre's height in the start pose (the whole shape above the plate) and in the goal
+        pose (the whole shape below it).
+    centre : (2,) float
+        The hole's bounding-box centre.
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    above: float
+    below: float
+    centre: np.ndarray
+
+    @classmethod
+    def around(cls, world, bounds) -> Window:
+        """The box for ``world`` (a PlateWorld) and H's ``bounds`` (x0, y0, x1, y1)."""
+        r, t = world.radius, world.thickness
+        gap = max(0.05 * r, 1e-3)
+        x0, y0, x1, y1 = bounds
+        lo = np.array([x0 - r, y0 - r, -t - r - 2 * gap])
+        hi = np.array([x1 + r, y1 + r, r + 2 * gap])
+        return cls(lo, hi, r + gap, -t - r - gap, np.array([(x0 + x1) / 2, (y0 + y1) / 2]))
+
+
+@dataclass
+class Search:
+    """What :func:`search_passage` did and found.
+
+    Attributes
+    ----------
+    passage : Verified or None
+        The verified motion, if one was found.
+    poses : list of (quat, trans)
+        The motion as planned (``passage`` subdivides it for the re-check).
+    seconds : float
+    checks : int
+        Collision and distance queries made.
+    plans : int
+        Planner runs.
+    crossings : int
+        Valid crossing poses sampled.
+    method : str
+        What found the passage ("straight descent", "RRTConnect", "RRTConnect via a crossing pose").
+    """
+
+    passage: Verified | None = None
+    poses: list = field(default_factory=list)
+    seconds: float = 0.0
+    checks: int = 0
+    plans: int = 0
+    crossings: int = 0
+    method: str = ""
+
+
+def _straight(world, window: Window, quat, xy) -> list:
+    return [
+        (quat, np.array([xy[0], xy[1], window.above])),
+        (quat, np.array([xy[0], xy[1], window.below])),
+    ]
+
+
+def _crossings(world, window: Window, seeds, rng, count: int, tries: int) -> list:
+    """Up to ``count`` poses inside the slab's reach that meet no material, clearest first."""
+    quats = np.concatenate([np.asarray(seeds).reshape(-1, 4), random_uniform(tries, rng)])
+    t = world.thickness
+    found = []
+    for q in quats:
+        xy = window.centre + (rng.random(2) - 0.5) * 0.5 * (window.hi[:2] - window.lo[:2] - 2 * world.radius)
+        z = -t / 2 + (rng.random() - 0.5) * (t + world.radius)
+        trans = np.array([xy[0], xy[1], z])
+        if not world.collides(q, trans):
+            found.append((world.distance(q, trans), (q, trans)))
+    found.sort(key=lambda f: -f[0])
+    return [p for _, p in found[:count]]
+
+
+class _Planner:
+    """One OMPL SE(3) problem setup for a world and window (rotation weighted by the radius)."""
+
+    def __init__(self, world, window: Window, seed: int):
+        from ompl import base as ob
+        from ompl import geometric as og
+        from ompl import util as ou
+
+        ou.setLogLevel(ou.LOG_NONE)
+        ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)
+        self.ob, self.og, self.world = ob, og, world
+        space = ob.SE3StateSpace()
+        bounds = ob.RealVectorBounds(3)
+        for i in range(3):
+            bounds.setLow(i, float(window.lo[i]))
+            bounds.setHigh(i, float(window.hi[i]))
+        space.setBounds(bounds)
+        # OMPL's SO(3) distance is half the turn's angle: weight 2r makes a state distance bound
+        # how far any point moves (|Δt| + r θ)
+        space.setSubspaceWeight(1, 2.0 * world.radius)
+        self.space = space
+        self.step = 0.5 * min(world.thickness, world.radius)
+
+    def _state(self, pose):
+        q, t = pose
+        s = self.space.allocState()
+        s.setXYZ(float(t[0]), float(t[1]), float(t[2]))
+        r = s.rotation()
+        r.w, r.x, r.y, r.z = (float(v) for v in q)
+        return s
+
+    @staticmethod
+    def _pose(s):
+        r = s.rotation()
+        return np.array([r.w, r.x, r.y, r.z]), np.array([s.getX(), s.getY(), s.getZ()])
+
+    def plan(self, start, goal, seconds: float) -> list | None:
+        """RRT-Connect from ``start`` to ``goal`` within ``seconds``; the simplified path or None."""
+        ob, og, world = self.ob, self.og, self.world
+        ss = og.SimpleSetup(self.space)
+        ss.setStateValidityChecker(lambda s: not world.collides(*self._pose(s)))
+        si = ss.getSpaceInformation()
+        si.setStateValidityCheckingResolution(self.step / self.space.getMaximumExtent())
+        ss.setStartAndGoalStates(self._state(start), self._state(goal))
+        ss.setPlanner(og.RRTConnect(si))
+        solved = ss.solve(float(seconds))
+        if not solved or not ss.haveExactSolutionPath():
+            return None
+        ss.simplifySolution(min(1.0, 0.2 * seconds))
+        path = ss.getSolutionPath()
+        return [self._pose(path.getState(i)) for i in range(path.getStateCount())]
+
+
+def _try(world, out: Search, poses, method: str) -> bool:
+    """Re-check a candidate motion; keep it in ``out`` when it holds."""
+    if poses is None:
+        return False
+    v = verify(world, poses)
+    if v.ok:
+        out.passage, out.poses, out.method = v, poses, method
+    return v.ok
+
+
+def search_passage(world, bounds, seeds, budget_s: float, seed: int = 0) -> Search:
+    """Look for a motion taking the shape from wholly above the plate to wholly below it.
+
+    Parameters
+    ----------
+    world : sieve_mi.motion.collide.PlateWorld
+    bounds : (4,) float
+        The hole's bounds (x0, y0, x1, y1), scene units.
+    seeds : list of (quat, xy)
+        Orientations (w, x, y, z) and hole-plane positions to try first (player B's attempts).
+    budget_s : float
+        Time budget, seconds.
+    seed : int
+        Seeds the crossing-pose sampler and OMPL's random number generator.
+
+    Returns
+    -------
+    Search
+    """
+    t0 = time.perf_counter()
+    out = Search()
+    window = Window.around(world, bounds)
+    seeds = list(seeds) or [(np.array([1.0, 0, 0, 0]), window.centre)]
+    done = False
+    for q, xy in seeds:
+        if _try(world, out, _straight(world, window, q, xy), "straight descent"):
+            done = True
+            break
+    rng = np.random.default_rng(seed)
+    planner = None if done else _Planner(world, window, seed)
+    left = lambda: budget_s - (time.perf_counter() - t0)  # noqa: E731
+    q0 = np.asarray(seeds[0][0], dtype=np.float64)
+    start, goal = _straight(world, window, q0, window.centre)
+    slice_s = max(0.2, budget_s / 8)
+    while not done and left() > 0.05:
+        out.plans += 1
+        if _try(world, out, planner.plan(start, goal, min(slice_s, left())), "RRTConnect"):
+            break
+        crossings = _crossings(world, window, [q for q, _ in seeds], rng, 4, 400)
+        out.crossings += len(crossings)
+        for w in crossings:
+            if left() <= 0.05:
+                break
+            first = planner.plan(start, w, min(slice_s, left()))
+            second = planner.plan(w, goal, min(slice_s, left())) if first else None
+            out.plans += 1 + (first is not None)
+            if second and _try(world, out, first + second[1:], "RRTConnect via a crossing pose"):
+                done = True
+                break
+    out.seconds = time.perf_counter() - t0
+    out.checks = world.checks
+    return out

@@ -1,0 +1,210 @@
+"""The thin-plate verdict of one shape: safe by its diameter, a verified passage, or none found.
+
+Each shape's search runs in a forked worker process (in parallel over shapes): the planner's
+bindings stay out of the calling process, and a worker ends without the interpreter's teardown.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+
+import manifold3d
+import numpy as np
+
+from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.plate import diameter
+
+__all__ = ["INTERPOLATION", "SAFE_ARGUMENT", "ThinPlate", "thin_plate", "thin_plates"]
+
+#: How a reported motion moves between consecutive poses.
+INTERPOLATION = "centre along straight segments, rotation along the shortest arc (slerp)"
+
+#: Why a plate at least as thick as a shape's diameter needs no motion search.
+SAFE_ARGUMENT = (
+    "diameter <= thickness: when the shape's highest point enters the plate's top face, every "
+    "point of the shape lies within its diameter below it, inside the plate's slab, so the shape "
+    "is wholly inside the hole's prism and its projection must fit H"
+)
+
+#: The planner, as reported.
+PLANNER = "OMPL RRTConnect on SE(3), seeded straight descents and crossing poses"
+
+
+@dataclass
+class ThinPlate:
+    """One shape against a plate of a given thickness.
+
+    Attributes
+    ----------
+    name : str
+    thickness, diameter : float
+        Scene units.
+    status : {"safe", "passage", "no passage found"}
+    poses : (k, 7) float
+        A found motion: rows (w, x, y, z, tx, ty, tz), the shape's rotation about its centre and
+        the centre's position (plate top at z = 0, hole in the xy-plane); empty otherwise.
+    min_clearance : float
+        Smallest distance from the shape to the plate along the verified motion, scene units.
+    verified_poses : int
+        Poses of the continuous re-check (the motion subdivided until every segment passed).
+    method : str
+        What found the motion.
+    seconds, budget_s : float
+    checks, plans, crossings : int
+        Collision/distance queries, planner runs and crossing poses sampled.
+    """
+
+    name: str
+    thickness: float
+    diameter: float
+    status: str
+    poses: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
+    min_clearance: float = float("nan")
+    verified_poses: int = 0
+    method: str = ""
+    seconds: float = 0.0
+    budget_s: float = 0.0
+    checks: int = 0
+    plans: int = 0
+    crossings: int = 0
+
+    def to_dict(self) -> dict:
+        """The ``thin_plate`` entry of report.json and of ``check --json``."""
+        out = {
+            "thickness": self.thickness,
+            "status": self.status,
+            "diameter": self.diameter,
+        }
+        if self.status == "safe":
+            out["argument"] = SAFE_ARGUMENT
+            return out
+        out.update(planner=PLANNER, seconds=self.seconds, budget_s=self.budget_s)
+        out.update(checks=self.checks, plans=self.plans, crossings=self.crossings)
+        if self.status == "passage":
+            out.update(method=self.method, min_clearance=self.min_clearance)
+            out.update(verified_poses=self.verified_poses, interpolation=INTERPOLATION)
+            out["poses"] = [[float(v) for v in row] for row in self.poses]
+        else:
+            out["note"] = "a heuristic search within the budget, not a proof that no motion exists"
+        return out
+
+
+def _polygons(outline: manifold3d.CrossSection) -> list:
+    return [np.asarray(c, dtype=np.float64) for c in outline.to_polygons()]
+
+
+def _search(shape: Shape, polygons: list, thickness: float, budget_s: float, seeds, seed: int):
+    """Worker: the motion search for one shape (see :func:`thin_plate`)."""
+    from sieve_mi.motion.collide import PlateWorld
+    from sieve_mi.motion.planner import search_passage
+
+    outline = manifold3d.CrossSection(polygons)
+    world = PlateWorld(shape, outline, thickness)
+    found = search_passage(world, outline.bounds(), seeds, budget_s, seed)
+    d = diameter(shape.hull)
+    out = ThinPlate(shape.name, float(thickness), d, "no passage found", seconds=found.seconds,
+                    budget_s=float(budget_s), checks=found.checks, plans=found.plans,
+                    crossings=found.crossings)  # fmt: skip
+    if found.passage is not None:
+        out.status, out.method = "passage", found.method
+        out.poses = np.array([np.concatenate([q, t]) for q, t in found.poses])
+        out.min_clearance = found.passage.min_clearance
+        out.verified_poses = len(found.passage.poses)
+    return out
+
+
+def thin_plate(
+    shape: Shape,
+    outline: manifold3d.CrossSection,
+    thickness: float,
+    *,
+    budget_s: float = 10.0,
+    seeds=(),
+    seed: int = 0,
+) -> ThinPlate:
+    """Can ``shape`` pass a plate of this thickness with the hole ``outline`` by any rigid motion?
+
+    Parameters
+    ----------
+    shape : Shape
+    outline : manifold3d.CrossSection
+        The hole H, scene units.
+    thickness : float
+        Plate thickness, scene units.
+    budget_s : float
+        Seconds for the motion search (none when the shape's diameter is at most ``thickness``).
+    seeds : sequence of (quat, xy)
+        Poses to try first: rotations (w, x, y, z) and positions in the hole's plane.
+    seed : int
+        Seeds the search's random numbers.
+
+    Returns
+    -------
+    ThinPlate
+
+    Examples
+    --------
+    A 20 mm cube passes a 22 mm square hole in any plate, straight down:
+
+    >>> import manifold3d, trimesh
+    >>> from sieve_mi.geometry.meshes import shape_from_trimesh
+    >>> cube = shape_from_trimesh(trimesh.creation.box([20, 20, 20]), name="cube")
+    >>> hole = manifold3d.CrossSection.square([22, 22], center=True)
+    >>> thin_plate(cube, hole, 2.0, budget_s=5).status
+    'passage'
+    """
+    return thin_plates([shape], outline, thickness, budget_s=budget_s, seeds=[seeds], seed=seed)[0]
+
+
+def thin_plates(
+    shapes: list[Shape],
+    outline: manifold3d.CrossSection,
+    thickness: float,
+    *,
+    budget_s: float = 10.0,
+    seeds: list | None = None,
+    seed: int = 0,
+    workers: int | None = None,
+) -> list[ThinPlate]:
+    """:func:`thin_plate` for several shapes, searched in parallel worker processes.
+
+    Parameters
+    ----------
+    shapes : list of Shape
+    outline, thickness, budget_s, seed
+        As :func:`thin_plate` (shape j's search is seeded with ``seed + j``).
+    seeds : list of sequences of (quat, xy), optional
+        Per shape, poses to try first.
+    workers : int, optional
+        Worker processes (default: the machine's cores, at most one per searched shape).
+
+    Returns
+    -------
+    list of ThinPlate
+    """
+    seeds = seeds or [()] * len(shapes)
+    out: list = [None] * len(shapes)
+    todo = []
+    for j, shape in enumerate(shapes):
+        d = diameter(shape.hull)
+        if d <= thickness:
+            out[j] = ThinPlate(shape.name, float(thickness), d, "safe")
+        else:
+            todo.append(j)
+    if not todo:
+        return out
+    polygons = _polygons(outline)
+    n = max(1, min(len(todo), workers or os.cpu_count() or 1))
+    with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork")) as pool:
+        jobs = {
+            j: pool.submit(_search, shapes[j], polygons, thickness, budget_s,
+                           [(np.asarray(q, float), np.asarray(t, float)) for q, t in seeds[j]],
+                           seed + j)  # fmt: skip
+            for j in todo
+        }
+        for j, job in jobs.items():
+            out[j] = job.result()
+    return out
