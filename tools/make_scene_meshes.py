@@ -41,6 +41,7 @@ SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
     "cube.stl": lambda: shapes.cube(side=20.0),
     "sphere.stl": lambda: shapes.sphere(radius=12.0, subdivisions=3),
     "small_sphere.stl": lambda: shapes.sphere(radius=9.0, subdivisions=3),
+    "l_rod.stl": lambda: shapes.l_rod(arm=20.0, side=2.0),
     "bowtie.stl": lambda: shapes.bowtie(width=30.0, height=20.0, thickness=6.0, waist=6.0),
     "arch.stl": lambda: shapes.arch(
         width=30.0, height=20.0, thickness=6.0, depth=10.0, segments=16

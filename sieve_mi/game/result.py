@@ -117,6 +117,8 @@ class Result:
     #: The seed the run used (``[solver] seed`` or the ``seed`` argument that overrode it).
     seed: int | None = None
     certified: list = field(default_factory=list)
+    #: The plate's thickness and each B's thin-plate answer (:class:`sieve_mi.game.sheet.Sheet`).
+    sheet: object = None
     outline: object = None
     polish: list = field(default_factory=list)
     #: ``time.perf_counter()`` when the solve started (report.json's ``total_s`` counts from it).
@@ -129,10 +131,14 @@ class Result:
         out = []
         for j, shape in enumerate(self.block_shapes):
             c = self.certified[j] if j < len(self.certified) else None
+            thin = self.sheet.per_block[j] if self.sheet is not None else None
+            passage = (c is not None and c.status == "passage") or (
+                thin is not None and thin.status == "passage"
+            )
             out.append(
                 BlockAttempt(
                     name=shape.name,
-                    blocked=bool(blocked[j]) and not (c is not None and c.status == "passage"),
+                    blocked=bool(blocked[j]) and not passage,
                     beta=float(self.attack.beta[0, j]),
                     protrusion=float(self.attack.protrusion[0, j]),
                     rotation=self.attack.quats[0, j].copy(),

@@ -20,6 +20,7 @@ from sieve_mi.game.players import PlayerA, PlayerB
 from sieve_mi.game.result import Result
 from sieve_mi.game.scoring import mask_window
 from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved
+from sieve_mi.game.sheet import plate_sheet
 from sieve_mi.game.verdict import judge
 from sieve_mi.geometry.meshes import Shape, load_shape, shape_from_trimesh
 from sieve_mi.geometry.outline import dilated
@@ -272,6 +273,7 @@ def solve(
     )
     timings["search_s"] = time.perf_counter() - t0
     v, certified, winner = _verdict(scene, passes, blocks, sure, found, rng, progress, timings)
+    sheet, winner = _sheet(scene, passes, blocks, v, certified, winner, seed, progress, timings)
     return Result(
         scene=scene,
         winner=winner,
@@ -292,6 +294,7 @@ def solve(
         alone=found.alone,
         seed=seed,
         certified=certified,
+        sheet=sheet,
         outline=v.outline,
         polish=found.polish,
         started=t_init,
@@ -324,6 +327,27 @@ def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progr
     if any(c is not None and c.status == "passage" for c in certified):
         winner = "B"
     return v, (certified if any(c is not None for c in certified) else []), winner
+
+
+def _sheet(scene: Scene, passes, blocks, v, certified, winner, seed, progress, timings):
+    """The plate's thickness and the thin-plate motion searches (:mod:`sieve_mi.game.sheet`):
+    (sheet, winner); a verified passage makes B the winner. ``timings`` gains ``thin_s``."""
+    t0 = time.perf_counter()
+    blocked = v.attack.blocked()[0].copy()
+    for j, c in enumerate(certified):
+        blocked[j] &= not (c is not None and c.status == "passage")
+    balls = tuple(j for j, c in enumerate(certified)
+                  if c is not None and c.status == "proved" and c.method == "ball")  # fmt: skip
+    sheet = plate_sheet(scene, passes, blocks, v.outline, v.attack, blocked, balls=balls,
+                        seed=seed, progress=progress)  # fmt: skip
+    timings["thin_s"] = time.perf_counter() - t0
+    for j in sheet.passages():
+        v.warnings.append(
+            f"{blocks[j].name} passes a {sheet.thickness:g} {scene.units} plate by tilting and "
+            "turning on the way (thin-plate motion search, verified; motion in report.json): B wins"
+        )
+        winner = "B"
+    return sheet, winner
 
 
 def _unsearched(scene: Scene) -> Search:

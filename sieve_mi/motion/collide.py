@@ -18,7 +18,7 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.plate import convex_pieces, plate_region, prism_vertices
 from sieve_mi.geometry.rotations import to_matrix
 
-__all__ = ["PlateWorld", "plate_prisms"]
+__all__ = ["PlateWorld", "edge_pairs", "plate_prisms"]
 
 
 def plate_prisms(
@@ -37,6 +37,12 @@ def plate_prisms(
     """
     region = plate_region(outline, margin)
     return [prism_vertices(p, -thickness, 0.0) for p in convex_pieces(region)]
+
+
+def edge_pairs(faces: np.ndarray) -> np.ndarray:
+    """The mesh's unique undirected edges, (E, 2) int."""
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    return np.unique(e, axis=0)
 
 
 def _convex(points: np.ndarray):
@@ -82,6 +88,7 @@ class PlateWorld:
             self._pieces.append(obj)
             self.manager.registerObject(obj)
         self.manager.setup()
+        self.edges = edge_pairs(shape.faces)
         self.body = coal.CollisionObject(_bvh(shape.vertices, shape.faces), coal.Transform3s())
         self.checks = 0
 

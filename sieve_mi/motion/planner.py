@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sieve_mi.geometry.rotations import random_uniform
+from sieve_mi.geometry.rotations import random_uniform, to_matrix
 from sieve_mi.motion.path import Verified, verify
 
 __all__ = ["Search", "Window", "search_passage"]
@@ -91,15 +91,36 @@ def _straight(world, window: Window, quat, xy) -> list:
     ]
 
 
+def _slab_points(v: np.ndarray, edges: np.ndarray, z0: float, z1: float) -> np.ndarray:
+    """Points of a placed mesh inside the slab z0 <= z <= z1: its vertices there and its edges'
+    crossings of both planes ((k, 3) float)."""
+    inside = v[(v[:, 2] >= z0) & (v[:, 2] <= z1)]
+    a, b = v[edges[:, 0]], v[edges[:, 1]]
+    out = [inside]
+    for z in (z0, z1):
+        cross = (a[:, 2] - z) * (b[:, 2] - z) < 0
+        t = (z - a[cross, 2]) / (b[cross, 2] - a[cross, 2])
+        out.append(a[cross] + t[:, None] * (b[cross] - a[cross]))
+    return np.concatenate(out)
+
+
 def _crossings(world, window: Window, seeds, rng, count: int, tries: int) -> list:
-    """Up to ``count`` poses inside the slab's reach that meet no material, clearest first."""
+    """Up to ``count`` poses that meet no material with the plate cutting through the shape,
+    clearest first: random rotations, a random height, and the shape's part inside the slab
+    centred on the hole."""
     quats = np.concatenate([np.asarray(seeds).reshape(-1, 4), random_uniform(tries, rng)])
-    t = world.thickness
+    t, shape = world.thickness, world.shape
+    edges = world.edges
     found = []
     for q in quats:
-        xy = window.centre + (rng.random(2) - 0.5) * 0.5 * (window.hi[:2] - window.lo[:2] - 2 * world.radius)
-        z = -t / 2 + (rng.random() - 0.5) * (t + world.radius)
-        trans = np.array([xy[0], xy[1], z])
+        v = shape.vertices @ to_matrix(q).T
+        h = rng.uniform(v[:, 2].min(), v[:, 2].max())
+        v = v + np.array([0.0, 0.0, -t / 2 - h])
+        section = _slab_points(v, edges, -t, 0.0)
+        if not len(section):
+            continue
+        mid = 0.5 * (section[:, :2].min(0) + section[:, :2].max(0))
+        trans = np.array([*(window.centre - mid), -t / 2 - h])
         if not world.collides(q, trans):
             found.append((world.distance(q, trans), (q, trans)))
     found.sort(key=lambda f: -f[0])
@@ -144,7 +165,7 @@ class _Planner:
 
     def plan(self, start, goal, seconds: float) -> list | None:
         """RRT-Connect from ``start`` to ``goal`` within ``seconds``; the simplified path or None."""
-        ob, og, world = self.ob, self.og, self.world
+        og, world = self.og, self.world
         ss = og.SimpleSetup(self.space)
         ss.setStateValidityChecker(lambda s: not world.collides(*self._pose(s)))
         si = ss.getSpaceInformation()

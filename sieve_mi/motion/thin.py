@@ -17,7 +17,14 @@ import numpy as np
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.plate import diameter
 
-__all__ = ["INTERPOLATION", "SAFE_ARGUMENT", "ThinPlate", "thin_plate", "thin_plates"]
+__all__ = [
+    "BALL_ARGUMENT",
+    "INTERPOLATION",
+    "SAFE_ARGUMENT",
+    "ThinPlate",
+    "thin_plate",
+    "thin_plates",
+]
 
 #: How a reported motion moves between consecutive poses.
 INTERPOLATION = "centre along straight segments, rotation along the shortest arc (slerp)"
@@ -27,6 +34,13 @@ SAFE_ARGUMENT = (
     "diameter <= thickness: when the shape's highest point enters the plate's top face, every "
     "point of the shape lies within its diameter below it, inside the plate's slab, so the shape "
     "is wholly inside the hole's prism and its projection must fit H"
+)
+
+#: Why a shape proved blocked by an inscribed ball needs no motion search on any plate.
+BALL_ARGUMENT = (
+    "a ball certified inside the shape is wider than any disk the hole holds: the ball's centre "
+    "must cross the plate's slab, and there the horizontal disk through it lies in the slab, so "
+    "it would have to fit H (any thickness)"
 )
 
 #: The planner, as reported.
@@ -70,6 +84,7 @@ class ThinPlate:
     checks: int = 0
     plans: int = 0
     crossings: int = 0
+    argument: str = SAFE_ARGUMENT
 
     def to_dict(self) -> dict:
         """The ``thin_plate`` entry of report.json and of ``check --json``."""
@@ -79,7 +94,8 @@ class ThinPlate:
             "diameter": self.diameter,
         }
         if self.status == "safe":
-            out["argument"] = SAFE_ARGUMENT
+            out["by"] = "ball" if self.argument == BALL_ARGUMENT else "diameter"
+            out["argument"] = self.argument
             return out
         out.update(planner=PLANNER, seconds=self.seconds, budget_s=self.budget_s)
         out.update(checks=self.checks, plans=self.plans, crossings=self.crossings)
@@ -200,9 +216,15 @@ def thin_plates(
     n = max(1, min(len(todo), workers or os.cpu_count() or 1))
     with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork")) as pool:
         jobs = {
-            j: pool.submit(_search, shapes[j], polygons, thickness, budget_s,
-                           [(np.asarray(q, float), np.asarray(t, float)) for q, t in seeds[j]],
-                           seed + j)  # fmt: skip
+            j: pool.submit(
+                _search,
+                shapes[j],
+                polygons,
+                thickness,
+                budget_s,
+                [(np.asarray(q, float), np.asarray(t, float)) for q, t in seeds[j]],
+                seed + j,
+            )  # fmt: skip
             for j in todo
         }
         for j, job in jobs.items():

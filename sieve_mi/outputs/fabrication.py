@@ -1,14 +1,14 @@
 """From a solved hole to a printable sieve (paper Sec. 5.4 and Supplemental B).
 
 The hole is the exact polygon of :mod:`sieve_mi.geometry.outline`. The plate is a rectangular block with
-that outline cut through it by a manifold3d boolean; its thickness defaults to the largest circumsphere diameter over all shapes, which rules out passing by
-wriggling (Supplemental Proposition B.1: a shape that passes through a prism at least as deep as
-its circumsphere's diameter must at some moment lie wholly inside it, so its projection fits H).
+that outline cut through it by a manifold3d boolean; its thickness defaults to the largest
+diameter of a B, which rules out passing by tilting and turning (when a shape's highest point
+enters the top face, all of it lies within its diameter below, inside the plate's slab, so its
+projection must fit H); a thinner plate's blocks rest on :mod:`sieve_mi.motion`'s search.
 """
 
 from __future__ import annotations
 
-import math
 import os
 import time
 import zipfile
@@ -20,15 +20,15 @@ import trimesh
 
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import placed_vertices, raster_agreement
+from sieve_mi.geometry.plate import safe_thickness
 
 __all__ = [
     "Plate",
     "UNIT_NAMES",
     "beside_plate",
-    "circumsphere_diameter",
-    "default_thickness",
     "fabricate",
     "plate",
+    "plate_thickness",
     "shape_mesh",
     "to_trimesh",
     "write_3mf",
@@ -59,31 +59,18 @@ class Plate:
     warnings: list = field(default_factory=list)
 
 
-def circumsphere_diameter(shape: Shape) -> float:
-    """Diameter of a tight enclosing sphere of a shape's vertices, scene units; never below the true circumsphere's.
+def plate_thickness(result) -> tuple[float, float]:
+    """The thickness a solve's plate is written at and the safe (proved) thickness, scene units.
 
-    Every candidate centre gives an enclosing sphere (radius: the farthest vertex), so the smallest
-    over the Badoiu-Clarkson iterates, started from the bounding-box centre, is an upper bound that
-    approaches the minimum enclosing sphere.
+    The solve's :class:`~sieve_mi.game.sheet.Sheet` decides both; a result without one (made by
+    hand) gets the scene's thickness, else the safe value: the largest diameter of a B (of an A
+    when there is no B), rounded up to 0.1 (:func:`sieve_mi.geometry.plate.safe_thickness`).
     """
-    pts = shape.hull
-    c = np.zeros(3)
-    best = 2.0 * float(np.linalg.norm(pts, axis=1).max())
-    for k in range(1, 400):
-        d = np.linalg.norm(pts - c, axis=1)
-        best = min(best, 2.0 * float(d.max()))
-        c = c + (pts[int(np.argmax(d))] - c) / (k + 1)
-    return best
-
-
-def default_thickness(shapes: list[Shape]) -> float:
-    """Plate thickness that Proposition B.1 asks for: the largest circumsphere diameter (scene units).
-
-    Uses :func:`circumsphere_diameter` (an upper bound, so the plate errs on the thick side), rounded
-    up to 0.1 scene units.
-    """
-    d = max(circumsphere_diameter(s) for s in shapes)
-    return math.ceil(d * 10.0) / 10.0
+    if getattr(result, "sheet", None) is not None:
+        return result.sheet.thickness, result.sheet.safe
+    safe = safe_thickness([s.hull for s in (result.block_shapes or result.pass_shapes)])
+    given = result.scene.fabrication.thickness
+    return (safe if given in (None, "thinnest") else float(given)), safe
 
 
 def plate(
@@ -104,7 +91,7 @@ def plate(
     border : float
         Width of material between the hole's bounding box and the plate's edge, scene units.
     required_thickness : float, optional
-        The thickness Proposition B.1 asks for; a thinner plate gets a warning.
+        The safe thickness (the largest diameter of a B); a thinner plate gets a warning.
 
     Returns
     -------
@@ -125,9 +112,9 @@ def plate(
     warnings = []
     if required_thickness is not None and thickness < required_thickness - 1e-9:
         warnings.append(
-            f"plate thickness {thickness:g} is less than the largest circumsphere diameter "
-            f"{required_thickness:g}: a blocked shape may pass by tilting and sliding inside the hole "
-            "(Supplemental Proposition B.1); use at least that thickness for a guaranteed block"
+            f"plate thickness {thickness:g} is less than the largest diameter of a blocked shape "
+            f"{required_thickness:g}: blocks on it rest on a motion search (thin_plate in "
+            "report.json), not on a proof; use at least that thickness for a guaranteed block"
         )
     return Plate(
         mesh=to_trimesh(body),
@@ -239,8 +226,7 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
     scene = result.scene
     fab = scene.fabrication
     outline = result.outline
-    required = default_thickness(result.pass_shapes + result.block_shapes)
-    thickness = fab.thickness if fab.thickness is not None else required
+    thickness, required = plate_thickness(result)
     sieve = plate(outline, thickness, fab.border, required_thickness=required)
     sieve.mesh.export(os.path.join(out_dir, "sieve.stl"))
     write_3mf(
@@ -284,6 +270,7 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
         "figure_s": figure_s,
         "thickness": sieve.thickness,
         "required_thickness": required,
+        **({"sheet": result.sheet.to_dict()} if getattr(result, "sheet", None) is not None else {}),
         "border": sieve.border,
         "plate_size": [float(x1 - x0), float(y1 - y0), float(z1 - z0)],
         "outline": raster_agreement(outline, result.hole.mask, result.hole.frame),

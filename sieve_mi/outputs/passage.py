@@ -155,11 +155,10 @@ def build(result) -> Passage:
     The plate is :func:`sieve_mi.outputs.fabrication.plate` with the thickness and border of the printed
     sieve (``sieve.stl``).
     """
-    from sieve_mi.outputs.fabrication import default_thickness, plate
+    from sieve_mi.outputs.fabrication import plate, plate_thickness
 
     fab = result.scene.fabrication
-    required = default_thickness(result.pass_shapes + result.block_shapes)
-    thickness = fab.thickness if fab.thickness is not None else required
+    thickness, _ = plate_thickness(result)
     sieve = plate(result.outline, thickness, fab.border)
     pv = np.asarray(sieve.mesh.vertices, dtype=np.float64)
     box = np.array([pv[:, :2].min(0), pv[:, :2].max(0)])

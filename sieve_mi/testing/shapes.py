@@ -31,6 +31,7 @@ __all__ = [
     "extrude_polygon",
     "from_manifold",
     "glyph_contours",
+    "l_rod",
     "letter",
     "sphere",
     "to_manifold",
@@ -229,6 +230,29 @@ def cube(side: float = 20.0) -> trimesh.Trimesh:
         12-triangle cube of volume ``side**3``.
     """
     return box(side, side, side)
+
+
+def l_rod(arm: float = 20.0, side: float = 2.0) -> trimesh.Trimesh:
+    """An L-shaped rod: two arms of square section meeting at a right angle, centred.
+
+    Parameters
+    ----------
+    arm : float
+        Each arm's outer length, mm (along x and along y from the shared corner).
+    side : float
+        The square section's side, mm.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        A closed solid of volume ``(2 arm - side) side²`` (the corner cube counted once).
+    """
+    _check_positive(arm=arm, side=side)
+    if side >= arm:
+        raise ValueError("the arms must be longer than the section's side")
+    cube = manifold3d.Manifold.cube
+    rod = cube((arm, side, side)) + cube((side, arm, side))
+    return centred(from_manifold(rod))
 
 
 def coin(diameter: float, thickness: float, sections: int = 96) -> trimesh.Trimesh:

@@ -1,0 +1,91 @@
+"""The plate's thickness in a solve: safe by diameter, a thin sheet that leaks, and "thinnest".
+
+scenes/thin-sheet.toml: a 9 mm ball (A, hole: a 10 mm disk), an L-shaped rod and a 12 mm cube
+(B). Thick plate: the game's verdict (A wins) is proved by the diameter argument. 2 mm sheet: the
+rod threads through (found and verified), so B wins; the cube is safe on any plate by its
+inscribed 12 mm ball (wider than the 10 mm hole; its centre must cross the sheet).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import pytest
+import trimesh
+from helpers import REPO
+
+import sieve_mi
+from sieve_mi.testing.settings import TINY_SOLVER, TINY_VERDICT
+
+pytestmark = pytest.mark.slow
+
+
+def _scene(thickness, budget: float):
+    scene = sieve_mi.load_scene(os.path.join(REPO, "scenes", "thin-sheet.toml"))
+    for key, value in TINY_SOLVER.items():
+        setattr(scene.solver, key, value)
+    for key, value in TINY_VERDICT.items():
+        setattr(scene.verdict, key, value)
+    scene.fabrication.thickness = thickness
+    scene.verdict.thin_budget = budget
+    return scene
+
+
+def test_thick_plate_is_proved_by_the_diameter(tmp_path):
+    result = sieve_mi.solve(_scene(None, 1.0), progress=False)
+    assert result.winner == "A"
+    sheet = result.sheet
+    # the rod's diameter sqrt(20² + 20² + 2²) = 28.35, rounded up: the plate is 28.4 mm thick
+    assert sheet.thickness == pytest.approx(28.4) and sheet.proved and sheet.mode == "safe"
+    rod, cube = sheet.per_block
+    assert rod.status == "safe" and rod.to_dict()["by"] == "diameter"
+    assert cube.status == "safe" and cube.to_dict()["by"] == "ball"
+    result.save(str(tmp_path / "out"))
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["fabrication"]["thickness"] == pytest.approx(28.4)
+    assert report["fabrication"]["sheet"]["proved"] is True
+    assert [b["thin_plate"]["status"] for b in report["block"]] == ["safe", "safe"]
+    plate = trimesh.load(str(tmp_path / "out" / "sieve.stl"))
+    assert plate.extents[2] == pytest.approx(28.4, rel=1e-6)
+
+
+def test_a_2_mm_sheet_leaks_the_rod(tmp_path):
+    result = sieve_mi.solve(_scene(2.0, 60.0), progress=False)
+    rod, cube = result.sheet.per_block
+    assert rod.status == "passage" and rod.min_clearance > 0
+    assert cube.status == "safe" and "ball" in cube.argument
+    assert result.winner == "B" and not result.sheet.proved
+    assert [b.blocked for b in result.blocks] == [False, True]
+    assert any("rod passes a 2 mm plate" in w for w in result.warnings)
+    result.save(str(tmp_path / "out"))
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    row = report["block"][0]
+    assert row["blocked"] is False and row["thin_plate"]["status"] == "passage"
+    assert len(row["thin_plate"]["poses"][0]) == 7 and row["thin_plate"]["min_clearance"] > 0
+    assert trimesh.load(str(tmp_path / "out" / "sieve.stl")).extents[2] == pytest.approx(2.0)
+
+
+def test_thinnest_bisects_and_says_it_is_not_proved(tmp_path):
+    result = sieve_mi.solve(_scene("thinnest", 1.5), progress=False)
+    sheet = result.sheet
+    assert sheet.mode == "thinnest" and sheet.safe == pytest.approx(28.4)
+    steps = sheet.bisection
+    assert 1 <= len(steps) <= 6
+    # a bracket: every thickness where some B passed is below every one where none did
+    passed = [s["thickness"] for s in steps if s["passage"]]
+    held = [s["thickness"] for s in steps if not s["passage"]]
+    assert not passed or not held or max(passed) < min(held)
+    assert sheet.thickness == pytest.approx(min(held + [28.4]))
+    assert sheet.proved == (sheet.thickness >= 28.4)
+    # the first step halves the safe value
+    assert steps[0]["thickness"] == pytest.approx(14.2)
+    # no B passes the plate that is written
+    assert all(t.status != "passage" for t in sheet.per_block if t is not None)
+    assert result.winner == "A"
+    result.save(str(tmp_path / "out"))
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["fabrication"]["sheet"]["bisection"] == steps
+    plate = trimesh.load(str(tmp_path / "out" / "sieve.stl"))
+    assert math.isclose(plate.extents[2], sheet.thickness, rel_tol=1e-6)
