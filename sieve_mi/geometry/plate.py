@@ -16,12 +16,17 @@ import manifold3d
 import numpy as np
 
 __all__ = [
+    "LENGTH_SLACK",
     "convex_pieces",
     "diameter",
     "plate_region",
     "prism_vertices",
     "safe_thickness",
 ]
+
+
+#: Lengths within this many scene units count as equal in the thickness argument.
+LENGTH_SLACK = 1e-6
 
 
 def diameter(points: np.ndarray, chunk: int = 2048) -> float:
@@ -60,7 +65,8 @@ def safe_thickness(points_per_shape: list[np.ndarray]) -> float:
     When a shape's highest point enters the plate's top face, every point of the shape lies within
     its diameter below that point, hence inside a slab as deep as the diameter: a plate at least
     that thick holds the whole shape inside the hole's prism at that moment, so the shape's
-    projection must fit H (docs/fabrication.md). Rounded up to 0.1 scene units.
+    projection must fit H (docs/fabrication.md). Rounded up to 0.1 scene units, ignoring excesses
+    below :data:`LENGTH_SLACK` (a float32 mesh's 24 mm ball is 24.0000005 across).
 
     Parameters
     ----------
@@ -72,7 +78,7 @@ def safe_thickness(points_per_shape: list[np.ndarray]) -> float:
     float
     """
     d = max(diameter(p) for p in points_per_shape)
-    return math.ceil(d * 10.0 - 1e-9) / 10.0
+    return math.ceil((d - LENGTH_SLACK) * 10.0) / 10.0
 
 
 def plate_region(outline: manifold3d.CrossSection, margin: float) -> manifold3d.CrossSection:

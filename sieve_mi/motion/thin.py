@@ -14,8 +14,9 @@ from dataclasses import dataclass, field
 import manifold3d
 import numpy as np
 
+from sieve_mi.certify.bounds import contour_segments, inscribed_ball, no_disk_fits
 from sieve_mi.geometry.meshes import Shape
-from sieve_mi.geometry.plate import diameter
+from sieve_mi.geometry.plate import LENGTH_SLACK, diameter
 
 __all__ = [
     "BALL_ARGUMENT",
@@ -108,6 +109,13 @@ class ThinPlate:
         return out
 
 
+def _ball_proves(shape: Shape, segs: np.ndarray) -> bool:
+    """Whether a ball certified inside the shape is wider than every disk in the hole
+    (:data:`BALL_ARGUMENT`; certify's root-level test)."""
+    ball = inscribed_ball(shape)
+    return ball is not None and no_disk_fits(segs, ball[1])
+
+
 def _polygons(outline: manifold3d.CrossSection) -> list:
     return [np.asarray(c, dtype=np.float64) for c in outline.to_polygons()]
 
@@ -187,6 +195,9 @@ def thin_plates(
 ) -> list[ThinPlate]:
     """:func:`thin_plate` for several shapes, searched in parallel worker processes.
 
+    A shape is ``"safe"`` without a search when its diameter is at most the thickness, or when
+    a ball certified inside it is wider than every disk in the hole (:data:`BALL_ARGUMENT`).
+
     Parameters
     ----------
     shapes : list of Shape
@@ -204,10 +215,13 @@ def thin_plates(
     seeds = seeds or [()] * len(shapes)
     out: list = [None] * len(shapes)
     todo = []
+    segs = contour_segments([np.asarray(c, float) for c in outline.to_polygons()])
     for j, shape in enumerate(shapes):
         d = diameter(shape.hull)
-        if d <= thickness:
+        if d <= thickness + LENGTH_SLACK:
             out[j] = ThinPlate(shape.name, float(thickness), d, "safe")
+        elif _ball_proves(shape, segs):
+            out[j] = ThinPlate(shape.name, float(thickness), d, "safe", argument=BALL_ARGUMENT)
         else:
             todo.append(j)
     if not todo:

@@ -13,6 +13,10 @@ translation; only its height changes with the animation's phase ``s`` in [0, 1]:
   to pass, until it rests on the plate: its lowest point over the plate's material touches z = 0
   (:func:`rest_offset`); it stays there to the end of its slot. A B that is not blocked passes
   like an A.
+* a B that passes a thin plate by a found motion (report.json's ``thin_plate``) follows that
+  motion instead: its ``keys`` are the motion's poses, each at a local phase proportional to how
+  far the shape has moved (:func:`sieve_mi.motion.path.segment_reach`), its ``vertices`` are in
+  its own frame, and :meth:`Piece.matrix` places it.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from sieve_mi.geometry.outline import Boundary, placed_vertices
+from sieve_mi.geometry.rotations import to_matrix
+from sieve_mi.motion.path import interpolate, segment_reach
 
 __all__ = ["Passage", "Piece", "build", "rest_offset", "surface_points"]
 
@@ -51,6 +57,10 @@ class Piece:
         Whether it goes through (every A; a B whose attempt fits the hole).
     centre : (2,) ndarray
         Its pose's xy translation, scene units.
+    keys : (k, 8) ndarray or None
+        A found thin-plate motion: rows (u, w, x, y, z, tx, ty, tz), the local phase and the pose
+        (rotation about the shape's centre, the centre's position); ``vertices`` are then in the
+        shape's own frame (centred, unrotated).
     """
 
     name: str
@@ -64,6 +74,25 @@ class Piece:
     passes: bool
     centre: np.ndarray
     slot: tuple = (0.0, 1.0)
+    keys: np.ndarray | None = None
+
+    def matrix(self, s: float) -> np.ndarray:
+        """(4, 4) transform of ``vertices`` at phase ``s``: the motion's pose for a piece with
+        ``keys``, else a lift by :meth:`offset`."""
+        m = np.eye(4)
+        if self.keys is None:
+            m[2, 3] = self.offset(s)
+            return m
+        t0, t1 = self.slot
+        u = min(max((float(s) - t0) / (t1 - t0), 0.0), 1.0)
+        k = int(
+            np.clip(np.searchsorted(self.keys[:, 0], u, side="right") - 1, 0, len(self.keys) - 2)
+        )
+        a, b = self.keys[k], self.keys[k + 1]
+        f = 0.0 if b[0] <= a[0] else (u - a[0]) / (b[0] - a[0])
+        q, t = interpolate((a[1:5], a[5:]), (b[1:5], b[5:]), f)
+        m[:3, :3], m[:3, 3] = to_matrix(q), t
+        return m
 
     def offset(self, s: float) -> float:
         """Height offset at phase ``s`` in [0, 1], scene units."""
@@ -104,8 +133,11 @@ class Passage:
         """(2, 3) box around the plate and every shape over the whole motion, scene units."""
         lo, hi = self.plate_vertices.min(0), self.plate_vertices.max(0)
         for p in self.pieces:
-            for dz in (p.start, p.end):
-                v = p.vertices + [0.0, 0.0, dz]
+            if p.keys is not None:
+                placed = [p.vertices @ to_matrix(k[1:5]).T + k[5:] for k in p.keys]
+            else:
+                placed = [p.vertices + [0.0, 0.0, dz] for dz in (p.start, p.end)]
+            for v in placed:
                 lo, hi = np.minimum(lo, v.min(0)), np.maximum(hi, v.max(0))
         return np.array([lo, hi])
 
@@ -178,7 +210,10 @@ def build(result) -> Passage:
         v = placed_vertices(shape, q, t)
         piece = _falling(shape, "block", j, v, thickness, gap, t)
         piece.slot = ((j + 1) / n, (j + 2) / n)
-        if blocked[j]:
+        thin = result.sheet.per_block[j] if getattr(result, "sheet", None) is not None else None
+        if thin is not None and thin.status == "passage":
+            piece = _moving(shape, j, thin.poses, piece.slot)
+        elif blocked[j]:
             rest = rest_offset(v, shape.faces, result.outline, box)
             rest = (
                 -float(v[:, 2].min()) if rest is None else rest
@@ -187,6 +222,28 @@ def build(result) -> Passage:
             piece.end, piece.passes = rest, False
         pieces.append(piece)
     return Passage(pv, np.asarray(sieve.mesh.faces, dtype=np.int64), float(thickness), gap, pieces)
+
+
+def _moving(shape, index: int, poses: np.ndarray, slot: tuple) -> Piece:
+    """A B that threads through a thin plate along a found motion ((k, 7) poses)."""
+    reach = [segment_reach((a[:4], a[4:]), (b[:4], b[4:]), shape.radius)
+             for a, b in zip(poses[:-1], poses[1:])]  # fmt: skip
+    u = np.concatenate([[0.0], np.cumsum(reach)])
+    u = u / u[-1] if u[-1] > 0 else np.linspace(0.0, 1.0, len(poses))
+    return Piece(
+        name=shape.name,
+        role="block",
+        index=index,
+        vertices=np.asarray(shape.vertices, dtype=np.float64),
+        faces=np.asarray(shape.faces, dtype=np.int64),
+        start=float(poses[0, 6]),
+        end=float(poses[-1, 6]),
+        stop=1.0,
+        passes=True,
+        centre=np.asarray(poses[0, 4:6], dtype=np.float64).copy(),
+        slot=slot,
+        keys=np.column_stack([u, poses]),
+    )
 
 
 def _falling(shape, role: str, index: int, v: np.ndarray, thickness: float, gap: float, t) -> Piece:

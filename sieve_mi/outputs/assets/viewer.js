@@ -95,6 +95,28 @@
     var f = p.stop > 0 ? Math.min(Math.max(u, 0), p.stop) / p.stop : 1;
     return p.start + f * (p.end - p.start);
   }
+  // a thin-plate passage follows its keys (u, quaternion w x y z, translation), as Piece.matrix
+  function slerp(a, b, f) {
+    var d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3], s = d < 0 ? -1 : 1;
+    d = Math.abs(d);
+    var w = Math.acos(Math.min(1, d)), k0 = 1 - f, k1 = f;
+    if (d < 1 - 1e-12) { k0 = Math.sin((1 - f) * w) / Math.sin(w); k1 = Math.sin(f * w) / Math.sin(w); }
+    var q = [0, 1, 2, 3].map(function (i) { return k0 * a[i] + s * k1 * b[i]; });
+    var l = Math.hypot(q[0], q[1], q[2], q[3]) || 1;
+    return q.map(function (x) { return x / l; });
+  }
+  function place(p, s) {
+    if (!p.keys) return { rot: [1, 0, 0, 0, 1, 0, 0, 0, 1], shift: [0, 0, offset(p, s)] };
+    var u = Math.min(Math.max((s - p.slot[0]) / (p.slot[1] - p.slot[0]), 0), 1), k = 0;
+    while (k < p.keys.length - 2 && p.keys[k + 1][0] <= u) k++;
+    var a = p.keys[k], b = p.keys[k + 1], f = b[0] > a[0] ? (u - a[0]) / (b[0] - a[0]) : 0;
+    var q = slerp(a.slice(1, 5), b.slice(1, 5), f), w = q[0], x = q[1], y = q[2], z = q[3];
+    var t = [0, 1, 2].map(function (i) { return (1 - f) * a[5 + i] + f * b[5 + i]; });
+    // column-major 3x3 rotation of the quaternion
+    return { rot: [1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y),
+      2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x),
+      2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)], shift: t };
+  }
   function visible(p, s) { return (p.slot[0] <= s && s < p.slot[1]) || (p.slot[1] >= 1 && s >= 1); }
 
   // ---- WebGL ----
@@ -122,8 +144,8 @@
   function setupGL() {
     program = gl.createProgram();
     gl.attachShader(program, shader(gl.VERTEX_SHADER,
-      "attribute vec3 p; attribute vec3 n; uniform mat4 mvp; uniform vec3 shift; varying vec3 vn;" +
-      "void main() { vn = n; gl_Position = mvp * vec4(p + shift, 1.0); }"));
+      "attribute vec3 p; attribute vec3 n; uniform mat4 mvp; uniform mat3 rot; uniform vec3 shift; varying vec3 vn;" +
+      "void main() { vn = rot * n; gl_Position = mvp * vec4(rot * p + shift, 1.0); }"));
     gl.attachShader(program, shader(gl.FRAGMENT_SHADER,
       "precision mediump float; uniform vec3 colour; uniform vec3 light; uniform float alpha; varying vec3 vn;" +
       "void main() { float d = abs(dot(normalize(vn), light)); gl_FragColor = vec4(colour * (0.42 + 0.58 * d), alpha); }"));
@@ -185,7 +207,9 @@
       var see = xray && m.id === "plate";
       gl.depthMask(!see);
       if (see) { gl.enable(gl.BLEND); gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA); } else gl.disable(gl.BLEND);
-      gl.uniform3fv(gl.getUniformLocation(program, "shift"), [0, 0, m.piece ? offset(m.piece, phase) : 0]);
+      var pose = m.piece ? place(m.piece, phase) : { rot: [1, 0, 0, 0, 1, 0, 0, 0, 1], shift: [0, 0, 0] };
+      gl.uniformMatrix3fv(gl.getUniformLocation(program, "rot"), false, pose.rot);
+      gl.uniform3fv(gl.getUniformLocation(program, "shift"), pose.shift);
       gl.uniform3fv(gl.getUniformLocation(program, "colour"), m.colour);
       gl.uniform1f(gl.getUniformLocation(program, "alpha"), see ? 0.35 : 1.0);
       bindAttr("p", m.pos); bindAttr("n", m.nrm);
