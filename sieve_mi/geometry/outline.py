@@ -23,6 +23,7 @@ import math
 
 import manifold3d
 import numpy as np
+import shapely
 import trimesh
 
 from sieve_mi.geometry.meshes import Shape
@@ -341,6 +342,7 @@ class Boundary:
             self.size = 0.0
         self.spacing = spacing if spacing is not None else max(self.size, 1e-12) / 2000
         self._tree = None
+        self._lines = None
 
     def inside(self, xy: np.ndarray) -> np.ndarray:
         """(P,) bool: points (P, 2) inside the region (even-odd over the contours)."""
@@ -350,21 +352,17 @@ class Boundary:
             count += p.contains_points(xy)
         return count % 2 == 1
 
-    def distance(self, xy: np.ndarray, chunk: int = 1 << 22) -> np.ndarray:
-        """(P,) exact distances from points (P, 2) to the boundary, scene units."""
+    def distance(self, xy: np.ndarray) -> np.ndarray:
+        """(P,) exact distances from points (P, 2) to the boundary, scene units (GEOS, through
+        shapely's vectorised ``distance`` on the prepared contours)."""
         xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
         if len(self.a) == 0:
             return np.full(len(xy), np.inf)
-        out = np.empty(len(xy))
-        d = self.b - self.a
-        dd = np.maximum((d * d).sum(1), 1e-300)
-        per = max(1, chunk // len(self.a))
-        for s in range(0, len(xy), per):
-            p = xy[s : s + per, None, :]
-            t = np.clip(((p - self.a) * d).sum(-1) / dd, 0.0, 1.0)
-            q = self.a + t[..., None] * d
-            out[s : s + per] = np.sqrt(((p - q) ** 2).sum(-1).min(1))
-        return out
+        if self._lines is None:
+            rings = [np.vstack([c, c[:1]]) for c in self.contours]
+            self._lines = shapely.multilinestrings(rings)
+            shapely.prepare(self._lines)
+        return shapely.distance(shapely.points(xy), self._lines)
 
     def signed(self, xy: np.ndarray) -> np.ndarray:
         """(P,) exact signed distances: positive outside the region, negative inside."""

@@ -16,7 +16,6 @@ import numpy as np
 
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.plate import convex_pieces, plate_region, prism_vertices
-from sieve_mi.geometry.rotations import to_matrix
 
 __all__ = ["PlateWorld", "edge_pairs", "plate_prisms"]
 
@@ -98,7 +97,9 @@ class PlateWorld:
         return len(self._pieces)
 
     def _place(self, quat, trans) -> None:
-        rot = to_matrix(np.asarray(quat, dtype=np.float64))
+        w, x, y, z = (float(v) for v in quat)
+        n = (w * w + x * x + y * y + z * z) ** 0.5
+        rot = coal.Quaternion(w / n, x / n, y / n, z / n)  # Eigen's order: w, x, y, z
         self.body.setTransform(coal.Transform3s(rot, np.asarray(trans, dtype=np.float64)))
         self.body.computeAABB()
         self.checks += 1

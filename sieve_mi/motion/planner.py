@@ -158,19 +158,28 @@ class _Planner:
         r.w, r.x, r.y, r.z = (float(v) for v in q)
         return s
 
+    def _valid(self, s) -> bool:
+        r = s.rotation()
+        return not self.world.collides((r.w, r.x, r.y, r.z), (s.getX(), s.getY(), s.getZ()))
+
     @staticmethod
     def _pose(s):
         r = s.rotation()
         return np.array([r.w, r.x, r.y, r.z]), np.array([s.getX(), s.getY(), s.getZ()])
 
-    def plan(self, start, goal, seconds: float) -> list | None:
-        """RRT-Connect from ``start`` to ``goal`` within ``seconds``; the simplified path or None."""
-        og, world = self.og, self.world
+    def plan(self, start, goals: list, seconds: float) -> list | None:
+        """RRT-Connect from ``start`` to any of ``goals`` (poses) within ``seconds``; the
+        simplified path (ending at the goal it reached) or None."""
+        ob, og = self.ob, self.og
         ss = og.SimpleSetup(self.space)
-        ss.setStateValidityChecker(lambda s: not world.collides(*self._pose(s)))
+        ss.setStateValidityChecker(self._valid)
         si = ss.getSpaceInformation()
         si.setStateValidityCheckingResolution(self.step / self.space.getMaximumExtent())
-        ss.setStartAndGoalStates(self._state(start), self._state(goal))
+        ss.setStartState(self._state(start))
+        goal = ob.GoalStates(si)
+        for g in goals:
+            goal.addState(self._state(g))
+        ss.setGoal(goal)
         ss.setPlanner(og.RRTConnect(si))
         solved = ss.solve(float(seconds))
         if not solved or not ss.haveExactSolutionPath():
@@ -188,6 +197,28 @@ def _try(world, out: Search, poses, method: str) -> bool:
     if v.ok:
         out.passage, out.poses, out.method = v, poses, method
     return v.ok
+
+
+def _via_crossings(world, out: Search, planner, start, goal, crossings, left, slice_s, reverse):
+    """Plan from ``start`` to the nearest reachable crossing pose, then on to ``goal``; drop a
+    crossing that leads nowhere and try the others. True when a verified passage was found."""
+    pending = list(crossings)
+    while pending and left() > 0.05:
+        first = planner.plan(start, pending, min(slice_s, left()))
+        out.plans += 1
+        if first is None:
+            return False
+        end = first[-1][1]
+        k = int(np.argmin([np.linalg.norm(w[1] - end) for w in pending]))
+        w = pending.pop(k)
+        second = planner.plan(w, [goal], min(slice_s, left()))
+        out.plans += 1
+        if second is None:
+            continue
+        path = first[:-1] + [w] + second[1:]
+        if _try(world, out, path[::-1] if reverse else path, "RRTConnect via a crossing pose"):
+            return True
+    return False
 
 
 def search_passage(world, bounds, seeds, budget_s: float, seed: int = 0) -> Search:
@@ -222,23 +253,20 @@ def search_passage(world, bounds, seeds, budget_s: float, seed: int = 0) -> Sear
     planner = None if done else _Planner(world, window, seed)
     left = lambda: budget_s - (time.perf_counter() - t0)  # noqa: E731
     q0 = np.asarray(seeds[0][0], dtype=np.float64)
-    start, goal = _straight(world, window, q0, window.centre)
-    slice_s = max(0.2, budget_s / 8)
+    ends = _straight(world, window, q0, window.centre)
+    slice_s = min(max(0.5, budget_s / 10), 3.0)
+    rounds = 0
     while not done and left() > 0.05:
         out.plans += 1
-        if _try(world, out, planner.plan(start, goal, min(slice_s, left())), "RRTConnect"):
+        direct = planner.plan(ends[0], [ends[1]], min(slice_s, left()))
+        if _try(world, out, direct, "RRTConnect"):
             break
-        crossings = _crossings(world, window, [q for q, _ in seeds], rng, 4, 400)
+        crossings = _crossings(world, window, [q for q, _ in seeds], rng, 8, 400)
         out.crossings += len(crossings)
-        for w in crossings:
-            if left() <= 0.05:
-                break
-            first = planner.plan(start, w, min(slice_s, left()))
-            second = planner.plan(w, goal, min(slice_s, left())) if first else None
-            out.plans += 1 + (first is not None)
-            if second and _try(world, out, first + second[1:], "RRTConnect via a crossing pose"):
-                done = True
-                break
+        side = rounds % 2  # reach the crossings from above, then from below, in turn
+        done = _via_crossings(world, out, planner, ends[side], ends[1 - side], crossings, left,
+                              slice_s, reverse=side == 1)  # fmt: skip
+        rounds += 1
     out.seconds = time.perf_counter() - t0
     out.checks = world.checks
     return out
