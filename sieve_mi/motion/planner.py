@@ -35,6 +35,8 @@ class Window:
         pose (the whole shape below it).
     centre : (2,) float
         The hole's bounding-box centre.
+    pieces : (k, 2) float
+        The bounding-box centres of the hole's pieces (where crossing poses are centred).
     """
 
     lo: np.ndarray
@@ -42,16 +44,20 @@ class Window:
     above: float
     below: float
     centre: np.ndarray
+    pieces: np.ndarray
 
     @classmethod
-    def around(cls, world, bounds) -> Window:
-        """The box for ``world`` (a PlateWorld) and H's ``bounds`` (x0, y0, x1, y1)."""
+    def around(cls, world, outline) -> Window:
+        """The box for ``world`` (a PlateWorld) and the hole ``outline`` (a CrossSection)."""
         r, t = world.radius, world.thickness
         gap = max(0.05 * r, 1e-3)
-        x0, y0, x1, y1 = bounds
+        x0, y0, x1, y1 = outline.bounds()
         lo = np.array([x0 - r, y0 - r, -t - r - 2 * gap])
         hi = np.array([x1 + r, y1 + r, r + 2 * gap])
-        return cls(lo, hi, r + gap, -t - r - gap, np.array([(x0 + x1) / 2, (y0 + y1) / 2]))
+        pieces = np.array([[(b[0] + b[2]) / 2, (b[1] + b[3]) / 2]
+                           for b in (p.bounds() for p in outline.decompose())])  # fmt: skip
+        centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+        return cls(lo, hi, r + gap, -t - r - gap, centre, pieces)
 
 
 @dataclass
@@ -107,7 +113,7 @@ def _slab_points(v: np.ndarray, edges: np.ndarray, z0: float, z1: float) -> np.n
 def _crossings(world, window: Window, seeds, rng, count: int, tries: int) -> list:
     """Up to ``count`` poses that meet no material with the plate cutting through the shape,
     clearest first: random rotations, a random height, and the shape's part inside the slab
-    centred on the hole."""
+    centred on one of the hole's pieces."""
     quats = np.concatenate([np.asarray(seeds).reshape(-1, 4), random_uniform(tries, rng)])
     t, shape = world.thickness, world.shape
     edges = world.edges
@@ -120,8 +126,10 @@ def _crossings(world, window: Window, seeds, rng, count: int, tries: int) -> lis
         if not len(section):
             continue
         mid = 0.5 * (section[:, :2].min(0) + section[:, :2].max(0))
-        trans = np.array([*(window.centre - mid), -t / 2 - h])
-        if not world.collides(q, trans):
+        hole = window.pieces[rng.integers(len(window.pieces))]
+        trans = np.array([*(hole - mid), -t / 2 - h])
+        inside = np.all(trans >= window.lo) and np.all(trans <= window.hi)
+        if inside and not world.collides(q, trans):
             found.append((world.distance(q, trans), (q, trans)))
     found.sort(key=lambda f: -f[0])
     return [p for _, p in found[:count]]
@@ -189,6 +197,13 @@ class _Planner:
         return [self._pose(path.getState(i)) for i in range(path.getStateCount())]
 
 
+def _down(world, out: Search, window: Window, ends, quat, xy) -> bool:
+    """Try the straight descent in rotation ``quat`` over ``xy``: from the start, over the hole
+    wholly above the plate, straight down through it, and on to the goal wholly below."""
+    path = [ends[0], *_straight(world, window, quat, xy), ends[1]]
+    return _try(world, out, path, "straight descent")
+
+
 def _try(world, out: Search, poses, method: str) -> bool:
     """Re-check a candidate motion; keep it in ``out`` when it holds."""
     if poses is None:
@@ -221,14 +236,14 @@ def _via_crossings(world, out: Search, planner, start, goal, crossings, left, sl
     return False
 
 
-def search_passage(world, bounds, seeds, budget_s: float, seed: int = 0) -> Search:
+def search_passage(world, outline, seeds, budget_s: float, seed: int = 0) -> Search:
     """Look for a motion taking the shape from wholly above the plate to wholly below it.
 
     Parameters
     ----------
     world : sieve_mi.motion.collide.PlateWorld
-    bounds : (4,) float
-        The hole's bounds (x0, y0, x1, y1), scene units.
+    outline : manifold3d.CrossSection
+        The hole H (one or several pieces), scene units.
     seeds : list of (quat, xy)
         Orientations (w, x, y, z) and hole-plane positions to try first (player B's attempts).
     budget_s : float
@@ -242,18 +257,15 @@ def search_passage(world, bounds, seeds, budget_s: float, seed: int = 0) -> Sear
     """
     t0 = time.perf_counter()
     out = Search()
-    window = Window.around(world, bounds)
+    window = Window.around(world, outline)
     seeds = list(seeds) or [(np.array([1.0, 0, 0, 0]), window.centre)]
-    done = False
-    for q, xy in seeds:
-        if _try(world, out, _straight(world, window, q, xy), "straight descent"):
-            done = True
-            break
+    q0 = np.asarray(seeds[0][0], dtype=np.float64)
+    ends = _straight(world, window, q0, window.centre)
+    straight = seeds + [(q, xy) for q, _ in seeds for xy in window.pieces]
+    done = any(_down(world, out, window, ends, q, xy) for q, xy in straight)
     rng = np.random.default_rng(seed)
     planner = None if done else _Planner(world, window, seed)
     left = lambda: budget_s - (time.perf_counter() - t0)  # noqa: E731
-    q0 = np.asarray(seeds[0][0], dtype=np.float64)
-    ends = _straight(world, window, q0, window.centre)
     slice_s = min(max(0.5, budget_s / 10), 3.0)
     rounds = 0
     while not done and left() > 0.05:
@@ -263,6 +275,8 @@ def search_passage(world, bounds, seeds, budget_s: float, seed: int = 0) -> Sear
             break
         crossings = _crossings(world, window, [q for q, _ in seeds], rng, 8, 400)
         out.crossings += len(crossings)
+        if any(_down(world, out, window, ends, q, t[:2]) for q, t in crossings):
+            break
         side = rounds % 2  # reach the crossings from above, then from below, in turn
         done = _via_crossings(world, out, planner, ends[side], ends[1 - side], crossings, left,
                               slice_s, reverse=side == 1)  # fmt: skip

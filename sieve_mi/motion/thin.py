@@ -127,7 +127,7 @@ def _search(shape: Shape, polygons: list, thickness: float, budget_s: float, see
 
     outline = manifold3d.CrossSection(polygons)
     world = PlateWorld(shape, outline, thickness)
-    found = search_passage(world, outline.bounds(), seeds, budget_s, seed)
+    found = search_passage(world, outline, seeds, budget_s, seed)
     d = diameter(shape.hull)
     out = ThinPlate(shape.name, float(thickness), d, "no passage found", seconds=found.seconds,
                     budget_s=float(budget_s), checks=found.checks, plans=found.plans,

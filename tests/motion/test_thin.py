@@ -133,3 +133,19 @@ def test_verify_accepts_a_clear_motion_without_subdividing_much():
     q = np.array([1.0, 0, 0, 0])
     out = verify(world, [(q, np.array([0, 0, 40.0])), (q, np.array([1.0, 0, 40.0]))])
     assert out.ok and len(out.poses) == 2 and out.min_clearance > 20
+
+
+def test_two_holes_the_shape_finds_the_one_it_fits():
+    """A plate with a 5 mm hole at x = -30 and a 22 mm square hole at x = +30: the cube cannot go
+    straight down at the holes' common centre, but the search finds the wide hole."""
+    cube = shape_from_trimesh(shapes.cube(20.0), name="cube")
+    holes = manifold3d.CrossSection.circle(2.5, 32).translate(
+        [-30, 0]
+    ) + manifold3d.CrossSection.square([22, 22], center=True).translate([30, 0])
+    result = thin_plate(cube, holes, 2.0, budget_s=30.0, seed=0)
+    assert result.status == "passage", result.to_dict()
+    _assert_real_passage(cube, holes, result, samples=60)
+    # the segment that crosses the plate's mid-plane lies over the hole at x = +30
+    p = result.poses
+    crossing = [k for k in range(len(p) - 1) if p[k, 6] > -1.0 > p[k + 1, 6]]
+    assert crossing and all(p[k, 4] > 15 and p[k + 1, 4] > 15 for k in crossing)
