@@ -13,6 +13,7 @@ import functools
 import os
 
 from sieve_mi import scene as _scene
+from sieve_mi.authors_config import is_authors_config, load_authors_config
 from sieve_mi.errors import SieveError
 from sieve_mi.game import result as _game_result
 from sieve_mi.game import solver as _solver
@@ -53,9 +54,28 @@ def check_seed(seed, what: str = "seed") -> int | None:
     return seed
 
 
-@functools.wraps(_scene.load_scene)
 def load_scene(path) -> Scene:
-    return _scene.load_scene(_path(path, "load_scene"))
+    """Read and validate a scene: a TOML scene file (``docs/scene-format.md``) or, for a
+    ``.json`` path, a configuration of the paper authors' code (``docs/authors-config.md``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    Scene
+        Every setting the file does not give at its default.
+
+    Raises
+    ------
+    SieveError
+        One line naming the file and the key: a missing file, an unknown key, a wrong value.
+    """
+    path = _path(path, "load_scene")
+    if is_authors_config(path):
+        return load_authors_config(path)
+    return _scene.load_scene(path)
 
 
 @functools.wraps(_meshes.load_shape)

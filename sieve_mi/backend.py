@@ -8,6 +8,7 @@ and turns a missing backend into a one-line :class:`~sieve_mi.errors.SieveError`
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import os
 import re
@@ -18,13 +19,17 @@ from sieve_mi.errors import SieveError
 __all__ = [
     "MIN_LLVM",
     "RGB_VARIANTS",
+    "THREADS_ENV",
     "VARIANTS",
     "VARIANT_ENV",
+    "apply_threads",
+    "bitmap_threads",
     "configure_llvm",
     "default_variant",
     "find_llvm",
     "gpu_available",
     "select_rgb_variant",
+    "set_threads",
     "use_variant",
 ]
 
@@ -33,6 +38,8 @@ VARIANTS = ("llvm_ad_mono", "cuda_ad_mono")
 MIN_LLVM = 17
 #: Environment variable that changes the default variant (e.g. ``SIEVE_MI_VARIANT=cuda_ad_mono``).
 VARIANT_ENV = "SIEVE_MI_VARIANT"
+#: Environment variable holding ``--threads N`` for every process of a run (Ray workers too).
+THREADS_ENV = "SIEVE_MI_THREADS"
 
 _PATTERNS = (
     "/usr/lib/llvm-*/lib/libLLVM*.so*",
@@ -174,3 +181,62 @@ def select_rgb_variant(mi, before: str | None) -> str:
         return use_variant("llvm_ad_mono").variant()
     mi.set_variant(before)
     return before
+
+
+def set_threads(count) -> None:
+    """Run Dr.Jit's CPU kernels on ``count`` threads (``--threads N``; Mitsuba's ``-t``).
+
+    The count is kept in ``$SIEVE_MI_THREADS`` too, so processes started later (Ray workers of
+    ``sort`` and ``sweep``) use it as well (:func:`apply_threads`).
+
+    Parameters
+    ----------
+    count : int
+        At least 1.
+
+    Raises
+    ------
+    SieveError
+        If ``count`` is not a whole number of at least 1.
+    """
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise SieveError(f"--threads {count}: must be a whole number of at least 1")
+    os.environ[THREADS_ENV] = str(count)
+    apply_threads()
+
+
+def apply_threads() -> int | None:
+    """Apply ``$SIEVE_MI_THREADS`` (set by :func:`set_threads`) to Dr.Jit; return it (None: unset)."""
+    text = os.environ.get(THREADS_ENV)
+    if not text:
+        return None
+    try:
+        count = int(text)
+    except ValueError:
+        raise SieveError(f"{THREADS_ENV}={text}: must be a whole number of at least 1") from None
+    if count < 1:
+        raise SieveError(f"{THREADS_ENV}={text}: must be a whole number of at least 1")
+    configure_llvm()
+    import drjit as dr
+
+    dr.set_thread_count(count)
+    return count
+
+
+@contextlib.contextmanager
+def bitmap_threads():
+    """Give Dr.Jit's thread pool at least two threads inside the block.
+
+    Mitsuba 3.9 reads and writes OpenEXR files (``mi.Bitmap``) on Dr.Jit's pool, and with one
+    thread (``--threads 1``) that never returns; the count is restored afterwards.
+    """
+    import drjit as dr
+
+    before = dr.thread_count()
+    if before < 2:
+        dr.set_thread_count(2)
+    try:
+        yield
+    finally:
+        if before < 2:
+            dr.set_thread_count(before)

@@ -9,7 +9,7 @@ import signal
 import sys
 import threading
 
-from sieve_mi.errors import SieveError
+from sieve_mi.errors import EXIT_BAD_INPUT, EXIT_NO, EXIT_OK, EXIT_UNDECIDED, SieveError
 
 __all__ = ["Terminated", "cmd_certify", "cmd_check", "cmd_solve", "cmd_view", "main"]
 
@@ -28,7 +28,9 @@ def _parser() -> argparse.ArgumentParser:
         "solve",
         help="design a hole that passes the [[pass]] shapes and blocks the [[block]] shapes",
     )
-    s.add_argument("scene", help="scene file (TOML)")
+    s.add_argument(
+        "scene", help="scene file (TOML), or a configuration of the paper authors' code (JSON)"
+    )
     s.add_argument(
         "--out",
         help="output folder (default: out/<name>/ in the current directory); an existing folder "
@@ -44,6 +46,11 @@ def _parser() -> argparse.ArgumentParser:
         "--json", action="store_true", help="print report.json on stdout instead of the table"
     )
     _skip_flags(s)
+    s.add_argument(
+        "--shake",
+        metavar="N",
+        help="then shake each shape N times on the plate (MuJoCo; as sieve-mi shake OUT --trials N)",
+    )
     c = sub.add_parser(
         "check",
         help="test a shape against a sieve (plate mesh or hole image): passes or blocked, and the fit scale",
@@ -52,7 +59,9 @@ def _parser() -> argparse.ArgumentParser:
     src = c.add_mutually_exclusive_group(required=True)
     src.add_argument("--sieve", help="sieve plate mesh; its through-holes along --axis are used")
     src.add_argument(
-        "--hole", help="hole image (white = hole, black = material); needs --pixel-size"
+        "--hole",
+        help="hole image (white = hole, black = material); its pixel size comes from the PNG's "
+        "pHYs (solve's hole.png has it) unless --pixel-size is given",
     )
     _settings(c, CheckInputs, "pixel_size", "axis", "scale")
     _settings(c, Check)
@@ -72,8 +81,25 @@ def _parser() -> argparse.ArgumentParser:
     from sieve_mi.cascade.commands import add_parsers
 
     add_parsers(sub)
+    from sieve_mi.shake.commands import add_parser as add_shake_parser
+
+    add_shake_parser(sub)
     _view_parser(sub)
+    for command in sub.choices.values():
+        _threads_option(command)
     return p
+
+
+def _threads_option(parser) -> None:
+    """``--threads N`` (every subcommand): Dr.Jit's CPU threads, as Mitsuba's ``-t``."""
+    with contextlib.suppress(argparse.ArgumentError):  # a subcommand with its own --threads
+        parser.add_argument(
+            "--threads",
+            type=int,
+            metavar="N",
+            help="Dr.Jit CPU threads for the kernels (default: one per core; sort and sweep pass "
+            "it to every worker)",
+        )
 
 
 def _settings(parser, cls: type, *names: str, flags: dict | None = None) -> None:
@@ -214,6 +240,9 @@ def cmd_solve(args) -> int:
     out_dir = args.out or os.path.join("out", scene.name)
     validate(out_dir, inputs=input_paths(scene))  # again just before the swap
     sm.check_seed(args.seed, "--seed")
+    from sieve_mi.shake.commands import shake_after_solve, solve_shake_settings
+
+    shake = solve_shake_settings(args.shake)
     result = sm.solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
     report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
     if args.json:  # report.json's content, for scripts (jq); everything else on stderr
@@ -225,13 +254,30 @@ def cmd_solve(args) -> int:
     for w in report["warnings"] + report.get("fabrication", {}).get("warnings", []):
         print(f"sieve-mi: warning: {w}", file=sys.stderr)
     print(f"outputs: {out_dir}/", file=sys.stderr if args.json else sys.stdout)
-    return 0
+    if shake is not None:
+        shake_after_solve(out_dir, shake, args.quiet, args.json)
+    return EXIT_OK if report["winner"] == "A" else EXIT_NO
 
 
 def _say_fit(v) -> None:
     """One stderr line per scale that ``check`` tried (it runs a whole attack each time)."""
     what = "passes" if v.passes else f"blocked (beta {v.beta:.4f}, sticks out {v.protrusion:.3f})"
     print(f"check: scale {v.scale:.4f}: {what}", file=sys.stderr, flush=True)
+
+
+def _recorded_pixel_size(image: str, units: str) -> float:
+    """The pixel size a hole image records (PNG ``pHYs``, as solve's hole.png has), in ``units``."""
+    from sieve_mi.geometry.pixels import image_pixel_size
+
+    if not os.path.isfile(image):
+        raise SieveError(f"{image}: hole image not found")
+    size = image_pixel_size(image, units)
+    if size is None:
+        raise SieveError(
+            f"--hole {image}: the image records no pixel size (PNG pHYs); give --pixel-size "
+            "(the image's pixel size in scene units)"
+        )
+    return size
 
 
 def cmd_check(args) -> int:
@@ -244,9 +290,7 @@ def cmd_check(args) -> int:
     from sieve_mi.outputs import outdir
 
     if args.hole is not None and args.pixel_size is None:
-        raise SieveError(
-            f"--hole {args.hole}: also give --pixel-size (the image's pixel size in scene units)"
-        )
+        args.pixel_size = _recorded_pixel_size(args.hole, args.units)
     inputs = [p for p in (args.shape, args.sieve, args.hole) if p]
     if args.out is not None:
         outdir.validate(args.out, inputs=inputs)  # again just before the swap
@@ -276,7 +320,7 @@ def cmd_check(args) -> int:
     print(text if args.json else summary(rep))
     if args.out is not None:
         print(f"outputs: {args.out}/", file=sys.stderr if args.json else sys.stdout)
-    return 0
+    return EXIT_OK if rep.passes else EXIT_NO
 
 
 def cmd_view(args) -> int:
@@ -357,7 +401,7 @@ def cmd_certify(args) -> int:
             )
             for e in rep["errors"]:
                 print(f"  {e}")
-        return 0
+        return EXIT_OK if rep["valid"] else EXIT_NO
     if not args.shape or (args.sieve is None and args.hole is None):
         raise SieveError("certify needs SHAPE and --sieve PLATE or --hole SVG (or --replay CERT)")
     inputs = (args.shape, args.sieve, args.hole)
@@ -375,7 +419,7 @@ def cmd_certify(args) -> int:
         print(json.dumps(result.to_dict(), indent=2))
     else:
         print(_certify_summary(shape.name, result))
-    return 0
+    return {"proved": EXIT_OK, "passage": EXIT_NO}.get(result.status, EXIT_UNDECIDED)
 
 
 def _certify_summary(name: str, r) -> str:
@@ -395,6 +439,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with _termination_as_interrupt():
             _check_settings(args)
+            if args.threads is not None:
+                from sieve_mi.backend import set_threads
+
+                set_threads(args.threads)
             if args.command == "solve":
                 return cmd_solve(args)
             if args.command == "check":
@@ -403,13 +451,17 @@ def main(argv: list[str] | None = None) -> int:
                 return cmd_certify(args)
             if args.command == "view":
                 return cmd_view(args)
+            if args.command == "shake":
+                from sieve_mi.shake.commands import cmd_shake
+
+                return cmd_shake(args)
             if args.command in ("sort", "sweep"):
                 from sieve_mi.cascade.commands import COMMANDS
 
                 return COMMANDS[args.command](args)
     except SieveError as exc:
         print(f"sieve-mi: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except Terminated as exc:
         print("sieve-mi: terminated", file=sys.stderr)
         return 128 + exc.signum

@@ -4,7 +4,18 @@ Every problem a user can fix (a missing file, a bad key, an unreadable mesh) is 
 :class:`SieveError`; the command line prints its message as one line and exits with code 2.
 """
 
-__all__ = ["SieveError"]
+__all__ = ["EXIT_BAD_INPUT", "EXIT_NO", "EXIT_OK", "EXIT_UNDECIDED", "SieveError"]
+
+#: Exit codes of the command line (docs/cli.md). 0: the answer is yes (A wins, the part passes,
+#: the shape is proved blocked, the certificate holds, every shape has its own tray).
+EXIT_OK = 0
+#: Bad input or usage: one line on stderr, nothing written (argparse uses 2 as well).
+EXIT_BAD_INPUT = 2
+#: The run worked and the answer is no: some B gets through, the part is blocked, a passage was
+#: found, the certificate is invalid, some shapes share a tray, no sweep run won. Outputs are written.
+EXIT_NO = 3
+#: ``certify`` ran out of budget with cells left open: neither proved nor refuted.
+EXIT_UNDECIDED = 4
 
 
 class SieveError(Exception):

@@ -240,9 +240,14 @@ def _checked(where: str):
 
     def decorate(cls: type) -> type:
         checked = {f.name for f in fields(cls) if spec_of(f) is not None}
+        optional = {f.name for f in fields(cls) if f.default is None}  # None: back to the default
 
         def __setattr__(self, name, value):
-            if name in checked and name in self.__dict__:  # set again, after __init__
+            if (
+                name in checked
+                and name in self.__dict__
+                and not (value is None and name in optional)
+            ):
                 value = read_value(cls, name, value, where)
             object.__setattr__(self, name, value)
 
@@ -305,7 +310,7 @@ class Fabrication:
     )
     thickness: float | str | None = setting(
         None,
-        "sieve plate thickness; \"thinnest\" searches for the thinnest sheet where no B was "
+        'sieve plate thickness; "thinnest" searches for the thinnest sheet where no B was '
         "found to pass (not proved; docs/fabrication.md)",
         unit="scene units",
         minimum=0,
@@ -458,6 +463,11 @@ class Check:
     learning_rate: float = _like(Solver, "learning_rate", maximum=1.0)
     resolution: int = _like(Verdict, "resolution", doc="raster side in pixels for --sieve")
     seed: int = _like(Solver, "seed", doc="random seed")
+    thin_budget: float = _like(
+        Verdict,
+        "thin_budget",
+        doc="seconds of motion search through a plate (--sieve) thinner than the part",
+    )
     fit: bool = setting(True, "the fit-scale search (the largest scale that passes)")
     fit_tolerance: float = setting(
         0.01,
@@ -486,7 +496,7 @@ class CheckInputs:
         minimum=0,
         exclusive_min=True,
         maximum=1_000_000,
-        default_doc="none; required with --hole",
+        default_doc="the image's PNG pHYs; required with --hole where it has none",
     )
     units: str = setting("mm", "unit name for the report")
 

@@ -195,11 +195,17 @@ def test_sweep_tolerances_are_checked_like_the_scene_key(text, needle):
     assert parse_tolerances("0.5,1") == [0.5, 1.0]
 
 
-def test_sweep_takes_seed_or_seeds_not_both(tmp_path):
-    run = _cli("sweep", DEFAULT, "--seed", "5", "--seeds", "5-2", "--out", str(tmp_path / "o"))
+def test_sweep_seed_and_seeds_are_one_option(tmp_path):
+    from sieve_mi.cascade.commands import parse_seeds
+    from sieve_mi.cli import _parser
+
+    for flag in ("--seed", "--seeds"):
+        assert _parser().parse_args(["sweep", DEFAULT, flag, "7"]).seeds == "7"
+    assert parse_seeds("7") == [7]
+    run = _cli("sweep", DEFAULT, "--seed", "5-2", "--out", str(tmp_path / "o"))
     assert run.returncode == 2
     lines = run.stderr.strip().splitlines()
-    assert len(lines) == 1 and "give one of them" in lines[0], run.stderr
+    assert len(lines) == 1 and "--seeds 5-2" in lines[0], run.stderr
 
 
 def test_a_missing_mesh_names_the_scene_file_and_key(tmp_path):

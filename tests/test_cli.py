@@ -44,9 +44,9 @@ def test_solve_writes_every_output(write_scene, tmp_path):
     scene = _good_scene(write_scene)
     out = tmp_path / "result"
     p = run_cli("solve", scene, "--out", str(out), "--quiet")
-    assert p.returncode == 0, p.stderr
     assert "winner" in p.stdout
     report = json.loads((out / "report.json").read_text())
+    assert p.returncode == (0 if report["winner"] == "A" else 3), p.stderr  # docs/cli.md
     for key in ("winner", "pass", "block", "settings", "timings", "pixel_size"):
         assert key in report
     b = report["block"][0]
@@ -66,9 +66,14 @@ def test_solve_writes_every_output(write_scene, tmp_path):
         "masks/block_0_sphere.exr",
     ):
         assert (out / f).is_file(), f
-    hole = np.array(mi.Bitmap(str(out / "hole.exr")))
+    hole = np.array(mi.Bitmap(str(out / "hole.exr")))  # the exact hole's pixel centres
     area = float(hole.sum()) * report["pixel_size"] ** 2
-    assert area == pytest.approx(report["hole"]["raster_area"])
+    assert abs(area - report["hole"]["area"]) < 0.05 * report["hole"]["area"]
+    # check reads hole.png's pixel size from its pHYs: no --pixel-size; A (cube) passes: exit 0
+    fits = run_cli("check", os.path.join(SCENES, "meshes", "cube.stl"), "--hole",
+                   str(out / "hole.png"), "--starts", "8", "--steps", "60", "--no-fit", "--json")  # fmt: skip
+    assert fits.returncode == 0, fits.stderr
+    assert json.loads(fits.stdout)["pixel_size"] == report["pixel_size"]
     # the conservative raster covers every pixel that touches the exact hole
     assert report["hole"]["area"] <= report["hole"]["raster_area"]
     assert not [
@@ -80,9 +85,9 @@ def test_solve_writes_every_output(write_scene, tmp_path):
     fab = report["fabrication"]
     plate = trimesh.load(str(out / "sieve.stl"))
     assert plate.is_watertight and plate.is_volume and len(plate.split(only_watertight=False)) == 1
-    # cube of side 20 (scenes/meshes/cube.stl): circumsphere diameter 20 sqrt(3) = 34.64
+    # the blocked 24 mm sphere (scenes/meshes/sphere.stl, vertices on the sphere): diameter 24
     assert (
-        fab["required_thickness"] == pytest.approx(34.7)
+        fab["required_thickness"] == pytest.approx(24.0)
         and fab["thickness"] == fab["required_thickness"]
     )
     assert plate.extents[2] == pytest.approx(fab["thickness"], rel=1e-6)
@@ -102,7 +107,10 @@ def test_thin_plate_gets_a_warning(write_scene, tmp_path):
     out = tmp_path / "thin"
     p = run_cli("solve", scene, "--out", str(out), "--quiet", "--no-figure")
     assert p.returncode == 0, p.stderr
-    assert "warning" in p.stderr and "34.7" in p.stderr and "B.1" in p.stderr
+    assert "warning" in p.stderr and "24" in p.stderr and "motion search" in p.stderr
+    # the sphere holds a certified ball wider than the hole: safe on any plate, no search
+    report = json.loads((out / "report.json").read_text())
+    assert report["block"][0]["thin_plate"]["by"] == "ball"
     assert trimesh.load(str(out / "sieve.stl")).extents[2] == pytest.approx(5.0)
     assert not (out / "figure.png").exists()
 
@@ -356,7 +364,7 @@ def test_check_and_certify_options_keep_their_defaults(capsys):
     # The options' defaults are the declarations' (and what they were before).
     assert asdict(Check()) == {
         "starts": 100, "steps": 500, "learning_rate": 0.05, "resolution": 256, "seed": 0,
-        "fit": True, "fit_tolerance": 0.01,
+        "thin_budget": 10.0, "fit": True, "fit_tolerance": 0.01,
     }  # fmt: skip
     assert CheckSettings is Check and Verdict().certify_budget == 30.0
     helps = {
@@ -367,6 +375,8 @@ def test_check_and_certify_options_keep_their_defaults(capsys):
             "(int 16–4096, default 256)",
             "random seed (int 0–18446744073709551615, default 0)",
             "--no-fit turn off the fit-scale search",
+            "seconds of motion search through a plate (--sieve) thinner than the part "
+            "(number > 0, ≤ 86400, default 10.0)",
             "(number ≥ 1e-06, < 1, default 0.01)",
             "one of x, y, z (default z)",
             "(number > 0, ≤ 1000000, default 1.0)",
@@ -418,7 +428,7 @@ def test_progress_into_a_log_is_plain_lines(tmp_path):
         "--no-figure",
         "--no-animation",
     )
-    assert run.returncode == 0, run.stderr
+    assert run.returncode == 3, run.stderr  # B wins: the design failed
     assert "\r" not in run.stderr
     assert "verdict: done in " in run.stderr
 
@@ -435,7 +445,7 @@ def test_solve_json_prints_report_json_on_stdout(tmp_path):
         "--json",
         "--quiet",
     )
-    assert run.returncode == 0, run.stderr
+    assert run.returncode == 3, run.stderr  # B wins: the design failed
     printed = json.loads(run.stdout)  # nothing else on stdout
     with open(out / "report.json") as fh:
         assert printed == json.load(fh)
@@ -472,3 +482,80 @@ def test_every_option_of_every_subcommand_has_help():
     ]
     assert missing == []
     assert "-sweep" not in commands["sort"].format_help()  # sort's --out is not sweep's
+
+
+# ------------------------------------------------------------------------------------------------
+# exit codes (docs/cli.md) and --threads
+# ------------------------------------------------------------------------------------------------
+
+
+def test_every_subcommand_takes_threads():
+    from sieve_mi.cli import _parser
+
+    for command, sub in _parser()._subparsers._group_actions[0].choices.items():
+        assert "--threads N" in sub.format_help(), command
+        if command in ("solve", "check", "certify", "sort", "sweep"):
+            assert "--json" in sub.format_help() and "--quiet" in sub.format_help(), command
+
+
+def test_exit_code_constants_are_the_documented_ones():
+    from sieve_mi import errors
+
+    assert (errors.EXIT_OK, errors.EXIT_BAD_INPUT, errors.EXIT_NO, errors.EXIT_UNDECIDED) == (
+        0,
+        2,
+        3,
+        4,
+    )
+    with open(os.path.join(REPO, "docs", "cli.md")) as fh:
+        doc = fh.read()
+    for code in ("| 0 |", "| 1 |", "| 2 |", "| 3 |", "| 4 |", "| 130, 143, 129 |"):
+        assert code in doc, code
+
+
+@pytest.mark.parametrize("count", ["0", "-2"])
+def test_threads_below_one_is_one_line(count, tmp_path):
+    run = run_cli("solve", os.path.join(SCENES, "rupert.toml"), "--threads", count,
+                  "--out", str(tmp_path / "o"))  # fmt: skip
+    lines = run.stderr.strip().splitlines()
+    assert run.returncode == 2 and len(lines) == 1, run.stderr
+    assert f"--threads {count}: must be a whole number of at least 1" in lines[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_threads_one_runs_the_solve_and_writes_every_exr(tmp_path):
+    # One Dr.Jit thread: Mitsuba's OpenEXR reader and writer would wait forever on the pool
+    # (backend.bitmap_threads gives them two); the report records the count.
+    import mitsuba as mi
+
+    out = tmp_path / "o"
+    run = run_cli("solve", os.path.join(SCENES, "rupert.toml"), "--threads", "1", "--out",
+                  str(out), "--no-figure", "--no-animation", "--quiet", "--json")  # fmt: skip
+    assert run.returncode == 3, run.stderr  # Rupert's cube gets through: the design failed
+    report = json.loads(run.stdout)
+    assert report["winner"] == "B" and report["provenance"]["machine"]["threads"] == 1
+    assert (
+        np.array(mi.Bitmap(str(out / "hole.exr"))).shape[:2] == (report["hole"]["resolution"],) * 2
+    )
+
+
+@pytest.mark.slow
+def test_check_exit_code_says_passes_or_blocked(tmp_path):
+    # A 10 mm cube and a 16 mm square hole (1 mm pixels, recorded in the PNG as solve writes
+    # it): 0 when it passes, 3 when blocked; --pixel-size overrides what the PNG records.
+    from sieve_mi.outputs.report import write_png
+
+    trimesh.creation.box((10.0, 10.0, 10.0)).export(str(tmp_path / "cube.stl"))
+    img = np.zeros((24, 24), bool)
+    img[4:20, 4:20] = True
+    write_png(str(tmp_path / "hole.png"), img, 1.0, "mm")
+    args = ["check", str(tmp_path / "cube.stl"), "--hole", str(tmp_path / "hole.png"),
+            "--starts", "4", "--steps", "40", "--no-fit", "--json"]  # fmt: skip
+    passes = run_cli(*args)
+    assert passes.returncode == 0, passes.stderr
+    assert json.loads(passes.stdout)["passes"] is True
+    assert json.loads(passes.stdout)["pixel_size"] == 1.0
+    blocked = run_cli(*args, "--scale", "2")  # a 20 mm cube
+    assert blocked.returncode == 3 and json.loads(blocked.stdout)["passes"] is False
+    smaller = run_cli(*args, "--pixel-size", "0.5")  # the flag wins: an 8 mm hole
+    assert smaller.returncode == 3 and json.loads(smaller.stdout)["pixel_size"] == 0.5

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 
-from sieve_mi.errors import SieveError
+from sieve_mi.errors import EXIT_NO, EXIT_OK, SieveError
 
 __all__ = [
     "COMMANDS",
@@ -23,11 +24,10 @@ __all__ = [
 VARIANT_HELP = "Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono"
 
 
-def _engine_options(p, default_out: str) -> None:
+def _engine_options(p, default_out: str, what: str) -> None:
     """Options shared by ``sort`` and ``sweep``: where the games run and the output folder."""
     p.add_argument("--out", help=f"output folder (default: {default_out})")
     p.add_argument("--variant", help=VARIANT_HELP)
-    p.add_argument("--seed", type=int, help="random seed of every game (overrides [solver] seed)")
     p.add_argument(
         "--address",
         help="run the games on an existing Ray cluster (host:port of its head); default: a "
@@ -38,6 +38,9 @@ def _engine_options(p, default_out: str) -> None:
         "--serial", action="store_true", help="play the games one after another, without Ray"
     )
     p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.add_argument(
+        "--json", action="store_true", help=f"print {what} on stdout instead of the table"
+    )
 
 
 def add_parsers(sub) -> None:
@@ -46,17 +49,22 @@ def add_parsers(sub) -> None:
         "sort", help="design a cascade of sieves that sorts a mixture of [[shape]]s into trays"
     )
     s.add_argument("mixture", help="mixture file (TOML with [[shape]] tables)")
-    _engine_options(s, "out/<name>/")
+    s.add_argument("--seed", type=int, help="random seed of every game (overrides [solver] seed)")
+    _engine_options(s, "out/<name>/", "cascade.json")
     w = sub.add_parser(
         "sweep",
         help="solve one scene over several seeds (and tolerances) and keep the largest margin",
     )
-    w.add_argument("scene", help="scene file (TOML)")
+    w.add_argument("scene", help="scene file (TOML) or a paper authors' configuration (JSON)")
     w.add_argument(
-        "--seeds", help="seeds: a range 0-9 or a list 0,3,7 (default 0-4; not with --seed)"
+        "--seeds",
+        "--seed",
+        dest="seeds",
+        help="seeds to play: one seed 7, a range 0-9 or a list 0,3,7 (default 0-4); "
+        "--seed is the same option",
     )
     w.add_argument("--tolerance", help="tolerances to try, comma-separated (default: the scene's)")
-    _engine_options(w, "out/<name>-sweep/")
+    _engine_options(w, "out/<name>-sweep/", "sweep.json")
 
 
 #: Most seeds one sweep plays (each is a whole solve: 1,000 default solves take about an hour).
@@ -112,7 +120,7 @@ def _engine(args) -> dict:
     from sieve_mi.api import check_seed
     from sieve_mi.cascade.games import check_address, ray_module
 
-    check_seed(args.seed, "--seed")
+    check_seed(getattr(args, "seed", None), "--seed")
     if args.workers is not None and args.workers < 1:
         raise SieveError(f"--workers {args.workers}: must be at least 1")
     if args.serial and args.address:
@@ -134,7 +142,7 @@ def _engine(args) -> dict:
         "address": args.address,
         "workers": args.workers,
         "variant": args.variant,
-        "seed": args.seed,
+        "seed": getattr(args, "seed", None),
         "progress": not args.quiet,
     }
 
@@ -147,11 +155,11 @@ def cmd_sort(args) -> int:
     engine = _engine(args)
     out = args.out or os.path.join("out", mixture.name)
     report = sort_mixture(mixture, out, **engine)
-    print(tray_table(report))
+    print(json.dumps(report, indent=2) if args.json else tray_table(report))
     for w in report["warnings"]:
         print(f"sieve-mi: warning: {w}", file=sys.stderr)
-    print(f"outputs: {out}/")
-    return 0
+    print(f"outputs: {out}/", file=sys.stderr if args.json else sys.stdout)
+    return EXIT_NO if report["inseparable"] else EXIT_OK
 
 
 def tray_table(report: dict) -> str:
@@ -171,21 +179,19 @@ def tray_table(report: dict) -> str:
 
 
 def cmd_sweep(args) -> int:
+    from sieve_mi.api import load_scene
     from sieve_mi.cascade.sweep import sweep_scene, sweep_table
-    from sieve_mi.scene import load_scene
 
-    if args.seed is not None and args.seeds is not None:
-        raise SieveError(f"--seed {args.seed} and --seeds {args.seeds}: give one of them")
-    seeds = parse_seeds(args.seeds or "0-4") if args.seed is None else [args.seed]
+    seeds = parse_seeds(args.seeds or "0-4")
     tolerances = parse_tolerances(args.tolerance)
     scene = load_scene(args.scene)
     engine = _engine(args)
     engine.pop("seed")
     out = args.out or os.path.join("out", scene.name + "-sweep")
     report = sweep_scene(scene, out, seeds=seeds, tolerances=tolerances, **engine)
-    print(sweep_table(report))
-    print(f"outputs: {out}/")
-    return 0
+    print(json.dumps(report, indent=2) if args.json else sweep_table(report))
+    print(f"outputs: {out}/", file=sys.stderr if args.json else sys.stdout)
+    return EXIT_OK if report["best"]["winner"] == "A" else EXIT_NO
 
 
 COMMANDS = {"sort": cmd_sort, "sweep": cmd_sweep}

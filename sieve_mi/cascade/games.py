@@ -20,6 +20,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 
+from sieve_mi.backend import THREADS_ENV
 from sieve_mi.errors import SieveError
 from sieve_mi.outputs import outdir
 from sieve_mi.scene import Scene
@@ -36,6 +37,7 @@ __all__ = [
     "cache_folder",
     "check_address",
     "game_key",
+    "label_text",
     "play",
     "ray_module",
     "weakest",
@@ -62,8 +64,8 @@ class GameSpec:
     label : dict
         What the game is, for tables and files (e.g. ``{"holds": [...], "passes": [...]}``).
 
-    Dr.Jit keeps its default thread pool in every worker: with ``dr.set_thread_count(1)``,
-    Mitsuba 3.9's OpenEXR writing (``mi.Bitmap.write``) hangs.
+    Every worker runs Dr.Jit on ``--threads N`` threads where the command was given it
+    (``$SIEVE_MI_THREADS``, :func:`sieve_mi.backend.apply_threads`), else on its default pool.
     """
 
     key: str
@@ -109,7 +111,9 @@ def play(spec: GameSpec) -> dict:
         open(flag, "w").close()
         os._exit(17)  # a worker dying mid-game
     from sieve_mi.api import solve
+    from sieve_mi.backend import apply_threads
 
+    apply_threads()
     t0 = time.perf_counter()
     result = solve(spec.scene, variant=spec.variant, seed=spec.seed, progress=False)
     with tempfile.TemporaryDirectory(prefix="sieve-mi-game-") as scratch:
@@ -311,13 +315,16 @@ class Runner:
             )
         if not ray.is_initialized():
             kwargs = {"include_dashboard": False, "log_to_driver": False, "logging_level": "error"}
+            env = {THREADS_ENV: os.environ[THREADS_ENV]} if os.environ.get(THREADS_ENV) else {}
             if self.address:
                 kwargs["address"] = self.address
             else:
                 if self.workers:
                     kwargs["num_cpus"] = self.workers
                 # local workers import sieve_mi from where the driver does
-                kwargs["runtime_env"] = {"env_vars": {"PYTHONPATH": os.pathsep.join(sys.path)}}
+                env["PYTHONPATH"] = os.pathsep.join(sys.path)
+            if env:
+                kwargs["runtime_env"] = {"env_vars": env}
             try:
                 ray.init(**kwargs)
             except Exception as exc:  # noqa: BLE001 - Ray raises many kinds; one line for all
@@ -346,6 +353,19 @@ def cache_folder(out_dir: str) -> str:
     return os.path.normpath(out_dir) + ".games"
 
 
+def label_text(label: dict) -> str:
+    """A game's label for a progress line: ``hold X pass Y, Z`` (sort), ``seed 3 tolerance 0.5``
+    (sweep), each field padded so the lines align."""
+    if "holds" in label or "passes" in label:
+        return (
+            f"hold {'+'.join(label.get('holds', [])) or '-':<20} pass "
+            f"{'+'.join(label.get('passes', [])) or '-':<28}"
+        )
+    return " ".join(
+        f"{k} {v:<6g}" if isinstance(v, float) else f"{k} {v:<4}" for k, v in label.items()
+    )
+
+
 class Progress:
     """One bar for the games (done / known so far) and a line per finished game (stderr)."""
 
@@ -372,8 +392,7 @@ class Progress:
             if self.bar is not None
             else lambda t: print(t, file=sys.stderr, flush=True)
         )(
-            f"  hold {'+'.join(label.get('holds', [])) or '-':<20} pass "
-            f"{'+'.join(label.get('passes', [])) or '-':<28} winner {s['winner']}  "
+            f"  {label_text(label)} winner {s['winner']}  "
             f"weakest {weak['name']} beta {weak['beta']:.4f}  "
             + ("reused" if reused else f"{s.get('game_s', 0):.1f} s")
         )

@@ -9,14 +9,18 @@ import shutil
 import numpy as np
 
 from sieve_mi.cascade.plan import Plan
+from sieve_mi.outputs.palette import hex_colour
 
 __all__ = [
     "cascade_dict",
     "copy_games",
+    "plate_names",
+    "side_by_side",
     "sieve_rows",
     "stacked_plates",
     "write_figure",
     "write_json",
+    "write_objects_3mf",
     "write_plates",
 ]
 
@@ -78,6 +82,21 @@ def copy_games(folders: dict, dest: str) -> None:
         shutil.copytree(path, os.path.join(dest, "games", key))
 
 
+def _plates(plan: Plan, game_dir: str) -> list:
+    """Each sieve's plate (its game's sieve.stl), top sieve first."""
+    import trimesh
+
+    return [
+        trimesh.load(os.path.join(game_dir, s.key, "sieve.stl"), force="mesh") for s in plan.sieves
+    ]
+
+
+def plate_names(plan: Plan) -> list[str]:
+    """A name per sieve for slicers: ``sieve_<k>_holds_<shapes>`` (k from 1, top first)."""
+    names = [f"sieve_{k + 1}_holds_{'+'.join(s.holds)}" for k, s in enumerate(plan.sieves)]
+    return ["".join(c if c.isalnum() or c in "-_+" else "_" for c in n) for n in names]
+
+
 def stacked_plates(plan: Plan, game_dir: str, gap: float):
     """The sieves' plates stacked top to bottom with ``gap`` between them (scene units), one mesh.
 
@@ -87,8 +106,7 @@ def stacked_plates(plan: Plan, game_dir: str, gap: float):
     import trimesh
 
     parts, top = [], 0.0
-    for s in plan.sieves:
-        plate = trimesh.load(os.path.join(game_dir, s.key, "sieve.stl"), force="mesh")
+    for plate in _plates(plan, game_dir):
         lo, hi = plate.bounds[:, 2]
         plate.apply_translation([0.0, 0.0, top - hi])
         parts.append(plate)
@@ -96,16 +114,93 @@ def stacked_plates(plan: Plan, game_dir: str, gap: float):
     return trimesh.util.concatenate(parts) if parts else None
 
 
-def write_plates(plan: Plan, tmp: str, gap: float, units: str) -> list[str]:
-    """``cascade.stl`` and ``cascade.3mf`` in ``tmp``; returns the names written."""
-    from sieve_mi.outputs.fabrication import UNIT_NAMES, write_3mf
+def side_by_side(plates: list, gap: float) -> list:
+    """The plates on the print bed: left to right along +x, ``gap`` apart, each on z = 0 and
+    centred on y = 0 (new meshes; the inputs are not moved)."""
+    out, x = [], 0.0
+    for plate in plates:
+        m = plate.copy()
+        lo, hi = m.bounds
+        m.apply_translation([x - lo[0], -0.5 * (lo[1] + hi[1]), -lo[2]])
+        out.append(m)
+        x += (hi[0] - lo[0]) + gap
+    return out
 
-    mesh = stacked_plates(plan, os.path.join(tmp, "games"), gap)
+
+def write_plates(plan: Plan, tmp: str, gap: float, units: str) -> list[str]:
+    """``cascade.stl`` (the plates stacked as they are used) and ``cascade.3mf`` (one named object
+    per plate, side by side on the bed, for a slicer) in ``tmp``; returns the names written."""
+    from sieve_mi.outputs.fabrication import UNIT_NAMES
+
+    game_dir = os.path.join(tmp, "games")
+    mesh = stacked_plates(plan, game_dir, gap)
     if mesh is None:
         return []
     mesh.export(os.path.join(tmp, "cascade.stl"))
-    write_3mf(os.path.join(tmp, "cascade.3mf"), mesh, UNIT_NAMES.get(units, "millimeter"))
+    bed = side_by_side(_plates(plan, game_dir), min(gap, 10.0))
+    objects = list(zip(plate_names(plan), bed))
+    write_objects_3mf(
+        os.path.join(tmp, "cascade.3mf"), objects, UNIT_NAMES.get(units, "millimeter")
+    )
     return ["cascade.stl", "cascade.3mf"]
+
+
+_3MF_CORE = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
+
+
+def write_objects_3mf(path: str, objects: list, unit: str = "millimeter") -> None:
+    """Write named meshes as a 3MF package: one object and one build item each.
+
+    Parameters
+    ----------
+    path : str
+    objects : list of (str, trimesh.Trimesh)
+        Each object's name (shown by slicers) and mesh, already placed.
+    unit : str
+        3MF unit name: micron, millimeter, centimeter, inch, foot or meter.
+
+    Notes
+    -----
+    The bytes depend only on the meshes (fixed zip timestamps, no random UUIDs), so the same
+    cascade gives the same file.
+    """
+    import zipfile
+    from xml.sax.saxutils import quoteattr
+
+    resources, items = [], []
+    for k, (name, mesh) in enumerate(objects, start=1):
+        verts = "".join(
+            f'<vertex x="{x:.9g}" y="{y:.9g}" z="{z:.9g}"/>' for x, y, z in mesh.vertices
+        )
+        tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in mesh.faces)
+        resources.append(
+            f'<object id="{k}" name={quoteattr(name)} type="model"><mesh><vertices>{verts}'
+            f"</vertices><triangles>{tris}</triangles></mesh></object>"
+        )
+        items.append(f'<item objectid="{k}"/>')
+    model = (
+        f'<?xml version="1.0" encoding="UTF-8"?>\n<model unit="{unit}" xml:lang="en-US" '
+        f'xmlns="{_3MF_CORE}"><resources>{"".join(resources)}</resources>'
+        f"<build>{''.join(items)}</build></model>"
+    )
+    types = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
+        '<Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/>'
+        '<Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/></Types>'
+    )
+    rels = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
+        '<Relationship Target="/3D/3dmodel.model" Id="rel0" '
+        'Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/></Relationships>'
+    )
+    parts = (("[Content_Types].xml", types), ("_rels/.rels", rels), ("3D/3dmodel.model", model))
+    with zipfile.ZipFile(path, "w") as z:
+        for name, text in parts:
+            info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+            info.external_attr = 0o644 << 16
+            z.writestr(info, text, compress_type=zipfile.ZIP_DEFLATED)
 
 
 def write_figure(path: str, plan: Plan, units: str, icons: dict | None = None) -> None:
@@ -138,8 +233,11 @@ def write_figure(path: str, plan: Plan, units: str, icons: dict | None = None) -
     for k in range(n):
         top, tray = axes[0, k], axes[1, k]
         if k < len(plan.sieves):
+            top.set_facecolor(hex_colour("material"))
             for p in holes[k]:
-                top.fill(p[:, 0], p[:, 1], color="#9ecae1", edgecolor="#08519c", linewidth=1.0)
+                top.fill(
+                    *p.T, color=hex_colour("hole"), edgecolor=hex_colour("edge"), linewidth=1.0
+                )
             top.set_title(f"sieve {k + 1}", fontsize=9)
             top.text(
                 0.5, 0.02, "passes: " + ", ".join(plan.sieves[k].passes), transform=top.transAxes,
@@ -150,7 +248,9 @@ def write_figure(path: str, plan: Plan, units: str, icons: dict | None = None) -
             top.axis("off")
         for name, polys in rows[k]:
             for p in polys:
-                tray.fill(*p.T, color="#fdae6b", edgecolor="#a63603", linewidth=0.8)
+                tray.fill(
+                    *p.T, color=hex_colour("tray"), edgecolor=hex_colour("edge"), linewidth=0.8
+                )
             if polys:
                 pts = np.concatenate(polys)
                 tray.text(pts[:, 0].mean(), -reach * 0.95, name, ha="center", fontsize=8)

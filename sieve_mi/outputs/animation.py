@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from sieve_mi.backend import select_rgb_variant
+from sieve_mi.outputs.palette import linear
 from sieve_mi.outputs.passage import Passage
 
 __all__ = [
@@ -50,8 +51,8 @@ __all__ = [
 #: Frames per slot of the motion (all of A, then each B: :mod:`sieve_mi.outputs.passage`), picture size
 #: (pixels) and samples per pixel of ``passage.gif``.
 FRAMES_PER_SLOT = 10
-WIDTH = 200
-HEIGHT = 260
+WIDTH = 300
+HEIGHT = 390
 SPP = 16
 #: Frame duration, milliseconds (the last frame is held three times as long).
 FRAME_MS = 120
@@ -59,13 +60,8 @@ FRAME_MS = 120
 AZIMUTH = -60.0
 ELEVATION = 22.0
 FOV = 35.0
-#: Diffuse reflectances in RGB variants (linear RGB) ...
-COLOURS = {
-    "plate": (0.35, 0.35, 0.35),
-    "pass": (0.10, 0.50, 0.16),
-    "blocked": (0.70, 0.07, 0.07),
-    "escaped": (0.90, 0.45, 0.06),
-}
+#: Diffuse reflectances in RGB variants (linear RGB; the palette's, :mod:`sieve_mi.outputs.palette`) ...
+COLOURS = {k: linear(k) for k in ("plate", "pass", "blocked", "escaped")}
 #: ... and in monochrome ones.
 PLATE_ALBEDO = 0.35
 PASS_ALBEDO = 0.6
@@ -200,7 +196,7 @@ def _scene(mi, passage: Passage, phases: np.ndarray, spacing: float, colour: boo
             scene[f"piece_{k}_{i}"] = {
                 "type": "instance",
                 "shapegroup": {"type": "ref", "id": f"group_{i + 1}"},
-                "to_world": T().translate([x, 0.0, p.offset(s)]),
+                "to_world": T().translate([x, 0.0, 0.0]) @ T(p.matrix(s).tolist()),
             }
     return mi.load_dict(scene)
 

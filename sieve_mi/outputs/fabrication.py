@@ -26,6 +26,7 @@ __all__ = [
     "Plate",
     "UNIT_NAMES",
     "beside_plate",
+    "stacked",
     "fabricate",
     "plate",
     "plate_thickness",
@@ -258,9 +259,9 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
         render_figure(
             os.path.join(out_dir, "figure.png"),
             sieve.mesh,
-            passes,
+            stacked(passes, lift),
             beside,
-            [bool(b) for b in result.attack.blocked()[0]],
+            [b.blocked for b in result.blocks],  # a thin-plate or certified passage passes
             title=f"{scene.name}: winner {result.winner}",
         )
         files.append("figure.png")
@@ -278,6 +279,27 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
         "files": files,
         "warnings": sieve.warnings,
     }
+
+
+def stacked(meshes: list[trimesh.Trimesh], gap: float) -> list[trimesh.Trimesh]:
+    """Copies of the A meshes over their hole, each lifted above the one before by ``gap``
+    (several A pass one at a time through a merged hole; drawn at one height they overlap).
+
+    Parameters
+    ----------
+    meshes : list of trimesh.Trimesh
+        Each A placed over the hole (as ``pass_<i>.stl``), the first one kept where it is.
+    gap : float
+        Clearance between consecutive copies, scene units.
+    """
+    out, top = [], None
+    for m in meshes:
+        c = m.copy()
+        if top is not None:
+            c.apply_translation([0.0, 0.0, top + gap - float(c.bounds[0, 2])])
+        out.append(c)
+        top = float(c.bounds[1, 2])
+    return out
 
 
 def beside_plate(

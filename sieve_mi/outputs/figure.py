@@ -20,6 +20,7 @@ import numpy as np
 import trimesh
 
 from sieve_mi import backend as _backend
+from sieve_mi.outputs.palette import linear
 
 __all__ = [
     "AZIMUTH",
@@ -71,11 +72,11 @@ SAMPLER = "multijitter"
 SKY_RGB = (0.36, 0.37, 0.39)
 SUN_RGB = (1.7, 1.63, 1.52)
 
-#: Diffuse reflectances (linear RGB).
-PLATE_RGB = (0.62, 0.63, 0.65)
-PASS_RGB = (0.10, 0.55, 0.16)
-BLOCKED_RGB = (0.75, 0.07, 0.05)
-ESCAPED_RGB = (0.95, 0.42, 0.03)
+#: Diffuse reflectances (linear RGB): the palette's colours (:mod:`sieve_mi.outputs.palette`).
+PLATE_RGB = linear("plate")
+PASS_RGB = linear("pass")
+BLOCKED_RGB = linear("blocked")
+ESCAPED_RGB = linear("escaped")
 GROUND_RGB = (0.50, 0.45, 0.38)
 
 

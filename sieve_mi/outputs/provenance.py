@@ -11,6 +11,7 @@ import hashlib
 import os
 import platform
 import subprocess
+import sys
 from importlib import metadata
 
 __all__ = ["PACKAGES", "VERSION", "git_commit", "machine", "provenance", "sha256", "versions"]
@@ -55,7 +56,8 @@ def git_commit() -> str | None:
 
 
 def machine() -> dict[str, str | int | None]:
-    """The machine's architecture, CPU model and core count (float results may depend on them)."""
+    """The machine's architecture, CPU model, core count and Dr.Jit's thread count (float
+    results may depend on them)."""
     model = None
     try:
         with open("/proc/cpuinfo") as f:
@@ -64,11 +66,13 @@ def machine() -> dict[str, str | int | None]:
             )
     except OSError:
         pass
+    dr = sys.modules.get("drjit")  # imported by a solve; its pool's size (``--threads``)
     return {
         "system": platform.system(),
         "architecture": platform.machine(),
         "cpu": model or platform.processor() or None,
         "cores": os.cpu_count(),
+        "threads": None if dr is None else int(dr.thread_count()),
     }
 
 

@@ -13,13 +13,17 @@ import time
 
 import numpy as np
 
+from sieve_mi.backend import bitmap_threads
 from sieve_mi.game.result import Result
 from sieve_mi.geometry.meshes import mesh_sha256
+from sieve_mi.geometry.pixels import png_metadata
 from sieve_mi.outputs import outdir
+from sieve_mi.outputs.palette import block_colour, hex_colour
 from sieve_mi.outputs.provenance import provenance
 
 __all__ = [
     "STAGES",
+    "exr_metadata",
     "stage_line",
     "input_paths",
     "mask_layers",
@@ -41,11 +45,47 @@ def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
 
 
-def write_exr(path: str, image: np.ndarray) -> None:
-    """Write a single-channel float32 OpenEXR image with Mitsuba's Bitmap."""
+def write_exr(path: str, image: np.ndarray, metadata: dict | None = None) -> None:
+    """Write a single-channel float32 OpenEXR image with Mitsuba's Bitmap, plus header metadata.
+
+    Parameters
+    ----------
+    path : str
+    image : (H, W) ndarray
+        Row 0 at the top.
+    metadata : dict of str to float or str, optional
+        Header attributes (:func:`exr_metadata`).
+    """
     import mitsuba as mi
 
-    mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32)).write(path)
+    bitmap = mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32))
+    header = bitmap.metadata()
+    for key, value in (metadata or {}).items():
+        header[key] = value
+    with bitmap_threads():
+        bitmap.write(path)
+
+
+def exr_metadata(result: Result, origin: tuple[float, float] | None = None) -> dict:
+    """The header every written EXR carries: pixel size, units, top-left corner, sieve-mi version.
+
+    Parameters
+    ----------
+    result : Result
+    origin : (float, float), optional
+        Scene (x, y) of the image's top-left corner; default the hole frame's.
+    """
+    from sieve_mi.outputs.provenance import VERSION
+
+    frame = result.hole.frame
+    x0, y0 = origin if origin is not None else (-frame.half_extent, frame.half_extent)
+    return {
+        "pixel_size": float(frame.pixel_size),
+        "units": result.scene.units,
+        "frame_origin": f"{float(x0)!r} {float(y0)!r}",
+        "frame_note": "frame_origin is the top-left corner (x y); row 0 at the top, +y up",
+        "software": f"sieve-mi {VERSION}",
+    }
 
 
 def write_layers(path: str, layers: dict, metadata: dict) -> None:
@@ -71,7 +111,8 @@ def write_layers(path: str, layers: dict, metadata: dict) -> None:
     header = bitmap.metadata()
     for key, value in metadata.items():
         header[key] = value
-    bitmap.write(path)
+    with bitmap_threads():
+        bitmap.write(path)
 
 
 def paste_window(window, frame) -> np.ndarray:
@@ -130,29 +171,39 @@ def mask_layers(result: Result, rendered: tuple | None = None) -> dict:
     attack used, player B's distance field (scene units), every A's silhouette and every B's best
     attempt, all on the hole's lattice.
 
-    ``rendered`` is :func:`rendered_masks`'s answer (computed when not given).
+    Channel names follow OpenEXR's ``layer.channel`` rule (the layer is the text before the last
+    dot), one luminance channel ``Y`` per layer: ``hole.Y``, ``cover.Y``, ``distance.Y``,
+    ``a<i>_<name>.Y``, ``b<j>_<name>.Y``. ``rendered`` is :func:`rendered_masks`'s answer
+    (computed when not given).
     """
     from sieve_mi.geometry.outline import rasterize
 
     hole = result.hole
     a_masks, b_windows = rendered_masks(result) if rendered is None else rendered
     layers = {
-        "hole": rasterize(result.outline, hole.frame),
-        "hole.cover": hole.mask,
-        "distance": hole.outside,
+        "hole.Y": rasterize(result.outline, hole.frame),
+        "cover.Y": hole.mask,
+        "distance.Y": hole.outside,
     }
     for i, (m, shape) in enumerate(zip(a_masks, result.pass_shapes)):
-        layers[f"a.{i}.{_safe(shape.name)}"] = m
+        layers[f"a{i}_{_safe(shape.name)}.Y"] = m
     for j, (shape, window) in enumerate(zip(result.block_shapes, b_windows)):
-        layers[f"b.{j}.{_safe(shape.name)}"] = paste_window(window, hole.frame)
+        layers[f"b{j}_{_safe(shape.name)}.Y"] = paste_window(window, hole.frame)
     return layers
 
 
-def write_png(path: str, mask: np.ndarray) -> None:
-    """Write a binary mask as an 8-bit grey PNG (white = inside)."""
+def write_png(
+    path: str, mask: np.ndarray, pixel_size: float | None = None, units: str = "mm"
+) -> None:
+    """Write a binary mask as an 8-bit grey PNG (white = inside).
+
+    With ``pixel_size`` (in ``units``) the PNG records it: ``pHYs`` in pixels per metre and the
+    exact value as text (:func:`sieve_mi.geometry.pixels.png_metadata`).
+    """
     from PIL import Image
 
-    Image.fromarray((np.asarray(mask) > 0).astype(np.uint8) * 255).save(path)
+    extra = {} if pixel_size is None else png_metadata(pixel_size, units)
+    Image.fromarray((np.asarray(mask) > 0).astype(np.uint8) * 255).save(path, "PNG", **extra)
 
 
 def report_dict(result: Result) -> dict:
@@ -195,6 +246,11 @@ def report_dict(result: Result) -> dict:
             row["certified"] = c.status
             row["certification"] = c.to_dict()
             if c.status == "passage":  # the exact hole lets it through: not blocked after all
+                row["blocked"] = False
+        thin = result.sheet.per_block[j] if getattr(result, "sheet", None) is not None else None
+        if thin is not None:
+            row["thin_plate"] = thin.to_dict()
+            if thin.status == "passage":  # through the thin plate by tilting and turning
                 row["blocked"] = False
         if attack.margin_beta is not None:
             row["margin_beta"] = float(attack.margin_beta[0, j])
@@ -256,7 +312,10 @@ def _provenance(result: Result) -> dict:
     return out
 
 
-def _convergence_png(path: str, history: list[float]) -> None:
+def _convergence_png(path: str, history: list[float], final: float | None = None) -> None:
+    """Player A's best game value per search iteration; ``final`` (report.json's
+    ``search_value``: the game value of the search's last stage, polish or placement) as a dashed
+    line, and a note when the curve is flat."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -264,7 +323,15 @@ def _convergence_png(path: str, history: list[float]) -> None:
 
     fig, ax = plt.subplots(figsize=(5, 3.2), dpi=120)
     if history:
-        ax.plot(range(len(history)), history, marker="o")
+        ax.plot(range(len(history)), history, marker="o", color=hex_colour("curve"))
+        if final is not None and np.isfinite(final) and final != history[-1]:
+            ax.axhline(final, linestyle="--", color=hex_colour("curve"), alpha=0.6)
+            ax.annotate(
+                f"last stage (search_value): {final:.5g}", (0, final), fontsize=8, va="bottom"
+            )
+        if len(history) > 1 and max(history) - min(history) <= 1e-12 * max(1.0, abs(history[0])):
+            ax.text(0.5, 0.08, "flat: the canonical views already held the best rotation",
+                    ha="center", transform=ax.transAxes, fontsize=8)  # fmt: skip
     else:
         ax.text(
             0.5,
@@ -312,16 +379,24 @@ def _overlay_png(path: str, result: Result) -> None:
     n_b = len(result.block_shapes)
     cols = max(1, n_b)
     fig, axes = plt.subplots(1, cols, figsize=(4.2 * cols, 4.4), dpi=120, squeeze=False)
-    colours = plt.cm.tab10(np.arange(10))
+    straight = result.attack.blocked()[0]
+    blocked = [b.blocked for b in result.blocks]  # a thin-plate or certified passage passes
     for j in range(cols):
         ax = axes[0, j]
-        ax.set_facecolor("#d8d8d8")
-        _draw_section(ax, hole, facecolor="white", edgecolor="#555555", linewidth=0.6)
+        ax.set_facecolor(hex_colour("material"))
+        _draw_section(
+            ax, hole, facecolor=hex_colour("hole"), edgecolor=hex_colour("edge"), linewidth=0.6
+        )
         for sec in a_sections:
-            _draw_section(ax, sec, fill=False, edgecolor="k", linewidth=0.8, linestyle="--")
+            _draw_section(
+                ax, sec, fill=False, edgecolor=hex_colour("pass"), linewidth=1.0, linestyle="--"
+            )
         if j < n_b:
-            _draw_section(ax, b_sections[j], facecolor=colours[j % 10], alpha=0.55, linewidth=0)
-            status = "blocked" if result.attack.blocked()[0, j] else "PASSES"
+            colour = hex_colour(block_colour(bool(blocked[j])))
+            _draw_section(ax, b_sections[j], facecolor=colour, alpha=0.55, linewidth=0)
+            status = "blocked" if blocked[j] else "PASSES"
+            if straight[j] and not blocked[j]:
+                status += _motion_note(result, j)
             ax.set_title(
                 f"{result.block_shapes[j].name}: {status}\nbeta={result.attack.beta[0, j]:.4f}, "
                 f"protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}",
@@ -334,9 +409,18 @@ def _overlay_png(path: str, result: Result) -> None:
     fig.suptitle(
         f"{result.scene.name}: winner {result.winner} (exact hole white, A dashed)", fontsize=10
     )
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 0.94))  # room for the title above the panels' titles
     fig.savefig(path)
     plt.close(fig)
+
+
+def _motion_note(result: Result, j: int) -> str:
+    """Why a B blocked straight down passes after all: a thin plate's motion or certify's pose."""
+    sheet = getattr(result, "sheet", None)
+    thin = sheet.per_block[j] if sheet is not None else None
+    if thin is not None and thin.status == "passage":
+        return f" by tilting through the {thin.thickness:g} {result.scene.units} plate"
+    return " (a pose certify found)"
 
 
 def input_paths(scene) -> list[str]:
@@ -417,35 +501,30 @@ def _write_passage(result: Result, report: dict, tmp: str, animation: bool) -> N
 def _write_images(result: Result, tmp: str) -> None:
     """The hole and mask images and the convergence and overlay plots, into folder ``tmp``."""
     os.makedirs(os.path.join(tmp, "masks"))
-    hole = result.hole
-    write_png(os.path.join(tmp, "hole.png"), hole.mask)
-    write_exr(os.path.join(tmp, "hole.exr"), hole.mask.astype(np.float32))
+    frame, meta = result.hole.frame, exr_metadata(result)
     rendered = a_masks, b_windows = rendered_masks(result)
+    layers = mask_layers(result, rendered)
+    exact = layers["hole.Y"]  # pixel centres inside the printed polygon
+    write_png(os.path.join(tmp, "hole.png"), exact, frame.pixel_size, result.scene.units)
+    write_exr(os.path.join(tmp, "hole.exr"), exact.astype(np.float32), meta)
     a_union = np.logical_or.reduce(a_masks)
-    write_exr(os.path.join(tmp, "masks", "a_silhouette.exr"), a_union.astype(np.float32))
+    write_exr(os.path.join(tmp, "masks", "a_silhouette.exr"), a_union.astype(np.float32), meta)
     if len(a_masks) > 1:
         for i, (m, shape) in enumerate(zip(a_masks, result.pass_shapes)):
             write_exr(
                 os.path.join(tmp, "masks", f"pass_{i}_{_safe(shape.name)}.exr"),
                 m.astype(np.float32),
+                meta,
             )
     for j, (shape, window) in enumerate(zip(result.block_shapes, b_windows)):
+        x0, _, _, y1 = window.extent
         write_exr(
             os.path.join(tmp, "masks", f"block_{j}_{_safe(shape.name)}.exr"),
             window.mask.astype(np.float32),
+            exr_metadata(result, (x0, y1)),
         )
-    frame = hole.frame
-    write_layers(
-        os.path.join(tmp, "masks.exr"),
-        mask_layers(result, rendered),
-        {
-            "pixel_size": float(frame.pixel_size),
-            "frame_origin": f"{-frame.half_extent!r} {frame.half_extent!r}",
-            "frame_note": "frame_origin is the top-left corner (x y); row 0 at the top, +y up",
-            "units": result.scene.units,
-        },
-    )
-    _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best)
+    write_layers(os.path.join(tmp, "masks.exr"), layers, meta)
+    _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best, result.search_value)
     _overlay_png(os.path.join(tmp, "overlay.png"), result)
 
 
@@ -455,9 +534,12 @@ def summary_table(report: dict) -> str:
     proofs = any("certified" in b for b in report["block"])
     rows = [("role", "shape", "beta", f"protrusion ({units})", "result")]
     rows[0] += ("certified",) if proofs else ()
+    thin = any(b.get("thin_plate", {}).get("status", "safe") != "safe" for b in report["block"])
+    rows[0] += ("thin plate",) if thin else ()
     for p in report["pass"]:
         rows.append(("pass", p["name"], "-", "-", "passes (part of the hole)"))
         rows[-1] += ("-",) if proofs else ()
+        rows[-1] += ("-",) if thin else ()
     for b in report["block"]:
         rows.append(
             (
@@ -470,6 +552,8 @@ def summary_table(report: dict) -> str:
         )
         if proofs:
             rows[-1] += (_certified_cell(b),)
+        if thin:
+            rows[-1] += (_thin_cell(b),)
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
@@ -481,6 +565,9 @@ def summary_table(report: dict) -> str:
     )
     if "total_s" in t:
         lines.append(stage_line(t))
+    plate = sheet_line(report)
+    if plate:
+        lines.append(plate)
     hint = merge_hint(report)
     if hint:
         lines.append(hint)
@@ -490,7 +577,8 @@ def summary_table(report: dict) -> str:
 #: report.json's stage timings, in the order they run, with the console's labels.
 STAGES = (
     ("init_s", "init"), ("load_s", "load"), ("screen_s", "screen"), ("search_s", "search"),
-    ("verdict_s", "verdict"), ("certify_s", "certify"), ("images_s", "images"),
+    ("verdict_s", "verdict"), ("certify_s", "certify"), ("thin_s", "thin plate"),
+    ("images_s", "images"),
     ("fabrication_s", "plate"), ("figure_s", "figure"), ("passage_s", "passage"),
     ("animation_s", "gif"), ("page_s", "page"),
 )  # fmt: skip
@@ -500,6 +588,32 @@ def stage_line(timings: dict) -> str:
     """``time: 12.3 s = search 4.1 + verdict 3.2 + ...`` from report.json's timings."""
     parts = [f"{label} {timings[key]:.1f}" for key, label in STAGES if timings.get(key, 0) >= 0.05]
     return f"time: {timings['total_s']:.1f} s = " + " + ".join(parts) + " s"
+
+
+def sheet_line(report: dict) -> str | None:
+    """``plate: 2 mm thick, not proved (safe: 28.4 mm) ...`` when the plate is thinner than the
+    safe thickness (:mod:`sieve_mi.game.sheet`); None on a proved plate."""
+    sheet = report.get("fabrication", {}).get("sheet")
+    if sheet is None or sheet["proved"]:
+        return None
+    u = report["units"]
+    head = f"plate: {sheet['thickness']:g} {u} thick"
+    if sheet["mode"] == "thinnest":
+        head += f", the thinnest of {len(sheet['bisection'])} tried where no B was found to pass"
+    return (
+        head
+        + f"; not proved (a motion search), the proved plate is {sheet['safe_thickness']:g} {u}"
+    )
+
+
+def _thin_cell(block: dict) -> str:
+    """The console's 'thin plate' cell of one B: safe by diameter, passage or none found."""
+    t = block.get("thin_plate")
+    if t is None:
+        return "-"
+    if t["status"] == "safe":
+        return f"safe ({t.get('by', 'diameter')})"
+    return f"{t['status']} ({t['seconds']:.1f} s)"
 
 
 def _certified_cell(block: dict) -> str:

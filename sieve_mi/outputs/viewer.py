@@ -31,6 +31,8 @@ from importlib import resources
 
 import numpy as np
 
+from sieve_mi.outputs.palette import PALETTE, block_colour, css_variables, hex_colour
+
 __all__ = [
     "script_json",
     "COLOURS",
@@ -52,14 +54,9 @@ __all__ = [
     "write_page",
 ]
 
-#: Colours of the 3D and 2D views (sRGB, 0..1): plate, A, blocked B, B that gets through, background.
-COLOURS = {
-    "plate": (0.62, 0.63, 0.66),
-    "pass": (0.16, 0.62, 0.24),
-    "blocked": (0.80, 0.12, 0.10),
-    "escaped": (0.96, 0.55, 0.10),
-    "background": (0.97, 0.97, 0.98),
-}
+#: Colours of the 3D and 2D views (sRGB, 0..1): plate, A, blocked B, B that gets through,
+#: background; from :mod:`sieve_mi.outputs.palette`, as every picture's.
+COLOURS = {k: PALETTE[k] for k in ("plate", "pass", "blocked", "escaped", "background")}
 
 
 def script_json(data) -> str:
@@ -162,10 +159,6 @@ def _mesh_data(vertices, faces) -> dict:
     return data
 
 
-def _hex(rgb) -> str:
-    return "#" + "".join(f"{round(255 * c):02x}" for c in rgb)
-
-
 def scene_data(passage, report: dict) -> dict:
     """The JSON the page's 3D view reads: the plate, every piece and its motion, colours.
 
@@ -201,6 +194,7 @@ def scene_data(passage, report: dict) -> dict:
                 "stop": float(p.stop),
                 "slot": [float(x) for x in p.slot],
                 "centre": [float(c) for c in p.centre],
+                **({"keys": p.keys.tolist()} if p.keys is not None else {}),
                 "colour": list(COLOURS[kind]),
                 **_mesh_data(p.vertices, p.faces),
             }
@@ -258,22 +252,23 @@ def outline_svg(
     parts = [
         f'<svg xmlns="http://www.w3.org/2000/svg" id="hole2d" viewBox="{-lim:.6g} {-lim:.6g} '
         f'{2 * lim:.6g} {2 * lim:.6g}" data-lim="{lim:.6g}">',
-        f'<rect x="{-lim:.6g}" y="{-lim:.6g}" width="{2 * lim:.6g}" height="{2 * lim:.6g}" fill="#b9bcc2"/>',
+        f'<rect x="{-lim:.6g}" y="{-lim:.6g}" width="{2 * lim:.6g}" height="{2 * lim:.6g}" fill="{hex_colour("material")}"/>',
     ]
     for k, hole in enumerate(holes):
         parts.append(
-            f'<path data-id="hole{k or ""}" fill="#ffffff" fill-rule="evenodd" stroke="#555" '
+            f'<path data-id="hole{k or ""}" fill="{hex_colour("hole")}" fill-rule="evenodd" '
+            f'stroke="{hex_colour("edge")}" '
             f'stroke-width="{stroke:.3g}" d="{_path_d(hole)}"/>'
         )
     for j, sec in enumerate(b_sections):
-        colour = _hex(COLOURS["blocked" if blocked[j] else "escaped"])
+        colour = hex_colour(block_colour(blocked[j]))
         parts.append(
             f'<path data-id="b{j}" fill="{colour}" fill-opacity="0.5" fill-rule="nonzero" '
             f'stroke="{colour}" stroke-width="{stroke:.3g}" d="{_path_d(sec)}"/>'
         )
     for i, sec in enumerate(a_sections):
         parts.append(
-            f'<path data-id="a{i}" fill="none" stroke="{_hex(COLOURS["pass"])}" '
+            f'<path data-id="a{i}" fill="none" stroke="{hex_colour("pass")}" '
             f'stroke-width="{2 * stroke:.3g}" stroke-dasharray="{6 * stroke:.3g} {3 * stroke:.3g}" '
             f'd="{_path_d(sec)}"/>'
         )
@@ -293,7 +288,8 @@ def convergence_svg(history: list[float]) -> str:
     ys = h - 2 * pad - (h - 3 * pad) * (y - lo) / span
     pts = " ".join(f"{a:.1f},{b:.1f}" for a, b in zip(xs, ys))
     dots = "".join(
-        f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.5" fill="#1f6fb2"/>' for a, b in zip(xs, ys)
+        f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.5" fill="{hex_colour("curve")}"/>'
+        for a, b in zip(xs, ys)
     )
     levels = [(lo, h - 2 * pad)] + ([(hi, pad)] if hi > lo else [])
     ticks = "".join(
@@ -305,7 +301,7 @@ def convergence_svg(history: list[float]) -> str:
         f'aria-label="convergence of A\'s search">'
         f'<line x1="{left}" y1="{h - 2 * pad}" x2="{w - pad}" y2="{h - 2 * pad}" stroke="#444"/>'
         f'<line x1="{left}" y1="{h - 2 * pad}" x2="{left}" y2="{pad / 2}" stroke="#444"/>'
-        f'<polyline fill="none" stroke="#1f6fb2" stroke-width="2" points="{pts}"/>{dots}{ticks}'
+        f'<polyline fill="none" stroke="{hex_colour("curve")}" stroke-width="2" points="{pts}"/>{dots}{ticks}'
         f'<text x="{(w + left) / 2}" y="{h - 8}" text-anchor="middle" font-size="12">search '
         f"iteration (0..{len(y) - 1})</text>"
         f'<text x="12" y="{h / 2}" font-size="12" transform="rotate(-90 12 {h / 2})" '
@@ -322,11 +318,20 @@ def _table(rows: list[list[str]], head: list[str]) -> str:
 
 
 def result_table(report: dict) -> str:
-    """The result per shape: role, name, β, protrusion, result and certification."""
+    """The result per shape: role, name, β, protrusion, result, certification and the plate's
+    thickness verdict ("thin plate": safe by diameter or ball, passage, or none found)."""
     units = report["units"]
-    rows = [["pass", p["name"], "-", "-", "passes (part of the hole)", "-"] for p in report["pass"]]
+    rows = [
+        ["pass", p["name"], "-", "-", "passes (part of the hole)", "-", "-"] for p in report["pass"]
+    ]
     for b in report["block"]:
-        cert = b.get("certified", "-")
+        thin = b.get("thin_plate")
+        if thin is None:
+            sheet = "-"
+        elif thin["status"] == "safe":
+            sheet = f"safe ({thin.get('by', 'diameter')})"
+        else:
+            sheet = f"{thin['status']} at {thin['thickness']:g} {units}"
         rows.append(
             [
                 "block",
@@ -334,10 +339,11 @@ def result_table(report: dict) -> str:
                 f"{b['beta']:.4f}",
                 f"{b['protrusion']:.3f}",
                 "blocked" if b["blocked"] else "PASSES",
-                cert,
+                b.get("certified", "-"),
+                sheet,
             ]
         )
-    head = ["role", "shape", "β", f"protrusion ({units})", "result", "certified"]
+    head = ["role", "shape", "β", f"protrusion ({units})", "result", "certified", "thin plate"]
     return _table(rows, head)
 
 
@@ -397,7 +403,7 @@ def render_page(result, report: dict, passage, files: list[str]) -> str:
     payload = script_json(data)
     gif = (
         '<figure><img src="passage.gif" alt="Mitsuba-rendered passage animation" '
-        'width="200" height="260"><figcaption>passage.gif (Mitsuba)</figcaption></figure>'
+        'width="300" height="390"><figcaption>passage.gif (Mitsuba)</figcaption></figure>'
         if "passage.gif" in files
         else ""
     )
@@ -423,7 +429,7 @@ def render_page(result, report: dict, passage, files: list[str]) -> str:
         "FILES": _files(files),
         "PIXEL": f"{report['pixel_size']:.4g}",
         "VARIANT": html.escape(str(report.get("variant", ""))),
-        "STYLE": _asset("report.css"),
+        "STYLE": css_variables() + _asset("report.css"),
         "SCRIPT": _asset("viewer.js").replace("</", "<\\/"),
         "DATA": payload,
     }
@@ -536,7 +542,7 @@ def render_check_page(rep: dict, shape, holes: list) -> str:
         "HOLE_SVG": outline_svg(holes, [], [sec], [not r["passes"]], shape.radius),
         "RESULT_TABLE": check_table(rep),
         "REPORT": html.escape(json.dumps(rep, indent=2, default=str)),
-        "STYLE": _asset("report.css"),
+        "STYLE": css_variables() + _asset("report.css"),
         "SCRIPT": _asset("viewer.js").replace("</", "<\\/"),
     }
     return re.sub(r"\{\{([A-Z_0-9]+)\}\}", lambda m: fill[m.group(1)], _asset("check.html"))

@@ -104,6 +104,11 @@ def test_four_shapes_sort_into_four_trays_and_an_interrupted_sort_resumes(tmp_pa
         assert game["winner"] == "A" and [p["name"] for p in game["pass"]] == s["passes"]
     plates = trimesh.load(os.path.join(out, "cascade.stl"), force="mesh")
     assert len(plates.split(only_watertight=False)) >= 3  # three plates, stacked
+    bed = trimesh.load(os.path.join(out, "cascade.3mf"))  # one named object per plate
+    assert list(bed.geometry) == [
+        f"sieve_{k + 1}_holds_{'+'.join(s['holds'])}" for k, s in enumerate(report["sieves"])
+    ]
+    assert sum(g.volume for g in bed.geometry.values()) == pytest.approx(plates.volume, rel=1e-6)
     assert os.path.getsize(os.path.join(out, "cascade.png")) > 10_000
     # a second sort of the same mixture plays nothing: every game is in the output
     again = sort_mixture(load_mixture(mixture.path), out, use_ray=False, progress=False)
@@ -149,7 +154,7 @@ def test_a_pair_that_no_sieve_splits_shares_a_tray_with_the_reason(tmp_path):
         name="twins",
     )
     proc = _cli("sort", path, "--serial", "--quiet", "--out", "out", cwd=tmp_path)
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode == 3, proc.stderr  # two shapes share a tray (docs/cli.md)
     assert "trays (top to bottom): cube28 | ball20_2+ball20" in proc.stdout
     assert "cannot split ball20_2 and ball20" in proc.stdout
     report = json.loads((tmp_path / "out" / "cascade.json").read_text())
@@ -238,3 +243,36 @@ def test_a_file_where_the_games_wait_is_refused_before_any_game(tmp_path):
     _one_error_line(proc, "out.games: exists and is not a folder")
     assert time.perf_counter() - t0 < 60  # no game played
     assert mine.read_text() == "my notes" and not (tmp_path / "out").exists()
+
+
+def test_progress_lines_name_what_each_game_is():
+    # sort's games hold and pass shapes; sweep's games are a seed and a tolerance (no "hold -").
+    from sieve_mi.cascade.games import label_text
+
+    assert label_text({"holds": ["a"], "passes": ["b", "c"]}).split() == [
+        "hold",
+        "a",
+        "pass",
+        "b+c",
+    ]
+    assert label_text({"seed": 3, "tolerance": 0.5}).split() == ["seed", "3", "tolerance", "0.5"]
+
+
+def test_cascade_3mf_has_one_named_object_per_plate_side_by_side(tmp_path):
+    from sieve_mi.cascade.outputs import side_by_side, write_objects_3mf
+
+    plates = [trimesh.creation.box((30.0, 20.0, 4.0)), trimesh.creation.cylinder(8.0, 6.0)]
+    plates[1].apply_translation([0.0, 0.0, -20.0])  # stacked below the first, as in the cascade
+    bed = side_by_side(plates, 5.0)
+    names = ["sieve_1_holds_cube28", "sieve_2_holds_ball20"]
+    for path in (tmp_path / "a.3mf", tmp_path / "b.3mf"):
+        write_objects_3mf(str(path), list(zip(names, bed)))
+    assert (tmp_path / "a.3mf").read_bytes() == (tmp_path / "b.3mf").read_bytes()
+    scene = trimesh.load(str(tmp_path / "a.3mf"))
+    assert isinstance(scene, trimesh.Scene) and list(scene.geometry) == names
+    assert scene.units == "millimeter"
+    boxes = [scene.geometry[n].bounds for n in names]
+    assert [b[0, 2] for b in boxes] == pytest.approx([0.0, 0.0])  # both on the bed
+    assert boxes[1][0, 0] == pytest.approx(boxes[0][1, 0] + 5.0)  # side by side, 5 apart
+    for got, plate in zip(scene.geometry.values(), plates):
+        assert got.volume == pytest.approx(plate.volume, rel=1e-6) and got.is_watertight

@@ -386,3 +386,40 @@ certify_budget = 60
     assert [b["certified"] for b in rep["block"]] == ["proved", "passage"]
     assert [b["blocked"] for b in rep["block"]] == [True, False]
     assert "passage" in summary_table(rep) and "proved" in summary_table(rep)
+
+
+def test_cli_exit_codes_say_proved_passage_undecided_invalid(tmp_path):
+    # docs/cli.md: 0 proved (or a valid certificate), 3 a passage (or an invalid certificate),
+    # 4 the budget ran out with cells open. The hole is a 22 mm square.
+    import manifold3d
+
+    from sieve_mi.outputs.fabrication import write_svg
+
+    svg = str(tmp_path / "h.svg")
+    write_svg(svg, manifold3d.CrossSection.square([22.0, 22.0], center=True))
+    shapes.sphere(12.0).export(str(tmp_path / "ball.stl"))  # no disk of its size fits
+    shapes.cube(10.0).export(str(tmp_path / "small.stl"))  # face-on it passes
+    trimesh.creation.box((31.5, 31.5, 4.0)).export(str(tmp_path / "slab.stl"))  # hard to decide
+    cert = str(tmp_path / "ball.json")
+    runs = {
+        name: _cli(
+            str(tmp_path / f"{name}.stl"),
+            "--hole",
+            svg,
+            "--budget",
+            "0.05",
+            "--json",
+            *(["--certificate", cert] if name == "ball" else []),
+        )  # fmt: skip
+        for name in ("ball", "small", "slab")
+    }
+    statuses = {name: json.loads(r.stdout)["status"] for name, r in runs.items()}
+    assert statuses == {"ball": "proved", "small": "passage", "slab": "undecided"}
+    assert {name: r.returncode for name, r in runs.items()} == {"ball": 0, "small": 3, "slab": 4}
+    assert _cli("--replay", cert).returncode == 0
+    forged = json.load(open(cert))
+    forged["root"]["radius"] *= 3  # a ball that does not fit inside the sphere
+    with open(tmp_path / "forged.json", "w") as fh:
+        json.dump(forged, fh)
+    bad = _cli("--replay", str(tmp_path / "forged.json"))
+    assert bad.returncode == 3 and "certificate INVALID" in bad.stdout

@@ -225,7 +225,7 @@ def test_check_command_json(tmp_path):
         "150",
         "--no-fit",
     )
-    assert p.returncode == 0, p.stderr
+    assert p.returncode == 3, p.stderr  # blocked: docs/cli.md's exit codes
     assert "blocked" in p.stdout
 
 

@@ -193,3 +193,14 @@ def test_shapes_beside_the_plate_stand_on_its_ground_without_touching_it():
     assert moved[0].bounds[0, 0] == pytest.approx(22.0)  # plate ends at x = 20, then the gap
     assert moved[1].bounds[0, 0] == pytest.approx(moved[0].bounds[1, 0] + 2.0)
     assert moved[0].bounds[:, 1].mean() == pytest.approx(0.0, abs=1e-9)
+
+
+def test_several_a_are_stacked_in_the_figure_not_overlapping():
+    """Three 20 mm cubes over one hole: the first stays, each next one sits 2 mm above the one
+    before, all over the same xy (the hole)."""
+    cubes = [trimesh.creation.box([20, 20, 20]).apply_translation([1, 2, 15]) for _ in range(3)]
+    out = fab.stacked(cubes, 2.0)
+    lows = [m.bounds[0, 2] for m in out]
+    assert lows == pytest.approx([5.0, 27.0, 49.0])
+    assert all(np.allclose(m.bounds[:, :2], cubes[0].bounds[:, :2]) for m in out)
+    assert cubes[1].bounds[0, 2] == pytest.approx(5.0)  # the inputs are left as they were

@@ -421,7 +421,7 @@ def test_check_out_writes_and_replaces_its_report(check_files, precious, tmp_pat
     assert report == json.loads(p.stdout) and report["passes"] is True
     assert outdir.read_marker(str(out))["command"] == "check"
     p = run_cli("check", shape, *hole, *CHECK_SMALL, "--scale", "2", "--json", "--out", str(out))
-    assert p.returncode == 0, p.stderr
+    assert p.returncode == 3, p.stderr  # blocked
     assert assert_complete(out)["passes"] is False  # 20 mm cube, 16 mm hole: replaced
     before = snapshot(tmp_path)
     for target, needle in ((precious, REFUSED), (tmp_path / "in", "holds the input file")):

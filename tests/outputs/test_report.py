@@ -10,6 +10,7 @@ import pytest
 from helpers import REPO
 
 from sieve_mi.api import solve
+from sieve_mi.geometry.outline import rasterize
 from sieve_mi.outputs.report import paste_window, report_dict, summary_table, write_outputs
 from sieve_mi.scene import load_scene
 from sieve_mi.testing.settings import TINY_SOLVER, TINY_VERDICT, settings_toml
@@ -78,9 +79,12 @@ def test_written_images_are_the_hole(solved, tmp_path):
     rep = write_outputs(solved, str(out), fabricate=False)
     on_disk = json.loads((out / "report.json").read_text())
     assert on_disk["winner"] == rep["winner"] and on_disk["block"] == rep["block"]
+    # hole.png and hole.exr: the printed polygon's pixel centres (not the conservative cover)
+    exact = rasterize(solved.outline, solved.hole.frame)
     png = np.array(Image.open(out / "hole.png")) > 127
     exr = np.array(mi.Bitmap(str(out / "hole.exr"))).reshape(png.shape) > 0.5
-    assert np.array_equal(png, solved.hole.mask) and np.array_equal(exr, solved.hole.mask)
+    assert np.array_equal(png, exact) and np.array_equal(exr, exact)
+    assert exact.sum() < solved.hole.mask.sum() and (solved.hole.mask >= exact).all()
     assert (out / ".sieve-mi").is_file()
     assert {p.name for p in (out / "masks").iterdir()} >= {
         "a_silhouette.exr",
@@ -100,10 +104,14 @@ def test_layered_exr_has_every_layer_on_one_lattice(solved, tmp_path):
     bitmap = mi.Bitmap(str(out / "masks.exr"))
     names = [f.name for f in bitmap.struct_()]
     data = np.array(bitmap)
-    layer = {n: data[..., k] for k, n in enumerate(names)}
-    assert set(names) == {
-        "hole", "hole.cover", "distance", "a.0.cube", "b.0.sphere", "b.1.small_sphere",
-    }  # fmt: skip
+    # OpenEXR's rule (tev's, OpenEXR's ChannelList::layers): the layer is the text before the
+    # last dot; every layer has one channel Y, and no channel sits at the root
+    assert sorted(_channels(out / "masks.exr")) == sorted(names)
+    split = [n.rpartition(".") for n in names]
+    assert {layer for layer, _, _ in split} == {
+        "hole", "cover", "distance", "a0_cube", "b0_sphere", "b1_small_sphere",
+    } and {c for _, _, c in split} == {"Y"}  # fmt: skip
+    layer = {n.rpartition(".")[0]: data[..., k] for k, n in enumerate(names)}
     meta = bitmap.metadata()
     frame = solved.hole.frame
     assert meta["pixel_size"] == pytest.approx(frame.pixel_size)
@@ -112,25 +120,25 @@ def test_layered_exr_has_every_layer_on_one_lattice(solved, tmp_path):
         frame.half_extent,
     ]
     h = frame.pixel_size
-    hole, cover = layer["hole"] > 0.5, layer["hole.cover"] > 0.5
+    hole, cover = layer["hole"] > 0.5, layer["cover"] > 0.5
     # pixel centres inside the exact polygon: its area to within a ring of one pixel
     area = solved.outline.area()
     assert abs(hole.sum() * h * h - area) < 0.1 * area
     assert (cover >= hole).all() and np.array_equal(cover, solved.hole.mask)
     assert (layer["distance"][hole] == 0).all() and layer["distance"][~cover].min() > 0
-    assert np.array_equal(layer["a.0.cube"] > 0.5, solved.a_masks[0])
+    assert np.array_equal(layer["a0_cube"] > 0.5, solved.a_masks[0])
     # the written B layers and files are Mitsuba renders of the verdict's attempts: the same
     # pixels as the verdict's ray-traced windows
-    for j, name in enumerate(["b.0.sphere", "b.1.small_sphere"]):
+    for j, name in enumerate(["b0_sphere", "b1_small_sphere"]):
         window = solved.block_masks[j]
         assert np.array_equal(layer[name] > 0.5, paste_window(window, frame))
-        single = np.array(mi.Bitmap(str(out / "masks" / f"block_{j}_{name[4:]}.exr")))
+        single = np.array(mi.Bitmap(str(out / "masks" / f"block_{j}_{name[3:]}.exr")))
         assert np.array_equal(single.reshape(window.mask.shape) > 0.5, window.mask)
     # each B's layer is its best attempt: its pixel centres lie on B's exact silhouette at the
     # reported pose (up to the ray caster's rounding), and that silhouette's area inside the frame
     # is covered to within a ring of one pixel
     x, y = frame.centres()
-    for j, name in enumerate(["b.0.sphere", "b.1.small_sphere"]):
+    for j, name in enumerate(["b0_sphere", "b1_small_sphere"]):
         shape = solved.block_shapes[j]
         sil = silhouette(shape, solved.attack.quats[0, j], solved.attack.trans[0, j])
         rows, cols = np.nonzero(layer[name] > 0.5)
@@ -165,3 +173,169 @@ def test_every_stage_is_timed_and_they_sum_to_the_wall_time(tmp_path):
         assert json.load(fh)["timings"] == t
     line = summary_table(report).splitlines()[-1]
     assert line.startswith(f"time: {t['total_s']:.1f} s = ") and "figure" in line and "gif" in line
+
+
+def _exr_header(path) -> dict:
+    """An OpenEXR file's header attributes, read from the bytes (name -> (type, raw value))."""
+    import struct
+
+    data = open(path, "rb").read()
+    assert data[:4] == b"\x76\x2f\x31\x01"  # OpenEXR's magic number
+    pos, attrs = 8, {}
+    while data[pos] != 0:
+        name_end = data.index(b"\0", pos)
+        type_end = data.index(b"\0", name_end + 1)
+        (size,) = struct.unpack("<i", data[type_end + 1 : type_end + 5])
+        value = data[type_end + 5 : type_end + 5 + size]
+        attrs[data[pos:name_end].decode()] = (data[name_end + 1 : type_end].decode(), value)
+        pos = type_end + 5 + size
+    return attrs
+
+
+def _channels(path) -> list[str]:
+    """The channel names of an OpenEXR file's ``chlist`` (each: name, NUL, 16 bytes)."""
+    kind, raw = _exr_header(path)["channels"]
+    assert kind == "chlist"
+    names, pos = [], 0
+    while raw[pos] != 0:
+        end = raw.index(b"\0", pos)
+        names.append(raw[pos:end].decode())
+        pos = end + 1 + 16
+    return names
+
+
+def test_every_exr_carries_pixel_size_units_and_version(solved, tmp_path):
+    import struct
+
+    from sieve_mi import __version__
+
+    out = tmp_path / "out"
+    write_outputs(solved, str(out), fabricate=False)
+    frame = solved.hole.frame
+    exrs = sorted(out.rglob("*.exr"))
+    assert {p.name for p in exrs} >= {
+        "hole.exr",
+        "masks.exr",
+        "a_silhouette.exr",
+        "block_0_sphere.exr",
+    }
+    for path in exrs:
+        head = _exr_header(path)
+        assert head["pixel_size"][0] in ("float", "double"), path
+        fmt = "<f" if head["pixel_size"][0] == "float" else "<d"
+        assert struct.unpack(fmt, head["pixel_size"][1])[0] == pytest.approx(frame.pixel_size)
+        assert (
+            head["units"][1].endswith(b"mm")
+            and f"sieve-mi {__version__}".encode() in head["software"][1]
+        )
+        assert b" " in head["frame_origin"][1]
+    x0, _, _, y1 = solved.block_masks[0].extent  # a window's own top-left corner
+    origin = _exr_header(out / "masks" / "block_0_sphere.exr")["frame_origin"][1]
+    assert [float(v) for v in origin[-60:].decode(errors="ignore").split()[-2:]] == pytest.approx(
+        [x0, y1]
+    )
+
+
+def _png_chunks(path) -> dict:
+    """A PNG's chunks by type (the first of each), read from the bytes."""
+    import struct
+
+    data = open(path, "rb").read()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, chunks = 8, {}
+    while pos < len(data):
+        (size,) = struct.unpack(">I", data[pos : pos + 4])
+        kind = data[pos + 4 : pos + 8].decode()
+        chunks.setdefault(kind, []).append(data[pos + 8 : pos + 8 + size])
+        pos += 12 + size
+    return chunks
+
+
+def test_hole_png_records_its_pixel_size(solved, tmp_path):
+    import struct
+
+    from sieve_mi.geometry.pixels import image_pixel_size
+
+    out = tmp_path / "out"
+    write_outputs(solved, str(out), fabricate=False)
+    h = solved.hole.frame.pixel_size  # mm
+    chunks = _png_chunks(out / "hole.png")
+    (phys,) = chunks["pHYs"]
+    x, y, unit = struct.unpack(">IIB", phys)
+    assert unit == 1 and x == y == round(1000.0 / h)  # pixels per metre
+    texts = dict(t.split(b"\0", 1) for t in chunks["tEXt"])
+    assert float(texts[b"sieve-mi:pixel_size"]) == h and texts[b"sieve-mi:units"] == b"mm"
+    assert image_pixel_size(str(out / "hole.png"), "mm") == h
+    assert image_pixel_size(str(out / "hole.png"), "cm") == pytest.approx(h / 10)
+
+
+def test_a_png_with_only_phys_gives_its_pixel_size(tmp_path):
+    from PIL import Image
+
+    from sieve_mi.geometry.pixels import image_pixel_size
+
+    img = Image.fromarray(np.zeros((4, 4), np.uint8))
+    img.save(tmp_path / "plain.png")
+    img.save(tmp_path / "phys.png", dpi=(254.0, 254.0))  # 10,000 pixels per metre: 0.1 mm
+    assert image_pixel_size(str(tmp_path / "plain.png"), "mm") is None
+    assert image_pixel_size(str(tmp_path / "phys.png"), "mm") == pytest.approx(0.1)
+    assert image_pixel_size(str(tmp_path / "phys.png"), "in") == pytest.approx(0.1 / 25.4)
+    assert image_pixel_size(str(tmp_path / "missing.png"), "mm") is None
+
+
+def test_overlay_draws_blocked_red_escaping_orange_and_a_green(solved, tmp_path):
+    # Panel 0: the sphere, blocked; panel 1: the small sphere, which gets through.
+    from PIL import Image
+
+    from sieve_mi.outputs.palette import PALETTE
+
+    out = tmp_path / "out"
+    write_outputs(solved, str(out), fabricate=False)
+    img = np.asarray(Image.open(out / "overlay.png").convert("RGB"), dtype=np.float64)
+    halves = img[:, : img.shape[1] // 2], img[:, img.shape[1] // 2 :]
+
+    def near(part, rgb, alpha):  # the colour at alpha over the white hole
+        want = 255 * (alpha * np.asarray(rgb) + (1 - alpha))
+        return (np.abs(part - want).max(axis=2) < 12).sum()
+
+    assert (
+        near(halves[0], PALETTE["blocked"], 0.55) > 200
+        and near(halves[0], PALETTE["escaped"], 0.55) == 0
+    )
+    assert (
+        near(halves[1], PALETTE["escaped"], 0.55) > 200
+        and near(halves[1], PALETTE["blocked"], 0.55) == 0
+    )
+    for half in halves:  # A's dashed outline: green, not the old black
+        r, g, b = half[..., 0], half[..., 1], half[..., 2]
+        assert ((g > r + 60) & (g > b + 60)).sum() > 20
+
+
+def test_every_mesh_and_outline_file_reopens_in_trimesh(solved, tmp_path):
+    # Every 3MF, STL, OBJ and SVG a solve writes loads in trimesh from the project's own venv
+    # (lxml for 3MF and SVG is a declared dependency) and holds what it should.
+    import trimesh
+
+    out = tmp_path / "out"
+    write_outputs(solved, str(out), figure=False, animation=False)
+    files = sorted(p for p in out.rglob("*") if p.suffix in (".3mf", ".stl", ".obj", ".svg"))
+    names = {p.name for p in files}
+    assert {
+        "sieve.stl",
+        "sieve.3mf",
+        "hole.svg",
+        "pass_0.stl",
+        "block_0.stl",
+        "block_1.stl",
+    } <= names
+    loaded = {p.name: trimesh.load(str(p)) for p in files}
+    plate = loaded["sieve.stl"]
+    assert plate.is_watertight and plate.volume > 0
+    (three,) = loaded["sieve.3mf"].geometry.values()  # one object: the plate
+    assert three.volume == pytest.approx(plate.volume, rel=1e-6)
+    assert loaded["pass_0.stl"].volume == pytest.approx(8000.0, rel=1e-6)  # the 20 mm cube
+    outline = loaded["hole.svg"]  # a Path2D: the exact hole, 1 unit = 1 mm
+    assert outline.area == pytest.approx(solved.outline.area(), rel=1e-4)
+    for name, mesh in loaded.items():
+        if name.endswith((".stl", ".obj")):
+            assert len(mesh.faces) > 0 and np.isfinite(mesh.vertices).all(), name

@@ -361,7 +361,8 @@ EXPECTED_EXTENTS = {
     "small_sphere.stl": (18, 18, 18),
     "prism.stl": (12, 12, 30),
 }
-SIMPLE = ["cube.stl", "sphere.stl", "small_sphere.stl", "bowtie.stl", "arch.stl", "prism.stl"]
+SIMPLE = ["cube.stl", "sphere.stl", "small_sphere.stl", "l_rod.stl", "bowtie.stl", "arch.stl",
+          "prism.stl"]  # fmt: skip
 LETTER_FILES = [f"letter_{c}.stl" for c in "SIGRAPH"]
 COIN_FILES = [f"coin_{c}.stl" for c in ("2eur", "50c", "10c", "1c")]
 

@@ -1,0 +1,311 @@
+"""Solids for the engine: the plate as exact convex prisms, each part as convex pieces.
+
+The plate is an extrusion, so a convex partition of its top face (rectangle minus the holes),
+extruded, is an exact convex decomposition (:mod:`sieve_mi.geometry.plate`). A convex part goes
+in as it is (MuJoCo collides a mesh through its convex hull); a non-convex part is decomposed
+with CoACD and the Hausdorff distance between the decomposition and the mesh is measured.
+Everything here is in scene units; :mod:`sieve_mi.shake.model` converts to metres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import manifold3d
+import numpy as np
+
+from sieve_mi.errors import SieveError
+from sieve_mi.geometry.plate import convex_pieces, plate_region
+
+__all__ = [
+    "Part",
+    "Plate",
+    "hausdorff",
+    "part_from_mesh",
+    "plate_from_mesh",
+    "plate_from_outline",
+    "section_holes",
+]
+
+#: A mesh is taken as convex when its volume is within this fraction of its hull's.
+CONVEX_TOLERANCE = 1e-4
+#: Surface samples per mesh for the sampled Hausdorff distance.
+HAUSDORFF_SAMPLES = 20_000
+
+
+@dataclass
+class Plate:
+    """A sieve plate: z from ``-thickness`` to 0, its top face's centre at the origin.
+
+    Attributes
+    ----------
+    pieces : list of (k, 2) float
+        Convex polygons (CCW) that tile the top face, scene units.
+    thickness : float
+        Scene units.
+    half_size : (2,) float
+        Half the plate's width and depth (x, y), scene units.
+    hole_area : float
+        Total area of the holes, scene units squared.
+    offset : (3,) float
+        Where the plate's top-face centre was in the mesh file (to move it back), scene units.
+    volume_error : float
+        Relative difference between the mesh's volume and the extruded pieces' (0 for a plate
+        built from an outline; large when the holes are not straight through).
+    """
+
+    pieces: list
+    thickness: float
+    half_size: np.ndarray
+    hole_area: float
+    offset: np.ndarray
+    volume_error: float = 0.0
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (scene units)."""
+        return {
+            "thickness": float(self.thickness),
+            "size": [float(2 * self.half_size[0]), float(2 * self.half_size[1])],
+            "hole_area": float(self.hole_area),
+            "convex_pieces": len(self.pieces),
+            "volume_error": float(self.volume_error),
+        }
+
+
+def plate_from_outline(outline: manifold3d.CrossSection, margin: float, thickness: float) -> Plate:
+    """A plate of ``thickness`` around the hole ``outline`` (its bounding box grown by ``margin``).
+
+    Parameters
+    ----------
+    outline : manifold3d.CrossSection
+        The hole(s), scene units.
+    margin, thickness : float
+        Scene units, > 0.
+    """
+    if thickness <= 0:
+        raise SieveError("shake: the plate's thickness must be positive")
+    region = plate_region(outline, margin)
+    x0, y0, x1, y1 = region.bounds()
+    centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+    pieces = [p - centre for p in convex_pieces(region)]
+    half = np.array([(x1 - x0) / 2, (y1 - y0) / 2])
+    offset = np.array([centre[0], centre[1], 0.0])
+    return Plate(pieces, float(thickness), half, float(outline.area()), offset)
+
+
+def plate_from_mesh(mesh, path: str = "plate") -> Plate:
+    """Recover a plate from its mesh: the holes from a section at mid-thickness, z for thickness.
+
+    The plate's normal is z: its thickness is the mesh's z extent and its top face is taken as
+    the rectangle of its xy bounding box minus the holes (the bounded faces of the section that
+    lie inside another face). ``volume_error`` compares the mesh's volume with the extrusion.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The plate, scene units.
+    path : str
+        Its file, for messages.
+
+    Raises
+    ------
+    SieveError
+        A flat mesh, or a section with no hole.
+    """
+    lo, hi = np.asarray(mesh.bounds, dtype=np.float64)
+    thickness = float(hi[2] - lo[2])
+    if not np.all(np.isfinite(mesh.vertices)) or thickness <= 1e-9 * max(1.0, float(np.ptp(lo))):
+        raise SieveError(f"{path}: the plate has no thickness along z; give a plate mesh")
+    holes = section_holes(mesh, 0.5 * (lo[2] + hi[2]), path)
+    centre = 0.5 * (lo[:2] + hi[:2])
+    half = 0.5 * (hi[:2] - lo[:2])
+    rect = manifold3d.CrossSection.square(list(2 * half)).translate(list(-half))
+    hole_cs = manifold3d.CrossSection([h - centre for h in holes], manifold3d.FillRule.EvenOdd)
+    region = rect - hole_cs
+    pieces = convex_pieces(region)
+    extruded = region.area() * thickness
+    volume = abs(float(mesh.volume)) if mesh.is_watertight else extruded
+    error = abs(volume - extruded) / max(extruded, 1e-300)
+    offset = np.array([centre[0], centre[1], hi[2]])
+    return Plate(pieces, thickness, half, float(hole_cs.area()), offset, float(error))
+
+
+def section_holes(mesh, z: float, path: str = "plate") -> list[np.ndarray]:
+    """The holes of a plate mesh's section at height ``z``: (k, 2) loops inside its outer loop."""
+    import shapely
+    import trimesh
+
+    lines = trimesh.intersections.mesh_plane(mesh, [0, 0, 1], [0, 0, z])
+    if len(lines) == 0:
+        raise SieveError(f"{path}: the plate's mid-thickness section is empty")
+    segs = shapely.MultiLineString([seg[:, :2] for seg in np.round(lines, 9)])
+    faces = list(shapely.ops.polygonize(shapely.ops.unary_union(segs)))
+    outer = max(faces, key=lambda f: shapely.Polygon(f.exterior).area)
+    # Every other bounded face is a hole, or an island inside one: their outer loops, filled
+    # even-odd, are the holes.
+    holes = [np.asarray(f.exterior.coords)[:-1] for f in faces if f is not outer and f.area > 0]
+    if not holes:
+        raise SieveError(f"{path}: the plate has no through-hole along z")
+    return holes
+
+
+@dataclass
+class Part:
+    """A part as the engine sees it (scene units, about its centre of mass).
+
+    Attributes
+    ----------
+    name : str
+    role : str or None
+        ``"A"`` (must pass), ``"B"`` (must be blocked) or None.
+    hulls : list of (n, 3) float
+        Vertices of each convex piece, relative to the centre of mass.
+    volume : float
+        Scene units cubed.
+    inertia : (3, 3) float
+        Inertia tensor per unit density about the centre of mass (scene units^5).
+    radius : float
+        Largest distance from the centre of mass to a vertex, scene units.
+    convex : bool
+        Whether the mesh went in as one convex piece.
+    hausdorff : float
+        Sampled Hausdorff distance between the mesh and the union of ``hulls``, scene units.
+    hausdorff_resolution : float
+        Spacing of the samples (the distance's uncertainty), scene units.
+    warnings : list of str
+    com : (3,) float
+        The centre of mass in the mesh's frame, scene units.
+    """
+
+    name: str
+    role: str | None
+    hulls: list
+    volume: float
+    inertia: np.ndarray
+    radius: float
+    convex: bool
+    hausdorff: float
+    hausdorff_resolution: float
+    warnings: list
+    com: np.ndarray | None = None
+
+    def to_dict(self) -> dict:
+        """JSON-ready geometry summary (scene units)."""
+        return {
+            "convex": self.convex,
+            "pieces": len(self.hulls),
+            "volume": float(self.volume),
+            "radius": float(self.radius),
+            "hausdorff": float(self.hausdorff),
+            "hausdorff_resolution": float(self.hausdorff_resolution),
+        }
+
+
+def part_from_mesh(mesh, name: str, role: str | None, threshold: float, seed: int = 0) -> Part:
+    """Convex pieces, volume and inertia of one part.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The part, scene units (any pose).
+    name : str
+    role : str or None
+    threshold : float
+        CoACD's concavity threshold (used only for a non-convex part).
+    seed : int
+        CoACD's seed.
+    """
+    import trimesh
+
+    warnings = []
+    mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)  # merge an STL's corners
+    try:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            hull = mesh.convex_hull
+            flat = not hull.volume > 0
+    except Exception:  # qhull refuses flat or degenerate point sets
+        flat = True
+    if flat:
+        raise SieveError(f"{name}: the part is flat (no volume); it cannot be simulated")
+    solid = mesh if mesh.is_volume else hull
+    if solid is hull and not mesh.is_volume:
+        warnings.append(
+            f"{name}: mesh is not a closed volume; its convex hull gives mass and shape"
+        )
+    volume = float(solid.volume)
+    convex = bool(solid is hull or hull.volume - volume <= CONVEX_TOLERANCE * hull.volume)
+    com = np.asarray(solid.center_mass, dtype=np.float64)
+    if convex:
+        hulls = [np.asarray(hull.vertices) - com]
+    else:
+        hulls = [p - com for p in _coacd_pieces(mesh, threshold, seed)]
+    inertia = np.asarray(solid.moment_inertia, dtype=np.float64) / solid.density
+    radius = float(np.linalg.norm(np.asarray(hull.vertices) - com, axis=1).max())
+    h, res = hausdorff(solid, hulls, com) if not convex else (0.0, 0.0)
+    return Part(name, role, hulls, volume, inertia, radius, convex, h, res, warnings, com)
+
+
+def _coacd_pieces(mesh, threshold: float, seed: int) -> list[np.ndarray]:
+    """CoACD's convex pieces of a mesh, vertices (n, 3) float each."""
+    import coacd
+
+    coacd.set_log_level("error")
+    m = coacd.Mesh(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))
+    parts = coacd.run_coacd(m, threshold=threshold, seed=seed)
+    return [np.asarray(v, dtype=np.float64) for v, _ in parts if len(v) >= 4]
+
+
+def hausdorff(mesh, hulls: list[np.ndarray], com: np.ndarray, samples: int = HAUSDORFF_SAMPLES):
+    """Hausdorff distance between a solid and the union of convex pieces standing in for it.
+
+    For two solids it is attained on a boundary point of one that lies outside the other, so
+    both surfaces are sampled evenly (a fixed seed) and each sample outside the other solid is
+    measured to the other's nearest sample; a sample is taken as inside when it lies behind the
+    outward normal of that nearest sample (this also ignores the union's internal seams and
+    voids, which no collision sees). The result is within the sample spacing of the exact one.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The part, scene units.
+    hulls : list of (n, 3) float
+        Convex pieces relative to ``com``.
+    com : (3,) float
+        Where ``hulls``' origin lies in ``mesh``'s frame.
+    samples : int
+        Samples per surface.
+
+    Returns
+    -------
+    (float, float)
+        The distance and the sample spacing, scene units.
+    """
+    import trimesh
+
+    union = manifold3d.Manifold.batch_boolean(
+        [manifold3d.Manifold.hull_points(h + com) for h in hulls], manifold3d.OpType.Add
+    )
+    um = union.to_mesh()
+    union_mesh = trimesh.Trimesh(np.asarray(um.vert_properties)[:, :3], np.asarray(um.tri_verts))
+    a, na = _samples(mesh, samples)
+    b, nb = _samples(union_mesh, samples)
+    d = max(_outside_distance(a, b, nb), _outside_distance(b, a, na))
+    spacing = float(np.sqrt(max(mesh.area, union_mesh.area) / samples))
+    return float(d), spacing
+
+
+def _outside_distance(p: np.ndarray, q: np.ndarray, nq: np.ndarray) -> float:
+    """Largest distance from a point of ``p`` outside the solid sampled by ``q`` (normals ``nq``)."""
+    from scipy.spatial import cKDTree
+
+    dist, idx = cKDTree(q).query(p)
+    outside = np.einsum("ij,ij->i", p - q[idx], nq[idx]) > 0
+    return float(dist[outside].max()) if outside.any() else 0.0
+
+
+def _samples(mesh, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` points on a mesh's surface, area-weighted, from a fixed seed, and their normals."""
+    import trimesh
+
+    pts, face = trimesh.sample.sample_surface(mesh, n, seed=0)
+    return np.asarray(pts, dtype=np.float64), np.asarray(mesh.face_normals)[face]

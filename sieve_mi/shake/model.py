@@ -1,0 +1,150 @@
+"""The MuJoCo model of one shake trial: a plate driven along a shaker motion, a frame, a part.
+
+The plate hangs on two joints (a vertical slide and a twist about the vertical axis) whose
+positions and velocities are set before every step to the shaker's motion, so the contact solver
+sees the plate's true velocity (a mocap body would teleport at zero velocity). It is made so heavy
+that one step of contact reaction moves it by nothing measurable. Lengths in metres here.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from sieve_mi.geometry.plate import prism_vertices
+from sieve_mi.shake.geometry import Part, Plate
+from sieve_mi.shake.settings import CONTACT, ShakeSettings
+
+__all__ = [
+    "PLATE_MASS_RATIO",
+    "WALL_THICKNESS_MM",
+    "build_model",
+    "plate_motion",
+    "wall_thickness",
+]
+
+#: The plate's mass as a multiple of the part's.
+PLATE_MASS_RATIO = 1e6
+#: Least thickness of the frame wall, millimetres; it is at least the part's diameter too, so no
+#: fast part can tunnel through it in one step.
+WALL_THICKNESS_MM = 2.0
+
+
+def wall_thickness(part: Part, unit_m: float) -> float:
+    """Thickness of the frame wall for ``part``, metres."""
+    return max(WALL_THICKNESS_MM * 1e-3, 2 * part.radius * unit_m)
+
+
+def plate_motion(t: np.ndarray, settings: ShakeSettings) -> tuple[np.ndarray, ...]:
+    """The shaker's motion at times ``t``: lift (m), its speed (m/s), twist (rad), its rate.
+
+    z(t) = A sin(2 pi f t) and phi(t) = phi0 sin(2 pi f t): a vertical throw with a slight
+    rotation in phase, the "3-D throwing motion" of electromagnetic lab sieve shakers.
+
+    Parameters
+    ----------
+    t : float or (n,) float
+        Seconds.
+    settings : ShakeSettings
+
+    Returns
+    -------
+    (z, dz, phi, dphi)
+        Arrays shaped like ``t``.
+    """
+    w = 2 * math.pi * settings.frequency
+    amp = settings.amplitude * 1e-3
+    phi0 = math.radians(settings.twist)
+    s, c = np.sin(w * np.asarray(t)), np.cos(w * np.asarray(t))
+    return amp * s, amp * w * c, phi0 * s, phi0 * w * c
+
+
+def build_model(plate: Plate, part: Part, settings: ShakeSettings, unit_m: float, *, flat=False):
+    """Compile the trial's model.
+
+    Parameters
+    ----------
+    plate : Plate
+    part : Part
+    settings : ShakeSettings
+    unit_m : float
+        Metres per scene unit.
+    flat : bool
+        Leave the holes out (a solid plate of the same size and thickness; for the fidelity test).
+
+    Returns
+    -------
+    mujoco.MjModel
+        Joints: 0 the plate's slide, 1 its twist, 2 the part's free joint (qpos[2:9]).
+    """
+    spec = mujoco.MjSpec()
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    opt = spec.option
+    opt.timestep = settings.timestep * 1e-3
+    opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    mass = part.volume * unit_m**3 * settings.density
+    wall = wall_thickness(part, unit_m)
+    _add_plate(spec, plate, settings, unit_m, (mass * PLATE_MASS_RATIO, wall), flat)
+    _add_part(spec, part, settings, unit_m, mass)
+    return spec.compile()
+
+
+def _contact(geom, settings: ShakeSettings) -> None:
+    geom.solref = list(CONTACT["solref"])
+    geom.solimp = list(CONTACT["solimp"])
+    geom.condim = CONTACT["condim"]
+    geom.friction = [settings.friction, 0.0, 0.0]
+
+
+def _add_plate(spec, plate: Plate, settings, unit_m: float, mass_wall, flat: bool) -> None:
+    """The plate body: convex prisms (or one slab when ``flat``) and the frame's four walls.
+
+    ``mass_wall`` is (the plate's mass kg, the wall's thickness m).
+    """
+    mass, t = mass_wall
+    body = spec.worldbody.add_body(name="plate", gravcomp=1.0)
+    body.add_joint(name="lift", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1])
+    body.add_joint(name="twist", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
+    hx, hy = (float(v) * unit_m for v in plate.half_size)
+    body.explicitinertial = True
+    body.ipos, body.iquat = [0, 0, 0], [1, 0, 0, 0]
+    body.mass = mass
+    body.inertia = [mass * (hx * hx + hy * hy) / 3] * 3
+    th = plate.thickness * unit_m
+    if flat:
+        slab = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]) / unit_m
+        pieces = [slab]
+    else:
+        pieces = plate.pieces
+    for i, poly in enumerate(pieces):
+        mesh = spec.add_mesh(name=f"plate{i}")
+        mesh.uservert = (prism_vertices(poly * unit_m, -th, 0.0)).ravel().tolist()
+        _contact(body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"plate{i}"), settings)
+    top = settings.wall * 1e-3
+    hz, cz = (top + th) / 2, (top - th) / 2
+    for size, pos in (
+        ([t / 2, hy + t, hz], [hx + t / 2, 0, cz]),
+        ([t / 2, hy + t, hz], [-hx - t / 2, 0, cz]),
+        ([hx + t, t / 2, hz], [0, hy + t / 2, cz]),
+        ([hx + t, t / 2, hz], [0, -hy - t / 2, cz]),
+    ):
+        geom = body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=size, pos=pos)
+        _contact(geom, settings)
+
+
+def _add_part(spec, part: Part, settings, unit_m: float, mass: float) -> None:
+    """The part: a free body at its centre of mass, one mesh geom per convex piece."""
+    body = spec.worldbody.add_body(name="part", pos=[0, 0, 1.0])
+    body.add_freejoint()
+    body.explicitinertial = True
+    body.ipos, body.iquat = [0, 0, 0], [1, 0, 0, 0]  # else MjSpec puts the centre of mass at pos
+    body.mass = mass
+    i = part.inertia * unit_m**5 * settings.density
+    body.fullinertia = [i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
+    for k, hull in enumerate(part.hulls):
+        mesh = spec.add_mesh(name=f"part{k}")
+        mesh.uservert = (hull * unit_m).ravel().tolist()
+        _contact(body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"part{k}"), settings)

@@ -1,0 +1,154 @@
+"""Shake trials: drop a part at random, shake, record whether and when it fell through.
+
+Trials are independent: trial ``i`` of a run draws its drop from the seed sequence
+``(seed, i)`` alone and runs in a fresh state of the same model, so its result does not depend
+on how trials are spread over worker processes (same seed, same numbers).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from sieve_mi.shake.geometry import Part, Plate
+from sieve_mi.shake.model import build_model, plate_motion, wall_thickness
+from sieve_mi.shake.settings import ShakeSettings
+
+__all__ = [
+    "CHECK_EVERY",
+    "Outcome",
+    "drop_state",
+    "run_trial",
+    "run_trials",
+]
+
+#: Steps between two checks of whether the part fell through or left the frame.
+CHECK_EVERY = 10
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One trial's result.
+
+    Attributes
+    ----------
+    passed : bool
+        The part ended wholly below the plate's lowest position.
+    time : float
+        When it did, seconds after release (nan if it did not).
+    escaped : bool
+        It left the frame over the wall (counted as not passed).
+    """
+
+    passed: bool
+    time: float
+    escaped: bool = False
+
+
+def drop_state(trial: int, plate: Plate, part: Part, settings: ShakeSettings, unit_m: float):
+    """Where trial ``trial`` releases the part: (position (3,) m, quaternion (4,) w-x-y-z).
+
+    Orientation uniform on SO(3); the centre of mass uniform over the plate shrunk by the part's
+    bounding radius (so it starts clear of the wall), its bounding sphere ``settings.drop``
+    above the plate's highest position.
+    """
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng([settings.seed, trial])
+    q = Rotation.random(random_state=rng).as_quat()  # x, y, z, w
+    r = part.radius * unit_m
+    room = np.maximum(np.asarray(plate.half_size) * unit_m - r, 0.0)
+    xy = rng.uniform(-1.0, 1.0, 2) * room
+    z = settings.amplitude * 1e-3 + settings.drop * 1e-3 + r
+    return np.array([xy[0], xy[1], z]), np.array([q[3], q[0], q[1], q[2]])
+
+
+def run_trial(model, data, trial: int, plate: Plate, part: Part, settings, unit_m: float):
+    """Run one trial in ``model`` (from :func:`~sieve_mi.shake.model.build_model`).
+
+    Returns
+    -------
+    Outcome
+    """
+    mujoco.mj_resetData(model, data)
+    pos, quat = drop_state(trial, plate, part, settings, unit_m)
+    data.qpos[2:5], data.qpos[5:9] = pos, quat
+    dt = model.opt.timestep
+    steps = int(round(settings.duration / dt))
+    z, dz, phi, dphi = plate_motion(np.arange(steps) * dt, settings)
+    below = -plate.thickness * unit_m - settings.amplitude * 1e-3 - part.radius * unit_m
+    frame = np.asarray(plate.half_size) * unit_m + wall_thickness(part, unit_m)
+    qpos, qvel = data.qpos, data.qvel
+    for k in range(steps):
+        qpos[0], qpos[1], qvel[0], qvel[1] = z[k], phi[k], dz[k], dphi[k]
+        mujoco.mj_step(model, data)
+        if k % CHECK_EVERY == 0:
+            outside = bool(np.any(np.abs(qpos[2:4]) > frame))
+            if outside:  # over the wall (whatever its height now)
+                return Outcome(False, math.nan, escaped=True)
+            if qpos[4] < below:
+                return Outcome(True, float(data.time))
+    return Outcome(False, math.nan)
+
+
+def _cpus() -> int:
+    """CPU cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+_WORKER = {}
+
+
+def _init_worker(plate, part, settings, unit_m) -> None:
+    model = build_model(plate, part, settings, unit_m)
+    _WORKER.update(model=model, data=mujoco.MjData(model), args=(plate, part, settings, unit_m))
+
+
+def _worker_trial(trial: int) -> Outcome:
+    w = _WORKER
+    return run_trial(w["model"], w["data"], trial, *w["args"])
+
+
+def run_trials(plate: Plate, part: Part, settings: ShakeSettings, unit_m: float, progress=None):
+    """All ``settings.trials`` trials of one part, on ``settings.workers`` processes.
+
+    Parameters
+    ----------
+    plate, part, settings, unit_m
+        As for :func:`run_trial`.
+    progress : callable or None
+        Called with each finished trial's :class:`Outcome` (in trial order).
+
+    Returns
+    -------
+    list of Outcome
+        In trial order.
+    """
+    workers = settings.workers or _cpus()
+    workers = max(1, min(workers, settings.trials))
+    out = []
+    if workers == 1:
+        _init_worker(plate, part, settings, unit_m)
+        for i in range(settings.trials):
+            out.append(_worker_trial(i))
+            if progress:
+                progress(out[-1])
+        return out
+    import multiprocessing
+
+    method = "forkserver" if sys.platform.startswith("linux") else "spawn"
+    ctx = multiprocessing.get_context(method)
+    with ctx.Pool(workers, _init_worker, (plate, part, settings, unit_m)) as pool:
+        for outcome in pool.imap(_worker_trial, range(settings.trials)):
+            out.append(outcome)
+            if progress:
+                progress(outcome)
+    return out

@@ -1,0 +1,159 @@
+"""Plates recovered from meshes, parts decomposed, and the ``sieve-mi shake`` command."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+from helpers import REPO
+from shake_helpers import ball, plate_mesh, round_hole, square_hole
+
+from sieve_mi.errors import SieveError
+from sieve_mi.shake.geometry import part_from_mesh, plate_from_mesh
+from sieve_mi.testing.shapes import letter
+
+
+def run_cli(*args):
+    return subprocess.run(
+        [sys.executable, "-m", "sieve_mi", *args], capture_output=True, text=True, timeout=300
+    )
+
+
+def test_plate_from_mesh_recovers_holes_and_thickness():
+    """Slicing a plate mesh at mid-thickness gives back its hole(s); z gives its thickness; the
+    convex prisms tile the plate exactly (volume error ~0)."""
+    plate = plate_from_mesh(plate_mesh(round_hole(22.0), 10.0, 3.0))
+    assert plate.thickness == pytest.approx(3.0)
+    assert plate.hole_area == pytest.approx(round_hole(22.0).area(), rel=1e-9)
+    assert plate.volume_error < 1e-9
+    assert np.allclose(plate.half_size, 21.0)
+
+    def area(p):
+        q = np.roll(p, -1, axis=0)
+        return 0.5 * abs(float(np.sum(p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1])))
+
+    total = sum(area(p) for p in plate.pieces)
+    assert total == pytest.approx(42.0 * 42.0 - plate.hole_area, rel=1e-9)
+
+
+def test_plate_mesh_without_a_hole_is_one_line_error():
+    with pytest.raises(SieveError, match="no through-hole"):
+        plate_from_mesh(trimesh.creation.box((40.0, 40.0, 2.0)))
+
+
+def test_flat_part_is_one_line_error():
+    flat = trimesh.Trimesh([[0, 0, 0], [10, 0, 0], [0, 10, 0], [10, 10, 0]], [[0, 1, 2], [1, 3, 2]])
+    with pytest.raises(SieveError, match="flat"):
+        part_from_mesh(flat, "sheet", None, 0.05)
+
+
+def test_convex_part_goes_in_whole_and_a_letter_through_coacd():
+    """A cube is one convex piece (Hausdorff 0); an L is decomposed by CoACD into a few pieces
+    whose union is within a millimetre of it (reported with the sample spacing)."""
+    cube = part_from_mesh(trimesh.creation.box((20.0, 20.0, 20.0)), "cube", "A", 0.05)
+    assert cube.convex and len(cube.hulls) == 1 and cube.hausdorff == 0.0
+    assert cube.volume == pytest.approx(8000.0) and cube.radius == pytest.approx(math.sqrt(300))
+    ell = part_from_mesh(letter("L", height=30.0, depth=6.0), "L", "B", 0.05)
+    assert not ell.convex and len(ell.hulls) >= 2
+    assert ell.hausdorff < 1.0 + ell.hausdorff_resolution
+
+
+def _solve_like_folder(tmp_path):
+    """A folder laid out as solve writes it: marker, report.json, sieve.stl, pass_0, block_0."""
+    folder = tmp_path / "out"
+    folder.mkdir()
+    plate_mesh(square_hole(22.0), 5.0, 2.0).export(str(folder / "sieve.stl"))
+    ball(20.0).export(str(folder / "pass_0.stl"))
+    ball(24.0).export(str(folder / "block_0.stl"))
+    report = {"pass": [{"name": "small"}], "block": [{"name": "big"}], "units": "mm"}
+    (folder / "report.json").write_text(json.dumps(report))
+    files = ["block_0.stl", "pass_0.stl", "report.json", "sieve.stl"]
+    marker = {"sieve_mi": "0", "command": "solve", "files": files, "folders": []}
+    (folder / ".sieve-mi").write_text(json.dumps(marker))
+    return folder
+
+
+def test_shake_dir_writes_json_png_and_clip_and_lists_them(tmp_path):
+    folder = _solve_like_folder(tmp_path)
+    p = run_cli("shake", str(folder), "--trials", "3", "--duration", "0.5", "--workers", "1")
+    assert p.returncode == 0, p.stderr
+    assert "small" in p.stdout and "big" in p.stdout and "0.02 mm" in p.stdout
+    report = json.loads((folder / "shake.json").read_text())
+    assert [(s["name"], s["role"]) for s in report["shapes"]] == [("small", "A"), ("big", "B")]
+    assert report["settings"]["trials"] == 3 and report["settings"]["seed"] == 0
+    assert report["shapes"][1]["passed"] == 0 and report["fidelity_ok"]
+    assert (folder / "shake.png").stat().st_size > 1000
+    assert (folder / "shake.gif").read_bytes()[:6] == b"GIF89a"
+    assert report["clip"]["frames"] == 2 * 16 and len(report["clip"]["trials"]) == 2
+    marker = json.loads((folder / ".sieve-mi").read_text())
+    assert {"shake.json", "shake.png", "shake.gif"} <= set(marker["files"])
+    assert not [f for f in os.listdir(folder) if ".tmp-" in f]
+
+
+def test_shake_sieve_json_same_seed_same_numbers(tmp_path):
+    plate, part = tmp_path / "plate.stl", tmp_path / "ball.stl"
+    plate_mesh(round_hole(22.0), 8.0, 2.0).export(str(plate))
+    ball(20.0).export(str(part))
+    args = ("shake", "--sieve", str(plate), str(part), "--trials", "2", "--duration", "0.3")
+    a, b = run_cli(*args, "--json", "--quiet"), run_cli(*args, "--json", "--quiet")
+    assert a.returncode == 0 and b.returncode == 0, a.stderr
+    ra, rb = json.loads(a.stdout), json.loads(b.stdout)
+    ra.pop("timings"), rb.pop("timings")
+    assert ra == rb and ra["shapes"][0]["name"] == "ball" and ra["shapes"][0]["role"] is None
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("shake",), "one solve output folder"),
+        (("shake", "/no/such/folder"), "no such folder"),
+        (("shake", ".", "--trials", "many"), "--trials many: expected a whole number"),
+        (("shake", ".", "--frequency", "-5"), "--frequency -5.0: expected a number"),
+        (("shake", "--sieve", "/no/plate.stl", "/no/part.stl"), "not found"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2(args, message):
+    p = run_cli(*args)
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in p.stderr
+
+
+def test_solve_shake_bad_value_stops_before_the_solve(tmp_path):
+    p = run_cli("solve", os.path.join(REPO, "scenes", "default.toml"), "--shake", "lots")
+    assert p.returncode == 2 and "--shake lots: expected a whole number" in p.stderr
+
+
+@pytest.mark.slow
+def test_solve_shake_adds_shake_outputs(tmp_path):
+    """``solve --shake N`` shakes the fresh folder: shake.json, shake.png, a report.html card."""
+    from sieve_mi.testing.settings import TINY
+
+    mesh = os.path.join(REPO, "scenes", "meshes")
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        f'name = "t"\n[[pass]]\nmesh = "{mesh}/cube.stl"\n[[block]]\nmesh = "{mesh}/sphere.stl"\n'
+        + TINY
+    )
+    out = tmp_path / "out"
+    p = run_cli(
+        "solve",
+        str(scene),
+        "--out",
+        str(out),
+        "--quiet",
+        "--no-figure",
+        "--no-animation",
+        "--shake",
+        "2",
+    )
+    assert p.returncode == 0, p.stderr
+    report = json.loads((out / "shake.json").read_text())
+    assert [s["role"] for s in report["shapes"]] == ["A", "B"] and report["settings"]["trials"] == 2
+    assert 'id="shake"' in (out / "report.html").read_text()
