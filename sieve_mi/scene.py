@@ -379,7 +379,8 @@ class Solver:
     memory: float = setting(
         0.0,
         "memory one attack of player B may hold at once; more poses run in chunks (same "
-        "results); 0: a quarter of the machine's available memory",
+        "results); 0: a quarter of the machine's available memory, in chunks of at most 0.25 GB "
+        "on the CPU",
         unit="GB",
         minimum=0,
         maximum=1_000_000,

@@ -65,8 +65,13 @@ class _BufferOverflow(Exception):
 #: (traced or frozen, docs/performance.md), doubled for the AD graph, buffers and allocator slack.
 BYTES_PER_PAIR = 64
 #: Share of the machine's available memory player B's descents use by default (``[solver] memory
-#: = 0``).
+#: = 0``) ...
 MEMORY_SHARE = 0.25
+#: ... at most this many GB on the CPU: chunks of 4M pairs keep both cores busy, and a larger
+#: budget only raises the peak (cow-bunny's verdict, one run: 0.125 / 0.25 / 0.5 GB / a quarter
+#: of 23 GB gave peaks of 0.94 / 1.05 / 1.15 / 1.73 GB in the same time, docs/performance.md).
+#: Not on a GPU, where fewer, larger launches pay.
+CPU_MEMORY_CAP_GB = 0.25
 
 
 def available_memory() -> int:
@@ -84,12 +89,23 @@ def available_memory() -> int:
         return 8 << 30
 
 
-def pair_budget(memory_gb: float = 0.0) -> int:
+def _on_gpu() -> bool:
+    """Whether the active Mitsuba variant runs on CUDA."""
+    import mitsuba as mi
+
+    return bool((mi.variant() or "").startswith("cuda"))
+
+
+def pair_budget(memory_gb: float = 0.0, *, cap: bool = True) -> int:
     """(pose, segment) pairs one descent may bind at once, for a memory budget in GB.
 
-    ``0`` means :data:`MEMORY_SHARE` of :func:`available_memory`, as measured now.
+    ``0`` means :data:`MEMORY_SHARE` of :func:`available_memory`, as measured now, and with
+    ``cap`` at most :data:`CPU_MEMORY_CAP_GB` unless a CUDA variant is active (the cap sizes
+    chunks; the uncapped share decides whether a scene fits at all).
     """
     budget = memory_gb * 2**30 if memory_gb > 0 else MEMORY_SHARE * available_memory()
+    if cap and memory_gb <= 0 and not _on_gpu():
+        budget = min(budget, CPU_MEMORY_CAP_GB * 2**30)
     return max(1, int(budget // BYTES_PER_PAIR))
 
 
@@ -324,20 +340,23 @@ class PlayerB:
         if counts is None or len(pose_shape) == 0:
             return [slice(0, len(pose_shape))]
         per = np.asarray(counts)[pose_shape]
-        if per.max() > self.max_pairs:
+        # the default's CPU cap only sizes chunks: a pose bigger than the cap gets a chunk of its own
+        limit = max(self.max_pairs, int(per.max())) if self.memory <= 0 else self.max_pairs
+        if per.max() > min(limit, pair_budget(self.memory, cap=False)):
             worst = self.shapes[int(pose_shape[int(np.argmax(per))])].name
             need = per.max() * BYTES_PER_PAIR / 2**30
+            have = pair_budget(self.memory, cap=False) * BYTES_PER_PAIR / 2**30
             raise SieveError(
                 f"[solver] memory: one pose of {worst} needs {need:.2f} GB ({int(per.max()):,} "
-                f"edge segments), more than the {self.max_pairs * BYTES_PER_PAIR / 2**30:.2f} GB "
-                "budget; raise [solver] memory or lower [solver] resolution"
+                f"edge segments), more than the {have:.2f} GB budget; raise [solver] memory or "
+                "lower [solver] resolution"
             )
         ends = np.cumsum(per)
         bounds = [0]
         while bounds[-1] < len(per):
             start = bounds[-1]
             base = ends[start - 1] if start else 0
-            bounds.append(int(np.searchsorted(ends, base + self.max_pairs, side="right")))
+            bounds.append(int(np.searchsorted(ends, base + limit, side="right")))
         return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
     def _descend_falling_back(

@@ -213,16 +213,45 @@ def test_a_descent_in_chunks_gives_the_same_poses(mi, shapes, freeze):
 def test_a_pose_larger_than_the_budget_is_refused_in_one_line(mi, shapes):
     from sieve_mi.errors import SieveError
 
+    from sieve_mi.game.players import BYTES_PER_PAIR, pair_budget
+
     player = PlayerB(shapes, FRAME)
-    player.max_pairs = int(player.objective.counts.max()) - 1
+    player.memory = (
+        (int(player.objective.counts.max()) - 1) * BYTES_PER_PAIR / 2**30
+    )  # an explicit GB
+    player.max_pairs = pair_budget(player.memory)
     with pytest.raises(SieveError, match=r"\[solver\] memory: one pose of .* needs"):
         _descend(player)
 
 
-def test_the_default_budget_is_a_share_of_available_memory():
-    from sieve_mi.game.players import BYTES_PER_PAIR, MEMORY_SHARE, available_memory, pair_budget
+def test_the_default_cap_only_sizes_chunks(mi, shapes):
+    """With ``memory = 0`` the CPU cap is no limit: a pose bigger than it gets a chunk alone."""
+    player = PlayerB(shapes, FRAME)
+    assert player.memory == 0
+    player.max_pairs = int(player.objective.counts.max()) - 1
+    poses = np.arange(len(shapes)).repeat(3)
+    chunks = player.chunks(poses)
+    assert [c.start for c in chunks][0] == 0 and chunks[-1].stop == len(poses)
+    assert all(a.stop == b.start for a, b in zip(chunks, chunks[1:]))  # consecutive, all covered
+    counts = np.asarray(player.objective.counts)[poses]
+    for c in chunks:  # over the cap only when one pose alone is
+        assert counts[c].sum() <= player.max_pairs or c.stop - c.start == 1
 
-    assert pair_budget(2.0) == 2 * 2**30 // BYTES_PER_PAIR
+
+def test_the_default_budget_is_a_share_of_available_memory_capped_on_the_cpu():
+    from sieve_mi.backend import use_variant
+    from sieve_mi.game.players import (
+        BYTES_PER_PAIR,
+        CPU_MEMORY_CAP_GB,
+        MEMORY_SHARE,
+        available_memory,
+        pair_budget,
+    )
+
+    use_variant("llvm_ad_mono")
+    assert pair_budget(2.0) == 2 * 2**30 // BYTES_PER_PAIR  # an explicit budget is not capped
     free = available_memory()
     assert 0 < free < 1 << 50  # bytes, a real machine's
-    assert pair_budget(0.0) == pytest.approx(MEMORY_SHARE * free / BYTES_PER_PAIR, rel=0.2)
+    share = min(MEMORY_SHARE * free, CPU_MEMORY_CAP_GB * 2**30)
+    assert pair_budget(0.0) == pytest.approx(share / BYTES_PER_PAIR, rel=0.2)
+    assert pair_budget(0.0) <= CPU_MEMORY_CAP_GB * 2**30 // BYTES_PER_PAIR  # 4M pairs
