@@ -25,6 +25,7 @@ from __future__ import annotations
 import base64
 import html
 import json
+import math
 import os
 import re
 from importlib import resources
@@ -34,6 +35,7 @@ import numpy as np
 from sieve_mi.outputs.palette import PALETTE, block_colour, css_variables, hex_colour
 
 __all__ = [
+    "scale_bar",
     "script_json",
     "COLOURS",
     "DISPLAY_FACES",
@@ -229,11 +231,17 @@ def hole_svg(result, blocked: list[bool]) -> str:
     ``b<j>``) so the page's toggles can hide them.
     """
     hole, a_sections, b_sections = result.overlay_sections()
-    return outline_svg([hole], a_sections, b_sections, blocked, result.hole.frame.half_extent)
+    half = result.hole.frame.half_extent
+    return outline_svg([hole], a_sections, b_sections, blocked, half, result.scene.units)
 
 
 def outline_svg(
-    holes: list, a_sections: list, b_sections: list, blocked: list[bool], half: float
+    holes: list,
+    a_sections: list,
+    b_sections: list,
+    blocked: list[bool],
+    half: float,
+    units: str = "mm",
 ) -> str:
     """An inline SVG of hole outlines, dashed A outlines and filled B attempts (CrossSections).
 
@@ -245,6 +253,8 @@ def outline_svg(
         Per B: red (blocked) or orange (gets through).
     half : float
         Least half-width of the view, scene units (grown to hold every hole and B).
+    units : str
+        The scale bar's label.
     """
     boxes = [np.asarray(s.bounds(), dtype=float) for s in [*holes, *b_sections] if not s.is_empty()]
     lim = max([half] + [float(np.abs(b).max()) for b in boxes]) * 1.05
@@ -272,8 +282,25 @@ def outline_svg(
             f'stroke-width="{2 * stroke:.3g}" stroke-dasharray="{6 * stroke:.3g} {3 * stroke:.3g}" '
             f'd="{_path_d(sec)}"/>'
         )
+    parts.append(scale_bar(lim, units))
     parts.append("</svg>")
     return "\n".join(parts)
+
+
+def scale_bar(lim: float, units: str) -> str:
+    """A scale bar in the bottom left of a view ``[-lim, lim]²`` (SVG units = scene units): a
+    round length (1, 2 or 5 × 10^k) about a fifth of the view, labelled, with ``data-length``."""
+    target = 0.4 * lim
+    k = 10.0 ** math.floor(math.log10(target))
+    length = max(m * k for m in (1, 2, 5) if m * k <= target)
+    x0, y = -0.92 * lim, 0.9 * lim
+    w, size = lim / 120, lim / 14
+    return (
+        f'<g id="scalebar" data-length="{length:g}"><line x1="{x0:.6g}" y1="{y:.6g}" '
+        f'x2="{x0 + length:.6g}" y2="{y:.6g}" stroke="black" stroke-width="{w:.3g}"/>'
+        f'<text x="{x0:.6g}" y="{y - size * 0.4:.6g}" font-size="{size:.3g}" '
+        f'font-family="sans-serif">{length:g} {html.escape(units)}</text></g>'
+    )
 
 
 def convergence_svg(history: list[float]) -> str:
@@ -539,7 +566,7 @@ def render_check_page(rep: dict, shape, holes: list) -> str:
         "WINNER": "B" if r["passes"] else "A",
         "VERDICT": html.escape(verdict),
         "UNITS": html.escape(rep["units"]),
-        "HOLE_SVG": outline_svg(holes, [], [sec], [not r["passes"]], shape.radius),
+        "HOLE_SVG": outline_svg(holes, [], [sec], [not r["passes"]], shape.radius, rep["units"]),
         "RESULT_TABLE": check_table(rep),
         "REPORT": html.escape(json.dumps(rep, indent=2, default=str)),
         "STYLE": css_variables() + _asset("report.css"),

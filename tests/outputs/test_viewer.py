@@ -4,6 +4,7 @@ and the page in a real browser (headless Chromium, where installed: ``make setup
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import shutil
@@ -545,3 +546,16 @@ def test_a_thin_plate_motion_is_followed_pose_by_pose():
     plate = np.array([[-3.0, -3, -1], [3, 3, 0]])
     box = Passage(plate, np.array([[0, 1, 1]]), 1.0, 1.0, [piece]).bounds()
     assert box[1, 2] == pytest.approx(6.0) and box[0, 2] == pytest.approx(-6.0)
+
+
+@pytest.mark.parametrize("lim", [0.8, 12.6, 26.5, 3000.0])
+def test_the_hole_view_has_a_round_scale_bar(lim):
+    """1, 2 or 5 × 10^k scene units, between a tenth and two fifths of the view's half-width
+    (the next round length up would be more than 0.4 lim), drawn to scale and labelled."""
+    svg = viewer.scale_bar(lim, "mm")
+    length = float(re.search(r'data-length="([^"]+)"', svg).group(1))
+    mantissa = length / 10 ** math.floor(math.log10(length))
+    assert round(mantissa, 9) in (1.0, 2.0, 5.0)
+    assert 0.1 * lim < length <= 0.4 * lim
+    x1, x2 = (float(v) for v in re.search(r'x1="([^"]+)" y1="[^"]+" x2="([^"]+)"', svg).groups())
+    assert x2 - x1 == pytest.approx(length) and f">{length:g} mm</text>" in svg
