@@ -12,6 +12,8 @@ The search works on rasters; everything that decides a result is computed here o
   squared outside distances of B's outline points to the exact boundary of H (scipy's
   least-squares on rotation vector and translation). A slot whose margin is a small fraction of a
   pixel is found this way; the raster alone cannot see it.
+* :func:`polish_margin` then slides the best blocked pose to where it sticks out least (a minimax
+  over the outline points: the margin a user prints against, not a sum of squares);
 * :func:`best_exact` scores a shape's candidate poses, polishes the best few and keeps the best;
   :func:`exact_rescore` does it for every shape of a raster attack (the verdict and ``check``).
 
@@ -49,6 +51,7 @@ __all__ = [
     "exact_rescore",
     "outline_points",
     "polish",
+    "polish_margin",
     "score",
 ]
 
@@ -232,6 +235,64 @@ def polish(
     return pose(fit.x)
 
 
+def polish_margin(
+    shape: Shape,
+    quat,
+    trans,
+    boundary: Boundary,
+    *,
+    closed: bool = False,
+    spacing: float | None = None,
+    max_iter: int = 60,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Slide a blocked pose to where it sticks out least: minimise the largest outside distance.
+
+    :func:`polish` minimises a sum of squares, which spreads the protrusion over many points; the
+    margin a user prints against is the smallest *largest* protrusion over poses. This solves
+    min s subject to d_H(p_i) <= s for B's outline points p_i (SLSQP on a rotation vector, a
+    translation and s), starting from ``quat``, ``trans``.
+
+    Parameters
+    ----------
+    shape, quat, trans, boundary, closed, spacing
+        As :func:`polish`.
+    max_iter : int
+        SLSQP iterations.
+
+    Returns
+    -------
+    quat : (4,) ndarray
+    trans : (2,) ndarray
+        The pose found (the start when SLSQP failed); score it exactly before use.
+    """
+    from scipy.optimize import minimize
+
+    from sieve_mi.geometry.rotations import to_matrix
+
+    quat = normalize(np.asarray(quat, dtype=np.float64))
+    trans = np.asarray(trans, dtype=np.float64)
+    spacing = spacing if spacing is not None else shape.radius / 100
+    body = outline_points(shape, quat, trans, spacing, closed)
+    scale = max(shape.radius, 1e-12)
+
+    def pose(x):
+        q = normalize(quat_multiply(quat, from_rotvec(x[:3])))
+        return q, trans + x[3:5] * scale
+
+    def signed(x):
+        q, t = pose(x)
+        return boundary.approx_signed((body @ to_matrix(q).T)[:, :2] + t) / scale
+
+    x0 = np.zeros(6)
+    x0[5] = float(signed(x0).max())
+    fit = minimize(lambda x: x[5], x0, method="SLSQP",
+                   constraints=[{"type": "ineq", "fun": lambda x: x[5] - signed(x)}],
+                   options={"maxiter": max_iter, "ftol": 1e-12})  # fmt: skip
+    if not np.all(np.isfinite(fit.x)):
+        return quat, trans
+    return pose(fit.x)
+
+
 def _same_pose(q1, t1, q2, t2, radius: float, rel: float = 1e-3) -> bool:
     """Two poses move no point of a shape of ``radius`` by more than ``rel * radius``."""
     angle = angle_between(q1, q2)
@@ -297,6 +358,11 @@ def best_exact(
             best = ExactAttempt(np.asarray(qq, float), np.asarray(tt, float), got)
         if got.fits:
             break
+    if not best.score.fits and best.score.protrusion <= reach:
+        qq, tt = polish_margin(shape, best.quat, best.trans, boundary, closed=closed)
+        got = score(shape, qq, tt, hole, boundary, closed)
+        if got.fits or got.protrusion < best.score.protrusion:
+            best = ExactAttempt(np.asarray(qq, float), np.asarray(tt, float), got)
     return best
 
 
