@@ -52,6 +52,13 @@ def test_solve_writes_every_output(write_scene, tmp_path):
     b = report["block"][0]
     for key in ("mesh", "beta", "loss", "blocked", "protrusion", "rotation", "translation"):
         assert key in b
+    if b["blocked"]:
+        # the margin, bracketed: the icosphere holds a certified ball of radius ~11.9 (its faces'
+        # distance from the centre) and the face-on cube's hole holds at most a disk of radius
+        # 11 (22 mm across), so every pose sticks out by more than ~0.9 mm; the best pose found
+        # sticks out by about 1 mm (the sphere's 12 mm radius against 11)
+        m = b["margin"]
+        assert 0.8 < m["proved_at_least"] <= m["found_at_most"] == b["protrusion"] < 1.2
     # the winner follows from the blocks: A iff every B is blocked (β > 0 and no fitting start)
     assert report["winner"] == ("A" if all(x["blocked"] for x in report["block"]) else "B")
     assert b["blocked"] == (b["beta"] > 0) and b["beta"] == b["loss"]

@@ -11,7 +11,46 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import dilated, hole_outline, is_closed
 from sieve_mi.scene import Scene
 
-__all__ = ["certify_blocks"]
+__all__ = ["ball_margin", "certify_blocks"]
+
+
+def ball_margin(radius: float, hole, *, steps: int = 24) -> float:
+    """A proved lower bound on how far a shape holding a ball of ``radius`` sticks out of ``hole``.
+
+    If no disk of that radius fits in H grown by m, every pose sticks out by more than m (a pose
+    sticking out by at most m lies in H ⊕ m, and so would the projection of the ball's disk).
+    Bisection on m over :func:`sieve_mi.geometry.outline.dilated` (which contains the exact
+    dilation, so a disk that fits neither fits the exact one) with certify's proved
+    ``no_disk_fits``.
+
+    Parameters
+    ----------
+    radius : float
+        Radius of a ball certified inside the shape (a ball proof's), scene units.
+    hole : manifold3d.CrossSection
+        The exact hole H.
+    steps : int
+        Bisection steps (the bound is within radius / 2^steps of the best this test can prove).
+
+    Returns
+    -------
+    float
+        m >= 0 (0 when no disk test proves anything).
+    """
+    from sieve_mi.certify.bounds import contour_segments, no_disk_fits
+
+    def holds(m: float) -> bool:
+        grown = dilated(hole, m) if m > 0 else hole
+        segs = contour_segments([np.asarray(c, float) for c in grown.to_polygons()])
+        return no_disk_fits(segs, radius)
+
+    if not holds(0.0):
+        return 0.0
+    lo, hi = 0.0, float(radius)
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if holds(mid) else (lo, mid)
+    return lo
 
 
 def certify_blocks(

@@ -247,6 +247,8 @@ def report_dict(result: Result) -> dict:
             row["certification"] = c.to_dict()
             if c.status == "passage":  # the exact hole lets it through: not blocked after all
                 row["blocked"] = False
+        if row["blocked"]:
+            row["margin"] = block_margin(shape, result.outline, row["protrusion"])
         thin = result.sheet.per_block[j] if getattr(result, "sheet", None) is not None else None
         if thin is not None:
             row["thin_plate"] = thin.to_dict()
@@ -588,6 +590,22 @@ def stage_line(timings: dict) -> str:
     """``time: 12.3 s = search 4.1 + verdict 3.2 + ...`` from report.json's timings."""
     parts = [f"{label} {timings[key]:.1f}" for key, label in STAGES if timings.get(key, 0) >= 0.05]
     return f"time: {timings['total_s']:.1f} s = " + " + ".join(parts) + " s"
+
+
+def block_margin(shape, hole, found: float) -> dict:
+    """How far a blocked B sticks out of H at best, bracketed (report.json's ``margin``).
+
+    ``found_at_most``: the protrusion of the best pose found (the true margin is at most this).
+    ``proved_at_least``: from a ball certified inside B, the largest m for which no disk of its
+    radius fits H grown by m (:func:`sieve_mi.certify.blocks.ball_margin`); None when B holds no
+    such ball or the disk test proves nothing.
+    """
+    from sieve_mi.certify.blocks import ball_margin
+    from sieve_mi.certify.bounds import inscribed_ball
+
+    ball = inscribed_ball(shape)
+    proved = ball_margin(ball[1], hole) if ball is not None else 0.0
+    return {"proved_at_least": proved if proved > 0 else None, "found_at_most": float(found)}
 
 
 def sheet_line(report: dict) -> str | None:
