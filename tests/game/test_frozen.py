@@ -212,7 +212,6 @@ def test_a_descent_in_chunks_gives_the_same_poses(mi, shapes, freeze):
 
 def test_a_pose_larger_than_the_budget_is_refused_in_one_line(mi, shapes):
     from sieve_mi.errors import SieveError
-
     from sieve_mi.game.players import BYTES_PER_PAIR, pair_budget
 
     player = PlayerB(shapes, FRAME)
