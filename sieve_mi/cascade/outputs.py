@@ -20,7 +20,6 @@ __all__ = [
     "stacked_plates",
     "write_figure",
     "write_json",
-    "write_objects_3mf",
     "write_plates",
 ]
 
@@ -130,7 +129,7 @@ def side_by_side(plates: list, gap: float) -> list:
 def write_plates(plan: Plan, tmp: str, gap: float, units: str) -> list[str]:
     """``cascade.stl`` (the plates stacked as they are used) and ``cascade.3mf`` (one named object
     per plate, side by side on the bed, for a slicer) in ``tmp``; returns the names written."""
-    from sieve_mi.outputs.fabrication import UNIT_NAMES
+    from sieve_mi.outputs.fabrication import UNIT_NAMES, write_objects_3mf
 
     game_dir = os.path.join(tmp, "games")
     mesh = stacked_plates(plan, game_dir, gap)
@@ -143,64 +142,6 @@ def write_plates(plan: Plan, tmp: str, gap: float, units: str) -> list[str]:
         os.path.join(tmp, "cascade.3mf"), objects, UNIT_NAMES.get(units, "millimeter")
     )
     return ["cascade.stl", "cascade.3mf"]
-
-
-_3MF_CORE = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
-
-
-def write_objects_3mf(path: str, objects: list, unit: str = "millimeter") -> None:
-    """Write named meshes as a 3MF package: one object and one build item each.
-
-    Parameters
-    ----------
-    path : str
-    objects : list of (str, trimesh.Trimesh)
-        Each object's name (shown by slicers) and mesh, already placed.
-    unit : str
-        3MF unit name: micron, millimeter, centimeter, inch, foot or meter.
-
-    Notes
-    -----
-    The bytes depend only on the meshes (fixed zip timestamps, no random UUIDs), so the same
-    cascade gives the same file.
-    """
-    import zipfile
-    from xml.sax.saxutils import quoteattr
-
-    resources, items = [], []
-    for k, (name, mesh) in enumerate(objects, start=1):
-        verts = "".join(
-            f'<vertex x="{x:.9g}" y="{y:.9g}" z="{z:.9g}"/>' for x, y, z in mesh.vertices
-        )
-        tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in mesh.faces)
-        resources.append(
-            f'<object id="{k}" name={quoteattr(name)} type="model"><mesh><vertices>{verts}'
-            f"</vertices><triangles>{tris}</triangles></mesh></object>"
-        )
-        items.append(f'<item objectid="{k}"/>')
-    model = (
-        f'<?xml version="1.0" encoding="UTF-8"?>\n<model unit="{unit}" xml:lang="en-US" '
-        f'xmlns="{_3MF_CORE}"><resources>{"".join(resources)}</resources>'
-        f"<build>{''.join(items)}</build></model>"
-    )
-    types = (
-        '<?xml version="1.0" encoding="UTF-8"?>\n'
-        '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
-        '<Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/>'
-        '<Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/></Types>'
-    )
-    rels = (
-        '<?xml version="1.0" encoding="UTF-8"?>\n'
-        '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
-        '<Relationship Target="/3D/3dmodel.model" Id="rel0" '
-        'Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/></Relationships>'
-    )
-    parts = (("[Content_Types].xml", types), ("_rels/.rels", rels), ("3D/3dmodel.model", model))
-    with zipfile.ZipFile(path, "w") as z:
-        for name, text in parts:
-            info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
-            info.external_attr = 0o644 << 16
-            z.writestr(info, text, compress_type=zipfile.ZIP_DEFLATED)
 
 
 def write_figure(path: str, plan: Plan, units: str, icons: dict | None = None) -> None:

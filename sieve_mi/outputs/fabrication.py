@@ -13,6 +13,7 @@ import os
 import time
 import zipfile
 from dataclasses import dataclass, field
+from xml.sax.saxutils import quoteattr
 
 import manifold3d
 import numpy as np
@@ -33,6 +34,7 @@ __all__ = [
     "shape_mesh",
     "to_trimesh",
     "write_3mf",
+    "write_objects_3mf",
     "write_svg",
 ]
 
@@ -160,16 +162,44 @@ def write_3mf(path: str, mesh: trimesh.Trimesh, unit: str = "millimeter") -> Non
     unit : str
         3MF unit name: micron, millimeter, centimeter, inch, foot or meter.
     """
-    verts = "".join(
-        f'<vertex x="{x:.9g}" y="{y:.9g}" z="{z:.9g}"/>' for x, y, z in np.asarray(mesh.vertices)
-    )
-    tris = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in np.asarray(mesh.faces))
+    write_objects_3mf(path, [(None, mesh)], unit)
+
+
+def write_objects_3mf(path: str, objects: list, unit: str = "millimeter") -> None:
+    """Write meshes as a 3MF package: one object and one build item each.
+
+    Parameters
+    ----------
+    path : str
+    objects : list of (str or None, trimesh.Trimesh)
+        Each object's name (shown by slicers; None: unnamed) and mesh, already placed.
+    unit : str
+        3MF unit name: micron, millimeter, centimeter, inch, foot or meter.
+
+    Notes
+    -----
+    The bytes depend only on the meshes (fixed zip timestamps, no random UUIDs), so the same
+    plates give the same file.
+    """
+    resources, items = [], []
+    for k, (name, mesh) in enumerate(objects, start=1):
+        verts = "".join(
+            f'<vertex x="{x:.9g}" y="{y:.9g}" z="{z:.9g}"/>'
+            for x, y, z in np.asarray(mesh.vertices)
+        )
+        tris = "".join(
+            f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in np.asarray(mesh.faces)
+        )
+        label = f" name={quoteattr(name)}" if name is not None else ""
+        resources.append(
+            f'<object id="{k}"{label} type="model"><mesh><vertices>{verts}</vertices>'
+            f"<triangles>{tris}</triangles></mesh></object>"
+        )
+        items.append(f'<item objectid="{k}"/>')
     model = (
         '<?xml version="1.0" encoding="UTF-8"?>\n'
         f'<model unit="{unit}" xml:lang="en-US" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
-        '<resources><object id="1" type="model"><mesh>'
-        f"<vertices>{verts}</vertices><triangles>{tris}</triangles>"
-        '</mesh></object></resources><build><item objectid="1"/></build></model>'
+        f"<resources>{''.join(resources)}</resources><build>{''.join(items)}</build></model>"
     )
     types = (
         '<?xml version="1.0" encoding="UTF-8"?>\n'

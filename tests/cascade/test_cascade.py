@@ -259,7 +259,8 @@ def test_progress_lines_name_what_each_game_is():
 
 
 def test_cascade_3mf_has_one_named_object_per_plate_side_by_side(tmp_path):
-    from sieve_mi.cascade.outputs import side_by_side, write_objects_3mf
+    from sieve_mi.cascade.outputs import side_by_side
+    from sieve_mi.outputs.fabrication import write_objects_3mf
 
     plates = [trimesh.creation.box((30.0, 20.0, 4.0)), trimesh.creation.cylinder(8.0, 6.0)]
     plates[1].apply_translation([0.0, 0.0, -20.0])  # stacked below the first, as in the cascade
