@@ -39,7 +39,13 @@ from sieve_mi.geometry.outline import (
     placed_vertices,
     silhouette,
 )
-from sieve_mi.geometry.rotations import angle_between, from_rotvec, normalize, quat_multiply
+from sieve_mi.geometry.rotations import (
+    angle_between,
+    from_rotvec,
+    normalize,
+    quat_multiply,
+    to_matrix,
+)
 
 __all__ = [
     "MAX_SAMPLES",
@@ -152,7 +158,6 @@ def outline_points(
     trace it, which is what :func:`polish` needs.
     """
     from sieve_mi.geometry.meshes import edge_topology
-    from sieve_mi.geometry.rotations import to_matrix
 
     v = shape.vertices
     edges = edge_topology(v, shape.faces)[0]
@@ -166,6 +171,30 @@ def outline_points(
     if len(near) > most:  # evenly thinned: the polish is a heuristic, the exact score decides
         near = near[np.linspace(0, len(near) - 1, most).astype(int)]
     return body[near]
+
+
+class _Local:
+    """Poses near a start, for the polishes: x = (rotation vector applied before the start's
+    rotation, translation in units of B's radius, ...), and the signed distances to H of B's
+    outline points (:func:`outline_points`) at such a pose."""
+
+    def __init__(self, shape: Shape, quat, trans, boundary: Boundary, closed: bool, spacing):
+        self.quat = normalize(np.asarray(quat, dtype=np.float64))
+        self.trans = np.asarray(trans, dtype=np.float64)
+        spacing = spacing if spacing is not None else shape.radius / 100
+        self.body = outline_points(shape, self.quat, self.trans, spacing, closed)
+        self.scale = max(shape.radius, 1e-12)
+        self.boundary = boundary
+
+    def pose(self, x):
+        """(quat, trans) of the parameters ``x`` (only ``x[:5]`` are the pose's)."""
+        q = normalize(quat_multiply(self.quat, from_rotvec(x[:3])))
+        return q, self.trans + x[3:5] * self.scale
+
+    def distances(self, x) -> np.ndarray:
+        """(P,) signed distances of the outline points to H at pose ``x`` (positive outside)."""
+        q, t = self.pose(x)
+        return self.boundary.approx_signed((self.body @ to_matrix(q).T)[:, :2] + t)
 
 
 def polish(
@@ -206,23 +235,12 @@ def polish(
     """
     from scipy.optimize import least_squares
 
-    from sieve_mi.geometry.rotations import to_matrix
-
-    quat = normalize(np.asarray(quat, dtype=np.float64))
-    trans = np.asarray(trans, dtype=np.float64)
-    spacing = spacing if spacing is not None else shape.radius / 100
-    body = outline_points(shape, quat, trans, spacing, closed)
+    local = _Local(shape, quat, trans, boundary, closed, spacing)
+    quat, trans, scale, pose = local.quat, local.trans, local.scale, local.pose
     margin = 1e-3 * boundary.spacing
-    scale = max(shape.radius, 1e-12)
-
-    def pose(x):
-        q = normalize(quat_multiply(quat, from_rotvec(x[:3])))
-        return q, trans + x[3:] * scale
 
     def residual(x):
-        q, t = pose(x)
-        xy = (body @ to_matrix(q).T)[:, :2] + t
-        return np.maximum(0.0, boundary.approx_signed(xy) + margin) / scale
+        return np.maximum(0.0, local.distances(x) + margin) / scale
 
     r0 = residual(np.zeros(5))
     if not np.any(r0 > 0):
@@ -267,21 +285,10 @@ def polish_margin(
     """
     from scipy.optimize import minimize
 
-    from sieve_mi.geometry.rotations import to_matrix
-
-    quat = normalize(np.asarray(quat, dtype=np.float64))
-    trans = np.asarray(trans, dtype=np.float64)
-    spacing = spacing if spacing is not None else shape.radius / 100
-    body = outline_points(shape, quat, trans, spacing, closed)
-    scale = max(shape.radius, 1e-12)
-
-    def pose(x):
-        q = normalize(quat_multiply(quat, from_rotvec(x[:3])))
-        return q, trans + x[3:5] * scale
+    local = _Local(shape, quat, trans, boundary, closed, spacing)
 
     def signed(x):
-        q, t = pose(x)
-        return boundary.approx_signed((body @ to_matrix(q).T)[:, :2] + t) / scale
+        return local.distances(x) / local.scale
 
     x0 = np.zeros(6)
     x0[5] = float(signed(x0).max())
@@ -289,8 +296,8 @@ def polish_margin(
                    constraints=[{"type": "ineq", "fun": lambda x: x[5] - signed(x)}],
                    options={"maxiter": max_iter, "ftol": 1e-12})  # fmt: skip
     if not np.all(np.isfinite(fit.x)):
-        return quat, trans
-    return pose(fit.x)
+        return local.quat, local.trans
+    return local.pose(fit.x)
 
 
 def _same_pose(q1, t1, q2, t2, radius: float, rel: float = 1e-3) -> bool:
