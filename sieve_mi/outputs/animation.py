@@ -24,6 +24,7 @@ from sieve_mi.outputs.palette import linear
 from sieve_mi.outputs.passage import Passage
 
 __all__ = [
+    "gif_frames",
     "AZIMUTH",
     "BLOCKED_ALBEDO",
     "COLOURS",
@@ -265,22 +266,24 @@ def to_gray8(frames: np.ndarray) -> np.ndarray:
     return np.round(255.0 * srgb).astype(np.uint8)
 
 
-def write_gif(path: str, passage: Passage) -> dict:
-    """Render ``passage.gif`` (:func:`render_frames`) and return what report.json records of it.
+def gif_frames(passage: Passage, phases: np.ndarray) -> tuple[list, str]:
+    """GIF-ready frames of ``passage`` at ``phases``: rendered in an RGB variant where one exists
+    (the caller's variant is restored after), each colour frame with its own adaptive palette.
 
     Returns
     -------
-    dict
-        ``frames``, ``width``, ``height``, ``spp``, ``frame_ms`` and ``phases``.
+    frames : list of PIL.Image.Image
+        Palette ("P") images in colour, else greyscale ("L").
+    variant : str
+        The variant that rendered them.
     """
     import mitsuba as mi
     from PIL import Image
 
-    s = phases(frame_count(passage))
     before = mi.variant()
     try:
         variant = select_rgb_variant(mi, before)
-        images = to_gray8(render_frames(passage, phases=s))
+        images = to_gray8(render_frames(passage, phases=phases))
     finally:
         if before is not None and mi.variant() != before:
             mi.set_variant(before)
@@ -291,6 +294,20 @@ def write_gif(path: str, passage: Passage) -> dict:
             p.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
             for p in pics
         ]
+    return pics, variant
+
+
+def write_gif(path: str, passage: Passage) -> dict:
+    """Render ``passage.gif`` (:func:`render_frames`) and return what report.json records of it.
+
+    Returns
+    -------
+    dict
+        ``frames``, ``width``, ``height``, ``spp``, ``frame_ms`` and ``phases``.
+    """
+    s = phases(frame_count(passage))
+    pics, variant = gif_frames(passage, s)
+    mode = "RGB" if pics[0].mode == "P" else "L"
     durations = [FRAME_MS] * (len(pics) - 1) + [3 * FRAME_MS]
     pics[0].save(path, save_all=True, append_images=pics[1:], duration=durations, loop=0)
     return {

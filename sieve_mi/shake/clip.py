@@ -78,13 +78,11 @@ def write_clip(path: str, plate_mesh, plate: Plate, shapes: list) -> dict:
     dict
         ``file``, ``frames``, ``frame_ms``.
     """
-    from PIL import Image
-
     from sieve_mi.backend import use_variant
-    from sieve_mi.outputs.animation import FRAME_MS, render_frames, to_gray8
+    from sieve_mi.outputs.animation import FRAME_MS, gif_frames
     from sieve_mi.outputs.passage import Passage, Piece
 
-    mi = use_variant(None)
+    use_variant(None)
     pieces, n = [], len(shapes)
     for i, (mesh, com, role, passed, keys) in enumerate(shapes):
         v = np.asarray(mesh.vertices, dtype=np.float64) - com
@@ -97,21 +95,6 @@ def write_clip(path: str, plate_mesh, plate: Plate, shapes: list) -> dict:
     s = np.concatenate(
         [np.linspace(i / n, (i + 1) / n, FRAMES_PER_SHAPE, endpoint=False) for i in range(n)]
     )
-    before = mi.variant()
-    try:
-        from sieve_mi.backend import select_rgb_variant
-
-        select_rgb_variant(mi, before)
-        images = to_gray8(render_frames(passage, phases=s))
-    finally:
-        if before is not None and mi.variant() != before:
-            mi.set_variant(before)
-    mode = "RGB" if images.ndim == 4 else "L"
-    pics = [Image.fromarray(im, mode=mode) for im in images]
-    if mode == "RGB":
-        pics = [
-            p.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
-            for p in pics
-        ]
+    pics, _ = gif_frames(passage, s)
     pics[0].save(path, save_all=True, append_images=pics[1:], duration=FRAME_MS, loop=0)
     return {"file": "shake.gif", "frames": len(pics), "frame_ms": FRAME_MS}
