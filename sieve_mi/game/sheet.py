@@ -15,9 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sieve_mi.geometry.meshes import Shape
-from sieve_mi.geometry.plate import diameter, safe_thickness
-from sieve_mi.motion import ThinPlate, thin_plates
-from sieve_mi.motion.thin import BALL_ARGUMENT
+from sieve_mi.geometry.plate import safe_thickness
+from sieve_mi.motion import thin_plates
 from sieve_mi.scene import Scene
 
 __all__ = ["Sheet", "plate_sheet"]
@@ -74,14 +73,9 @@ def _say(progress: bool, line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
 
-def _search(scene: Scene, blocks, todo, outline, attack, thickness: float, seed: int, balls=()):
-    """ThinPlate per B in ``todo`` (None elsewhere), searched in parallel; the B in ``balls``
-    (proved by an inscribed ball) are safe on any plate."""
+def _search(scene: Scene, blocks, todo, outline, attack, thickness: float, seed: int):
+    """ThinPlate per B in ``todo`` (None elsewhere), searched in parallel."""
     out: list = [None] * len(blocks)
-    for j in balls:
-        out[j] = ThinPlate(blocks[j].name, thickness, diameter(blocks[j].hull), "safe",
-                           argument=BALL_ARGUMENT)  # fmt: skip
-    todo = [j for j in todo if j not in balls]
     seeds = [[(attack.quats[0, j], attack.trans[0, j])] for j in todo]
     found = thin_plates([blocks[j] for j in todo], outline, thickness,
                         budget_s=scene.verdict.thin_budget, seeds=seeds, seed=seed)  # fmt: skip
@@ -90,7 +84,7 @@ def _search(scene: Scene, blocks, todo, outline, attack, thickness: float, seed:
     return out
 
 
-def _thinnest(scene, blocks, todo, outline, attack, safe: float, seed: int, progress: bool, balls):
+def _thinnest(scene, blocks, todo, outline, attack, safe: float, seed: int, progress: bool):
     """Bisect (0, safe] for the thinnest plate where no B of ``todo`` was found to pass."""
     lo, hi, best, steps = 0.0, safe, None, []
     for _ in range(THINNEST_STEPS):
@@ -98,7 +92,7 @@ def _thinnest(scene, blocks, todo, outline, attack, safe: float, seed: int, prog
         if not lo < mid < hi:
             break
         _say(progress, f"thinnest plate: trying {mid:g} (passage found at {lo:g}, none at {hi:g})")
-        per = _search(scene, blocks, todo, outline, attack, mid, seed, balls)
+        per = _search(scene, blocks, todo, outline, attack, mid, seed)
         passed = [blocks[j].name for j in todo if per[j].status == "passage"]
         steps.append({"thickness": mid, "passage": passed})
         if passed:
@@ -116,7 +110,6 @@ def plate_sheet(
     attack,
     blocked: np.ndarray,
     *,
-    balls: tuple = (),
     seed: int = 0,
     progress: bool = False,
 ) -> Sheet:
@@ -134,9 +127,6 @@ def plate_sheet(
         The verdict's attack; each B's best attempt seeds its search.
     blocked : (n,) bool
         Which B the verdict (and certification) blocked; only those are searched.
-    balls : tuple of int
-        The B proved blocked by an inscribed ball (certify's ``method = "ball"``): safe on any
-        plate (:data:`~sieve_mi.motion.thin.BALL_ARGUMENT`), not searched.
     seed : int
     progress : bool
         Print a line per search round on stderr.
@@ -150,14 +140,13 @@ def plate_sheet(
     todo = [j for j in range(len(blocks)) if blocked[j]]
     if given == "thinnest" and todo:
         thickness, per, steps = _thinnest(
-            scene, blocks, todo, outline, attack, safe, seed, progress, balls
+            scene, blocks, todo, outline, attack, safe, seed, progress
         )
-        per = per or _search(scene, blocks, todo, outline, attack, safe, seed, balls)
+        per = per or _search(scene, blocks, todo, outline, attack, safe, seed)
         return Sheet(thickness, safe, "thinnest", per, steps)
     thickness = safe if given in (None, "thinnest") else float(given)
-    searched = [j for j in todo if j not in balls]
-    if thickness < safe and searched:
-        _say(progress, f"thin plate {thickness:g}: motion search for {len(searched)} B, "
+    if thickness < safe and todo:
+        _say(progress, f"thin plate {thickness:g}: motion search for {len(todo)} B, "
                        f"up to {scene.verdict.thin_budget:g} s each")  # fmt: skip
-    per = _search(scene, blocks, todo, outline, attack, thickness, seed, balls)
+    per = _search(scene, blocks, todo, outline, attack, thickness, seed)
     return Sheet(thickness, safe, "safe" if given in (None, "thinnest") else "given", per)

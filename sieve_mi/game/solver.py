@@ -336,10 +336,8 @@ def _sheet(scene: Scene, passes, blocks, v, certified, winner, seed, progress, t
     blocked = v.attack.blocked()[0].copy()
     for j, c in enumerate(certified):
         blocked[j] &= not (c is not None and c.status == "passage")
-    balls = tuple(j for j, c in enumerate(certified)
-                  if c is not None and c.status == "proved" and c.method == "ball")  # fmt: skip
-    sheet = plate_sheet(scene, passes, blocks, v.outline, v.attack, blocked, balls=balls,
-                        seed=seed, progress=progress)  # fmt: skip
+    sheet = plate_sheet(scene, passes, blocks, v.outline, v.attack, blocked, seed=seed,
+                        progress=progress)  # fmt: skip
     timings["thin_s"] = time.perf_counter() - t0
     for j in sheet.passages():
         v.warnings.append(

@@ -195,8 +195,9 @@ def thin_plates(
 ) -> list[ThinPlate]:
     """:func:`thin_plate` for several shapes, searched in parallel worker processes.
 
-    A shape is ``"safe"`` without a search when its diameter is at most the thickness, or when
-    a ball certified inside it is wider than every disk in the hole (:data:`BALL_ARGUMENT`).
+    A shape is ``"safe"`` without a search when a ball certified inside it is wider than every
+    disk in the hole (:data:`BALL_ARGUMENT`, on any plate), or when its diameter is at most the
+    thickness.
 
     Parameters
     ----------
@@ -218,10 +219,10 @@ def thin_plates(
     segs = contour_segments([np.asarray(c, float) for c in outline.to_polygons()])
     for j, shape in enumerate(shapes):
         d = diameter(shape.hull)
-        if d <= thickness + LENGTH_SLACK:
-            out[j] = ThinPlate(shape.name, float(thickness), d, "safe")
-        elif _ball_proves(shape, segs):
+        if _ball_proves(shape, segs):  # the stronger proof: safe on any plate
             out[j] = ThinPlate(shape.name, float(thickness), d, "safe", argument=BALL_ARGUMENT)
+        elif d <= thickness + LENGTH_SLACK:
+            out[j] = ThinPlate(shape.name, float(thickness), d, "safe")
         else:
             todo.append(j)
     if not todo:
