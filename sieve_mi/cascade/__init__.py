@@ -20,6 +20,9 @@ plan
     The cascade planner: order, alternatives when a game is lost, inseparable pairs.
 outputs
     ``cascade.json``, the stacked plates and the figure.
+purity
+    ``sort --shake N``: each sieve shaken with the parts that reach it (MuJoCo,
+    :mod:`sieve_mi.shake`), and in which tray each shape ends.
 sort
     ``sieve-mi sort``: a mixture into trays (plan, play the games, write the cascade).
 sweep
@@ -28,4 +31,14 @@ commands
     The ``sort`` and ``sweep`` subcommands of the command line.
 """
 
-__all__ = ["commands", "games", "mixture", "outputs", "plan", "size", "sort", "sweep"]
+__all__ = [
+    "commands",
+    "games",
+    "mixture",
+    "outputs",
+    "plan",
+    "purity",
+    "size",
+    "sort",
+    "sweep",
+]

@@ -50,6 +50,12 @@ def add_parsers(sub) -> None:
     )
     s.add_argument("mixture", help="mixture file (TOML with [[shape]] tables)")
     s.add_argument("--seed", type=int, help="random seed of every game (overrides [solver] seed)")
+    s.add_argument(
+        "--shake",
+        metavar="N",
+        help="then shake each sieve with the parts that reach it, N parts of each shape (MuJoCo; "
+        "the mixture's [shake] table sets the shaker), and report in which tray each shape ends",
+    )
     _engine_options(s, "out/<name>/", "cascade.json")
     w = sub.add_parser(
         "sweep",
@@ -149,13 +155,19 @@ def _engine(args) -> dict:
 
 def cmd_sort(args) -> int:
     from sieve_mi.cascade.mixture import load_mixture
+    from sieve_mi.cascade.purity import purity_table
     from sieve_mi.cascade.sort import sort_mixture
+    from sieve_mi.shake.commands import trials_option
 
     mixture = load_mixture(args.mixture)
+    shake = trials_option(args.shake, "sort", base=mixture.shake)
     engine = _engine(args)
     out = args.out or os.path.join("out", mixture.name)
-    report = sort_mixture(mixture, out, **engine)
-    print(json.dumps(report, indent=2) if args.json else tray_table(report))
+    report = sort_mixture(mixture, out, shake=shake, **engine)
+    text = tray_table(report)
+    if "shake" in report:
+        text += "\n" + purity_table(report["shake"])
+    print(json.dumps(report, indent=2) if args.json else text)
     for w in report["warnings"]:
         print(f"sieve-mi: warning: {w}", file=sys.stderr)
     print(f"outputs: {out}/", file=sys.stderr if args.json else sys.stdout)

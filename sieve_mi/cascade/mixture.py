@@ -3,13 +3,16 @@
 A mixture file is a scene file (see ``docs/scene-format.md``) whose shapes are ``[[shape]]``
 tables (``mesh``, optional ``name`` and ``scale``) instead of ``[[pass]]``/``[[block]]``; the
 ``[fabrication]``, ``[solver]``, ``[verdict]`` and ``[layout]`` tables mean what they mean there.
+An optional ``[shake]`` table sets the shake trials of ``sort --shake N`` (the keys of
+:class:`~sieve_mi.shake.settings.ShakeSettings`, checked as every key is; the number of trials is
+the option's N).
 """
 
 from __future__ import annotations
 
 import copy
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 
 from sieve_mi.errors import SieveError
 from sieve_mi.scene import (
@@ -22,6 +25,7 @@ from sieve_mi.scene import (
     read_tables,
     table_fields,
 )
+from sieve_mi.shake.settings import ShakeSettings
 
 __all__ = ["Mixture", "load_mixture"]
 
@@ -41,6 +45,8 @@ class Mixture:
     units : str
     tables : dict
         The settings tables by TOML key (``{"fabrication": Fabrication(...), ...}``).
+    shake : ShakeSettings
+        The ``[shake]`` table: the settings of ``sort --shake N``'s trials (their number aside).
     """
 
     path: str
@@ -48,6 +54,7 @@ class Mixture:
     shapes: list
     units: str
     tables: dict
+    shake: ShakeSettings = field(default_factory=ShakeSettings)
 
     def resolve(self, mesh: str) -> str:
         """A mesh path relative to the mixture file, made absolute."""
@@ -92,7 +99,7 @@ def load_mixture(path: str) -> Mixture:
         duplicate names, unknown keys, bad values, a mesh file that does not exist.
     """
     data = read_file(path)
-    allowed = {"name", "units", "shape"} | {f.name for f in table_fields()}
+    allowed = {"name", "units", "shape", "shake"} | {f.name for f in table_fields()}
     unknown = sorted(set(data) - allowed)
     if unknown:
         hint = (
@@ -120,9 +127,8 @@ def load_mixture(path: str) -> Mixture:
                 "give every shape its own name"
             )
         seen[s.name] = i
-    mixture = Mixture(
-        path=path, name=name, shapes=shapes, units=units, tables=read_tables(path, data)
-    )
+    tables, shake = read_tables(path, data), _shake_table(path, data)
+    mixture = Mixture(path=path, name=name, shapes=shapes, units=units, tables=tables, shake=shake)
     for i, s in enumerate(shapes):
         if not os.path.isfile(mixture.resolve(s.mesh)):
             raise SieveError(f"{path}: shape[{i}].mesh: {s.mesh} not found")
@@ -140,3 +146,16 @@ def _shape(path: str, table, i: int) -> ShapeEntry:
         entry.name = os.path.splitext(os.path.basename(entry.mesh))[0]
     check_folder_name(path, entry.name, f"{where}.name")
     return entry
+
+
+def _shake_table(path: str, data: dict) -> ShakeSettings:
+    """The ``[shake]`` table, checked key by key as a scene's tables are; ``trials`` is refused
+    (``sort --shake N`` gives it)."""
+    table = data.get("shake", {})
+    if not isinstance(table, dict):
+        raise SieveError(f"{path}: shake: expected a table [shake]")
+    r = Reader(path, table, "shake.")
+    if "trials" in table:
+        raise r.error("trials", "give the number of trials as sort --shake N; remove the key")
+    r.check_keys({f.name for f in fields(ShakeSettings)} - {"trials"})
+    return ShakeSettings(**r.read(ShakeSettings))

@@ -17,9 +17,11 @@ from sieve_mi.cascade.outputs import (
     write_plates,
 )
 from sieve_mi.cascade.plan import plan_cascade
+from sieve_mi.cascade.purity import shake_plan
 from sieve_mi.cascade.size import passage_radius
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.provenance import sha256
+from sieve_mi.shake.settings import ShakeSettings
 
 __all__ = ["prepare", "sort_mixture"]
 
@@ -73,6 +75,7 @@ def sort_mixture(
     variant: str | None = None,
     seed: int | None = None,
     progress: bool = True,
+    shake: ShakeSettings | None = None,
 ) -> dict:
     """Design a cascade for ``mixture`` and write it to ``out_dir``; returns ``cascade.json``.
 
@@ -92,6 +95,9 @@ def sort_mixture(
     seed : int, optional
         Overrides ``[solver] seed`` for every game.
     progress : bool
+    shake : ShakeSettings, optional
+        Then shake each sieve with the parts that reach it, ``shake.trials`` parts per shape
+        (:mod:`sieve_mi.cascade.purity`), into ``cascade.json``'s ``shake``.
     """
     from sieve_mi.backend import default_variant
 
@@ -113,6 +119,7 @@ def sort_mixture(
     engine = Engine(out_dir, use_ray=use_ray, address=address, workers=workers, progress=progress)
     with engine:
         plan = plan_cascade(order, engine.play, make_spec, parallel=use_ray)
+    shaken = None if shake is None else shake_plan(plan, engine.folders(), mixture, shake, progress)
     games = [
         {
             "key": k,
@@ -130,6 +137,8 @@ def sort_mixture(
         timings={"total_s": round(time.perf_counter() - t0, 3)},
     )
     report["order"] = order
+    if shaken is not None:
+        report["shake"] = shaken
     spacing = 2.0 * max(r["radius"] for r in shapes)  # a gap the largest shape fits in
     _write(out_dir, inputs, plan, report, engine.folders(), spacing, mixture.units, icons)
     engine.clear_cache()

@@ -4,35 +4,43 @@ from __future__ import annotations
 
 import os
 import sys
-from dataclasses import fields
+from dataclasses import fields, replace
 
 from sieve_mi.errors import SieveError
 from sieve_mi.shake.settings import ShakeSettings
 
 __all__ = [
     "add_parser",
+    "add_settings",
     "cmd_shake",
     "settings_from_args",
     "shake_after_solve",
     "shake_folder",
     "solve_shake_settings",
+    "trials_option",
 ]
 
-_HELP = {
-    "trials": "independent trials per shape",
-    "duration": "shaking time per trial, s",
-    "amplitude": "peak vertical displacement of the plate, mm (Retsch AS 200: up to 3 mm)",
-    "frequency": "shaker frequency, Hz (mains: 50 or 60)",
-    "twist": "peak rotation of the plate about the vertical, degrees",
-    "wall": "height of the frame wall above the plate, mm",
-    "drop": "gap between the plate and the part's bounding sphere at release, mm",
-    "density": "density of every part, kg/m^3 (PLA 1240)",
-    "friction": "friction coefficient part-plate",
-    "timestep": "integration step, ms",
-    "seed": "seed of the random drops (same seed, same numbers)",
-    "coacd_threshold": "CoACD concavity threshold for non-convex parts",
-    "workers": "worker processes (0: every CPU core); results do not depend on it",
-}
+
+def _option_help(f) -> str:
+    """An option's help from its declaration: meaning (bounds, unit, default)."""
+    from sieve_mi.scene import describe, spec_of
+
+    spec = spec_of(f)
+    unit = f", {spec.unit}" if spec.unit else ""
+    return f"{spec.doc} ({describe(ShakeSettings, f)}{unit}, default {f.default})".replace(
+        "%", "%%"
+    )
+
+
+def add_settings(parser) -> None:
+    """Add an option per :class:`ShakeSettings` field to ``parser`` (``--coacd-threshold`` for
+    ``coacd_threshold``); its value lands in ``args.<field>`` as given (None when absent) and is
+    checked by :func:`settings_from_args`."""
+    for f in fields(ShakeSettings):
+        flag = "--" + f.name.replace("_", "-")
+        parser.add_argument(
+            flag, dest=f.name, default=None, metavar=f.name.upper(), help=_option_help(f)
+        )
 
 
 def add_parser(sub) -> None:
@@ -50,15 +58,7 @@ def add_parser(sub) -> None:
     p.add_argument("--sieve", help="a plate mesh (holes along z) to shake the PART meshes on")
     p.add_argument("--units", help="length unit of --sieve's meshes (default mm)")
     p.add_argument("--out", help="with --sieve: also write DIR/shake.json, shake.png")
-    defaults = ShakeSettings()
-    for f in fields(ShakeSettings):
-        p.add_argument(
-            "--" + f.name.replace("_", "-"),
-            dest=f.name,
-            default=None,
-            metavar="N",
-            help=f"{_HELP[f.name]} (default {getattr(defaults, f.name)})",
-        )
+    add_settings(p)
     p.add_argument(
         "--no-clip", action="store_true", help="skip shake.gif (one rendered trial per shape)"
     )
@@ -66,22 +66,34 @@ def add_parser(sub) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
 
-def settings_from_args(args, **overrides) -> ShakeSettings:
-    """The options as :class:`ShakeSettings`; a bad value is one SieveError line."""
+def _number(text: str):
+    """Command-line text as an int or a float where it is one, else the text itself (which
+    :func:`~sieve_mi.scene.read_value` then refuses as "expected a number, got 'text'")."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def settings_from_args(args) -> ShakeSettings:
+    """The options as :class:`ShakeSettings`; a bad value is one SieveError line naming the
+    option (``shake: --trials: must be >= 1, got 0``), as a bad scene key's.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        With an attribute per field (None: not given), as :func:`add_settings` makes them.
+    """
+    from sieve_mi.scene import read_value
+
     values = {}
     for f in fields(ShakeSettings):
         text = getattr(args, f.name, None)
-        if text is None:
-            continue
-        kind = int if f.type in ("int", int) else float
-        try:
-            values[f.name] = kind(text)
-        except (TypeError, ValueError):
-            what = "a whole number" if kind is int else "a number"
-            raise SieveError(
-                f"shake --{f.name.replace('_', '-')} {text}: expected {what}"
-            ) from None
-    values.update(overrides)
+        if text is not None:
+            flag = "--" + f.name.replace("_", "-")
+            values[f.name] = read_value(ShakeSettings, f.name, _number(text), "shake", flag)
     return ShakeSettings(**values)
 
 
@@ -154,17 +166,28 @@ def cmd_shake(args) -> int:
     return 0
 
 
-def solve_shake_settings(text: str | None) -> ShakeSettings | None:
-    """``solve --shake N``'s settings (checked before the solve starts), None without it."""
+def trials_option(
+    text: str | None, command: str, flag: str = "--shake", base: ShakeSettings | None = None
+) -> ShakeSettings | None:
+    """``solve --shake N`` and ``sort --shake N``: ``base`` (default: the declared settings)
+    with N trials, checked before any work starts as ``--trials`` is; None without the option.
+
+    Raises
+    ------
+    SieveError
+        ``"{command}: --shake: expected a whole number, got 'lots'"`` and the like.
+    """
     if text is None:
         return None
-    try:
-        trials = int(text)
-    except ValueError:
-        raise SieveError(f"solve --shake {text}: expected a whole number of trials") from None
-    if trials < 1:
-        raise SieveError(f"solve --shake {text}: expected at least 1 trial")
-    return ShakeSettings(trials=trials)
+    from sieve_mi.scene import read_value
+
+    trials = read_value(ShakeSettings, "trials", _number(text), command, flag)
+    return replace(base or ShakeSettings(), trials=trials)
+
+
+def solve_shake_settings(text: str | None) -> ShakeSettings | None:
+    """``solve --shake N``'s settings (checked before the solve starts), None without it."""
+    return trials_option(text, "solve")
 
 
 def shake_after_solve(out_dir: str, settings: ShakeSettings, quiet: bool, to_stderr: bool) -> None:

@@ -13,7 +13,7 @@ from sieve_mi.shake.settings import CONTACT, SINK_BOUND_MM, ShakeSettings, metre
 from sieve_mi.shake.stats import summarize
 from sieve_mi.shake.trials import run_trials
 
-__all__ = ["FORMAT", "Progress", "shake"]
+__all__ = ["FORMAT", "Progress", "engine_doc", "motion_doc", "shake", "shape_entry"]
 
 #: Version of the ``shake.json`` layout.
 FORMAT = 1
@@ -23,18 +23,18 @@ class Progress:
     """Progress on stderr: a tqdm bar over trials on a terminal; elsewhere one plain line per
     shape when its trials are done (no carriage-return frames in logs); nothing when quiet."""
 
-    def __init__(self, enabled: bool, total: int):
-        self.enabled, self.total, self.bar = enabled, total, None
+    def __init__(self, enabled: bool, total: int, desc: str = "shake"):
+        self.enabled, self.total, self.bar, self.desc = enabled, total, None, desc
         self.plain = enabled and not sys.stderr.isatty()
         if enabled and not self.plain:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, desc="shake", unit="trial", dynamic_ncols=True)
+            self.bar = tqdm(total=total, desc=desc, unit="trial", dynamic_ncols=True)
 
     def shape(self, name: str) -> None:
         """A new shape starts."""
         if self.bar is not None:
-            self.bar.set_description(f"shake {name}")
+            self.bar.set_description(f"{self.desc} {name}")
 
     def trial(self, outcome) -> None:
         """One trial is done."""
@@ -45,7 +45,7 @@ class Progress:
         """A shape's trials are done."""
         if self.plain:
             print(
-                f"shake: {name}: {summary['passed']} of {summary['trials']} passed "
+                f"{self.desc}: {name}: {summary['passed']} of {summary['trials']} passed "
                 f"({100 * summary['fraction']:.1f} %) in {seconds:.1f} s",
                 file=sys.stderr,
                 flush=True,
@@ -56,7 +56,9 @@ class Progress:
             self.bar.close()
 
 
-def _engine() -> dict:
+def engine_doc() -> dict:
+    """The engine as ``shake.json`` records it: MuJoCo's version, integrator, contact
+    parameters, the plate's mass ratio and the sink bound (mm)."""
     import mujoco
 
     return {
@@ -68,12 +70,31 @@ def _engine() -> dict:
     }
 
 
-def _shape_entry(name, role, path, part, plate, settings, unit_m, progress) -> dict:
-    """One part's trials, statistics and fidelity."""
+def shape_entry(name, role, path, part, plate, settings, unit_m, progress, trials=None):
+    """One part's trials on one plate, their statistics and the part's fidelity there.
+
+    Parameters
+    ----------
+    name, role, path
+        The part's name, role (``"A"``, ``"B"`` or None) and file, for the entry.
+    part : Part
+    plate : Plate
+    settings : ShakeSettings
+    unit_m : float
+        Metres per scene unit.
+    progress : Progress
+    trials : sequence of int, optional
+        The trials to run (default every one, see :func:`~sieve_mi.shake.trials.run_trials`).
+
+    Returns
+    -------
+    (dict, float)
+        ``shake.json``'s entry of the shape, and the seconds it took.
+    """
     t0 = time.perf_counter()
     fidelity = measure_sink(plate, part, settings, unit_m)
     progress.shape(name)
-    outcomes = run_trials(plate, part, settings, unit_m, progress=progress.trial)
+    outcomes = run_trials(plate, part, settings, unit_m, progress.trial, indices=trials)
     summary = summarize(outcomes)
     seconds = time.perf_counter() - t0
     progress.done(name, summary, seconds)
@@ -118,7 +139,7 @@ def shake(
     shapes = []
     try:
         for name, role, path, part in parts:
-            entry, seconds = _shape_entry(name, role, path, part, plate, settings, unit_m, bar)
+            entry, seconds = shape_entry(name, role, path, part, plate, settings, unit_m, bar)
             shapes.append(entry)
             timings[f"trials_{len(shapes) - 1}_s"] = seconds
     finally:
@@ -134,8 +155,8 @@ def shake(
         "units": inp.units,
         "plate": {"file": inp.plate_path, **plate.to_dict()},
         "settings": {**settings.to_dict(), "units": ShakeSettings.units()},
-        "motion": _motion_doc(settings),
-        "engine": _engine(),
+        "motion": motion_doc(settings),
+        "engine": engine_doc(),
         "shapes": shapes,
         "fidelity_ok": all(s["fidelity"]["within_bound"] for s in shapes),
         **extra,
@@ -159,8 +180,8 @@ def _clip(path, inp, plate, parts, shapes, settings, unit_m) -> dict:
     return {**info, "trials": trials}
 
 
-def _motion_doc(settings: ShakeSettings) -> dict:
-    """The shaker motion in words and its peak values."""
+def motion_doc(settings: ShakeSettings) -> dict:
+    """The shaker motion in words and its peak values (m/s, g, rad/s)."""
     import math
 
     z, dz, _, dphi = plate_motion(0.0, settings)

@@ -1,5 +1,12 @@
 """The settings of a shake run: shaker motion, physics, trials; and the engine's fixed constants.
 
+Every setting is declared once, as a field of :class:`ShakeSettings` made by
+:func:`sieve_mi.scene.setting` (its default, meaning, unit and bounds), the way the scene's tables
+and ``check``'s options are: the ``sieve-mi shake`` options, the ``[shake]`` table of a mixture
+file and values given in code are all checked by :func:`sieve_mi.scene.read_value` against that
+declaration, with the one-line error a bad scene key gets (``shake: --trials: must be >= 1,
+got 0``).
+
 Lengths of the shaker (amplitude, wall, drop) are in millimetres whatever the scene's units: they
 describe the machine, not the parts. The parts and the plate are read in scene units and
 converted with :data:`UNIT_TO_M`.
@@ -7,14 +14,15 @@ converted with :data:`UNIT_TO_M`.
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, fields
 
 from sieve_mi.errors import SieveError
+from sieve_mi.scene import describe, read_value, setting, spec_of
 
 __all__ = [
     "CONTACT",
     "SINK_BOUND_MM",
+    "TIMESTEP_MAX_MS",
     "UNIT_TO_M",
     "ShakeSettings",
     "metres_per_unit",
@@ -37,58 +45,104 @@ CONTACT = {
     "condim": 3,
 }
 
+#: Longest integration step, ms: half the contact time constant (longer steps make contacts
+#: unstable).
+TIMESTEP_MAX_MS = CONTACT["solref"][0] / 2 * 1e3
 
+
+def _attributes(cls: type) -> type:
+    """Append a numpydoc ``Attributes`` section built from the fields' Specs to the docstring."""
+    lines = ["", "    Attributes", "    ----------"]
+    for f in fields(cls):
+        spec = spec_of(f)
+        unit = f" ({spec.unit})" if spec.unit else ""
+        lines += [
+            f"    {f.name} : {describe(cls, f)}, default {f.default!r}",
+            f"        {spec.doc[:1].upper()}{spec.doc[1:]}{unit}.",
+        ]
+    cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n" + "\n".join(lines) + "\n"
+    return cls
+
+
+@_attributes
 @dataclass(frozen=True)
 class ShakeSettings:
-    """What a shake run does; every field is a ``sieve-mi shake`` option of the same name.
+    """What a shake run does; every field is a ``sieve-mi shake`` option of the same name
+    (``coacd_threshold``: ``--coacd-threshold``) and a key of a mixture's ``[shake]`` table.
 
-    Attributes
-    ----------
-    trials : int
-        Independent trials per shape (each: one drop, then shaking for ``duration``).
-    duration : float
-        Shaking time per trial, seconds.
-    amplitude : float
-        Peak vertical displacement of the plate, millimetres (z = amplitude sin 2 pi f t).
-    frequency : float
-        Shaker frequency, Hz (mains-driven electromagnetic shakers: 50 or 60).
-    twist : float
-        Peak rotation of the plate about the vertical axis through its centre, degrees, in
-        phase with the vertical motion (the "3-D throwing motion" of lab shakers).
-    wall : float
-        Height of the frame wall around the plate above its top face, millimetres.
-    drop : float
-        Gap between the plate's top face and the part's bounding sphere at release, millimetres.
-    density : float
-        Density of every part, kg/m^3 (PLA: 1240).
-    friction : float
-        Coulomb friction coefficient between part and plate.
-    timestep : float
-        Integration step, milliseconds.
-    seed : int
-        Seed of the trials' random drops (same seed, same numbers).
-    coacd_threshold : float
-        CoACD's concavity threshold for non-convex parts (smaller: more, tighter pieces).
-    workers : int
-        Threads of MuJoCo's rollout; 0: every CPU core. Results do not depend on it.
+    A value out of its bounds (or of the wrong type) is refused when the settings are made, with
+    one :class:`~sieve_mi.errors.SieveError` line naming the setting (``shake: trials: must be
+    >= 1, got 0``).
     """
 
-    trials: int = 200
-    duration: float = 10.0
-    amplitude: float = 1.0
-    frequency: float = 50.0
-    twist: float = 0.5
-    wall: float = 50.0
-    drop: float = 5.0
-    density: float = 1240.0
-    friction: float = 0.4
-    timestep: float = 0.25
-    seed: int = 0
-    coacd_threshold: float = 0.05
-    workers: int = 0
+    trials: int = setting(
+        200, "independent trials per shape (one drop, then shaking)", minimum=1, maximum=1_000_000
+    )
+    duration: float = setting(
+        10.0, "shaking time per trial", unit="s", minimum=0.01, maximum=3600.0
+    )
+    amplitude: float = setting(
+        1.0,
+        "peak vertical displacement of the plate, z = amplitude sin(2 pi f t); "
+        "Retsch AS 200: up to 3",
+        unit="mm",
+        minimum=0.0,
+        maximum=50.0,
+    )
+    frequency: float = setting(
+        50.0, "shaker frequency (mains: 50 or 60)", unit="Hz", minimum=0.0, maximum=1000.0
+    )
+    twist: float = setting(
+        0.5,
+        "peak rotation of the plate about the vertical axis through its centre, in phase with "
+        "the lift",
+        unit="deg",
+        minimum=0.0,
+        maximum=45.0,
+    )
+    wall: float = setting(
+        50.0, "height of the frame wall above the plate", unit="mm", minimum=0.0, maximum=10_000.0
+    )
+    drop: float = setting(
+        5.0,
+        "gap between the plate and the part's bounding sphere at release",
+        unit="mm",
+        minimum=0.0,
+        maximum=10_000.0,
+    )
+    density: float = setting(
+        1240.0, "density of every part (PLA 1240)", unit="kg/m^3", minimum=1.0, maximum=100_000.0
+    )
+    friction: float = setting(
+        0.4, "Coulomb friction coefficient part-plate", minimum=0.0, maximum=10.0
+    )
+    timestep: float = setting(
+        0.25,
+        "integration step (at most half the contact time constant)",
+        unit="ms",
+        minimum=0.01,
+        maximum=TIMESTEP_MAX_MS,
+    )
+    seed: int = setting(
+        0, "seed of the random drops (same seed, same numbers)", minimum=0, maximum=2**63 - 1
+    )
+    coacd_threshold: float = setting(
+        0.05,
+        "CoACD's concavity threshold for non-convex parts (smaller: more, tighter pieces)",
+        minimum=0.01,
+        maximum=1.0,
+    )
+    workers: int = setting(
+        0,
+        "worker processes (0: every CPU core); results do not depend on it",
+        minimum=0,
+        maximum=1024,
+    )
 
     def __post_init__(self):
-        _check_settings(self)
+        for f in fields(self):  # as a scene key is checked; an int for a float becomes a float
+            value = read_value(ShakeSettings, f.name, getattr(self, f.name), "shake")
+            object.__setattr__(self, f.name, value)
 
     def to_dict(self) -> dict:
         """The settings as JSON-ready values (units in :meth:`units`)."""
@@ -96,52 +150,8 @@ class ShakeSettings:
 
     @staticmethod
     def units() -> dict:
-        """Unit of each setting, for the output."""
-        return {
-            "duration": "s",
-            "amplitude": "mm",
-            "frequency": "Hz",
-            "twist": "deg",
-            "wall": "mm",
-            "drop": "mm",
-            "density": "kg/m^3",
-            "timestep": "ms",
-        }
-
-
-_LIMITS = {
-    "trials": (1, 1_000_000),
-    "duration": (0.01, 3600.0),
-    "amplitude": (0.0, 50.0),
-    "frequency": (0.0, 1000.0),
-    "twist": (0.0, 45.0),
-    "wall": (0.0, 10_000.0),
-    "drop": (0.0, 10_000.0),
-    "density": (1.0, 100_000.0),
-    "friction": (0.0, 10.0),
-    "timestep": (0.01, 2.0),
-    "seed": (0, 2**63 - 1),
-    "coacd_threshold": (0.01, 1.0),
-    "workers": (0, 1024),
-}
-
-
-def _check_settings(s: ShakeSettings) -> None:
-    """Refuse a value out of range (or not a finite number) with one line naming the option."""
-    for f in fields(s):
-        value, (lo, hi) = getattr(s, f.name), _LIMITS[f.name]
-        flag = "--" + f.name.replace("_", "-")
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise SieveError(f"shake {flag} {value!r}: expected a number")
-        if f.type in ("int", int) and not isinstance(value, int):
-            raise SieveError(f"shake {flag} {value!r}: expected a whole number")
-        if not math.isfinite(value) or not lo <= value <= hi:
-            raise SieveError(f"shake {flag} {value}: expected a number from {lo} to {hi}")
-    if s.timestep * 1e-3 * 2 > CONTACT["solref"][0]:
-        raise SieveError(
-            f"shake --timestep {s.timestep}: at most {CONTACT['solref'][0] / 2 * 1e3:g} ms "
-            "(half the contact time constant, or contacts go unstable)"
-        )
+        """Unit of each setting that has one, for the output."""
+        return {f.name: spec_of(f).unit for f in fields(ShakeSettings) if spec_of(f).unit}
 
 
 def metres_per_unit(units: str) -> float:

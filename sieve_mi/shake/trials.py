@@ -117,8 +117,15 @@ def _worker_trial(trial: int) -> Outcome:
     return run_trial(w["model"], w["data"], trial, *w["args"])
 
 
-def run_trials(plate: Plate, part: Part, settings: ShakeSettings, unit_m: float, progress=None):
-    """All ``settings.trials`` trials of one part, on ``settings.workers`` processes.
+def run_trials(
+    plate: Plate,
+    part: Part,
+    settings: ShakeSettings,
+    unit_m: float,
+    progress=None,
+    indices=None,
+):
+    """The trials of one part, on ``settings.workers`` processes.
 
     Parameters
     ----------
@@ -126,18 +133,23 @@ def run_trials(plate: Plate, part: Part, settings: ShakeSettings, unit_m: float,
         As for :func:`run_trial`.
     progress : callable or None
         Called with each finished trial's :class:`Outcome` (in trial order).
+    indices : sequence of int, optional
+        The trials to run (a cascade runs on a lower sieve only the trials that passed the sieves
+        above); default every trial, ``range(settings.trials)``. Trial ``i`` is the same
+        whatever else runs.
 
     Returns
     -------
     list of Outcome
-        In trial order.
+        One per trial run, in the order of ``indices``.
     """
+    indices = list(range(settings.trials) if indices is None else indices)
     workers = settings.workers or _cpus()
-    workers = max(1, min(workers, settings.trials))
+    workers = max(1, min(workers, len(indices)))
     out = []
     if workers == 1:
         _init_worker(plate, part, settings, unit_m)
-        for i in range(settings.trials):
+        for i in indices:
             out.append(_worker_trial(i))
             if progress:
                 progress(out[-1])
@@ -147,7 +159,7 @@ def run_trials(plate: Plate, part: Part, settings: ShakeSettings, unit_m: float,
     method = "forkserver" if sys.platform.startswith("linux") else "spawn"
     ctx = multiprocessing.get_context(method)
     with ctx.Pool(workers, _init_worker, (plate, part, settings, unit_m)) as pool:
-        for outcome in pool.imap(_worker_trial, range(settings.trials)):
+        for outcome in pool.imap(_worker_trial, indices):
             out.append(outcome)
             if progress:
                 progress(outcome)

@@ -164,6 +164,60 @@ def test_a_pair_that_no_sieve_splits_shares_a_tray_with_the_reason(tmp_path):
     assert "ball20 passes" in pair["reason"] and "ball20_2 passes" in pair["reason"]
 
 
+@pytest.mark.slow
+def test_sort_shake_reports_the_trays_each_ball_ends_in(tmp_path):
+    # Balls of 24, 20 and 14 mm: sieve 1's hole is about a 21 mm disc (the falling balls grown
+    # by the 0.5 mm tolerance), which no pose of the 24 mm ball fits, so no trial gets it through
+    # and it never reaches sieve 2; sieve 2's hole (about 15 mm) never passes the 20 mm ball, so
+    # it cannot reach the bottom tray. 4 parts per shape, 1 s of shaking per sieve.
+    balls = {f"ball{d}": trimesh.creation.icosphere(3, d / 2) for d in (14, 24, 20)}
+    path = _mixture(tmp_path, balls, name="balls", extra="[shake]\nduration = 1.0\nworkers = 1\n")
+    proc = _cli("sort", path, "--serial", "--quiet", "--out", "out", "--shake", "4", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads((tmp_path / "out" / "cascade.json").read_text())
+    assert report["trays"] == [["ball24"], ["ball20"], ["ball14"]]
+    shake = report["shake"]
+    assert shake["trials"] == 4 and shake["settings"]["duration"] == 1.0
+    counts = {s["name"]: [t["count"] for t in s["trays"]] for s in shake["shapes"]}
+    assert counts["ball24"] == [4, 0, 0] and counts["ball20"][2] == 0
+    assert all(sum(c) == 4 for c in counts.values())
+    top = shake["sieves"][0]
+    assert [r["name"] for r in top["shapes"]] == ["ball24", "ball20", "ball14"]
+    assert top["shapes"][0]["passed"] == 0 and top["plate"]["file"].endswith("/sieve.stl")
+    assert "ball24" not in [r["name"] for r in shake["sieves"][1]["shapes"]]
+    assert "shake trials: 4 parts of each shape" in proc.stdout
+    assert "ball24          * 1.000 [0.510, 1.000]" in proc.stdout
+
+
+def test_bad_shake_settings_of_sort_are_one_line_before_any_game(tmp_path):
+    two = _mixture(
+        tmp_path,
+        {"a": trimesh.creation.box((1.0, 1.0, 1.0)), "b": trimesh.creation.box((2.0, 2.0, 2.0))},
+        name="two",
+    )
+    for value, words in (("many", "expected a whole number, got 'many'"), ("0", "must be >= 1")):
+        proc = _cli("sort", two, "--serial", "--shake", value, cwd=tmp_path)
+        _one_error_line(proc, f"sort: --shake: {words}")
+    cases = [
+        ("duration = 0", "shake.duration: must be >= 0.01, got 0"),
+        ("timestep = 1.0", "shake.timestep: must be <= 0.5, got 1.0"),
+        ("trials = 5", "shake.trials: give the number of trials as sort --shake N"),
+        ("speed = 3", "shake.speed: unknown key"),
+    ]
+    for line, words in cases:
+        bad = _mixture(
+            tmp_path,
+            {
+                "a": trimesh.creation.box((1.0, 1.0, 1.0)),
+                "b": trimesh.creation.box((2.0, 2.0, 2.0)),
+            },
+            name="bad",
+            extra=f"[shake]\n{line}\n",
+        )
+        _one_error_line(_cli("sort", bad, "--serial", "--shake", "2", cwd=tmp_path), words)
+    assert not (tmp_path / "out").exists()
+
+
 def test_sweep_keeps_the_run_with_the_largest_margin(tmp_path):
     from sieve_mi.cascade.sweep import sweep_scene
     from sieve_mi.scene import load_scene

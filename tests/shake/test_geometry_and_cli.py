@@ -113,8 +113,12 @@ def test_shake_sieve_json_same_seed_same_numbers(tmp_path):
     [
         (("shake",), "one solve output folder"),
         (("shake", "/no/such/folder"), "no such folder"),
-        (("shake", ".", "--trials", "many"), "--trials many: expected a whole number"),
-        (("shake", ".", "--frequency", "-5"), "--frequency -5.0: expected a number"),
+        (
+            ("shake", ".", "--trials", "many"),
+            "shake: --trials: expected a whole number, got 'many'",
+        ),
+        (("shake", ".", "--frequency", "-5"), "shake: --frequency: must be >= 0.0, got -5"),
+        (("shake", ".", "--timestep", "1"), "shake: --timestep: must be <= 0.5, got 1"),
         (("shake", "--sieve", "/no/plate.stl", "/no/part.stl"), "not found"),
     ],
 )
@@ -127,7 +131,41 @@ def test_bad_input_is_one_line_exit_2(args, message):
 
 def test_solve_shake_bad_value_stops_before_the_solve(tmp_path):
     p = run_cli("solve", os.path.join(REPO, "scenes", "default.toml"), "--shake", "lots")
-    assert p.returncode == 2 and "--shake lots: expected a whole number" in p.stderr
+    assert p.returncode == 2 and "solve: --shake: expected a whole number, got 'lots'" in p.stderr
+
+
+def test_shake_settings_are_checked_as_scene_keys_are():
+    """The options, the values given in code and a mixture's [shake] table are checked by one
+    declaration (sieve_mi.scene.read_value), with the one-line error a bad scene key gets: it
+    names the setting (as given), the bound to keep and the value."""
+    import argparse
+    from dataclasses import replace
+
+    from sieve_mi.scene import read_value
+    from sieve_mi.shake.commands import add_settings, settings_from_args, trials_option
+    from sieve_mi.shake.settings import ShakeSettings
+
+    with pytest.raises(SieveError, match=r"^shake: trials: must be >= 1, got 0$"):
+        ShakeSettings(trials=0)
+    with pytest.raises(SieveError, match=r"^shake: --trials: must be >= 1, got 0$"):
+        settings_from_args(argparse.Namespace(trials="0"))
+    with pytest.raises(SieveError, match=r"^shake: --seed: expected a whole number, got 1.5$"):
+        settings_from_args(argparse.Namespace(seed="1.5"))
+    with pytest.raises(SieveError, match=r"^shake: duration: expected a number, got 'long'$"):
+        ShakeSettings(duration="long")
+    with pytest.raises(SieveError, match=r"^sort: --shake: must be >= 1, got -3$"):
+        trials_option("-3", "sort")
+    with pytest.raises(SieveError, match=r"^shake: --twist: must be <= 45.0, got 90$"):
+        read_value(ShakeSettings, "twist", 90, "shake", "--twist")
+    given = settings_from_args(argparse.Namespace(trials="7", duration="2", coacd_threshold="0.1"))
+    assert given == ShakeSettings(trials=7, duration=2.0, coacd_threshold=0.1)
+    assert type(given.duration) is float and type(given.trials) is int
+    assert trials_option("3", "sort", base=given) == replace(given, trials=3)
+    parser = argparse.ArgumentParser()
+    add_settings(parser)
+    text = " ".join(parser.format_help().split())
+    assert "integration step (at most half the contact time constant) (number 0.01–0.5, ms" in text
+    assert "--coacd-threshold COACD_THRESHOLD" in text and "(int 1–1000000, default 200)" in text
 
 
 @pytest.mark.slow
