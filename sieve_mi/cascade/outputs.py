@@ -10,9 +10,12 @@ import numpy as np
 
 from sieve_mi.cascade.plan import Plan
 from sieve_mi.outputs.palette import hex_colour
+from sieve_mi.outputs.plots import draw_contours, grid_figure, plan_view, save, wrap
 
 __all__ = [
+    "CASCADE_PANEL",
     "cascade_dict",
+    "cascade_figure",
     "copy_games",
     "plate_names",
     "side_by_side",
@@ -144,72 +147,89 @@ def write_plates(plan: Plan, tmp: str, gap: float, units: str) -> list[str]:
     return ["cascade.stl", "cascade.3mf"]
 
 
+#: cascade.png: the width of a panel, inches.
+CASCADE_PANEL = 2.6
+
+
 def write_figure(path: str, plan: Plan, units: str, icons: dict | None = None) -> None:
-    """``cascade.png``: each sieve's exact hole, top to bottom, and below it the tray it fills.
+    """``cascade.png``: the picture of :func:`cascade_figure`."""
+    save(cascade_figure(plan, units, icons), path)
+
+
+def cascade_figure(plan: Plan, units: str, icons: dict | None = None):
+    """cascade.png's figure: each sieve's exact hole, and under the sieves the trays they fill.
+
+    The top row holds the sieves, left to right from the top of the stack; the row below holds
+    the trays, one more than there are sieves (the last one catches what passes every sieve),
+    so the sieves' row is centred over it, half a panel in: no cell is left empty. Every panel
+    is to one scale, with axes and a scale bar in ``units``
+    (:func:`~sieve_mi.outputs.plots.plan_view`); what a sieve holds and passes, and what a tray
+    holds, are its panel's title, above the panel and wrapped to its width.
 
     Parameters
     ----------
-    path : str
     plan : Plan
     units : str
     icons : dict, optional
         Shape name -> list of (n, 2) polygons (its silhouette along its passage view), drawn in
-        the trays at the holes' scale.
+        the trays at the holes' scale, left to right in the order the title names them.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    trays = plan.trays
-    n = len(trays)
     holes = [[np.asarray(p) for p in s.record["summary"]["outline"]] for s in plan.sieves]
-    rows = [_tray_layout(names, icons or {}) for names in trays]
+    trays = [_tray_layout(names, icons or {}) for names in plan.trays]
     reach = max(
         [np.abs(p).max() for h in holes for p in h]
-        + [np.abs(p).max() for row in rows for _, polys in row for p in polys]
+        + [np.abs(p).max() for row in trays for _, polys in row for p in polys]
         + [1.0]
     )
-    fig, axes = plt.subplots(2, n, figsize=(2.8 * n, 6.2), squeeze=False)
-    for k in range(n):
-        top, tray = axes[0, k], axes[1, k]
-        if k < len(plan.sieves):
-            top.set_facecolor(hex_colour("material"))
-            for p in holes[k]:
-                top.fill(
-                    *p.T, color=hex_colour("hole"), edgecolor=hex_colour("edge"), linewidth=1.0
-                )
-            top.set_title(f"sieve {k + 1}", fontsize=9)
-            top.text(
-                0.5, 0.02, "passes: " + ", ".join(plan.sieves[k].passes), transform=top.transAxes,
-                ha="center", va="bottom", fontsize=7, wrap=True,
-            )  # fmt: skip
-            top.tick_params(labelsize=7)
-        else:
-            top.axis("off")
-        for name, polys in rows[k]:
-            for p in polys:
-                tray.fill(
-                    *p.T, color=hex_colour("tray"), edgecolor=hex_colour("edge"), linewidth=0.8
-                )
-            if polys:
-                pts = np.concatenate(polys)
-                tray.text(pts[:, 0].mean(), -reach * 0.95, name, ha="center", fontsize=8)
-        tray.set_title(f"tray {k + 1}: " + " + ".join(trays[k]), fontsize=9)
-        tray.axis("off")
-        for ax in (top, tray):
-            ax.set_xlim(-reach * 1.05, reach * 1.05)
-            ax.set_ylim(-reach * 1.05, reach * 1.05)
-            ax.set_aspect("equal")
-    fig.suptitle(f"cascade, top to bottom (all panels to one scale, {units})", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    size, lim = CASCADE_PANEL, 1.05 * reach
+    sieve_titles = [wrap(_sieve_title(s, k), size, 8) for k, s in enumerate(plan.sieves)]
+    tray_titles = [wrap(_tray_title(plan, k), size, 8) for k in range(len(trays))]
+    texts = [t for t in (sieve_titles, tray_titles) if t]
+    title = f"cascade, top to bottom (all panels to one scale, {units})"
+    title = wrap(title, size * max(map(len, texts)) + 0.3, 10)  # the figure's width
+    fig, rows = grid_figure(
+        [len(t) for t in texts], size, 110, title_size=8, suptitle_lines=title.count("\n") + 1,
+        title_lines=[max(t.count("\n") + 1 for t in row) for row in texts],
+    )  # fmt: skip
+    for k, ax in enumerate(rows[0] if holes else []):
+        plan_view(ax, lim, units, plate=True, ylabel=k == 0)
+        draw_contours(
+            ax, holes[k], facecolor=hex_colour("hole"), edgecolor=hex_colour("edge"), linewidth=1.0
+        )
+        ax.set_title(sieve_titles[k], fontsize=8)
+    for k, ax in enumerate(rows[-1]):
+        plan_view(ax, lim, units, ylabel=k == 0)
+        for _, polys in trays[k]:
+            draw_contours(
+                ax, polys, facecolor=hex_colour("tray"), edgecolor=hex_colour("edge"), linewidth=0.8
+            )
+        ax.set_title(tray_titles[k], fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def _sieve_title(sieve, k: int) -> str:
+    """Sieve k's title: what it holds and what it passes."""
+    return f"sieve {k + 1} holds {' + '.join(sieve.holds)}\npasses: {', '.join(sieve.passes)}"
+
+
+def _tray_title(plan: Plan, k: int) -> str:
+    """Tray k's title: which sieve it lies under and the shapes it holds, left to right."""
+    names = plan.trays[k]
+    where = (
+        f"on sieve {k + 1}" if k < len(plan.sieves) else "under every sieve" if plan.sieves else ""
+    )
+    order = " (left to right)" if len(names) > 1 else ""
+    return f"tray {k + 1}{', ' + where if where else ''}: {' + '.join(names)}{order}"
 
 
 def _tray_layout(names: list, icons: dict) -> list:
     """The shapes of one tray side by side, centred on the origin: [(name, polygons), ...]."""
-    placed, x = [], 0.0
+    placed, x, right = [], 0.0, 0.0
     for name in names:
         polys = [np.asarray(p, dtype=float) for p in icons.get(name, [])]
         if polys:
@@ -217,10 +237,10 @@ def _tray_layout(names: list, icons: dict) -> list:
             centre_y = 0.5 * (pts[:, 1].min() + pts[:, 1].max())
             shift = np.array([x - pts[:, 0].min(), -centre_y])
             polys = [p + shift for p in polys]
-            x += (pts[:, 0].max() - pts[:, 0].min()) * 1.15
+            right = x + pts[:, 0].max() - pts[:, 0].min()
+            x = right + 0.15 * (pts[:, 0].max() - pts[:, 0].min())
         placed.append((name, polys))
-    width = x / 1.15 if x else 0.0
-    return [(name, [p - [width / 2, 0.0] for p in polys]) for name, polys in placed]
+    return [(name, [p - [right / 2, 0.0] for p in polys]) for name, polys in placed]
 
 
 def write_json(path: str, data: dict) -> None:

@@ -9,6 +9,8 @@ viewer
     ``report.html`` (and the ``check`` page): one offline page with a 3D view (``assets/``).
 figure
     ``figure.png``: a Mitsuba rendering of the sieve.
+plots
+    The layout of the matplotlib pictures: text off the shapes, axes and scale bars in 2D views.
 animation
     ``passage.gif``: the shapes moving through (or stopping at) the plate.
 passage
@@ -27,6 +29,7 @@ __all__ = [
     "figure",
     "outdir",
     "passage",
+    "plots",
     "provenance",
     "report",
     "viewer",

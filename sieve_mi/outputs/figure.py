@@ -42,6 +42,7 @@ __all__ = [
     "SUN_RGB",
     "TITLE_BAND",
     "render_figure",
+    "title_figure",
 ]
 
 #: Camera direction: azimuth (degrees, from +x towards +y) and elevation above the plate (degrees)
@@ -409,29 +410,49 @@ def _to_srgb8(image: np.ndarray, colour: bool) -> np.ndarray:
     return np.round(255 * srgb).astype(np.uint8)
 
 
-def _with_title(rgb: np.ndarray, title: str) -> np.ndarray:
-    """The picture with ``title`` drawn centred in the band at its top (same size, matplotlib's Agg)."""
+def title_figure(width: int, height: int, title: str):
+    """The title of a picture of ``width`` x ``height`` pixels, alone on a transparent figure.
+
+    The title is centred in the top :data:`TITLE_BAND` of the picture, which :func:`_camera`
+    keeps free of the shapes; its font is as large as half the band, or smaller, so that the
+    line fits the picture's width with a margin (:data:`MARGIN`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        With an Agg canvas, 100 dpi, one text and a transparent background: drawn over the
+        rendered picture by :func:`_with_title`.
+    """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    h, w = rgb.shape[:2]
     dpi = 100.0
-    fig = Figure(figsize=(w / dpi, h / dpi), dpi=dpi)
-    canvas = FigureCanvasAgg(fig)
-    ax = fig.add_axes((0, 0, 1, 1))
-    ax.imshow(rgb, interpolation="nearest", aspect="auto")
-    ax.set_axis_off()
-    points = max(6.0, 0.5 * TITLE_BAND * h * 72 / dpi)
-    fig.text(
+    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
+    FigureCanvasAgg(fig)
+    fig.patch.set_alpha(0.0)
+    points = max(4.0, 0.5 * TITLE_BAND * height * 72 / dpi)
+    text = fig.text(
         0.5, 1 - TITLE_BAND / 2, title, ha="center", va="center", fontsize=points, color="#202020"
     )
-    canvas.draw()
-    out = np.asarray(canvas.buffer_rgba())[..., :3]
-    if out.shape[:2] != (h, w):  # rounding of the figure size: keep the requested size exactly
-        pad = np.zeros((max(h, out.shape[0]), max(w, out.shape[1]), 3), np.uint8)
-        pad[: out.shape[0], : out.shape[1]] = out
-        out = pad[:h, :w]
-    return np.ascontiguousarray(out)
+    wide = text.get_window_extent(fig.canvas.get_renderer()).width
+    room = (1 - MARGIN) * width
+    if wide > room:
+        text.set_fontsize(max(1.0, points * room / wide))
+    return fig
+
+
+def _with_title(rgb: np.ndarray, title: str) -> np.ndarray:
+    """The picture with ``title`` drawn over it (:func:`title_figure`); every pixel that the
+    text does not cover keeps its value."""
+    h, w = rgb.shape[:2]
+    fig = title_figure(w, h, title)
+    fig.canvas.draw()
+    drawn = np.asarray(fig.canvas.buffer_rgba())
+    text = np.zeros((h, w, 4), np.uint8)  # the figure's size may round by a pixel: keep (h, w)
+    text[: min(h, drawn.shape[0]), : min(w, drawn.shape[1])] = drawn[:h, :w]
+    alpha = text[..., 3:].astype(np.float32) / 255
+    out = rgb.astype(np.float32) * (1 - alpha) + text[..., :3].astype(np.float32) * alpha
+    return np.ascontiguousarray(np.round(out).astype(np.uint8))
 
 
 def _write_png(path: str, rgb: np.ndarray, title: str | None) -> None:

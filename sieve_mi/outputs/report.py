@@ -19,15 +19,20 @@ from sieve_mi.geometry.meshes import mesh_sha256
 from sieve_mi.geometry.pixels import png_metadata
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.palette import block_colour, hex_colour
+from sieve_mi.outputs.plots import draw_contours, grid_figure, new_figure, plan_view, save, wrap
 from sieve_mi.outputs.provenance import provenance
 
 __all__ = [
+    "OVERLAY_COLUMNS",
+    "OVERLAY_PANEL",
     "STAGES",
+    "convergence_figure",
     "exr_metadata",
     "stage_line",
     "input_paths",
     "mask_layers",
     "merge_hint",
+    "overlay_figure",
     "paste_window",
     "rendered_masks",
     "report_dict",
@@ -314,78 +319,83 @@ def _provenance(result: Result) -> dict:
     return out
 
 
-def _convergence_png(path: str, history: list[float], final: float | None = None) -> None:
-    """Player A's best game value per search iteration; ``final`` (report.json's
-    ``search_value``: the game value of the search's last stage, polish or placement) as a dashed
-    line, and a note when the curve is flat."""
-    import matplotlib
+#: overlay.png: the width of a panel (inches) and the most panels in a row.
+OVERLAY_PANEL = 3.6
+OVERLAY_COLUMNS = 4
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(5, 3.2), dpi=120)
+def convergence_figure(history: list[float], final: float | None = None):
+    """convergence.png's figure: player A's best game value per search iteration.
+
+    ``final`` (report.json's ``search_value``: the game value of the search's last stage, polish
+    or placement) is drawn as a dashed line; what the dashed line is, and a note when the curve
+    is flat, go into a caption under the plot, never onto the curve.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig = new_figure(5.0, 3.4, 120)
+    ax = fig.subplots()
+    notes = []
     if history:
         ax.plot(range(len(history)), history, marker="o", color=hex_colour("curve"))
         if final is not None and np.isfinite(final) and final != history[-1]:
             ax.axhline(final, linestyle="--", color=hex_colour("curve"), alpha=0.6)
-            ax.annotate(
-                f"last stage (search_value): {final:.5g}", (0, final), fontsize=8, va="bottom"
-            )
+            notes.append(f"dashed: the value after the last stage (search_value), {final:.5g}")
         if len(history) > 1 and max(history) - min(history) <= 1e-12 * max(1.0, abs(history[0])):
-            ax.text(0.5, 0.08, "flat: the canonical views already held the best rotation",
-                    ha="center", transform=ax.transAxes, fontsize=8)  # fmt: skip
+            notes.append("flat: the canonical views already held the best rotation")
     else:
-        ax.text(
-            0.5,
-            0.5,
-            "A's rotation was fixed: no search",
-            ha="center",
-            va="center",
-            transform=ax.transAxes,
-        )
+        ax.text(0.5, 0.5, "A's rotation was fixed: no search", ha="center", va="center",
+                transform=ax.transAxes)  # fmt: skip
     ax.set_xlabel("search iteration")
     ax.set_ylabel("best game value (min beta)")
     ax.set_title("Convergence of player A's search")
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    if notes:
+        fig.supxlabel(wrap("\n".join(notes), 4.8, 8), fontsize=8)
+    return fig
 
 
 def _draw_section(ax, section, **style) -> None:
     """Draw a manifold3d CrossSection (all its contours as one compound path) on an axis."""
-    from matplotlib.patches import PathPatch
-    from matplotlib.path import Path
-
-    verts, codes = [], []
-    for c in section.to_polygons():
-        c = np.asarray(c, dtype=np.float64)
-        verts += [*c, c[0]]
-        codes += [Path.MOVETO] + [Path.LINETO] * (len(c) - 1) + [Path.CLOSEPOLY]
-    if verts:
-        ax.add_patch(PathPatch(Path(np.array(verts), codes), **style))
+    draw_contours(ax, section.to_polygons(), **style)
 
 
-def _overlay_png(path: str, result: Result) -> None:
-    """The exact hole H with A's projection (dashed) and each B's best attempt drawn over it."""
-    import matplotlib
+def overlay_figure(result: Result):
+    """overlay.png's figure: the exact hole H, A's projection (dashed) and B's best attempts.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    One panel per B (at most :data:`OVERLAY_COLUMNS` in a row, a shorter last row centred), all
+    to one scale, each with axes and a scale bar in scene units (:func:`plots.plan_view
+    <sieve_mi.outputs.plots.plan_view>`); each panel's title (the B, blocked or not, β and
+    protrusion) is wrapped to the panel's width.
 
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     hole, a_sections, b_sections = result.overlay_sections()
-    lim = max(
+    lim = 1.04 * max(
         [result.hole.frame.half_extent]
-        + [float(np.abs(s.bounds()).max()) for s in [hole, *b_sections] if not s.is_empty()]
+        + [
+            float(np.abs(s.bounds()).max())
+            for s in [hole, *a_sections, *b_sections]
+            if not s.is_empty()
+        ]
     )
-    n_b = len(result.block_shapes)
-    cols = max(1, n_b)
-    fig, axes = plt.subplots(1, cols, figsize=(4.2 * cols, 4.4), dpi=120, squeeze=False)
-    straight = result.attack.blocked()[0]
-    blocked = [b.blocked for b in result.blocks]  # a thin-plate or certified passage passes
-    for j in range(cols):
-        ax = axes[0, j]
-        ax.set_facecolor(hex_colour("material"))
+    titles = [_overlay_title(result, j) for j in range(len(b_sections))] or [""]
+    titles = [wrap(t, OVERLAY_PANEL, 9) for t in titles]
+    counts = _rows(len(titles), OVERLAY_COLUMNS)
+    title = f"{result.scene.name}: winner {result.winner} (exact hole white, A dashed)"
+    title = wrap(title, OVERLAY_PANEL * max(counts) + 0.3, 10)  # the figure's width
+    starts = np.cumsum([0, *counts])
+    lines = [max(t.count("\n") + 1 for t in titles[a:b]) for a, b in zip(starts, starts[1:])]
+    fig, rows = grid_figure(
+        counts, OVERLAY_PANEL, 120, title_lines=lines, suptitle_lines=title.count("\n") + 1
+    )
+    panels = [(c, ax) for row in rows for c, ax in enumerate(row)]
+    for j, (c, ax) in enumerate(panels):
+        plan_view(ax, lim, result.scene.units, plate=True, ylabel=c == 0)
         _draw_section(
             ax, hole, facecolor=hex_colour("hole"), edgecolor=hex_colour("edge"), linewidth=0.6
         )
@@ -393,27 +403,32 @@ def _overlay_png(path: str, result: Result) -> None:
             _draw_section(
                 ax, sec, fill=False, edgecolor=hex_colour("pass"), linewidth=1.0, linestyle="--"
             )
-        if j < n_b:
-            colour = hex_colour(block_colour(bool(blocked[j])))
+        if j < len(b_sections):
+            colour = hex_colour(block_colour(bool(result.blocks[j].blocked)))
             _draw_section(ax, b_sections[j], facecolor=colour, alpha=0.55, linewidth=0)
-            status = "blocked" if blocked[j] else "PASSES"
-            if straight[j] and not blocked[j]:
-                status += _motion_note(result, j)
-            ax.set_title(
-                f"{result.block_shapes[j].name}: {status}\nbeta={result.attack.beta[0, j]:.4f}, "
-                f"protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}",
-                fontsize=9,
-            )
-        ax.set_xlim(-lim, lim)
-        ax.set_ylim(-lim, lim)
-        ax.set_aspect("equal")
-        ax.set_xlabel(result.scene.units)
-    fig.suptitle(
-        f"{result.scene.name}: winner {result.winner} (exact hole white, A dashed)", fontsize=10
+        ax.set_title(titles[j], fontsize=9)
+    fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def _rows(n: int, columns: int) -> list[int]:
+    """Panels per row for ``n`` panels, at most ``columns`` in a row, rows as even as can be."""
+    rows = -(-n // columns)
+    base, extra = divmod(n, rows)
+    return [base + 1] * extra + [base] * (rows - extra)
+
+
+def _overlay_title(result: Result, j: int) -> str:
+    """A B's panel title: its name, blocked or not (and how a blocked-straight B passes), β and
+    protrusion."""
+    blocked = result.blocks[j].blocked  # a thin-plate or certified passage passes
+    status = "blocked" if blocked else "PASSES"
+    if result.attack.blocked()[0][j] and not blocked:
+        status += _motion_note(result, j)
+    return (
+        f"{result.block_shapes[j].name}: {status}\nbeta={result.attack.beta[0, j]:.4f}, "
+        f"protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}"
     )
-    fig.tight_layout(rect=(0, 0, 1, 0.94))  # room for the title above the panels' titles
-    fig.savefig(path)
-    plt.close(fig)
 
 
 def _motion_note(result: Result, j: int) -> str:
@@ -526,8 +541,9 @@ def _write_images(result: Result, tmp: str) -> None:
             exr_metadata(result, (x0, y1)),
         )
     write_layers(os.path.join(tmp, "masks.exr"), layers, meta)
-    _convergence_png(os.path.join(tmp, "convergence.png"), result.history.best, result.search_value)
-    _overlay_png(os.path.join(tmp, "overlay.png"), result)
+    history, final = result.history.best, result.search_value
+    save(convergence_figure(history, final), os.path.join(tmp, "convergence.png"))
+    save(overlay_figure(result), os.path.join(tmp, "overlay.png"))
 
 
 def summary_table(report: dict) -> str:

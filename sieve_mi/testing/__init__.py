@@ -2,7 +2,8 @@
 
 :mod:`sieve_mi.testing.shapes` builds test solids with known answers (letters, Nieuwland's cube,
 prisms, coins); :mod:`sieve_mi.testing.mesh_io` reads back what the solver writes;
-:mod:`sieve_mi.testing.settings` holds the small solver settings tests and benchmarks run with.
+:mod:`sieve_mi.testing.settings` holds the small solver settings tests and benchmarks run with;
+:mod:`sieve_mi.testing.pictures` checks that a drawn picture keeps its text off its shapes.
 """
 
-__all__ = ["mesh_io", "settings", "shapes"]
+__all__ = ["mesh_io", "pictures", "settings", "shapes"]

@@ -13,7 +13,8 @@ from PIL import Image
 
 import sieve_mi.outputs.figure as figure
 from sieve_mi import backend
-from sieve_mi.outputs.figure import render_figure
+from sieve_mi.outputs.figure import render_figure, title_figure
+from sieve_mi.testing.pictures import layout_problems
 
 W, H, SPP = 160, 120, 4
 
@@ -111,6 +112,42 @@ def test_escaped_block_is_orange_and_title_keeps_size(tmp_path, scene, mi, colou
     assert _red(img).sum() < 0.1 * orange.sum(), "a B that passes must not be drawn red"
     # The title band at the top is dark text on the light ground.
     assert img[: int(figure.TITLE_BAND * H)].min() < 100
+
+
+def _grey(img: np.ndarray) -> np.ndarray:
+    """The plate's pixels: grey or a little blue (the ground is beige: red above blue)."""
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    return (np.abs(r - g) < 10) & (np.abs(g - b) < 10) & (b >= r - 3)
+
+
+def test_title_lies_in_its_band_on_no_shape(tmp_path, scene, mi, colour, monkeypatch):
+    """figure.png's title (a long one) sits in the band at the top, whole, where no shape was
+    rendered, and changes no pixel outside its own box."""
+    plate, passes, blocks = scene
+    w, h = 2 * W, 2 * H
+    title = "a scene with a rather long name, longer than the picture is wide: winner A"
+    args = (plate, passes, blocks, [True])
+    monkeypatch.setattr(figure, "_with_title", lambda rgb, title: rgb)
+    render_figure(str(tmp_path / "raw.png"), *args, width=w, height=h, spp=SPP, title=title)
+    monkeypatch.undo()
+    render_figure(str(tmp_path / "titled.png"), *args, width=w, height=h, spp=SPP, title=title)
+    with Image.open(tmp_path / "raw.png") as raw, Image.open(tmp_path / "titled.png") as titled:
+        raw, titled = (np.asarray(im.convert("RGB")).astype(int) for im in (raw, titled))
+    fig = title_figure(w, h, title)
+    assert layout_problems(fig) == []  # whole, inside the picture
+    box = fig.texts[0].get_window_extent(fig.canvas.get_renderer())  # pixels, y up
+    assert box.y0 >= h * (1 - figure.TITLE_BAND) - 1 and box.y1 <= h and box.width <= w
+    top, bottom = int(h - box.y1) - 2, int(np.ceil(h - box.y0)) + 2  # rows, y down, 2 px more
+    left, right = int(box.x0) - 2, int(np.ceil(box.x1)) + 2
+    changed = np.argwhere(np.any(raw != titled, axis=2))
+    assert len(changed) > 0
+    assert changed[:, 0].min() >= top and changed[:, 0].max() < bottom
+    assert changed[:, 1].min() >= left and changed[:, 1].max() < right
+    shapes = _green(raw) | _red(raw) | _orange(raw) | _grey(raw)
+    assert shapes[: int(h * (1 - figure.TITLE_BAND)) + 1].sum() > 0.2 * w * h
+    assert shapes[max(0, top) : bottom, max(0, left) : right].sum() == 0, (
+        "the title lies on a shape"
+    )
 
 
 def test_flat_open_meshes_render(tmp_path, mi, colour):

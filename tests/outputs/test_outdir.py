@@ -345,7 +345,7 @@ def _raise_interrupt(*args, **kwargs):
 @pytest.mark.parametrize(
     "module, name",
     [
-        ("sieve_mi.outputs.report", "_overlay_png"),  # before the fabrication step
+        ("sieve_mi.outputs.report", "overlay_figure"),  # before the fabrication step
         ("sieve_mi.outputs.fabrication", "write_svg"),  # during it: sieve.stl is already written
         ("sieve_mi.outputs.outdir", "write_marker"),  # after it: report.json is written
         ("sieve_mi.outputs.outdir", "_exchange"),  # at the swap itself

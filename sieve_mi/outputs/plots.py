@@ -1,0 +1,234 @@
+"""The layout shared by sieve-mi's matplotlib pictures: overlay.png, convergence.png, cascade.png.
+
+Every picture keeps three rules (``tests/outputs/test_layout.py`` and
+``tests/cascade/test_cascade_figure.py`` check them with :mod:`sieve_mi.testing.pictures`):
+
+* text has its own area — titles above the panels, captions below them, a scale bar's label in
+  the strip under the shapes — and never lies on a drawn shape; no two texts overlap, and none
+  is cut off at the picture's edge (long titles are wrapped to their panel's width);
+* every 2D view has axes in scene units and a scale bar (:func:`plan_view`);
+* the figure is built by a function that returns it (a :class:`matplotlib.figure.Figure` with an
+  Agg canvas, no pyplot state), and written by :func:`save`, so a test draws exactly what is saved.
+"""
+
+from __future__ import annotations
+
+import math
+import textwrap
+
+import numpy as np
+
+from sieve_mi.outputs.palette import hex_colour
+
+__all__ = [
+    "CHAR_WIDTH",
+    "LINE_HEIGHT",
+    "SCALE_BAR_GID",
+    "SCALE_STRIP",
+    "draw_contours",
+    "grid_figure",
+    "new_figure",
+    "nice_length",
+    "panel_grid",
+    "plan_view",
+    "save",
+    "wrap",
+]
+
+#: Height of the strip under a 2D view that holds the scale bar, as a fraction of the view's width.
+SCALE_STRIP = 0.16
+#: A generous mean width of a character, in ems (DejaVu Sans averages about 0.55): :func:`wrap`
+#: breaks lines so that they fit.
+CHAR_WIDTH = 0.62
+#: The height of a line of text, in ems (line spacing and padding included).
+LINE_HEIGHT = 1.35
+#: The ``gid`` of a scale bar's line and label (tests tell them from the shapes by it).
+SCALE_BAR_GID = "scale-bar"
+
+
+def new_figure(width: float, height: float, dpi: float):
+    """A figure of ``width`` x ``height`` inches with constrained layout and an Agg canvas.
+
+    Constrained layout keeps titles, axis labels, tick labels and a figure's super-title
+    (``suptitle``, ``supxlabel``) apart from each other and inside the picture.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def draw_contours(ax, contours, **style) -> None:
+    """Draw closed contours as one compound patch: a contour wound against the outer one is a hole.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    contours : list of (n, 2) array_like
+        Closed polygons (the first point is not repeated), e.g. a CrossSection's
+        ``to_polygons()``; nothing is drawn for none.
+    **style
+        Patch properties (``facecolor``, ``edgecolor``, ``linewidth``, ``fill``, ...).
+    """
+    from matplotlib.patches import PathPatch
+    from matplotlib.path import Path
+
+    verts, codes = [], []
+    for c in contours:
+        c = np.asarray(c, dtype=np.float64)
+        verts += [*c, c[0]]
+        codes += [Path.MOVETO] + [Path.LINETO] * (len(c) - 1) + [Path.CLOSEPOLY]
+    if verts:
+        ax.add_patch(PathPatch(Path(np.array(verts), codes), **style))
+
+
+def grid_figure(
+    counts: list[int],
+    panel: float,
+    dpi: float,
+    *,
+    title_lines: list[int],
+    title_size: float = 9.0,
+    suptitle_lines: int = 1,
+    suptitle_size: float = 10.0,
+) -> tuple:
+    """A figure for rows of 2D views (:func:`plan_view`), tall enough for their titles.
+
+    Parameters
+    ----------
+    counts : list of int
+        Panels per row (:func:`panel_grid`).
+    panel : float
+        Width of a panel with its tick labels, inches.
+    dpi : float
+    title_lines : list of int
+        Per row, the most lines a panel title of that row takes (after :func:`wrap`).
+    title_size, suptitle_size : float
+        Font sizes of the panel titles and the figure's title, points.
+    suptitle_lines : int
+        Lines of the figure's title.
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+    rows : list of list of matplotlib.axes.Axes
+        The panels, row by row (:func:`panel_grid`).
+    """
+    view = panel - 0.3  # the tick labels take the rest (never too little: an overfull layout fails)
+    heights = [
+        view * (1 + SCALE_STRIP) + 0.6 + lines * LINE_HEIGHT * title_size / 72
+        for lines in title_lines
+    ]
+    height = sum(heights) + suptitle_lines * LINE_HEIGHT * suptitle_size / 72 + 0.2
+    fig = new_figure(panel * max(counts) + 0.3, height, dpi)  # + the y label
+    return fig, panel_grid(fig, counts)
+
+
+def save(fig, path: str) -> None:
+    """Write ``fig`` as a PNG at its own size and resolution."""
+    fig.savefig(path, format="png")
+
+
+def wrap(text: str, width: float, fontsize: float) -> str:
+    """``text`` with its lines broken to fit ``width`` inches at ``fontsize`` points.
+
+    Existing line breaks are kept; a word longer than a line (a long shape name) is broken too.
+    """
+    chars = max(8, int(width * 72 / (CHAR_WIDTH * fontsize)))
+    return "\n".join(
+        textwrap.fill(line, chars, break_on_hyphens=False) or line for line in text.split("\n")
+    )
+
+
+def nice_length(span: float) -> float:
+    """The largest length of the form 1, 2 or 5 times a power of ten that is at most ``span``."""
+    if not span > 0 or not math.isfinite(span):
+        return 1.0
+    power = 10.0 ** math.floor(math.log10(span))
+    for step in (5.0, 2.0, 1.0):
+        if step * power <= span * (1 + 1e-9):
+            return float(f"{step * power:.6g}")
+    return float(f"{power:.6g}")
+
+
+def panel_grid(fig, counts: list[int]) -> list:
+    """Rows of equal panels, ``counts[r]`` in row r; a shorter row is centred under the longest.
+
+    The grid has two columns per panel of the longest row, so a row with one panel fewer is
+    offset by half a panel: no grid cell is left empty.
+
+    Returns
+    -------
+    list of list of matplotlib.axes.Axes
+        The panels of each row, left to right.
+    """
+    width = max(counts)
+    grid = fig.add_gridspec(len(counts), 2 * width)
+    rows = []
+    for r, m in enumerate(counts):
+        start = width - m
+        rows.append([fig.add_subplot(grid[r, start + 2 * c : start + 2 * c + 2]) for c in range(m)])
+    return rows
+
+
+def plan_view(
+    ax,
+    lim: float,
+    units: str,
+    *,
+    plate: bool = False,
+    ylabel: bool = True,
+    fontsize: float = 7.0,
+) -> None:
+    """Make ``ax`` a 2D view of the square [-lim, lim]² with axes and a scale bar in ``units``.
+
+    The view keeps equal scales on x and y; ticks and labels name scene units. Below the square a
+    strip (:data:`SCALE_STRIP` of the view's width) holds the scale bar — a 1-2-5 length about a
+    quarter of the view — and its label, so that neither lies on a shape drawn in the square.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    lim : float
+        Half the view's width, scene units; everything drawn lies in [-lim, lim]².
+    units : str
+        Scene units, e.g. ``"mm"``.
+    plate : bool
+        Fill the square with the plate's colour (the palette's ``material``), under the shapes.
+    ylabel : bool
+        Label the y axis too (the leftmost panel of a row).
+    fontsize : float
+        Of the tick labels and the scale bar's label, points.
+    """
+    from matplotlib.patches import Rectangle
+    from matplotlib.ticker import FixedLocator, MaxNLocator
+
+    span = 2 * lim
+    strip = SCALE_STRIP * span
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim - strip, lim)
+    ax.set_aspect("equal")
+    ticks = [
+        t for t in MaxNLocator(5, steps=[1, 2, 5, 10]).tick_values(-lim, lim) if -lim <= t <= lim
+    ]
+    ax.xaxis.set_major_locator(FixedLocator(ticks))
+    ax.yaxis.set_major_locator(FixedLocator(ticks))
+    ax.tick_params(labelsize=fontsize)
+    if plate:
+        ax.add_patch(Rectangle((-lim, -lim), span, span, facecolor=hex_colour("material"),
+                               linewidth=0, zorder=0.5))  # fmt: skip
+    ax.set_xlabel(f"x ({units})", fontsize=fontsize + 1)
+    if ylabel:
+        ax.set_ylabel(f"y ({units})", fontsize=fontsize + 1)
+    length = nice_length(0.3 * span)
+    x0, y = -lim + 0.06 * span, -lim - 0.5 * strip
+    ax.plot([x0, x0 + length], [y, y], color="#202020", linewidth=2.5, solid_capstyle="butt",
+            gid=SCALE_BAR_GID)  # fmt: skip
+    ax.text(x0 + length + 0.03 * span, y, f"{length:g} {units}", ha="left", va="center",
+            fontsize=fontsize, gid=SCALE_BAR_GID)  # fmt: skip
