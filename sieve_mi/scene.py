@@ -399,7 +399,9 @@ class Verdict:
         256, "raster side in pixels for the final hole and scores", minimum=16, maximum=4096
     )
     certify: bool = setting(
-        False, "after the verdict, try to prove that each blocked B cannot pass the exact hole"
+        True,
+        "after the verdict, try to prove that each blocked B cannot pass the exact hole "
+        "(in parallel over B; false turns it off)",
     )
     certify_budget: float = setting(
         30.0,

@@ -176,11 +176,12 @@ def cmd_sort(args) -> int:
 
 def tray_table(report: dict) -> str:
     """The cascade as text: one line per sieve and tray, then the inseparable pairs."""
-    lines = [f"{'sieve':<6}{'holds':<24}{'passes':<36}{'beta':>8}{'protrusion':>12}"]
+    lines = [f"{'sieve':<6}{'holds':<24}{'passes':<36}{'beta':>8}{'protrusion':>12}  certified"]
     for s in report["sieves"]:
         lines.append(
             f"{s['index'] + 1:<6}{'+'.join(s['holds']):<24}{', '.join(s['passes']):<36}"
-            f"{s['margins']['beta']:>8.4f}{s['margins']['protrusion']:>12.3f}"
+            f"{s['margins']['beta']:>8.4f}{s['margins']['protrusion']:>12.3f}  "
+            + _proofs_cell(s["blocks"])
         )
     lines.append("trays (top to bottom): " + " | ".join("+".join(t) for t in report["trays"]))
     for pair in report["inseparable"]:
@@ -188,6 +189,14 @@ def tray_table(report: dict) -> str:
     run = report["runner"]
     lines.append(f"games: {run['played']} played, {run['reused']} reused ({run['mode']})")
     return "\n".join(lines)
+
+
+def _proofs_cell(blocks: list) -> str:
+    """The tray table's 'certified' cell: "proved" when every held shape is, else per shape."""
+    status = [b.get("certified", "-") for b in blocks]
+    if status and all(x == "proved" for x in status):
+        return "proved"
+    return ", ".join(f"{b['name']} {x}" for b, x in zip(blocks, status))
 
 
 def cmd_sweep(args) -> int:

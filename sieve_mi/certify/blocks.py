@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 
+import manifold3d
 import numpy as np
 
 from sieve_mi.certify.certificate import Certification
@@ -61,12 +65,15 @@ def certify_blocks(
     trans: np.ndarray,
     blocked: np.ndarray,
     progress: Callable[[str], None] | None = None,
+    workers: int | None = None,
 ) -> list[Certification | None]:
     """Try to prove, for every B the verdict found blocked, that it cannot pass in any pose.
 
     The hole is the exact outline the plate is cut from (:func:`sieve_mi.geometry.outline.hole_outline`:
     A's placed projections, dilated by the tolerance, gaps filled), grown by ``block_margin``
     when there is one, so a proof covers the printed plate and the margin the scene asks for.
+    The proofs run in parallel, one forked worker process per B (at most ``workers`` at once),
+    each with ``[verdict] certify_budget`` seconds.
 
     Parameters
     ----------
@@ -81,26 +88,45 @@ def certify_blocks(
         The verdict's answer per B; only blocked B are certified.
     progress : callable, optional
         Called with one line per proof as it ends.
+    workers : int, optional
+        Worker processes (default: the machine's CPU count); 1 runs the proofs here, one by one.
 
     Returns
     -------
     list of Certification or None
         Per B, its certification, or None where the verdict already let it through.
     """
-    from sieve_mi.certify import certify
-
     fab = scene.fabrication
     closed = [is_closed(s) for s in pass_shapes]
     hole = hole_outline(pass_shapes, quats, trans, fab.tolerance, fab.fill_holes, closed)
     if fab.block_margin > 0:
         hole = dilated(hole, fab.block_margin)
-    out: list[Certification | None] = []
-    for shape, is_blocked in zip(block_shapes, blocked):
-        if not is_blocked:
-            out.append(None)
-            continue
-        c = certify(shape, [hole], budget_s=scene.verdict.certify_budget)
-        out.append(c)
+    todo = [j for j, b in enumerate(blocked) if b]
+    contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
+    budget = scene.verdict.certify_budget
+    out: list[Certification | None] = [None] * len(block_shapes)
+    for j, c in _proofs([block_shapes[j] for j in todo], contours, budget, workers):
+        out[todo[j]] = c
         if progress is not None:
-            progress(f"certify {shape.name}: {c.status} ({c.seconds:.1f} s)")
+            progress(f"certify {block_shapes[todo[j]].name}: {c.status} ({c.seconds:.1f} s)")
     return out
+
+
+def _proofs(shapes: list[Shape], contours: list, budget_s: float, workers: int | None):
+    """Yield ``(index, Certification)`` for each shape as its proof ends (forked workers)."""
+    n = max(1, min(len(shapes), workers or os.cpu_count() or 1))
+    if n == 1:
+        for j, shape in enumerate(shapes):
+            yield j, _prove(shape, contours, budget_s)
+        return
+    with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork")) as pool:
+        jobs = {pool.submit(_prove, shape, contours, budget_s): j for j, shape in enumerate(shapes)}
+        for job in as_completed(jobs):
+            yield jobs[job], job.result()
+
+
+def _prove(shape: Shape, contours: list, budget_s: float) -> Certification:
+    """Worker: certify one shape against the hole given by its contours."""
+    from sieve_mi.certify import certify
+
+    return certify(shape, [manifold3d.CrossSection(contours)], budget_s=budget_s)

@@ -35,10 +35,10 @@ __all__ = [
     "width_test",
 ]
 
-#: Segments per full circle of the round joins of H's offsets (chords within 0.12 % of the radius).
-ROUND_SEGMENTS = 64
+#: Segments per full circle of the round joins of H's offsets (chords within 0.5 % of the radius).
+ROUND_SEGMENTS = 32
 #: Growth factor of the radius grid offsets are rounded up to (one cached offset per grid value).
-RADIUS_STEP = 1.06
+RADIUS_STEP = 1.02
 
 
 # ------------------------------------------------------------------------------------------------

@@ -4,7 +4,9 @@ Certificate format (``"format": "sieve-mi-certificate/1"``; lengths in scene uni
 
 * ``shape``: ``path``, ``scale``, the centred mesh (``vertices`` (V, 3), ``faces`` (F, 3)), its
   ``sha256`` (see :func:`mesh_hash`; the replay compares it with the file at ``path`` when that
-  exists) and ``points``: the (k, 3) vertices the evidence refers to by index.
+  exists), ``points``: the (k, 3) points the evidence refers to by index, and ``on_edge``: per
+  point null (a vertex) or ``[i, j, lam]`` (the point v_i + lam (v_j - v_i) on the mesh edge
+  (i, j), 0 <= lam <= 1; only with symmetry "none").
 * ``hole``: the contours of H (list of (m, 2) lists; outer counter-clockwise, holes clockwise).
 * ``symmetry``: ``"none"``, ``"klein"`` or ``"octahedral"``: the domain searched (module
   :mod:`sieve_mi.certify.symmetry`).
@@ -182,6 +184,9 @@ def build(
     used = sorted(outcome.points) if outcome is not None else []
     renumber = {old: new for new, old in enumerate(used)}
     vertices = shape.vertices[np.unique(shape.faces)]
+    if outcome is not None and outcome.candidates is not None:
+        vertices = outcome.candidates
+    on_edge = [outcome.on_edge.get(u) for u in used] if outcome is not None else []
 
     def renum(node: dict) -> dict:
         if "c" in node:
@@ -204,6 +209,7 @@ def build(
             "vertices": shape.vertices.tolist(),
             "faces": shape.faces.tolist(),
             "points": vertices[used].tolist(),
+            "on_edge": on_edge,
         },
         "hole": [np.asarray(c, dtype=np.float64).tolist() for c in contours],
         "symmetry": symmetry,

@@ -6,7 +6,8 @@ polygon is matplotlib's ``Path`` (even-odd over the contours), and the distance 
 ball evidence is trimesh's ``triangles.closest_point``. The replay
 
 1. checks that the stored mesh matches its hash (and the file at ``shape.path``, when present) and
-   that every evidence point is a vertex of the mesh;
+   that every evidence point is a vertex of the mesh or lies on one of its edges (recomputed here
+   from the edge and its parameter; edge points only without a symmetry reduction);
 2. checks the claimed symmetry group on the mesh and that the tree's roots are its domain's faces;
 3. walks the tree, rebuilding each cell's box by halving (so the leaves cover the domain by
    construction; a split node must have exactly 8 children);
@@ -36,6 +37,7 @@ __all__ = [
     "MAX_ERRORS",
     "Hole",
     "MAX_BOXES",
+    "SAMPLE_SPACING",
     "Replay",
     "cell_angle",
     "disk_never_fits",
@@ -48,6 +50,8 @@ __all__ = [
 ]
 
 MAX_BOXES = 400_000
+#: Boundary sample spacing of :meth:`Hole.beyond`, relative to the hole's size.
+SAMPLE_SPACING = 2e-4
 
 
 class Hole:
@@ -61,6 +65,7 @@ class Hole:
         self.a = np.concatenate(self.contours)
         self.b = np.concatenate([np.roll(c, -1, axis=0) for c in self.contours])
         self.vertices = self.a
+        self._tree = None
 
     def contains(self, p: np.ndarray) -> np.ndarray:
         count = np.zeros(len(p), dtype=np.int64)
@@ -82,6 +87,40 @@ class Hole:
     def outside_by(self, p: np.ndarray) -> np.ndarray:
         """Distance from each point to H (0 inside), (n,)."""
         return np.where(self.contains(p), 0.0, self.distance(p))
+
+    def beyond(self, p: np.ndarray, bound: np.ndarray) -> np.ndarray:
+        """(n,) bool: each point lies outside H further than its ``bound`` (decided exactly).
+
+        A k-d tree over boundary samples (spacing at most ``spacing``) settles most points: the
+        distance to the nearest sample is at least the distance to the boundary and at most
+        half a spacing more (every boundary point has a sample within half a spacing). Points
+        it cannot settle get the exact distance.
+        """
+        if self._tree is None:
+            self._sample()
+        out = ~self.contains(p)
+        near = self._tree.query(p[out])[0]
+        lower = near - self._slack
+        sure, unsure = lower > bound[out], (lower <= bound[out]) & (near > bound[out])
+        idx = np.flatnonzero(out)
+        decided = sure.copy()
+        if unsure.any():
+            decided[unsure] = self.distance(p[idx[unsure]]) > bound[out][unsure]
+        out[idx] = decided
+        return out
+
+    def _sample(self) -> None:
+        from scipy.spatial import cKDTree
+
+        size = float(np.max(self.vertices.max(0) - self.vertices.min(0)))
+        spacing = max(size, 1e-300) * SAMPLE_SPACING
+        length = np.linalg.norm(self.b - self.a, axis=1)
+        n = np.ceil(length / spacing).astype(np.int64) + 1
+        u = np.concatenate([np.linspace(0.0, 1.0, k) for k in n])
+        seg = np.repeat(np.arange(len(n)), n)
+        pts = self.a[seg] + u[:, None] * (self.b - self.a)[seg]
+        self._tree = cKDTree(pts)
+        self._slack = 0.5 * spacing * (1 + 1e-9) + 1e-12 * size
 
 
 def rotation(q: np.ndarray) -> np.ndarray:
@@ -122,7 +161,8 @@ def no_translation(hole: Hole, proj: np.ndarray, radii: np.ndarray, resolve: flo
         if len(centres) > MAX_BOXES or e < 0.25 * resolve:
             return False
         placed = (centres[:, None, :] + proj[None]).reshape(-1, 2)
-        far = hole.outside_by(placed).reshape(len(centres), -1) > radii[None] + e
+        bound = np.broadcast_to(radii[None] + e, (len(centres), len(proj))).reshape(-1)
+        far = hole.beyond(placed, bound).reshape(len(centres), -1)
         centres, half = centres[~far.any(axis=1)], 0.5 * half
         offsets = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]) * half
         centres = (centres[:, None, :] + offsets[None]).reshape(-1, 2)
@@ -165,6 +205,7 @@ class Replay:
         a = np.pi * np.arange(m) / m
         self.dirs = np.column_stack([np.cos(a), np.sin(a)])
         self.leaves = self.open = 0
+        self._edges = None
 
     def check_mesh(self) -> None:
         h = hashlib.sha256()
@@ -182,9 +223,34 @@ class Replay:
             ):
                 self.errors.append(f"{path} differs from the certificate's mesh")
         known = {tuple(v) for v in self.vertices[np.unique(self.faces)]}
-        bad = [i for i, p in enumerate(self.points) if tuple(p) not in known]
+        refs = self.cert["shape"].get("on_edge") or [None] * len(self.points)
+        if len(refs) != len(self.points):
+            self.errors.append("on_edge does not have one entry per point")
+            return
+        bad = [
+            i
+            for i, (p, r) in enumerate(zip(self.points, refs))
+            if not self._on_mesh(i, p, r, known)
+        ]
         if bad:
-            self.errors.append(f"points {bad[:5]} are not vertices of the mesh")
+            self.errors.append(f"points {bad[:5]} are neither vertices nor on edges of the mesh")
+
+    def _on_mesh(self, k: int, p: np.ndarray, ref, known: set) -> bool:
+        """Whether point k is a vertex, or lies on the mesh edge ``ref`` = [i, j, lam] (then its
+        coordinates are recomputed here from the edge and used by the replay)."""
+        if ref is None:
+            return tuple(p) in known
+        i, j, lam = int(ref[0]), int(ref[1]), float(ref[2])
+        if self._edges is None:
+            f = np.sort(self.faces, axis=1)
+            self._edges = {
+                tuple(e) for e in np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [0, 2]]])
+            }
+        if (min(i, j), max(i, j)) not in self._edges or not 0.0 <= lam <= 1.0:
+            return False
+        a, b = self.vertices[i], self.vertices[j]
+        self.points[k] = a + lam * (b - a)
+        return True
 
     def check_symmetry(self) -> tuple[list[int], float]:
         """Verify the claimed group; the domain's faces and half-width."""
@@ -209,6 +275,8 @@ class Replay:
                 break
         if group == "none":
             return [0, 1, 2, 3], 1.0
+        if any(r is not None for r in self.cert["shape"].get("on_edge") or []):
+            self.errors.append("edge points with a symmetry reduction (it covers vertices only)")
         return [0], (1.0 if group == "klein" else 0.41422)
 
     def check_leaf(self, face: int, lo: np.ndarray, hi: np.ndarray, ev: dict) -> bool:

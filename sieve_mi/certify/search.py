@@ -21,6 +21,7 @@ from sieve_mi.geometry.outline import placed_vertices, projection
 from sieve_mi.geometry.rotations import from_matrix, to_matrix
 
 __all__ = [
+    "DistanceField",
     "Node",
     "Outcome",
     "Search",
@@ -53,6 +54,13 @@ class Settings:
         Slack: every point's displacement bound is computed as if it were ``kappa`` times the
         shape's radius further from the centre, so an exclusion holds with room to spare, which
         the independent replay needs to confirm it on a finite translation grid.
+    edge_spacing : float
+        Points may also be taken on the mesh's edges, this fraction of the shape's radius apart
+        (0: vertices only). A non-convex hole can hold every vertex while an edge crosses its
+        boundary; an edge point then witnesses the exclusion. Used only without a symmetry
+        reduction (the symmetry argument is about the vertex set).
+    max_candidates : int
+        The spacing grows so that vertices and edge points number at most this many.
     """
 
     budget_s: float = 30.0
@@ -60,7 +68,9 @@ class Settings:
     initial_points: int = 8
     max_points: int = 24
     directions: int = 36
-    kappa: float = 0.05
+    kappa: float = 0.02
+    edge_spacing: float = 0.01
+    max_candidates: int = 60_000
 
 
 @dataclass
@@ -86,6 +96,43 @@ class Outcome:
     excluded_volume: float = 0.0
     depth: int = 0
     points: set = field(default_factory=set)
+    candidates: np.ndarray | None = None
+    on_edge: dict = field(default_factory=dict)
+
+
+def edge_points(shape: Shape, spacing: float, most: int) -> tuple[np.ndarray, np.ndarray]:
+    """Points on the mesh's edges, at most ``spacing`` apart along each edge (ends excluded).
+
+    Parameters
+    ----------
+    shape : Shape
+    spacing : float
+        Scene units; grown until at most ``most`` points result.
+    most : int
+
+    Returns
+    -------
+    points : (n, 3) ndarray
+        ``v_i + lam (v_j - v_i)``, scene units.
+    refs : (n, 3) ndarray
+        ``i, j, lam`` per point (i < j index ``shape.vertices``; 0 < lam < 1).
+    """
+    f = shape.faces
+    edges = np.unique(
+        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), 1), axis=0
+    )
+    a, b = shape.vertices[edges[:, 0]], shape.vertices[edges[:, 1]]
+    length = np.linalg.norm(b - a, axis=1)
+    total = float(length.sum())
+    spacing = max(spacing, total / max(most, 1), 1e-300)
+    k = np.floor(length / spacing).astype(np.int64)
+    if k.sum() == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    e = np.repeat(np.arange(len(edges)), k)
+    m = np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k) + 1
+    lam = m / (k[e] + 1.0)
+    pts = a[e] + lam[:, None] * (b[e] - a[e])
+    return pts, np.column_stack([edges[e], lam])
 
 
 def farthest_points(vertices: np.ndarray, hull_idx: np.ndarray, count: int) -> list[int]:
@@ -101,19 +148,23 @@ def farthest_points(vertices: np.ndarray, hull_idx: np.ndarray, count: int) -> l
 
 
 def representative(section: manifold3d.CrossSection) -> np.ndarray:
-    """A translation inside ``section`` (the centroid of its largest piece, or a vertex of it)."""
-    pieces = section.decompose()
-    piece = max(pieces, key=lambda s: s.area()) if pieces else section
-    contour = max(piece.to_polygons(), key=len)
-    c = np.asarray(contour, dtype=np.float64)
-    x, y = c.T
-    cross = x * np.roll(y, -1) - np.roll(x, -1) * y
-    area = cross.sum() / 2.0
-    if abs(area) < 1e-300:
+    """A translation in ``section``: the centroid of its contour of largest area (a heuristic
+    choice; a vertex of that contour when the centroid is degenerate)."""
+    best, best_area = None, -np.inf
+    for contour in section.to_polygons():
+        c = np.asarray(contour, dtype=np.float64)
+        x, y = c[:, 0], c[:, 1]
+        xn, yn = np.append(x[1:], x[0]), np.append(y[1:], y[0])
+        cross = x * yn - xn * y
+        area = 0.5 * cross.sum()
+        if area > best_area:
+            best, best_area = (c, x, y, xn, yn, cross), area
+    if best is None:
+        return np.zeros(2)
+    c, x, y, xn, yn, cross = best
+    if abs(best_area) < 1e-300:
         return c.mean(axis=0)
-    cx = ((x + np.roll(x, -1)) * cross).sum() / (6 * area)
-    cy = ((y + np.roll(y, -1)) * cross).sum() / (6 * area)
-    return np.array([cx, cy])
+    return np.array([((x + xn) * cross).sum(), ((y + yn) * cross).sum()]) / (6 * best_area)
 
 
 def even_odd_path(contours: list[np.ndarray]):
@@ -125,6 +176,40 @@ def even_odd_path(contours: list[np.ndarray]):
         [[Path.MOVETO] + [Path.LINETO] * (len(c) - 1) + [Path.CLOSEPOLY] for c in contours]
     )
     return Path(verts, codes)
+
+
+class DistanceField:
+    """H's signed distance on a pixel grid, for the heuristics (which point to add, where to look).
+
+    Never used for an exclusion: it is off by up to about a pixel (1/1000 of the grid's size).
+
+    Parameters
+    ----------
+    region : matplotlib.path.Path
+        H, even-odd.
+    segs : (m, 2, 2) ndarray
+        H's edges.
+    pad : float
+        Margin around H's bounding box, scene units; points beyond it read the border's value.
+    """
+
+    def __init__(self, region, segs: np.ndarray, pad: float, pixels: int = 1000):
+        from scipy.ndimage import distance_transform_edt
+
+        lo = segs.reshape(-1, 2).min(0) - pad
+        hi = segs.reshape(-1, 2).max(0) + pad
+        self.lo, self.pitch = lo, float(max(hi - lo)) / pixels
+        n = np.ceil((hi - lo) / self.pitch).astype(int) + 1
+        gx, gy = np.meshgrid(np.arange(n[0]), np.arange(n[1]), indexing="ij")
+        centres = lo + self.pitch * np.column_stack([gx.ravel(), gy.ravel()])
+        inside = region.contains_points(centres).reshape(n)
+        self.grid = self.pitch * (distance_transform_edt(~inside) - distance_transform_edt(inside))
+        self.top = n - 1
+
+    def __call__(self, xy: np.ndarray) -> np.ndarray:
+        """(P,) approximate signed distances (positive outside H) at points (P, 2), scene units."""
+        ij = np.clip(np.rint((xy - self.lo) / self.pitch).astype(int), 0, self.top)
+        return self.grid[ij[:, 0], ij[:, 1]]
 
 
 def count_open(node: Node) -> int:
@@ -139,7 +224,7 @@ class Search:
 
     def __init__(self, shape: Shape, hole: manifold3d.CrossSection, settings: Settings, group: str):
         self.shape, self.hole, self.settings = shape, hole, settings
-        self.vertices = shape.vertices[np.unique(shape.faces)]
+        self.vertices, self.on_edge = self._candidates(shape, settings, group)
         self.lengths = np.linalg.norm(self.vertices, axis=1)
         self.segs = bounds.contour_segments([np.asarray(c) for c in hole.to_polygons()])
         scale = float(np.abs(self.segs).max())
@@ -152,6 +237,19 @@ class Search:
         self.start = farthest_points(self.vertices, hull_idx, settings.initial_points)
         self.group = group
         self.region = even_odd_path([np.asarray(c) for c in hole.to_polygons()])
+        self.field = DistanceField(self.region, self.segs, 2.0 * shape.radius)
+
+    @staticmethod
+    def _candidates(shape: Shape, settings: Settings, group: str) -> tuple[np.ndarray, dict]:
+        """The points evidence may use: the vertices, then edge points (none with a symmetry
+        reduction); and ``{index: [i, j, lam]}`` for the edge points."""
+        vertices = shape.vertices[np.unique(shape.faces)]
+        if group != "none" or settings.edge_spacing <= 0:
+            return vertices, {}
+        most = max(0, settings.max_candidates - len(vertices))
+        pts, refs = edge_points(shape, settings.edge_spacing * shape.radius, most)
+        refs = {len(vertices) + k: [int(r[0]), int(r[1]), float(r[2])] for k, r in enumerate(refs)}
+        return np.concatenate([vertices, pts]), refs
 
     def _hull_indices(self) -> np.ndarray:
         hull = {tuple(p) for p in self.shape.hull}
@@ -167,7 +265,8 @@ class Search:
         """Branch and bound from ``roots`` until every cell is decided, a passage or the budget."""
         t0 = time.perf_counter()
         nodes = [Node(int(f), lo, hi) for f, lo, hi in zip(roots.face, roots.lo, roots.hi)]
-        out = Outcome(roots=nodes, points=set(self.start))
+        out = Outcome(roots=nodes, points=set(self.start), candidates=self.vertices)
+        out.on_edge = self.on_edge
         level, points = roots, [list(self.start) for _ in nodes]
         while len(level) and out.passage is None:
             out.depth += 1
@@ -214,8 +313,16 @@ class Search:
             ]
             nodes[i].children = kids
             next_nodes += kids
-            next_pts += [split_pts[k]] * 8
+            next_pts += [self._inherited(split_pts[k])] * 8
         return children, next_nodes, next_pts
+
+    def _inherited(self, pts: list) -> list:
+        """The points a child cell starts with: the starting points and the parent's latest
+        additions, leaving room for the child to add its own (``max_points`` in all)."""
+        start = list(self.start)
+        room = max(0, self.settings.max_points // 2 - len(start))
+        added = [p for p in pts if p not in start]
+        return start + (added[-room:] if room else [])
 
     def _pretest(self, rot: np.ndarray, theta: np.ndarray):
         """The batched width test of all cells of a level with the starting points."""
@@ -228,26 +335,27 @@ class Search:
         """The exact test of one cell, adding points while they help; ``(verdict, points)``."""
         proj_all = self.vertices @ rot[:2].T
         allowance = self.radii(np.array([theta]), self.lengths)[0]
+        left = bounds.translations_left(self.cache, proj_all[pts], allowance[pts])
         while True:
-            left = bounds.translations_left(self.cache, proj_all[pts], allowance[pts])
             if left.is_empty():
                 return "excluded", pts
             j = self._worst(proj_all + representative(left), allowance)
             if j is None or j in pts or len(pts) >= self.settings.max_points:
                 break
             pts.append(j)
+            part = bounds.translations_left(self.cache, proj_all[[j]], allowance[[j]])
+            left = left ^ part
         if j is None and self._passage(rot, proj_all, pts, out):
             return "passage", pts
         return "split", pts
 
     def _worst(self, placed: np.ndarray, allowance: np.ndarray) -> int | None:
         """The vertex furthest outside H beyond its allowance at these placed positions, or None."""
-        outside = ~self.region.contains_points(placed)
-        if not outside.any():
+        signed = self.field(placed)
+        if not (signed > 0).any():
             return None
-        idx = np.flatnonzero(outside)
-        excess = bounds.boundary_distance(placed[idx], self.segs) - allowance[idx]
-        return int(idx[np.argmax(excess)]) if excess.max() > 0 else None
+        excess = signed - allowance
+        return int(np.argmax(excess)) if excess.max() > 0 else None
 
     def _passage(self, rot: np.ndarray, proj_all: np.ndarray, pts: list, out: Outcome) -> bool:
         """Whether the centre pose fits: all vertices inside at a candidate t, then the silhouette."""

@@ -43,8 +43,9 @@ __all__ = [
 TINY_SOLVER = MappingProxyType(
     {"resolution": 64, "particles": 3, "iterations": 1, "starts": 4, "steps": 20}
 )
-#: ``[verdict]`` keys of a short verdict: 8 starts of 40 steps on a 96-pixel raster.
-TINY_VERDICT = MappingProxyType({"starts": 8, "steps": 40, "resolution": 96})
+#: ``[verdict]`` keys of a short verdict: 8 starts of 40 steps on a 96-pixel raster, and one
+#: second per proof of a block.
+TINY_VERDICT = MappingProxyType({"starts": 8, "steps": 40, "resolution": 96, "certify_budget": 1.0})
 #: ``[layout]`` keys that place each of several A once: one round, no alternatives, no restarts.
 TINY_LAYOUT = MappingProxyType({"rounds": 1, "alternatives": 0, "restarts": 0})
 #: ``[solver]`` keys of a sorting cascade's many games: :data:`TINY_SOLVER` with 30 steps, 6

@@ -184,7 +184,7 @@ def test_replay_rejects_a_moved_point(proof_108):
     cert = copy.deepcopy(proof_108.certificate)
     cert["shape"]["points"][0][0] += 0.01
     rep = replay(cert)
-    assert not rep["valid"] and any("not vertices" in e for e in rep["errors"])
+    assert not rep["valid"] and any("neither vertices nor on edges" in e for e in rep["errors"])
 
 
 def test_replay_rejects_a_removed_leaf(proof_108):
@@ -423,3 +423,18 @@ def test_cli_exit_codes_say_proved_passage_undecided_invalid(tmp_path):
         json.dump(forged, fh)
     bad = _cli("--replay", str(tmp_path / "forged.json"))
     assert bad.returncode == 3 and "certificate INVALID" in bad.stdout
+
+
+def test_replay_far_outside_test_agrees_with_exact_distances(nieuwland_hole):
+    """The replay's k-d tree shortcut (:meth:`Hole.beyond`) decides exactly like the exact
+    point-to-segment distances, also for points within a sample spacing of their bound."""
+    from sieve_mi.certify.replay import Hole
+
+    hole = Hole([np.asarray(c, float) for c in nieuwland_hole.to_polygons()])
+    rng = np.random.default_rng(3)
+    lo, hi = hole.vertices.min(0) - 0.5, hole.vertices.max(0) + 0.5
+    p = rng.uniform(lo, hi, size=(4000, 2))
+    exact = hole.outside_by(p)
+    # bounds at, just below and just above each point's exact distance, and random ones
+    for bound in (exact, exact * (1 - 1e-7), exact * (1 + 1e-7) + 1e-12, rng.uniform(0, 0.3, 4000)):
+        assert np.array_equal(hole.beyond(p, bound), exact > bound)

@@ -66,7 +66,11 @@ def test_a_screened_block_is_proved_and_the_game_plays_the_others(tmp_path):
     big, small = result.blocks
     assert big.blocked and small.blocked
     assert result.certified[0].status == "proved" and result.certified[0].method == "ball"
-    assert result.certified[1] is None  # not asked for ([verdict] certify = false)
+    # certified by default ([verdict] certify = true): the 21 mm cube's narrowest shadow, a
+    # face-on 21 mm square (diagonal 29.7 mm), cannot fit the ~22 mm disk, but its inscribed ball
+    # (10.5 mm) is smaller than the disk, so the proof needs rotation cells (cube symmetry)
+    assert result.certified[1].status == "proved" and result.certified[1].method == "cells"
+    assert result.certified[1].symmetry == "octahedral"
     # the unrotated 30 mm cube, centred: its square silhouette (900 mm²) minus the hole disk
     # (radius 11, a little less inside the square's rounded outline) sticks out
     assert big.beta == pytest.approx(1 - math.pi * 11.0**2 / 900.0, abs=0.01)
