@@ -51,7 +51,7 @@ def cases(letters_hole: str | None):
             original = load_shape(path, name="spot")
             hole = hole_outline([original], np.array([[1.0, 0, 0, 0]]), np.zeros((1, 2)), 0.0)
             big = load_shape(path, scale=factor, name=f"spot{factor}")
-            yield f"{factor}x spot / spot's own shadow", big, hole
+            yield f"{factor}x spot / spot's own shadow", big, hole, factor
     if letters_hole:
         hole = read_svg_hole(letters_hole)
         for letter in "RAPH":
@@ -59,9 +59,9 @@ def cases(letters_hole: str | None):
             yield f"letter {letter} / letters hole (seed 0)", load_shape(path), hole
 
 
-def row(label: str, shape, contours: list, budget: float) -> str:
+def row(label: str, shape, contours: list, budget: float, scale: float) -> str:
     """Certify one case, replay its certificate, and return its Markdown table row."""
-    r = certify(shape, [manifold3d.CrossSection(contours)], budget_s=budget)
+    r = certify(shape, [manifold3d.CrossSection(contours)], budget_s=budget, scale=scale)
     t0 = time.perf_counter()
     rep = replay(r.certificate)
     tr = time.perf_counter() - t0
@@ -86,8 +86,14 @@ def main() -> None:
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     t0 = time.perf_counter()
     jobs = [
-        (label, shape, [np.asarray(c, float) for c in hole.to_polygons()], args.budget)
-        for label, shape, hole in cases(args.letters_hole)
+        (
+            label,
+            shape,
+            [np.asarray(c, float) for c in hole.to_polygons()],
+            args.budget,
+            *(rest or [1.0]),
+        )
+        for label, shape, hole, *rest in cases(args.letters_hole)
     ]
     with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("fork")) as pool:
         for line in pool.map(row, *zip(*jobs)):
