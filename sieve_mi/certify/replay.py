@@ -276,8 +276,32 @@ class Replay:
         if group == "none":
             return [0, 1, 2, 3], 1.0
         if any(r is not None for r in self.cert["shape"].get("on_edge") or []):
-            self.errors.append("edge points with a symmetry reduction (it covers vertices only)")
+            self._check_edge_symmetry(turns[group])
         return [0], (1.0 if group == "klein" else 0.41422)
+
+    def _check_edge_symmetry(self, generators: list) -> None:
+        """Evidence on an edge needs that edge in a set of edges the group maps onto itself:
+        the largest set closed under the generators, computed here."""
+        f = self.faces
+        ends = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [0, 2]]])
+        v = self.vertices
+        closed = {frozenset((tuple(v[i]), tuple(v[j]))) for i, j in ends}
+        while True:
+            out = {
+                e
+                for e in closed
+                for m in generators
+                if frozenset(tuple(m @ np.array(p)) for p in e) not in closed
+            }
+            if not out:
+                break
+            closed -= out
+        for ref in self.cert["shape"].get("on_edge") or []:
+            if ref is not None:
+                e = frozenset((tuple(v[int(ref[0])]), tuple(v[int(ref[1])])))
+                if e not in closed:
+                    self.errors.append("an edge point on an edge the symmetry does not preserve")
+                    return
 
     def check_leaf(self, face: int, lo: np.ndarray, hi: np.ndarray, ev: dict) -> bool:
         """Re-prove one excluded cell from its evidence."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import manifold3d
 import numpy as np
 
-from sieve_mi.certify import bounds, cells
+from sieve_mi.certify import bounds, cells, symmetry
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import placed_vertices, projection
 from sieve_mi.geometry.rotations import from_matrix, to_matrix
@@ -57,8 +57,8 @@ class Settings:
     edge_spacing : float
         Points may also be taken on the mesh's edges, this fraction of the shape's radius apart
         (0: vertices only). A non-convex hole can hold every vertex while an edge crosses its
-        boundary; an edge point then witnesses the exclusion. Used only without a symmetry
-        reduction (the symmetry argument is about the vertex set).
+        boundary; an edge point then witnesses the exclusion. With a symmetry reduction, only on
+        the edges the group maps onto edges (:func:`~sieve_mi.certify.symmetry.symmetric_edges`).
     max_candidates : int
         The spacing grows so that vertices and edge points number at most this many.
     """
@@ -100,12 +100,16 @@ class Outcome:
     on_edge: dict = field(default_factory=dict)
 
 
-def edge_points(shape: Shape, spacing: float, most: int) -> tuple[np.ndarray, np.ndarray]:
+def edge_points(
+    shape: Shape, edges: np.ndarray, spacing: float, most: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Points on the mesh's edges, at most ``spacing`` apart along each edge (ends excluded).
 
     Parameters
     ----------
     shape : Shape
+    edges : (k, 2) int ndarray
+        Vertex index pairs (i < j) of the edges to sample.
     spacing : float
         Scene units; grown until at most ``most`` points result.
     most : int
@@ -117,10 +121,6 @@ def edge_points(shape: Shape, spacing: float, most: int) -> tuple[np.ndarray, np
     refs : (n, 3) ndarray
         ``i, j, lam`` per point (i < j index ``shape.vertices``; 0 < lam < 1).
     """
-    f = shape.faces
-    edges = np.unique(
-        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), 1), axis=0
-    )
     a, b = shape.vertices[edges[:, 0]], shape.vertices[edges[:, 1]]
     length = np.linalg.norm(b - a, axis=1)
     total = float(length.sum())
@@ -241,13 +241,14 @@ class Search:
 
     @staticmethod
     def _candidates(shape: Shape, settings: Settings, group: str) -> tuple[np.ndarray, dict]:
-        """The points evidence may use: the vertices, then edge points (none with a symmetry
-        reduction); and ``{index: [i, j, lam]}`` for the edge points."""
+        """The points evidence may use: the vertices, then edge points (on the edges the
+        symmetry group maps onto edges); and ``{index: [i, j, lam]}`` for the edge points."""
         vertices = shape.vertices[np.unique(shape.faces)]
-        if group != "none" or settings.edge_spacing <= 0:
+        if settings.edge_spacing <= 0:
             return vertices, {}
+        edges = symmetry.symmetric_edges(shape, group)
         most = max(0, settings.max_candidates - len(vertices))
-        pts, refs = edge_points(shape, settings.edge_spacing * shape.radius, most)
+        pts, refs = edge_points(shape, edges, settings.edge_spacing * shape.radius, most)
         refs = {len(vertices) + k: [int(r[0]), int(r[1]), float(r[2])] for k, r in enumerate(refs)}
         return np.concatenate([vertices, pts]), refs
 

@@ -26,7 +26,15 @@ import numpy as np
 
 from sieve_mi.geometry.meshes import Shape
 
-__all__ = ["HALF_TURNS", "OCTA_HALF", "QUARTER_TURNS", "detect", "domain", "maps_onto_itself"]
+__all__ = [
+    "HALF_TURNS",
+    "OCTA_HALF",
+    "QUARTER_TURNS",
+    "detect",
+    "domain",
+    "maps_onto_itself",
+    "symmetric_edges",
+]
 
 #: Half-width of the face-0 box that holds the octahedral group's fundamental region.
 OCTA_HALF = 0.41422  # > sqrt(2) - 1 = 0.414213...
@@ -62,6 +70,38 @@ def detect(shape: Shape) -> str:
     if all(maps_onto_itself(v, m) for m in QUARTER_TURNS):
         return "octahedral"
     return "klein"
+
+
+def symmetric_edges(shape: Shape, group: str) -> np.ndarray:
+    """The mesh edges whose images under ``group`` are all mesh edges, (k, 2) vertex indices.
+
+    The largest edge set closed under the group's generators (removing, until none is left, every
+    edge that a generator maps off the set). A finite group then maps the union of these edges
+    (as a point set) onto itself, so the symmetry argument holds for evidence points on them as
+    it does for vertices. With ``"none"``, every edge.
+    """
+    mats = {"none": [], "klein": HALF_TURNS, "octahedral": HALF_TURNS + QUARTER_TURNS}[group]
+    f = shape.faces
+    pairs = np.unique(
+        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), 1), axis=0
+    )
+    v = shape.vertices
+    if not mats:
+        return pairs
+
+    def key(a: np.ndarray, b: np.ndarray) -> tuple:
+        return tuple(sorted((tuple(a), tuple(b))))
+
+    keep = {key(v[i], v[j]): (i, j) for i, j in pairs}
+    changed = True
+    while changed:
+        changed = False
+        for k in list(keep):
+            a, b = np.array(k[0]), np.array(k[1])
+            if any(key(m @ a, m @ b) not in keep for m in mats):
+                del keep[k]
+                changed = True
+    return np.array(sorted(keep.values()), dtype=np.int64).reshape(-1, 2)
 
 
 def domain(group: str) -> tuple[list[int], float]:

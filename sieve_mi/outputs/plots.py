@@ -1,6 +1,6 @@
 """The layout shared by sieve-mi's matplotlib pictures: overlay.png, convergence.png, cascade.png.
 
-Every picture keeps three rules (``tests/outputs/test_layout.py`` and
+Every picture keeps three rules (``tests/outputs/test_picture_layout.py`` and
 ``tests/cascade/test_cascade_figure.py`` check them with :mod:`sieve_mi.testing.pictures`):
 
 * text has its own area — titles above the panels, captions below them, a scale bar's label in

@@ -25,6 +25,7 @@ import trimesh
 
 from sieve_mi.certify import cells, certify, read_svg_hole, replay, symmetry
 from sieve_mi.certify.bounds import OffsetCache, boundary_distance, contour_segments, width_test
+from sieve_mi.certify.search import Settings
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import shape_from_trimesh
 from sieve_mi.geometry.outline import hole_outline
@@ -438,3 +439,46 @@ def test_replay_far_outside_test_agrees_with_exact_distances(nieuwland_hole):
     # bounds at, just below and just above each point's exact distance, and random ones
     for bound in (exact, exact * (1 - 1e-7), exact * (1 + 1e-7) + 1e-12, rng.uniform(0, 0.3, 4000)):
         assert np.array_equal(hole.beyond(p, bound), exact > bound)
+
+
+@pytest.fixture(scope="module")
+def two_squares():
+    """Two 4 mm squares 6 mm apart (x in [-7, -3] and [3, 7])."""
+    import manifold3d
+
+    sq = manifold3d.CrossSection.square((4.0, 4.0), center=True)
+    return sq.translate((-5.0, 0.0)) + sq.translate((5.0, 0.0))
+
+
+@pytest.fixture(scope="module")
+def plate_proof(two_squares):
+    plate = shape_from_trimesh(shapes.box(12.0, 12.0, 0.5), name="plate")
+    return certify(plate, [two_squares], budget_s=60)
+
+
+def test_edge_points_prove_what_vertices_cannot(two_squares, plate_proof):
+    """A 12 x 12 x 0.5 mm plate cannot pass two disjoint 4 mm squares: its shadow is connected,
+    so it must fit one square, yet it always holds a 12 mm segment (the plate's in-plane direction
+    across the view), longer than the square's 5.66 mm diagonal. Seen edge-on along x, its eight
+    corners sit at x = +-6, inside both squares, while its edges cross the 6 mm gap: vertices
+    alone can never exclude the rotations near that pose; points on the edges do."""
+    assert plate_proof.status == "proved" and plate_proof.method == "cells"
+    assert plate_proof.symmetry == "klein"  # the box's half turns map its edges onto edges
+    on_edge = plate_proof.certificate["shape"]["on_edge"]
+    assert any(r is not None for r in on_edge)
+    assert replay(plate_proof.certificate)["valid"]
+    plate = shape_from_trimesh(shapes.box(12.0, 12.0, 0.5), name="plate")
+    vertices_only = certify(plate, [two_squares], budget_s=5, settings=Settings(edge_spacing=0))
+    assert vertices_only.status == "undecided"
+
+
+def test_replay_rejects_an_edge_point_off_the_edges(plate_proof):
+    cert = copy.deepcopy(plate_proof.certificate)
+    k = next(i for i, r in enumerate(cert["shape"]["on_edge"]) if r is not None)
+    faces = np.asarray(cert["shape"]["faces"])
+    used = {frozenset(e) for f in faces for e in ((f[0], f[1]), (f[1], f[2]), (f[0], f[2]))}
+    n = len(cert["shape"]["vertices"])
+    i, j = next((i, j) for i in range(n) for j in range(i + 1, n) if frozenset((i, j)) not in used)
+    cert["shape"]["on_edge"][k] = [i, j, 0.5]  # a diagonal through the box: not an edge
+    rep = replay(cert)
+    assert not rep["valid"] and any("neither vertices nor on edges" in e for e in rep["errors"])
