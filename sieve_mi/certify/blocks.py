@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
@@ -15,7 +16,7 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import dilated, hole_outline, is_closed
 from sieve_mi.scene import Scene
 
-__all__ = ["ball_margin", "certify_blocks"]
+__all__ = ["ball_margin", "certify_blocks", "prove_margin"]
 
 
 def ball_margin(radius: float, hole, *, steps: int = 24) -> float:
@@ -66,6 +67,7 @@ def certify_blocks(
     blocked: np.ndarray,
     progress: Callable[[str], None] | None = None,
     workers: int | None = None,
+    found: np.ndarray | None = None,
 ) -> list[Certification | None]:
     """Try to prove, for every B the verdict found blocked, that it cannot pass in any pose.
 
@@ -90,6 +92,9 @@ def certify_blocks(
         Called with one line per proof as it ends.
     workers : int, optional
         Worker processes (default: the machine's CPU count); 1 runs the proofs here, one by one.
+    found : (n,) ndarray, optional
+        Per B, the protrusion of the best pose found (scene units): the upper end of the margin
+        bisection that follows a proof (:func:`prove_margin`, within the same budget).
 
     Returns
     -------
@@ -105,28 +110,81 @@ def certify_blocks(
     contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
     budget = scene.verdict.certify_budget
     out: list[Certification | None] = [None] * len(block_shapes)
-    for j, c in _proofs([block_shapes[j] for j in todo], contours, budget, workers):
+    tops = [None if found is None else float(found[j]) for j in todo]
+    for j, c in _proofs([block_shapes[j] for j in todo], contours, budget, workers, tops):
         out[todo[j]] = c
         if progress is not None:
             progress(f"certify {block_shapes[todo[j]].name}: {c.status} ({c.seconds:.1f} s)")
     return out
 
 
-def _proofs(shapes: list[Shape], contours: list, budget_s: float, workers: int | None):
+def _proofs(shapes: list[Shape], contours: list, budget_s: float, workers, tops: list):
     """Yield ``(index, Certification)`` for each shape as its proof ends (forked workers)."""
     n = max(1, min(len(shapes), workers or os.cpu_count() or 1))
     if n == 1:
         for j, shape in enumerate(shapes):
-            yield j, _prove(shape, contours, budget_s)
+            yield j, _prove(shape, contours, budget_s, tops[j])
         return
     with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork")) as pool:
-        jobs = {pool.submit(_prove, shape, contours, budget_s): j for j, shape in enumerate(shapes)}
+        jobs = {
+            pool.submit(_prove, shape, contours, budget_s, tops[j]): j
+            for j, shape in enumerate(shapes)
+        }
         for job in as_completed(jobs):
             yield jobs[job], job.result()
 
 
-def _prove(shape: Shape, contours: list, budget_s: float) -> Certification:
-    """Worker: certify one shape against the hole given by its contours."""
+def _prove(shape: Shape, contours: list, budget_s: float, found: float | None) -> Certification:
+    """Worker: certify one shape against the hole given by its contours, then bracket its
+    margin with what is left of the budget (:func:`prove_margin`)."""
     from sieve_mi.certify import certify
 
-    return certify(shape, [manifold3d.CrossSection(contours)], budget_s=budget_s)
+    hole = manifold3d.CrossSection(contours)
+    c = certify(shape, [hole], budget_s=budget_s)
+    if c.status == "proved":
+        c.margin, c.margin_certificate = prove_margin(shape, hole, found, budget_s - c.seconds)
+    return c
+
+
+def prove_margin(
+    shape: Shape, hole, found: float | None, budget_s: float, *, steps: int = 5
+) -> tuple[float, dict]:
+    """The largest m (of a bisection) for which ``shape`` is proved blocked by ``hole`` grown by m.
+
+    A proof against H grown by m (:func:`sieve_mi.geometry.outline.dilated`, which contains the
+    exact dilation) means every pose puts some point of the shape further than m from H. The
+    bisection runs between 0 (already proved) and ``found``, the protrusion of the best pose
+    found (the true margin is at most that), each step with an equal share of the budget left;
+    a step that ends undecided or with a passage counts as not proved.
+
+    Parameters
+    ----------
+    shape : Shape
+    hole : manifold3d.CrossSection
+        The hole the shape is already proved blocked by.
+    found : float or None
+        Upper end, scene units; None or <= 0 skips the bisection.
+    budget_s : float
+        Seconds for all steps together.
+    steps : int
+
+    Returns
+    -------
+    (float, dict)
+        m >= 0 and the certificate of the proof at m (empty for m = 0).
+    """
+    from sieve_mi.certify import certify
+
+    t0 = time.perf_counter()
+    lo, hi, cert = 0.0, float(found or 0.0), {}
+    for k in range(steps if hi > 0 else 0):
+        left = budget_s - (time.perf_counter() - t0)
+        if left < 0.5:
+            break
+        mid = 0.5 * (lo + hi)
+        c = certify(shape, [dilated(hole, mid)], budget_s=left / (steps - k))
+        if c.status == "proved":
+            lo, cert = mid, c.certificate
+        else:
+            hi = mid
+    return lo, cert

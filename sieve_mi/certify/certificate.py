@@ -71,6 +71,12 @@ class Certification:
     passage : dict or None
         ``quaternion`` (w, x, y, z) about the shape's centre and ``translation`` (x, y) in the
         hole's frame, scene units.
+    margin : float or None
+        A proved margin m >= 0, scene units: the shape is also proved blocked by the hole grown
+        by m, so every pose sticks out of the hole by more than m (:func:`prove_margin`; None when
+        not tried or not proved).
+    margin_certificate : dict
+        The certificate of that proof against the grown hole (empty when m = 0 or None).
     """
 
     status: str
@@ -84,6 +90,8 @@ class Certification:
     symmetry: str = "none"
     passage: dict | None = None
     certificate: dict = field(default_factory=dict, repr=False)
+    margin: float | None = None
+    margin_certificate: dict = field(default_factory=dict, repr=False)
 
     def to_dict(self) -> dict:
         """The result as plain JSON-ready data (without the certificate)."""
@@ -98,6 +106,7 @@ class Certification:
             "depth": self.depth,
             "symmetry": self.symmetry,
             "passage": self.passage,
+            "margin": self.margin,
         }
 
     def write_certificate(self, path: str, inputs: tuple[str, ...] = ()) -> None:

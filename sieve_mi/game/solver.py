@@ -403,7 +403,8 @@ def _certify(scene, passes, blocks, quats, v, progress: bool, proved=()) -> list
             print(line, file=sys.stderr, flush=True)
 
     todo = v.attack.blocked()[0] & ~np.isin(np.arange(len(blocks)), list(proved))
-    certified = certify_blocks(scene, passes, blocks, quats, v.trans, todo, progress=say)
+    found = v.attack.protrusion[0]
+    certified = certify_blocks(scene, passes, blocks, quats, v.trans, todo, say, found=found)
     for shape, c in zip(blocks, certified):
         if c is not None and c.status == "passage":
             v.warnings.append(

@@ -211,10 +211,48 @@ def write_png(
     Image.fromarray((np.asarray(mask) > 0).astype(np.uint8) * 255).save(path, "PNG", **extra)
 
 
+def _block_row(result: Result, j: int) -> dict:
+    """report.json's row of B number ``j``."""
+    entry, shape, attack = result.scene.blocks[j], result.block_shapes[j], result.attack
+    beta = float(attack.beta[0, j])
+    row = {
+        "mesh": entry.mesh,
+        "name": shape.name,
+        "beta": beta,
+        "loss": beta,  # the same β, under its old name (kept for compatibility)
+        "blocked": bool(attack.blocked()[0, j]),
+        "protrusion": float(attack.protrusion[0, j]),
+        "verdict": "exact-polygon",
+        "rotation": [float(x) for x in attack.quats[0, j]],
+        "translation": [float(x) for x in attack.trans[0, j]],
+        "fitting_starts": int(attack.fits[0, j]),
+        "centre": [float(x) for x in shape.centre],
+        "faces": shape.face_count,
+    }
+    c = result.certified[j] if j < len(result.certified) else None
+    if c is not None:
+        row["certified"] = c.status
+        row["certification"] = c.to_dict()
+        if c.status == "passage":  # the exact hole lets it through: not blocked after all
+            row["blocked"] = False
+    if row["blocked"]:
+        grown = result.scene.fabrication.block_margin
+        row["margin"] = block_margin(shape, result.outline, row["protrusion"], c, grown)
+    thin = result.sheet.per_block[j] if getattr(result, "sheet", None) is not None else None
+    if thin is not None:
+        row["thin_plate"] = thin.to_dict()
+        if thin.status == "passage":  # through the thin plate by tilting and turning
+            row["blocked"] = False
+    if attack.margin_beta is not None:
+        row["margin_beta"] = float(attack.margin_beta[0, j])
+        row["margin_loss"] = row["margin_beta"]
+        row["margin_protrusion"] = float(attack.margin_protrusion[0, j])
+    return row
+
+
 def report_dict(result: Result) -> dict:
     """The content of ``report.json``."""
     scene = result.scene
-    attack = result.attack
     passes = []
     for i, (entry, shape) in enumerate(zip(scene.passes, result.pass_shapes)):
         passes.append(
@@ -229,41 +267,7 @@ def report_dict(result: Result) -> dict:
         )
         if i < len(result.alone) and result.alone[i] is not None:
             passes[-1]["alone_loss"] = float(result.alone[i])
-    blocks = []
-    for j, (entry, shape) in enumerate(zip(scene.blocks, result.block_shapes)):
-        beta = float(attack.beta[0, j])
-        row = {
-            "mesh": entry.mesh,
-            "name": shape.name,
-            "beta": beta,
-            "loss": beta,  # the same β, under its old name (kept for compatibility)
-            "blocked": bool(attack.blocked()[0, j]),
-            "protrusion": float(attack.protrusion[0, j]),
-            "verdict": "exact-polygon",
-            "rotation": [float(x) for x in attack.quats[0, j]],
-            "translation": [float(x) for x in attack.trans[0, j]],
-            "fitting_starts": int(attack.fits[0, j]),
-            "centre": [float(x) for x in shape.centre],
-            "faces": shape.face_count,
-        }
-        c = result.certified[j] if j < len(result.certified) else None
-        if c is not None:
-            row["certified"] = c.status
-            row["certification"] = c.to_dict()
-            if c.status == "passage":  # the exact hole lets it through: not blocked after all
-                row["blocked"] = False
-        if row["blocked"]:
-            row["margin"] = block_margin(shape, result.outline, row["protrusion"])
-        thin = result.sheet.per_block[j] if getattr(result, "sheet", None) is not None else None
-        if thin is not None:
-            row["thin_plate"] = thin.to_dict()
-            if thin.status == "passage":  # through the thin plate by tilting and turning
-                row["blocked"] = False
-        if attack.margin_beta is not None:
-            row["margin_beta"] = float(attack.margin_beta[0, j])
-            row["margin_loss"] = row["margin_beta"]
-            row["margin_protrusion"] = float(attack.margin_protrusion[0, j])
-        blocks.append(row)
+    blocks = [_block_row(result, j) for j in range(len(scene.blocks))]
     hole = result.hole
     return {
         "name": scene.name,
@@ -461,7 +465,9 @@ def write_outputs(
     masks/block_<j>_<name>.exr (single-layer copies), convergence.png, overlay.png; with ``fabricate`` also the printable sieve (sieve.stl, sieve.3mf,
     hole.svg), pass_<i>.stl, block_<j>.stl and, with ``figure``, figure.png (see
     :func:`sieve_mi.outputs.fabrication.fabricate`), with ``animation`` passage.gif
-    (:mod:`sieve_mi.outputs.animation`), the page report.html (:mod:`sieve_mi.outputs.viewer`) and the marker
+    (:mod:`sieve_mi.outputs.animation`), the certificates of the blocks' proofs
+    (certificates/block_<j>_<name>.json, and ``_margin.json`` for the margin's), the page
+    report.html (:mod:`sieve_mi.outputs.viewer`) and the marker
     ``.sieve-mi``. Everything is written
     into a temporary folder and swapped in at the end (:func:`sieve_mi.outputs.outdir.writing`): an
     interrupted or failed run leaves the old folder as it was, and a folder that sieve-mi did not
@@ -472,6 +478,7 @@ def write_outputs(
     timings = report["timings"]
     with outdir.writing(out_dir, command="solve", inputs=input_paths(result.scene)) as tmp:
         _write_images(result, tmp)  # report.json's dict and the images, from t_start
+        _write_certificates(result, report, tmp)
         timings["images_s"] = round(time.perf_counter() - t_start, 4)
         if fabricate:
             from sieve_mi.outputs.fabrication import fabricate as make_sieve
@@ -513,6 +520,26 @@ def _write_passage(result: Result, report: dict, tmp: str, animation: bool) -> N
         timings["total_s"] = round(time.perf_counter() - result.started, 4)
     with open(os.path.join(tmp, "report.json"), "w") as fh:
         json.dump(report, fh, indent=2)
+
+
+def _write_certificates(result: Result, report: dict, tmp: str) -> None:
+    """Each B's certificate (and its margin proof's) as ``certificates/block_<j>_<name>.json``
+    (``..._margin.json``), named in the B's ``certification`` in ``report``; replayable with
+    ``sieve-mi certify --replay``."""
+    for j, c in enumerate(result.certified or []):
+        if c is None or not c.certificate:
+            continue
+        os.makedirs(os.path.join(tmp, "certificates"), exist_ok=True)
+        stem = f"certificates/block_{j}_{_safe(result.block_shapes[j].name)}"
+        entry = report["block"][j]["certification"]
+        for key, cert, name in (
+            ("certificate", c.certificate, f"{stem}.json"),
+            ("margin_certificate", c.margin_certificate, f"{stem}_margin.json"),
+        ):
+            if cert:
+                with open(os.path.join(tmp, name), "w") as fh:
+                    json.dump(cert, fh)
+                entry[key] = name
 
 
 def _write_images(result: Result, tmp: str) -> None:
@@ -608,20 +635,25 @@ def stage_line(timings: dict) -> str:
     return f"time: {timings['total_s']:.1f} s = " + " + ".join(parts) + " s"
 
 
-def block_margin(shape, hole, found: float) -> dict:
+def block_margin(shape, hole, found: float, certified=None, grown: float = 0.0) -> dict:
     """How far a blocked B sticks out of H at best, bracketed (report.json's ``margin``).
 
     ``found_at_most``: the protrusion of the best pose found (the true margin is at most this).
-    ``proved_at_least``: from a ball certified inside B, the largest m for which no disk of its
-    radius fits H grown by m (:func:`sieve_mi.certify.blocks.ball_margin`); None when B holds no
-    such ball or the disk test proves nothing.
+    ``proved_at_least``: the larger of two proofs: from a ball certified inside B, the largest m
+    for which no disk of its radius fits H grown by m
+    (:func:`sieve_mi.certify.blocks.ball_margin`); and from a certification (``certified``, a
+    :class:`~sieve_mi.certify.Certification` against H grown by ``grown``, the scene's
+    ``block_margin``), ``grown`` plus its margin bisection's m
+    (:func:`sieve_mi.certify.blocks.prove_margin`). None when neither proves anything.
     """
     from sieve_mi.certify.blocks import ball_margin
     from sieve_mi.certify.bounds import inscribed_ball
 
     ball = inscribed_ball(shape)
-    proved = ball_margin(ball[1], hole) if ball is not None else 0.0
-    return {"proved_at_least": proved if proved > 0 else None, "found_at_most": float(found)}
+    proved = (ball_margin(ball[1], hole) if ball is not None else 0.0) or None
+    if certified is not None and certified.status == "proved":
+        proved = max(proved or 0.0, grown + (certified.margin or 0.0))
+    return {"proved_at_least": proved, "found_at_most": float(found)}
 
 
 def sheet_line(report: dict) -> str | None:

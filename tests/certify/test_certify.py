@@ -339,7 +339,7 @@ def test_cli_bad_input_one_line_exit_2(tmp_path, args, message):
 
 
 @pytest.mark.slow
-def test_solve_certifies_its_blocks_and_a_passage_overrules_the_verdict(write_scene):
+def test_solve_certifies_its_blocks_and_a_passage_overrules_the_verdict(write_scene, tmp_path):
     # A: a 20 mm cube held face-on, tolerance 1 mm: the printed hole is a 22 mm square with
     # rounded corners. B: the 24 mm ball (no 24 mm disk fits in a 22 mm square: proved) and a
     # 21 mm cube, which passes face-on and turned by less than about 2.6 degrees in the plane
@@ -387,6 +387,14 @@ certify_budget = 60
     assert [b["certified"] for b in rep["block"]] == ["proved", "passage"]
     assert [b["blocked"] for b in rep["block"]] == [True, False]
     assert "passage" in summary_table(rep) and "proved" in summary_table(rep)
+    # the ball (inscribed radius just under 12) against the 22 mm square: the largest disk in
+    # the square grown by m has radius 11 + m, so the proved margin is just under 1 mm
+    saved = r.save(str(tmp_path / "out"), figure=False, animation=False)
+    m = saved["block"][0]["margin"]
+    assert 0.95 < m["proved_at_least"] <= 1.0 + 1e-9
+    for key in ("certificate", "margin_certificate"):
+        path = tmp_path / "out" / saved["block"][0]["certification"][key]
+        assert replay(str(path))["valid"]
 
 
 def test_cli_exit_codes_say_proved_passage_undecided_invalid(tmp_path):
