@@ -16,7 +16,12 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import dilated, hole_outline, is_closed
 from sieve_mi.scene import Scene
 
-__all__ = ["ball_margin", "certify_blocks", "prove_margin"]
+__all__ = ["MARGIN_FACTOR", "MARGIN_MIN_S", "ball_margin", "certify_blocks", "prove_margin"]
+
+#: The margin bisection after a proof gets at most this many times the proof's time ...
+MARGIN_FACTOR = 4.0
+#: ... and at least this many seconds (when the budget has them left).
+MARGIN_MIN_S = 2.0
 
 
 def ball_margin(radius: float, hole, *, steps: int = 24) -> float:
@@ -136,13 +141,17 @@ def _proofs(shapes: list[Shape], contours: list, budget_s: float, workers, tops:
 
 def _prove(shape: Shape, contours: list, budget_s: float, found: float | None) -> Certification:
     """Worker: certify one shape against the hole given by its contours, then bracket its
-    margin with what is left of the budget (:func:`prove_margin`)."""
+    margin (:func:`prove_margin`) with what is left of the budget, but at most
+    :data:`MARGIN_FACTOR` times the proof's own time (at least :data:`MARGIN_MIN_S`): a step
+    that takes much longer than the proof is near the true margin and would mostly end
+    undecided."""
     from sieve_mi.certify import certify
 
     hole = manifold3d.CrossSection(contours)
     c = certify(shape, [hole], budget_s=budget_s)
     if c.status == "proved":
-        c.margin, c.margin_certificate = prove_margin(shape, hole, found, budget_s - c.seconds)
+        spare = min(budget_s - c.seconds, max(MARGIN_MIN_S, MARGIN_FACTOR * c.seconds))
+        c.margin, c.margin_certificate = prove_margin(shape, hole, found, spare)
     return c
 
 
