@@ -23,6 +23,8 @@ from sieve_mi.outputs.plots import draw_contours, grid_figure, new_figure, plan_
 from sieve_mi.outputs.provenance import provenance
 
 __all__ = [
+    "GAME_VALUE",
+    "MERGED_VALUE",
     "OVERLAY_COLUMNS",
     "OVERLAY_PANEL",
     "STAGES",
@@ -328,8 +330,18 @@ OVERLAY_PANEL = 3.6
 OVERLAY_COLUMNS = 4
 
 
-def convergence_figure(history: list[float], final: float | None = None):
+#: convergence.png's y label: the game value (one A, or separate holes) ...
+GAME_VALUE = "best game value (min beta)"
+#: ... or, for several A merged into one hole, each A's search, then the placement's energy.
+MERGED_VALUE = "best min beta, then eq. 14 energy"
+
+
+def convergence_figure(history: list[float], final: float | None = None, ylabel: str = GAME_VALUE):
     """convergence.png's figure: player A's best game value per search iteration.
+
+    ``ylabel`` names the value: :data:`GAME_VALUE`, or :data:`MERGED_VALUE` for a merged hole of
+    several A (its curve runs through each A's search, min beta, then the placement swarm,
+    whose value is eq. 14's energy, not a beta).
 
     ``final`` (report.json's ``search_value``: the game value of the search's last stage, polish
     or placement) is drawn as a dashed line; what the dashed line is, and a note when the curve
@@ -353,7 +365,7 @@ def convergence_figure(history: list[float], final: float | None = None):
         ax.text(0.5, 0.5, "A's rotation was fixed: no search", ha="center", va="center",
                 transform=ax.transAxes)  # fmt: skip
     ax.set_xlabel("search iteration")
-    ax.set_ylabel("best game value (min beta)")
+    ax.set_ylabel(ylabel)
     ax.set_title("Convergence of player A's search")
     ax.grid(alpha=0.3)
     if notes:
@@ -569,7 +581,9 @@ def _write_images(result: Result, tmp: str) -> None:
         )
     write_layers(os.path.join(tmp, "masks.exr"), layers, meta)
     history, final = result.history.best, result.search_value
-    save(convergence_figure(history, final), os.path.join(tmp, "convergence.png"))
+    merged = len(result.pass_shapes) > 1 and result.scene.layout.mode == "merged"
+    label = MERGED_VALUE if merged else GAME_VALUE
+    save(convergence_figure(history, final, label), os.path.join(tmp, "convergence.png"))
     save(overlay_figure(result), os.path.join(tmp, "overlay.png"))
 
 

@@ -26,7 +26,7 @@ from sieve_mi.outputs.plots import (
     save,
     wrap,
 )
-from sieve_mi.outputs.report import convergence_figure, overlay_figure
+from sieve_mi.outputs.report import MERGED_VALUE, convergence_figure, overlay_figure
 from sieve_mi.testing.pictures import layout_problems, plan_view_problems
 from sieve_mi.testing.settings import TINY_LAYOUT, TINY_SOLVER, TINY_VERDICT, settings_toml
 from sieve_mi.testing.shapes import cross_section, glyph_contours
@@ -208,5 +208,6 @@ def test_solved_letters_overlay_and_convergence(letters):
     assert layout_problems(fig) == []
     assert len(_panels(fig)) == 3
     assert plan_view_problems(fig, "mm") == []
-    fig = convergence_figure(letters.history.best, letters.search_value)
+    # merged letters: the curve runs through each A's search, then the placement's eq. 14 energy
+    fig = convergence_figure(letters.history.best, letters.search_value, MERGED_VALUE)
     assert layout_problems(fig) == []
