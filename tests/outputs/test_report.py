@@ -67,7 +67,9 @@ def test_summary_table_has_one_row_per_shape(solved):
     rows = [ln.split() for ln in lines[2:] if ln.startswith(("pass", "block"))]
     assert [r[1] for r in rows] == ["cube", "sphere", "small_sphere"]
     small = rows[2]
-    assert small[2] == "0.0000" and small[-1] == "PASSES"
+    assert small[2] == "0.0000" and small[4] == "PASSES"
+    # certify runs by default: the blocked sphere gets a proof, the passing one none
+    assert "certified" in lines[0] and "proved" in rows[1] and small[-1] == "-"
     assert f"winner: {rep['winner']}" in text
 
 
