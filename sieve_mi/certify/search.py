@@ -2,9 +2,10 @@
 
 Level by level (breadth first): all cells of a level get the batched width pre-test
 (:func:`~sieve_mi.certify.bounds.width_test`, NumPy over cells x points x directions); each
-survivor gets the exact polygon test with its own point set, which grows by the shape's vertex
-that sticks out furthest at the cell's centre pose before the cell is split. A cell whose centre
-pose puts the exact silhouette inside H is a passage and ends the search.
+survivor gets the exact polygon test with its own point set, which grows by the candidate point
+(a vertex, or a point on a mesh edge: :func:`edge_points`) that sticks out furthest at the cell's
+centre pose before the cell is split. A cell whose centre pose puts the exact silhouette inside H
+is a passage and ends the search.
 """
 
 from __future__ import annotations
