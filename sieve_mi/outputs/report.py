@@ -653,20 +653,21 @@ def block_margin(shape, hole, found: float, certified=None, grown: float = 0.0) 
     """How far a blocked B sticks out of H at best, bracketed (report.json's ``margin``).
 
     ``found_at_most``: the protrusion of the best pose found (the true margin is at most this).
-    ``proved_at_least``: the larger of two proofs: from a ball certified inside B, the largest m
-    for which no disk of its radius fits H grown by m
-    (:func:`sieve_mi.certify.blocks.ball_margin`); and from a certification (``certified``, a
+    ``proved_at_least``: from a certification that proved the block (``certified``, a
     :class:`~sieve_mi.certify.Certification` against H grown by ``grown``, the scene's
     ``block_margin``), ``grown`` plus its margin bisection's m
-    (:func:`sieve_mi.certify.blocks.prove_margin`). None when neither proves anything.
+    (:func:`sieve_mi.certify.blocks.prove_margin`, whose steps try the ball test first); without
+    one, from a ball certified inside B, the largest m for which no disk of its radius fits H
+    grown by m (:func:`sieve_mi.certify.blocks.ball_margin`). None when nothing proves it.
     """
     from sieve_mi.certify.blocks import ball_margin
     from sieve_mi.certify.bounds import inscribed_ball
 
-    ball = inscribed_ball(shape)
-    proved = (ball_margin(ball[1], hole) if ball is not None else 0.0) or None
     if certified is not None and certified.status == "proved":
-        proved = max(proved or 0.0, grown + (certified.margin or 0.0))
+        proved = grown + (certified.margin or 0.0)
+    else:
+        ball = inscribed_ball(shape)
+        proved = (ball_margin(ball[1], hole) if ball is not None else 0.0) or None
     return {"proved_at_least": proved, "found_at_most": float(found)}
 
 
