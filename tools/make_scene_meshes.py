@@ -31,8 +31,12 @@ LETTER_HEIGHT = 30.0  # mm, y-extent of each glyph
 LETTER_DEPTH = 12.0
 EURO_COINS = {
     "2eur": (25.75, 2.20),
+    "1eur": (23.25, 2.33),
     "50c": (24.25, 2.38),
+    "20c": (22.25, 2.14),
     "10c": (19.75, 1.93),
+    "5c": (21.25, 1.67),
+    "2c": (18.75, 1.67),
     "1c": (16.25, 1.67),
 }
 
@@ -47,7 +51,7 @@ SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
         width=30.0, height=20.0, thickness=6.0, depth=10.0, segments=16
     ),
     "prism.stl": lambda: shapes.box(12.0, 12.0, 30.0),
-    # euro coins, official diameter and thickness (mm): scenes/euro-coins.toml
+    # euro coins, official diameter and thickness (mm): scenes/euro-coins.toml, euro-coins-8.toml
     **{
         f"coin_{label}.stl": (lambda d=d, t=t: shapes.coin(d, t))
         for label, (d, t) in EURO_COINS.items()

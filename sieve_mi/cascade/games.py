@@ -354,11 +354,13 @@ def cache_folder(out_dir: str) -> str:
 
 
 def label_text(label: dict) -> str:
-    """A game's label for a progress line: ``hold X pass Y, Z`` (sort), ``seed 3 tolerance 0.5``
-    (sweep), each field padded so the lines align."""
+    """A game's label for a progress line: ``hold X pass Y, Z`` (sort; ``screen hold ...`` or
+    ``full hold ...`` where the label names its stage), ``seed 3 tolerance 0.5`` (sweep), each
+    field padded so the lines align."""
     if "holds" in label or "passes" in label:
+        stage = f"{label['stage']:<7}" if "stage" in label else ""
         return (
-            f"hold {'+'.join(label.get('holds', [])) or '-':<20} pass "
+            f"{stage}hold {'+'.join(label.get('holds', [])) or '-':<20} pass "
             f"{'+'.join(label.get('passes', [])) or '-':<28}"
         )
     return " ".join(

@@ -1,13 +1,33 @@
-"""Planning a cascade: which sieve holds which shapes, in which order.
+"""Planning a cascade: which sieve holds which shapes, in which order — planned before played.
 
-The shapes are ordered coarsest first by their passage radius (:mod:`sieve_mi.cascade.size`).
-Sieve k holds the k-th unit (a shape, or shapes that cannot be split) and passes every unit
-below it. The games of the planned order are independent and run together; the first lost game
-is replaced by its alternatives (hold another of the remaining units there), run together too.
-When no unit can be held while the rest falls through, every pair of remaining units is played
-both ways: a pair that neither way can split is *inseparable* and becomes one unit, and the
-reason is measured (each one's best attempt on the other's best hole). Several shapes share a
-tray only then.
+Sieve k holds one unit (a shape, or shapes that cannot be split) and passes every unit below
+it. Going down, each sieve is decided in three steps, the cheap ones first:
+
+1. **Rules** (no game). A hold that an exact rule shows hopeless (the held shape passes every
+   hole that one of the passing shapes passes: :mod:`sieve_mi.cascade.rules`) is never played.
+   The units left are the *candidates*; often there is one (eight euro coins: at every sieve
+   but one). With none, the remaining units are split pairwise (step 4).
+2. **Ranking** (no game). The candidates are ordered by a guess of their margin from all three
+   canonical extents (:func:`sieve_mi.cascade.size.predicted_margin`): the 5 cent coin (1.5 mm
+   wider) before the 10 cent coin (0.26 mm thicker) over the 10, 2 and 1 cent coins. Ties keep
+   the base order (passage radius, coarsest first).
+3. **Screening games**. Where several candidates remain, each is played in that order at
+   reduced settings (:mod:`sieve_mi.cascade.stages`), and the first that wins is planned (the
+   first by rank if none does). A screening game only picks; it never rules a hold out.
+
+The sieves so planned down to the last tray are then played as **full games** (the mixture's
+settings): they are the cascade. With parallel workers they run together; serially one by one
+until one is lost. A lost full game marks that hold lost at that sieve, and the cascade is
+planned again from there (the next candidate).
+
+4. **Inseparable units.** When no unit can be held while the rest falls through, every pair is
+   decided both ways, by a rule or a full game: a pair that neither way can split is
+   *inseparable* and becomes one unit, with the reason (the rule's, or each one's best attempt on
+   the other's best hole). Several shapes share a tray only then.
+
+Every decision is recorded in :attr:`Plan.levels` (``cascade.json``'s ``levels``): the shapes
+at that sieve, the holds ruled out and why, the candidates with their predicted margins, the
+screening games, the choice, and its full game.
 """
 
 from __future__ import annotations
@@ -31,7 +51,8 @@ class Sieve:
 
 @dataclass
 class Inseparable:
-    """A pair that no sieve found can split, with the measured reason."""
+    """A pair that no sieve found can split, with the reason (measured in games, or a rule's)
+    and the keys of the games that decided it (none where the rules did)."""
 
     pair: tuple
     reason: str
@@ -40,12 +61,14 @@ class Inseparable:
 
 @dataclass
 class Plan:
-    """The planned cascade: sieves from top to bottom and the bottom tray."""
+    """The planned cascade: sieves from top to bottom and the bottom tray; ``levels``: every
+    decision, in order (see the module docstring)."""
 
     sieves: list
     bottom: list
     inseparable: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
+    levels: list = field(default_factory=list)
 
     @property
     def trays(self) -> list:
@@ -63,38 +86,52 @@ def won(record: dict) -> bool:
     return record["summary"]["winner"] == "A"
 
 
-def plan_cascade(order: list, play_games, make_spec, *, parallel: bool = True) -> Plan:
+def plan_cascade(
+    order: list,
+    play_games,
+    make_spec,
+    *,
+    parallel: bool = True,
+    screen_spec=None,
+    hopeless=None,
+    margin=None,
+) -> Plan:
     """Plan the cascade for shape names ``order`` (coarsest first).
 
     Parameters
     ----------
     order : list of str
+        The base order: ties of ``margin`` and the order of shared trays follow it.
     play_games : callable
         ``play_games(specs) -> {key: record}`` (a :class:`~sieve_mi.cascade.games.Runner`'s run).
     make_spec : callable
-        ``make_spec(holds, passes) -> GameSpec``.
+        ``make_spec(holds, passes) -> GameSpec``: a full game, whose verdict is the sieve's.
     parallel : bool
-        Play each round's games together (speculatively, for parallel workers). When False, play
-        them one at a time and stop at the first that decides the round: the planned games up
-        to the first lost one, the alternatives up to the first won one.
+        Play each batch of games together (speculatively, for parallel workers). When False, play
+        them one at a time and stop at the first that decides: the screening games of a sieve up
+        to the first won one, the full games of the planned sieves up to the first lost one.
+    screen_spec : callable, optional
+        ``screen_spec(holds, passes) -> GameSpec`` at reduced settings: where several units may be
+        held at a sieve, they are screened (in ``margin`` order) and the first that wins is
+        planned; the full game still decides. None: no screening.
+    hopeless : callable, optional
+        ``hopeless(holds, passes) -> dict or None``: an exact reason (``"reason"``) why no sieve
+        holds ``holds`` while ``passes`` fall through (:meth:`sieve_mi.cascade.rules.Rules.hopeless`);
+        such a hold is never played.
+    margin : callable, optional
+        ``margin(holds, passes) -> float``: larger first (a guess; it only orders candidates).
     """
     if len(order) < 2:
         raise SieveError("a cascade needs at least two shapes")
+    planner = _Planner(play_games, make_spec, screen_spec, hopeless, margin, parallel)
     units = [[n] for n in order]
-    plan = Plan(sieves=[], bottom=[])
-    play = _together(play_games) if parallel else _one_by_one(play_games)
     while len(units) > 1:
-        k = _accept_planned(units, plan, play, make_spec)
-        units = units[k:]
-        if len(units) == 1:
-            break
-        j = _alternative(units, play, make_spec)
-        if j is not None:
-            units.insert(0, units.pop(j))
+        if not planner.candidates(units)[0]:
+            units = _merge_inseparable(units, planner)
             continue
-        units = _merge_inseparable(units, plan, play_games, make_spec)
-    plan.bottom = units[0]
-    return plan
+        units = planner.verify(planner.path(units))
+    planner.plan.bottom = units[0]
+    return planner.plan
 
 
 def _one_by_one(play_games):
@@ -115,39 +152,129 @@ def _together(play_games):
     """A ``play(specs, stop)`` that plays all specs at once (``stop`` is not needed)."""
 
     def play(specs, stop=None):
-        return play_games(specs)
+        return play_games(specs) if specs else {}
 
     return play
 
 
-def _accept_planned(units, plan, play, make_spec) -> int:
-    """Play the planned order's games; accept the won ones from the top; return how many."""
-    specs = [make_spec(units[k], flat(units[k + 1 :])) for k in range(len(units) - 1)]
-    records = play(specs, stop=lambda r: not won(r))
-    for k, spec in enumerate(specs):
-        record = records.get(spec.key)
-        if record is None or not won(record):
-            return k
-        plan.sieves.append(Sieve(units[k], flat(units[k + 1 :]), spec.key, record))
-    return len(units) - 1
+def _rest(units: list, unit: list) -> list:
+    """The units other than ``unit``, in order."""
+    return [u for u in units if u is not unit]
 
 
-def _alternative(units, play, make_spec) -> int | None:
-    """The first unit after the top one that a sieve can hold while the rest pass, or None."""
-    specs = [make_spec(units[j], flat(units[:j] + units[j + 1 :])) for j in range(1, len(units))]
-    records = play(specs, stop=won)
-    for j, spec in enumerate(specs, start=1):
-        if spec.key in records and won(records[spec.key]):
-            return j
-    return None
+class _Planner:
+    """The planner's state: the games' players, the holds lost in full games, the plan so far."""
+
+    def __init__(self, play_games, make_spec, screen_spec, hopeless, margin, parallel):
+        self.play_games, self.make_spec, self.screen_spec = play_games, make_spec, screen_spec
+        self.hopeless = hopeless or (lambda holds, passes: None)
+        self.margin = margin
+        self.play = _together(play_games) if parallel else _one_by_one(play_games)
+        self.lost: dict = {}  # frozenset of the level's shapes -> {(held unit, full game key)}
+        self.screened: dict = {}  # screening game key -> record
+        self.plan = Plan(sieves=[], bottom=[])
+
+    def candidates(self, units: list) -> tuple[list, list, list]:
+        """The units that a sieve above ``units`` may hold, most promising first, and why the
+        others may not: (candidates, ruled out by a rule, lost in a full game)."""
+        level = frozenset(flat(units))
+        lost_here = dict(self.lost.get(level, ()))
+        cands, ruled, lost = [], [], []
+        for u in units:
+            why = self.hopeless(list(u), flat(_rest(units, u)))
+            if why is not None:
+                ruled.append(why)
+            elif tuple(u) in lost_here:
+                lost.append({"holds": list(u), "game": lost_here[tuple(u)]})
+            else:
+                cands.append(u)
+        if self.margin is not None:
+            score = {id(u): self.margin(list(u), flat(_rest(units, u))) for u in cands}
+            cands.sort(key=lambda u: -score[id(u)])  # stable: ties keep the base order
+        return cands, ruled, lost
+
+    def choose(self, units: list) -> tuple[list, dict]:
+        """The unit planned above ``units``: the only candidate, else the first (by margin) that
+        wins its screening game, else the first by margin; and the decision, appended to
+        ``plan.levels``."""
+        cands, ruled, lost = self.candidates(units)
+        entry = {"shapes": flat(units), "ruled_out": ruled, "lost": lost}
+        if self.margin is not None:
+            entry["candidates"] = [
+                {"holds": list(u), "predicted_margin": self.margin(list(u), flat(_rest(units, u)))}
+                for u in cands
+            ]
+        chosen, how = cands[0], "only candidate" if len(cands) == 1 else "first by margin"
+        if len(cands) > 1 and self.screen_spec is not None:
+            specs = [self.screen_spec(list(u), flat(_rest(units, u))) for u in cands]
+            records = self._screen(specs)
+            entry["screening"] = [
+                {"holds": list(u), "game": sp.key, "winner": records[sp.key]["summary"]["winner"]}
+                for u, sp in zip(cands, specs)
+                if sp.key in records
+            ]
+            winners = [
+                u for u, sp in zip(cands, specs) if sp.key in records and won(records[sp.key])
+            ]
+            if winners:
+                chosen, how = winners[0], "won its screening game"
+            else:
+                how = "first by margin (no screening game won)"
+        entry["chosen"], entry["by"] = list(chosen), how
+        self.plan.levels.append(entry)
+        return chosen, entry
+
+    def _screen(self, specs: list) -> dict:
+        """Screening games, each played once per run (stopping at the first won one when
+        serial)."""
+        todo = [s for s in specs if s.key not in self.screened]
+        if any(won(self.screened[s.key]) for s in specs if s.key in self.screened):
+            todo = []
+        self.screened.update(self.play(todo, stop=won))
+        return {s.key: self.screened[s.key] for s in specs if s.key in self.screened}
+
+    def path(self, units: list) -> list:
+        """The planned sieves from ``units`` down: (units at that sieve, held unit, decision)
+        triples, until one unit is left or no unit can be held."""
+        steps = []
+        while len(units) > 1 and self.candidates(units)[0]:
+            held, entry = self.choose(units)
+            steps.append((units, held, entry))
+            units = _rest(units, held)
+        return steps
+
+    def verify(self, steps: list) -> list:
+        """Play the planned sieves' full games; accept them from the top while won. Returns the
+        units left: below the last accepted sieve, or at the first lost one (re-planned)."""
+        specs = [self.make_spec(list(held), flat(_rest(units, held))) for units, held, _ in steps]
+        records = self.play(specs, stop=lambda r: not won(r))
+        for (_, _, entry), spec in zip(steps, specs):
+            if spec.key in records:
+                entry["full"] = {"game": spec.key, "winner": records[spec.key]["summary"]["winner"]}
+            else:
+                entry["full"] = "not played: a full game above it was lost"
+        for (units, held, _), spec in zip(steps, specs):
+            if not won(records[spec.key]):
+                level = frozenset(flat(units))
+                self.lost.setdefault(level, {})[tuple(held)] = spec.key
+                return units
+            rest = flat(_rest(units, held))
+            self.plan.sieves.append(Sieve(list(held), rest, spec.key, records[spec.key]))
+        units, held, _ = steps[-1]
+        return _rest(units, held)
 
 
-def _merge_inseparable(units, plan, play_games, make_spec) -> list:
-    """Play every pair both ways; join inseparable pairs into one unit (or, if there is none,
-    the top two units, with a warning)."""
+def _merge_inseparable(units: list, planner: _Planner) -> list:
+    """Every pair both ways: a rule or a full game each. Join inseparable pairs into one unit
+    (or, if there is none, the top two units, with a warning)."""
+    plan = planner.plan
     pairs = [(a, b) for a in range(len(units)) for b in range(len(units)) if a != b]
-    specs = {(a, b): make_spec(units[a], units[b]) for a, b in pairs}
-    records = play_games(list(specs.values()))
+    ruled = {(a, b): planner.hopeless(list(units[a]), list(units[b])) for a, b in pairs}
+    specs = {
+        p: planner.make_spec(list(units[p[0]]), list(units[p[1]])) for p in pairs if not ruled[p]
+    }
+    records = planner.play_games(list(specs.values())) if specs else {}
+    outcome = {p: ruled[p] or records[specs[p].key] for p in pairs}
     parent = list(range(len(units)))
 
     def root(i):
@@ -156,13 +283,13 @@ def _merge_inseparable(units, plan, play_games, make_spec) -> list:
         return i
 
     for a, b in pairs:
-        if a < b and not won(records[specs[a, b].key]) and not won(records[specs[b, a].key]):
+        if a < b and not _split(outcome[a, b]) and not _split(outcome[b, a]):
             parent[root(b)] = root(a)
             plan.inseparable.append(
                 Inseparable(
                     ("+".join(units[a]), "+".join(units[b])),
-                    _reason(units[a], units[b], records[specs[a, b].key], records[specs[b, a].key]),
-                    [specs[a, b].key, specs[b, a].key],
+                    _reason(units[a], units[b], outcome[a, b], outcome[b, a]),
+                    [specs[p].key for p in ((a, b), (b, a)) if p in specs],
                 )
             )
     groups: dict = {}
@@ -179,15 +306,24 @@ def _merge_inseparable(units, plan, play_games, make_spec) -> list:
     return merged
 
 
+def _split(outcome: dict) -> bool:
+    """Whether a pair's direction can be split: a won game (a ruling never can)."""
+    return "summary" in outcome and won(outcome)
+
+
 def _reason(a, b, a_held, b_held) -> str:
-    """Why a and b cannot be split, from the two lost games (a held, b passing; and reverse)."""
+    """Why a and b cannot be split, from the two directions (a held, b passing; and reverse):
+    each a lost game or a rule's reason."""
 
-    def escape(record, names):
-        worst = [x for x in record["summary"]["block"] if x["name"] in names and not x["blocked"]]
-        x = worst[0] if worst else record["summary"]["block"][0]
-        return f"{x['name']} passes (beta {x['beta']:.4f}, protrusion {x['protrusion']:.3g})"
+    def side(outcome, names, other):
+        if "summary" not in outcome:
+            return outcome["reason"] + " (ruled out before any game)"
+        block = outcome["summary"]["block"]
+        worst = [x for x in block if x["name"] in names and not x["blocked"]]
+        x = worst[0] if worst else block[0]
+        return (
+            f"on the best hole for {'+'.join(other)}, {x['name']} passes "
+            f"(beta {x['beta']:.4f}, protrusion {x['protrusion']:.3g})"
+        )
 
-    return (
-        f"on the best hole for {'+'.join(b)}, {escape(a_held, a)}; "
-        f"on the best hole for {'+'.join(a)}, {escape(b_held, b)}"
-    )
+    return f"{side(a_held, a, b)}; {side(b_held, b, a)}"

@@ -364,7 +364,7 @@ EXPECTED_EXTENTS = {
 SIMPLE = ["cube.stl", "sphere.stl", "small_sphere.stl", "l_rod.stl", "bowtie.stl", "arch.stl",
           "prism.stl"]  # fmt: skip
 LETTER_FILES = [f"letter_{c}.stl" for c in "SIGRAPH"]
-COIN_FILES = [f"coin_{c}.stl" for c in ("2eur", "50c", "10c", "1c")]
+COIN_FILES = [f"coin_{c}.stl" for c in ("2eur", "1eur", "50c", "20c", "10c", "5c", "2c", "1c")]
 
 
 @pytest.fixture(scope="module")
