@@ -365,12 +365,18 @@ def _raise_terminated(signum, frame):
 
 @contextlib.contextmanager
 def _termination_as_interrupt():
-    """Turn SIGTERM and SIGHUP into :class:`Terminated` inside the block (main thread only)."""
+    """Turn SIGTERM and SIGHUP into :class:`Terminated` inside the block (main thread only).
+
+    SIGINT, SIGTERM and SIGHUP are unblocked in the main thread first: a process started with
+    them blocked (a launcher's inherited signal mask) could otherwise not be interrupted.
+    """
     names = ("SIGTERM", "SIGHUP")
     sigs = [getattr(signal, n) for n in names if hasattr(signal, n)]
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT, *sigs])
     old = {s: signal.signal(s, _raise_terminated) for s in sigs}
     try:
         yield

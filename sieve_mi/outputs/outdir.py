@@ -190,6 +190,10 @@ def is_replaceable(folder: str) -> bool:
 # ------------------------------------------------------------------------------------------------
 
 
+#: Whether this platform has per-thread signal masks.
+_MASKS = hasattr(signal, "pthread_sigmask")
+
+
 @contextlib.contextmanager
 def deferred_signals() -> Iterator[None]:
     """Hold SIGINT, SIGTERM and SIGHUP back until the block ends (they arrive afterwards).
@@ -220,13 +224,20 @@ def deferred_signals() -> Iterator[None]:
     for sig in _SIGNALS:
         if signal.getsignal(sig) is not None:  # None: a handler not installed from Python
             old[sig] = signal.signal(sig, hold)
+    # A thread mask that blocks them (inherited, e.g. from a process launched with SIGINT
+    # blocked) would keep them pending past the block: unblock them while it lasts.
+    old_mask = signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS) if _MASKS else None
     try:
         yield
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
-        for sig in dict.fromkeys(pending):
-            signal.raise_signal(sig)
+        try:
+            for sig in dict.fromkeys(pending):
+                signal.raise_signal(sig)
+        finally:
+            if old_mask is not None:
+                signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
 
 
 def _host() -> str:

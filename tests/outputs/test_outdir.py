@@ -458,3 +458,20 @@ def test_signals_sent_from_another_thread_wait_for_the_block_to_end():
             reached.append(True)
     assert reached == [True]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_deferred_signals_arrive_even_when_the_thread_blocks_them():
+    # A process may inherit a mask that blocks SIGINT (launchers do that); the signal must not
+    # stay pending past the block, and the caller's mask comes back afterwards.
+    import time
+
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with outdir.deferred_signals():
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.05)
+        assert signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+        assert signal.SIGINT not in signal.sigpending()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
