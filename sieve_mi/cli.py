@@ -474,7 +474,25 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("sieve-mi: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # a library (Mitsuba's render) may wrap the signal's exception
+        cause = _interruption(exc)
+        if cause is None:
+            raise
+        print(f"sieve-mi: {'terminated' if isinstance(cause, Terminated) else 'interrupted'}",
+              file=sys.stderr)  # fmt: skip
+        return 128 + cause.signum if isinstance(cause, Terminated) else 130
     return 1
+
+
+def _interruption(exc: BaseException) -> BaseException | None:
+    """The Terminated or KeyboardInterrupt that caused ``exc`` (its cause or context chain)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, (Terminated, KeyboardInterrupt)):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 
 import pytest
 import trimesh
@@ -10,6 +11,11 @@ import trimesh
 import sieve_mi  # noqa: F401  (points Dr.Jit at a usable libLLVM before drjit is imported)
 from sieve_mi.backend import default_variant, use_variant
 from sieve_mi.geometry.meshes import shape_from_trimesh
+
+# A shell starts background jobs with SIGINT ignored (POSIX, no job control), and children
+# inherit that: the interruption tests need Ctrl-C to mean what it means in a terminal.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session", autouse=True)

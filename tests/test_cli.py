@@ -566,3 +566,18 @@ def test_check_exit_code_says_passes_or_blocked(tmp_path):
     assert blocked.returncode == 3 and json.loads(blocked.stdout)["passes"] is False
     smaller = run_cli(*args, "--pixel-size", "0.5")  # the flag wins: an 8 mm hole
     assert smaller.returncode == 3 and json.loads(smaller.stdout)["pixel_size"] == 0.5
+
+
+@pytest.mark.parametrize("inner, code", [("term", 143), ("int", 130)])
+def test_a_signal_wrapped_by_a_library_still_gives_its_exit_code(monkeypatch, capsys, inner, code):
+    # Mitsuba's render wraps an exception raised in its Python callbacks (RuntimeError from
+    # ...); a SIGTERM or Ctrl-C landing there must still end the run as that signal does.
+    from sieve_mi import cli
+
+    def boom(args):
+        cause = cli.Terminated(15) if inner == "term" else KeyboardInterrupt()
+        raise RuntimeError("render failed") from cause
+
+    monkeypatch.setattr(cli, "cmd_solve", boom)
+    assert cli.main(["solve", "scenes/default.toml"]) == code
+    assert capsys.readouterr().err.strip().startswith("sieve-mi: ")
