@@ -359,8 +359,18 @@ class Terminated(KeyboardInterrupt):
         self.signum = signum
 
 
+#: Signals received during the run (a library may wrap the exception they raise, even in text).
+_RECEIVED: list[int] = []
+
+
 def _raise_terminated(signum, frame):
+    _RECEIVED.append(signum)
     raise Terminated(signum)
+
+
+def _raise_interrupt(signum, frame):
+    _RECEIVED.append(signum)
+    raise KeyboardInterrupt
 
 
 @contextlib.contextmanager
@@ -378,6 +388,8 @@ def _termination_as_interrupt():
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT, *sigs])
     old = {s: signal.signal(s, _raise_terminated) for s in sigs}
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not when ignored
+        old[signal.SIGINT] = signal.signal(signal.SIGINT, _raise_interrupt)
     try:
         yield
     finally:
@@ -441,6 +453,7 @@ def _certify_summary(name: str, r) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    _RECEIVED.clear()
     args = _parser().parse_args(argv)
     try:
         with _termination_as_interrupt():
@@ -476,11 +489,13 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except Exception as exc:  # a library (Mitsuba's render) may wrap the signal's exception
         cause = _interruption(exc)
-        if cause is None:
+        if cause is None and not _RECEIVED:
             raise
-        print(f"sieve-mi: {'terminated' if isinstance(cause, Terminated) else 'interrupted'}",
-              file=sys.stderr)  # fmt: skip
-        return 128 + cause.signum if isinstance(cause, Terminated) else 130
+        signum = cause.signum if isinstance(cause, Terminated) else None
+        signum = signum or (_RECEIVED[-1] if _RECEIVED else signal.SIGINT)
+        word = "interrupted" if signum == signal.SIGINT else "terminated"
+        print(f"sieve-mi: {word}", file=sys.stderr)
+        return 128 + int(signum)
     return 1
 
 
