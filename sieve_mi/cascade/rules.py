@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sieve_mi.cascade.size import canonical_extents, end_first_radius, predicted_margin
-from sieve_mi.geometry.canonical import principal_axes
+from sieve_mi.geometry.canonical import principal_axes, proper_signed_permutations
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.rotations import from_matrix
 
@@ -198,18 +198,7 @@ def grown_hull(b: Body, grow: float) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return b._grown[key]
 
 
-def _proper_signed_permutations() -> list[np.ndarray]:
-    out = []
-    for perm in itertools.permutations(range(3)):
-        for signs in itertools.product((1.0, -1.0), repeat=3):
-            p = np.zeros((3, 3))
-            p[np.arange(3), perm] = signs
-            if np.linalg.det(p) > 0:
-                out.append(p)
-    return out
-
-
-_TURNS = _proper_signed_permutations()
+_TURNS = proper_signed_permutations()
 
 
 def _deepest(normals: np.ndarray, room: np.ndarray) -> tuple[float, np.ndarray]:

@@ -34,6 +34,7 @@ __all__ = [
     "canonical_orientations",
     "principal_axes",
     "principal_frames",
+    "proper_signed_permutations",
     "view_directions",
 ]
 
@@ -77,14 +78,19 @@ def principal_frames(shape: Shape) -> np.ndarray:
     Every proper signed permutation of the principal frame: for a box, its 24 axis-aligned poses.
     """
     axes = principal_axes(shape)
+    return np.array([from_matrix(p @ axes) for p in proper_signed_permutations()])
+
+
+def proper_signed_permutations() -> list[np.ndarray]:
+    """The 24 rotation matrices with entries 0 and +-1 (a cube's rotations), each (3, 3)."""
     out = []
     for perm in itertools.permutations(range(3)):
         for signs in itertools.product((1.0, -1.0), repeat=3):
             p = np.zeros((3, 3))
             p[np.arange(3), perm] = signs
             if np.linalg.det(p) > 0:
-                out.append(from_matrix(p @ axes))
-    return np.array(out)
+                out.append(p)
+    return out
 
 
 def _facets(hull) -> tuple[np.ndarray, np.ndarray]:
