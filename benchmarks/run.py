@@ -132,6 +132,7 @@ def run_one(name: str, variant: str, objective: str, quick: bool) -> dict:
         "loss": [float(x) for x in result.attack.beta[0]],
         "protrusion": [float(x) for x in result.attack.protrusion[0]],
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "stage_peaks_gb": dict(result.memory.peaks) if result.memory is not None else {},
         "quick": quick,
     }
 
@@ -154,22 +155,23 @@ def markdown(rows: list[dict], header: str) -> str:
     out = [
         header,
         "",
-        "| scene | objective | faces A / B | pixels | edge samples | init + load s | search s | verdict s | total s | winner | B loss | B protrusion | peak MB |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| scene | objective | faces A / B | pixels | edge samples | init + load s | search s | verdict s | total s | winner | B loss | B protrusion | peak MB | peak GB by stage |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for r in rows:
         if "error" in r:
             out.append(
-                f"| {r['scene']} | {r['objective']} | error: {r['error']} |  |  |  |  |  |  |  |  |  |  |"
+                f"| {r['scene']} | {r['objective']} | error: {r['error']} |  |  |  |  |  |  |  |  |  |  |  |"
             )
             continue
         out.append(
-            "| {scene} | {objective} | {fa} / {fb} | {pixels} | {edge_samples} | {il:.1f} | {search_s:.1f} | {verdict_s:.1f} | {total_s:.1f} | {winner} | {losses} | {prot} | {peak_rss_mb:.0f} |".format(
+            "| {scene} | {objective} | {fa} / {fb} | {pixels} | {edge_samples} | {il:.1f} | {search_s:.1f} | {verdict_s:.1f} | {total_s:.1f} | {winner} | {losses} | {prot} | {peak_rss_mb:.0f} | {stages} |".format(
                 fa="+".join(map(str, r["faces_pass"])),
                 fb="+".join(map(str, r["faces_block"])),
                 il=r.get("init_s", 0.0) + r.get("load_s", 0.0),
                 losses=", ".join(f"{x:.3f}" for x in r["loss"]),
                 prot=", ".join(f"{x:.2f}" for x in r["protrusion"]),
+                stages=", ".join(f"{k} {v:.2f}" for k, v in r.get("stage_peaks_gb", {}).items()),
                 **r,
             )
         )

@@ -1,4 +1,4 @@
-"""Choosing the Dr.Jit/Mitsuba backend.
+"""Choosing the Dr.Jit/Mitsuba backend, and the process's share of the machine (threads, memory).
 
 Dr.Jit 1.5's LLVM backend needs libLLVM >= 17 (with 14-16 every kernel dies with
 ``Cannot select: ... fminimum``). :func:`configure_llvm` finds a suitable library and sets
@@ -18,6 +18,7 @@ from sieve_mi.errors import SieveError
 
 __all__ = [
     "MIN_LLVM",
+    "MemoryWatch",
     "RGB_VARIANTS",
     "THREADS_ENV",
     "VARIANTS",
@@ -28,6 +29,7 @@ __all__ = [
     "default_variant",
     "find_llvm",
     "gpu_available",
+    "release_cached_memory",
     "select_rgb_variant",
     "set_threads",
     "use_variant",
@@ -240,3 +242,115 @@ def bitmap_threads():
     finally:
         if before < 2:
             dr.set_thread_count(before)
+
+
+def release_cached_memory() -> None:
+    """Give Dr.Jit's cached allocations back to the system, on the CPU only.
+
+    Dr.Jit keeps freed arrays in a cache for reuse, so after one attack of player B the process
+    holds that attack's peak whether it is used again or not: on cow-bunny 0.5 GB of the 0.95 GB
+    peak was this cache (docs/performance.md, "Memory"). Called between attacks; on a GPU the
+    cache is kept (allocating device memory synchronises, and the device has the room).
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    variant = mi.variant() or ""
+    if variant.startswith("llvm"):
+        dr.flush_malloc_cache()
+
+
+def _resident_gb() -> float | None:
+    """The process's resident memory now, GB (None where /proc is not there)."""
+    try:
+        with open("/proc/self/statm") as fh:
+            return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**30
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def _peak_gb() -> float:
+    """The process's peak resident memory so far (``getrusage``), GB."""
+    import resource
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 2**30 if sys.platform == "darwin" else peak / 2**20
+
+
+class MemoryWatch:
+    """Peak resident memory of each stage of a run, GB.
+
+    A daemon thread samples the resident set every ``interval`` seconds while the watch runs.
+    A stage's peak is exact where the process's peak (``getrusage``) rose during the stage,
+    since the new peak was then reached inside it; otherwise it is the largest sample (a spike
+    shorter than the interval can be missed). Nothing is reset, so ``getrusage`` and external
+    tools still see the process's true peak.
+
+    Parameters
+    ----------
+    interval : float
+        Seconds between samples.
+
+    Examples
+    --------
+    >>> watch = MemoryWatch()
+    >>> data = bytearray(50 * 2**20)  # 50 MB touched in this stage
+    >>> watch.mark("build") >= 0.05
+    True
+    >>> watch.stop()
+    """
+
+    def __init__(self, interval: float = 0.01):
+        import threading
+
+        #: Stage name -> peak GB, in the order marked.
+        self.peaks: dict[str, float] = {}
+        self.interval = float(interval)
+        self._lock = threading.Lock()
+        self._process_peak = _peak_gb()
+        self._max = _resident_gb() or 0.0
+        self._thread = None
+        self.start()
+
+    def start(self) -> None:
+        """(Re)start sampling; a stage counts from the last mark or from here."""
+        import threading
+
+        if self._thread is not None:
+            return
+        self._running = True
+        self._thread = threading.Thread(target=self._sample, name="sieve-mi-memory", daemon=True)
+        self._thread.start()
+
+    def _sample(self) -> None:
+        import time
+
+        while self._running:
+            now = _resident_gb()
+            if now is None:
+                return
+            with self._lock:
+                self._max = max(self._max, now)
+            time.sleep(self.interval)
+
+    def mark(self, stage: str) -> float:
+        """End ``stage`` here: record and return its peak, GB; the next stage starts now."""
+        now = _resident_gb() or 0.0
+        peak = _peak_gb()
+        with self._lock:
+            sampled, self._max = max(self._max, now), now
+        rose, self._process_peak = peak > self._process_peak, max(peak, self._process_peak)
+        self.peaks[stage] = round(peak if rose else sampled, 4)
+        return self.peaks[stage]
+
+    def stop(self) -> None:
+        """Stop sampling (:meth:`start` resumes)."""
+        self._running = False
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+
+    @property
+    def peak(self) -> float:
+        """The process's peak resident memory so far, GB."""
+        return round(max(_peak_gb(), *self.peaks.values(), 0.0), 4)

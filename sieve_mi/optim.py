@@ -86,6 +86,8 @@ class SwarmHistory:
     finalists: list = field(default_factory=list)
     #: The local polish's record (:meth:`sieve_mi.game.players.PlayerA.polish`), if one ran.
     polish: dict | None = None
+    #: The iteration a swarm's patience stopped it at (None: it ran every iteration).
+    stopped: int | None = None
 
     def extend(self, other: SwarmHistory) -> None:
         """Append a later stage's values and evaluations (its finalists are not kept)."""
@@ -104,6 +106,9 @@ def particle_swarm(
     v0: np.ndarray | None = None,
     project: Callable[[np.ndarray], np.ndarray] | None = None,
     progress: Callable[[int, float], None] | None = None,
+    patience: int = 0,
+    gain: float = 0.01,
+    floor: float = 1e-3,
 ):
     """Maximise ``evaluate`` with particle swarm optimisation (Poli 2008), all particles per call.
 
@@ -125,12 +130,29 @@ def particle_swarm(
         Maps positions back onto the feasible set after every move (e.g. normalise quaternions).
     progress : callable, optional
         Called as ``progress(iteration, best_value)``.
+    patience : int
+        Stop early once the swarm's best has not improved for this many iterations in a row
+        (0: run every iteration). An improvement counts when it exceeds ``gain`` times the best
+        (relative) and at least ``floor``.
+    gain, floor : float
+        See ``patience``.
 
     Returns
     -------
     best_x : (D,) ndarray
     best_value : float
     history : SwarmHistory
+        ``history.stopped`` is the iteration the patience ended the swarm at (None: it ran all).
+
+    Examples
+    --------
+    A flat function stops after ``patience`` idle iterations:
+
+    >>> rng = np.random.default_rng(0)
+    >>> _, _, h = particle_swarm(lambda x: np.zeros(len(x)), rng.normal(size=(4, 2)), 10, rng,
+    ...                          patience=3)
+    >>> h.stopped, len(h.best)
+    (3, 4)
     """
     x = np.array(x0, dtype=np.float64)
     v = np.zeros_like(x) if v0 is None else np.array(v0, dtype=np.float64)
@@ -141,6 +163,7 @@ def particle_swarm(
     history.best.append(float(p_val[g]))
     if progress:
         progress(0, float(p_val[g]))
+    mark, idle = float(p_val[g]), 0  # the best that later ones must beat by a margin
     for it in range(1, iterations + 1):
         r1, r2 = rng.random(x.shape), rng.random(x.shape)
         v = inertia * v + c_personal * r1 * (p_best - x) + c_global * r2 * (p_best[g] - x)
@@ -155,6 +178,13 @@ def particle_swarm(
         history.best.append(float(p_val[g]))
         if progress:
             progress(it, float(p_val[g]))
+        if p_val[g] > mark + max(floor, gain * abs(mark)):
+            mark, idle = float(p_val[g]), 0
+        else:
+            idle += 1
+        if patience and idle >= patience and it < iterations:
+            history.stopped = it
+            break
     order = np.argsort(p_val)[::-1]
     history.finalists = [(p_best[i].copy(), float(p_val[i])) for i in order]
     return p_best[g].copy(), float(p_val[g]), history

@@ -342,6 +342,13 @@ class Solver:
     )
     particles: int = setting(10, "PSO particles", minimum=1, maximum=10_000)
     iterations: int = setting(10, "PSO iterations", minimum=0, maximum=100_000)
+    patience: int = setting(
+        0,
+        "stop player A's swarm once its best has not improved (by 1 %, at least 0.001) for this "
+        "many iterations in a row (0: run every iteration, as the paper)",
+        minimum=0,
+        maximum=100_000,
+    )
     starts: int = setting(10, "random starts of each B per evaluation", minimum=1, maximum=10_000)
     steps: int = setting(100, "Adam steps per start", minimum=0, maximum=1_000_000)
     learning_rate: float = setting(

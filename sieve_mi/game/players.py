@@ -14,6 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from sieve_mi.backend import release_cached_memory
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import Attack, AttackMemory
 from sieve_mi.game.scoring import score_poses
@@ -257,6 +258,7 @@ class PlayerB:
         attack = self._score(holes, quats, trans, pose_hole, pose_shape, starts, keep)
         if memory is not None:
             memory.update(attack)
+        release_cached_memory()  # else the process holds this attack's peak from now on
         return attack
 
     def descend(
@@ -699,6 +701,7 @@ class PlayerA:
                 solver.c_global,
                 project=normalize,
                 progress=progress,
+                patience=solver.patience,
             )
         lower, upper = -np.pi * np.ones(3), np.pi * np.ones(3)
         x0 = rng.uniform(-np.pi, np.pi, 3)

@@ -123,6 +123,8 @@ class Result:
     polish: list = field(default_factory=list)
     #: ``time.perf_counter()`` when the solve started (report.json's ``total_s`` counts from it).
     started: float | None = None
+    #: Peak resident memory per stage (:class:`sieve_mi.backend.MemoryWatch`), or None.
+    memory: object = None
 
     @property
     def blocks(self) -> list[BlockAttempt]:

@@ -252,18 +252,22 @@ def solve(
     """Play the sieve game for a scene; parameters as :func:`sieve_mi.api.solve`, which checks
     them and returns this game's :class:`~sieve_mi.game.result.Result` as a
     :class:`sieve_mi.api.Result` (one that can save its outputs)."""
-    from sieve_mi.backend import use_variant
+    from sieve_mi.backend import MemoryWatch, use_variant
 
     t_init = time.perf_counter()
+    watch = MemoryWatch()
     variant = use_variant(variant).variant()
+    watch.mark("init")
     t_load = time.perf_counter()
     passes, blocks = load_shapes(scene)
+    watch.mark("load")
     seed = scene.solver.seed if seed is None else seed
     rng = np.random.default_rng(seed)
     timings = {"init_s": t_load - t_init, "load_s": time.perf_counter() - t_load}
     t0 = time.perf_counter()
     sure = proved_by_size(scene, passes, blocks)
     timings["screen_s"] = time.perf_counter() - t0
+    watch.mark("screen")
     open_blocks = [b for j, b in enumerate(blocks) if j not in sure]
     t0 = time.perf_counter()
     found = (
@@ -272,8 +276,12 @@ def solve(
         else _unsearched(scene)
     )
     timings["search_s"] = time.perf_counter() - t0
-    v, certified, winner = _verdict(scene, passes, blocks, sure, found, rng, progress, timings)
+    watch.mark("search")
+    v, certified, winner = _verdict(scene, passes, blocks, sure, found, rng, progress, timings,
+                                    watch)  # fmt: skip
     sheet, winner = _sheet(scene, passes, blocks, v, certified, winner, seed, progress, timings)
+    watch.mark("thin")
+    watch.stop()
     return Result(
         scene=scene,
         winner=winner,
@@ -298,13 +306,16 @@ def solve(
         outline=v.outline,
         polish=found.polish,
         started=t_init,
+        memory=watch,
     )
 
 
-def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progress, timings):
+def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progress, timings,
+             watch):  # fmt: skip
     """The verdict on the B not proved before the game, completed with those that were, and the
     optional certification: (judgement, certifications or [], winner); ``timings`` gains
-    ``verdict_s`` (and ``certify_s``)."""
+    ``verdict_s`` (and ``certify_s``), the :class:`~sieve_mi.backend.MemoryWatch` ``watch`` the
+    stages "verdict" (and "certify")."""
     t1 = time.perf_counter()
     certified = [None] * len(blocks)
     while True:
@@ -318,12 +329,14 @@ def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progr
             break
         sure = {j: r for j, r in sure.items() if j not in failed}  # play them after all
     timings["verdict_s"] = time.perf_counter() - t1
+    watch.mark("verdict")
     winner = v.winner
     if scene.verdict.certify:
         t2 = time.perf_counter()
         for j, c in enumerate(_certify(scene, passes, blocks, found.quats, v, progress, sure)):
             certified[j] = certified[j] if j in sure else c
         timings["certify_s"] = time.perf_counter() - t2
+        watch.mark("certify")
     if any(c is not None and c.status == "passage" for c in certified):
         winner = "B"
     return v, (certified if any(c is not None for c in certified) else []), winner

@@ -30,6 +30,8 @@ __all__ = [
     "STAGES",
     "convergence_figure",
     "exr_metadata",
+    "memory_dict",
+    "memory_line",
     "stage_line",
     "input_paths",
     "mask_layers",
@@ -291,6 +293,7 @@ def report_dict(result: Result) -> dict:
         "polish": list(result.polish),
         "warnings": list(result.warnings),
         "timings": {k: round(float(v), 4) for k, v in result.timings.items()},
+        "memory": memory_dict(result.memory),
         "pixel_size": hole.frame.pixel_size,
         "units": scene.units,
         "conventions": "rotation q = (w, x, y, z) acts on the mesh's points about its centre (bounding-box centre, "
@@ -487,11 +490,15 @@ def write_outputs(
     """
     t_start = time.perf_counter()
     report = report_dict(result)
-    timings = report["timings"]
+    timings, watch = report["timings"], result.memory
+    mark = watch.mark if watch is not None else (lambda stage: None)
+    if watch is not None:
+        watch.start()
     with outdir.writing(out_dir, command="solve", inputs=input_paths(result.scene)) as tmp:
         _write_images(result, tmp)  # report.json's dict and the images, from t_start
         _write_certificates(result, report, tmp)
         timings["images_s"] = round(time.perf_counter() - t_start, 4)
+        mark("images")
         if fabricate:
             from sieve_mi.outputs.fabrication import fabricate as make_sieve
 
@@ -501,15 +508,19 @@ def write_outputs(
             timings["fabrication_s"] = round(time.perf_counter() - t0 - figure_s, 4)
             if figure:
                 timings["figure_s"] = round(figure_s, 4)
-        _write_passage(result, report, tmp, animation)
+            mark("fabrication")
+        _write_passage(result, report, tmp, animation, mark)
+    if watch is not None:
+        watch.stop()
     return report
 
 
-def _write_passage(result: Result, report: dict, tmp: str, animation: bool) -> None:
+def _write_passage(result: Result, report: dict, tmp: str, animation: bool, mark) -> None:
     """passage.gif (with ``animation``), report.json and report.html into ``tmp``.
 
     The GIF's record and its time go into ``report`` before report.json is written; the page,
-    written last, holds report.json's content and links every other file.
+    written last, holds report.json's content and links every other file. ``mark(stage)`` ends
+    a stage of the run's memory watch.
     """
     from sieve_mi.outputs.passage import build
     from sieve_mi.outputs.viewer import page_files, write_page
@@ -524,12 +535,15 @@ def _write_passage(result: Result, report: dict, tmp: str, animation: bool) -> N
         t0 = time.perf_counter()
         report["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
         timings["animation_s"] = round(time.perf_counter() - t0, 4)
+    mark("passage")
     t0 = time.perf_counter()
     files = page_files(tmp) + ["report.json"]
     write_page(os.path.join(tmp, "report.html"), result, report, passage, sorted(set(files)))
     timings["page_s"] = round(time.perf_counter() - t0, 4)  # the page shows the times before it
     if result.started is not None:
         timings["total_s"] = round(time.perf_counter() - result.started, 4)
+    mark("page")
+    report["memory"] = memory_dict(result.memory)
     with open(os.path.join(tmp, "report.json"), "w") as fh:
         json.dump(report, fh, indent=2)
 
@@ -624,6 +638,8 @@ def summary_table(report: dict) -> str:
     )
     if "total_s" in t:
         lines.append(stage_line(t))
+    if memory_line(report):
+        lines.append(memory_line(report))
     plate = sheet_line(report)
     if plate:
         lines.append(plate)
@@ -641,6 +657,32 @@ STAGES = (
     ("fabrication_s", "plate"), ("figure_s", "figure"), ("passage_s", "passage"),
     ("animation_s", "gif"), ("page_s", "page"),
 )  # fmt: skip
+
+
+def memory_dict(watch) -> dict | None:
+    """report.json's ``memory``: the process's peak resident memory and each stage's, GB.
+
+    Parameters
+    ----------
+    watch : sieve_mi.backend.MemoryWatch or None
+
+    Returns
+    -------
+    dict or None
+        ``{"peak_gb": float, "stages_gb": {stage: float}}``; None without a watch.
+    """
+    if watch is None:
+        return None
+    return {"peak_gb": watch.peak, "stages_gb": dict(watch.peaks)}
+
+
+def memory_line(report: dict) -> str | None:
+    """``memory: peak 0.72 GB (search 0.72, verdict 0.57, ...)`` from report.json, or None."""
+    mem = report.get("memory")
+    if not mem:
+        return None
+    stages = ", ".join(f"{k} {v:.2f}" for k, v in mem["stages_gb"].items() if v >= 0.005)
+    return f"memory: peak {mem['peak_gb']:.2f} GB ({stages})"
 
 
 def stage_line(timings: dict) -> str:

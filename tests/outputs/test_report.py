@@ -173,8 +173,14 @@ def test_every_stage_is_timed_and_they_sum_to_the_wall_time(tmp_path):
     assert t["total_s"] >= 0.9 * wall
     with open(tmp_path / "out" / "report.json") as fh:
         assert json.load(fh)["timings"] == t
-    line = summary_table(report).splitlines()[-1]
+    lines = summary_table(report).splitlines()
+    line = next(x for x in lines if x.startswith("time: "))
     assert line.startswith(f"time: {t['total_s']:.1f} s = ") and "figure" in line and "gif" in line
+    # the memory line follows it: the process's peak and each stage's, no stage above the peak
+    mem = report["memory"]
+    assert lines[lines.index(line) + 1].startswith(f"memory: peak {mem['peak_gb']:.2f} GB (")
+    assert {"search", "verdict", "fabrication", "page"} <= set(mem["stages_gb"])
+    assert max(mem["stages_gb"].values()) <= mem["peak_gb"]
 
 
 def _exr_header(path) -> dict:
