@@ -9,7 +9,16 @@ import signal
 import sys
 import threading
 
-from sieve_mi.errors import EXIT_BAD_INPUT, EXIT_NO, EXIT_OK, EXIT_UNDECIDED, SieveError
+from sieve_mi.errors import (
+    EXIT_BAD_INPUT,
+    EXIT_NO,
+    EXIT_OK,
+    EXIT_UNDECIDED,
+    SieveError,
+    clear_signals,
+    note_signal,
+    signals_received,
+)
 
 __all__ = ["Terminated", "cmd_certify", "cmd_check", "cmd_solve", "cmd_view", "main"]
 
@@ -359,17 +368,13 @@ class Terminated(KeyboardInterrupt):
         self.signum = signum
 
 
-#: Signals received during the run (a library may wrap the exception they raise, even in text).
-_RECEIVED: list[int] = []
-
-
 def _raise_terminated(signum, frame):
-    _RECEIVED.append(signum)
+    note_signal(signum)  # a library may wrap the exception raised here, even as text only
     raise Terminated(signum)
 
 
 def _raise_interrupt(signum, frame):
-    _RECEIVED.append(signum)
+    note_signal(signum)
     raise KeyboardInterrupt
 
 
@@ -453,7 +458,7 @@ def _certify_summary(name: str, r) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    _RECEIVED.clear()
+    clear_signals()
     args = _parser().parse_args(argv)
     try:
         with _termination_as_interrupt():
@@ -484,15 +489,18 @@ def main(argv: list[str] | None = None) -> int:
     except Terminated as exc:
         print("sieve-mi: terminated", file=sys.stderr)
         return 128 + exc.signum
-    except KeyboardInterrupt:
-        print("sieve-mi: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt:  # Ctrl-C, or a SIGTERM that a library's error stood in for
+        signum = (signals_received() or [signal.SIGINT])[-1]
+        print(f"sieve-mi: {'interrupted' if signum == signal.SIGINT else 'terminated'}",
+              file=sys.stderr)  # fmt: skip
+        return 128 + int(signum)
     except Exception as exc:  # a library (Mitsuba's render) may wrap the signal's exception
         cause = _interruption(exc)
-        if cause is None and not _RECEIVED:
+        received = signals_received()
+        if cause is None and not received:
             raise
         signum = cause.signum if isinstance(cause, Terminated) else None
-        signum = signum or (_RECEIVED[-1] if _RECEIVED else signal.SIGINT)
+        signum = signum or (received[-1] if received else signal.SIGINT)
         word = "interrupted" if signum == signal.SIGINT else "terminated"
         print(f"sieve-mi: {word}", file=sys.stderr)
         return 128 + int(signum)

@@ -4,7 +4,16 @@ Every problem a user can fix (a missing file, a bad key, an unreadable mesh) is 
 :class:`SieveError`; the command line prints its message as one line and exits with code 2.
 """
 
-__all__ = ["EXIT_BAD_INPUT", "EXIT_NO", "EXIT_OK", "EXIT_UNDECIDED", "SieveError"]
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_NO",
+    "EXIT_OK",
+    "EXIT_UNDECIDED",
+    "SieveError",
+    "clear_signals",
+    "note_signal",
+    "signals_received",
+]
 
 #: Exit codes of the command line (docs/cli.md). 0: the answer is yes (A wins, the part passes,
 #: the shape is proved blocked, the certificate holds, every shape has its own tray).
@@ -20,3 +29,27 @@ EXIT_UNDECIDED = 4
 
 class SieveError(Exception):
     """An error in the user's input or environment, with a one-line message saying what to do."""
+
+
+#: Signals (SIGINT, SIGTERM, SIGHUP numbers) whose handler ran in this run, oldest first.
+_SIGNALS: list[int] = []
+
+
+def note_signal(signum: int) -> None:
+    """Record that the command line's handler of ``signum`` ran (before it raises).
+
+    A library may catch the exception the handler raises and report it as its own error, with
+    the interrupt only as text (Mitsuba's plugin loader, Dr.Jit's frozen functions): code that
+    catches such errors asks :func:`signals_received` whether it was really a signal.
+    """
+    _SIGNALS.append(int(signum))
+
+
+def signals_received() -> list[int]:
+    """The signals noted by :func:`note_signal` since :func:`clear_signals`, oldest first."""
+    return list(_SIGNALS)
+
+
+def clear_signals() -> None:
+    """Forget the noted signals (at the start of a command)."""
+    _SIGNALS.clear()

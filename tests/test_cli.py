@@ -581,3 +581,32 @@ def test_a_signal_wrapped_by_a_library_still_gives_its_exit_code(monkeypatch, ca
     monkeypatch.setattr(cli, "cmd_solve", boom)
     assert cli.main(["solve", "scenes/default.toml"]) == code
     assert capsys.readouterr().err.strip().startswith("sieve-mi: ")
+
+
+@pytest.mark.parametrize("signum, code", [(15, 143), (2, 130)])
+def test_a_signal_a_frozen_step_swallowed_as_text_still_ends_the_run(monkeypatch, capsys, signum,
+                                                                     code):  # fmt: skip
+    # Dr.Jit may report an exception raised while it recorded a frozen step as a RuntimeError
+    # carrying the interrupt only as text. Player B used to read that as "freezing failed" and
+    # trace on: a SIGTERM was lost (seen on a letters run that ran on for minutes after a kill).
+    # Once the handler has run, the error stands for the signal: the players raise a
+    # KeyboardInterrupt and the command line ends with the signal's code.
+    from sieve_mi import cli
+    from sieve_mi.errors import clear_signals, note_signal
+    from sieve_mi.game.players import _interruption
+
+    text_only = RuntimeError("drjit.freeze(): KeyboardInterrupt")
+    clear_signals()
+    assert _interruption(text_only) is None  # a real failure of freezing: trace instead
+    note_signal(signum)
+    assert isinstance(_interruption(text_only), KeyboardInterrupt)
+
+    def lost(args):
+        note_signal(signum)
+        raise _interruption(text_only)
+
+    monkeypatch.setattr(cli, "cmd_solve", lost)
+    assert cli.main(["solve", "scenes/default.toml"]) == code
+    word = "terminated" if signum == 15 else "interrupted"
+    assert capsys.readouterr().err.strip() == f"sieve-mi: {word}"
+    clear_signals()

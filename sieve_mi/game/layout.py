@@ -337,7 +337,7 @@ def place(
     quat : (4,) ndarray
         The shape's best rotation when it was solved alone.
     solver : sieve_mi.scene.Solver
-        Its ``particles`` and ``iterations`` are the placement swarm's; its ``starts``,
+        Its ``particles``, ``iterations`` and ``patience`` are the placement swarm's; its ``starts``,
         ``steps`` and ``learning_rate`` player B's attack on every candidate hole.
     layout : sieve_mi.scene.Layout
         Eq. 14's tau, rho, eta, alpha, the swarm's accelerations and ``rounds``.
@@ -372,8 +372,9 @@ def place(
     recheck = recheck if recheck is not None else (3 * starts, 3 * steps)
     rounds = layout.rounds if rounds is None else rounds
     return game.play(
-        pool, particles, solver.iterations, (starts, steps), recheck, finalists, rounds, progress
-    )
+        pool, particles, solver.iterations, (starts, steps), recheck, finalists, rounds, progress,
+        patience=solver.patience,
+    )  # fmt: skip
 
 
 @dataclass
@@ -399,10 +400,12 @@ class _PlacementGame:
         n = np.array([pieces(hh.mask) for hh in holes])
         return eq14(attack.value(), area, n, self.settings), attack.value()
 
-    def play(self, pool, particles, iterations, attack, recheck, finalists, rounds, progress):
+    def play(self, pool, particles, iterations, attack, recheck, finalists, rounds, progress,
+             patience: int = 0):  # fmt: skip
         """Rounds of screening, swarm and re-ranking over the candidate ``pool`` (see :func:`place`).
 
-        ``attack`` and ``recheck`` are (starts, steps) of the swarm's and the re-ranking's attacks.
+        ``attack`` and ``recheck`` are (starts, steps) of the swarm's and the re-ranking's attacks;
+        ``patience`` is the swarm's (``[solver] patience``).
         """
         reach, rng, settings = self.reach, self.rng, self.settings
 
@@ -416,6 +419,7 @@ class _PlacementGame:
             x, _, h = particle_swarm(
                 evaluate, _project(x0), iterations, rng, c_personal=settings.c_personal,
                 c_global=settings.c_global, project=_project, progress=progress,
+                patience=patience,
             )  # fmt: skip
             history.extend(h)
             history.finalists = h.finalists

@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 from sieve_mi.backend import release_cached_memory
-from sieve_mi.errors import SieveError
+from sieve_mi.errors import SieveError, signals_received
 from sieve_mi.game.attack import Attack, AttackMemory
 from sieve_mi.game.scoring import score_poses
 from sieve_mi.geometry.hole import Hole, build_hole
@@ -114,7 +114,9 @@ def _interruption(exc: BaseException) -> BaseException | None:
     """The interrupt (KeyboardInterrupt, SystemExit, a termination signal) behind ``exc``, if any.
 
     Dr.Jit re-raises whatever a frozen function raised while recording as a RuntimeError whose
-    cause is the original exception; a signal that arrived then must still stop the run.
+    cause is the original exception, or with the original only as text; a signal that arrived
+    then must still stop the run. Where the chain holds no interrupt but the command line's
+    handler ran (:func:`sieve_mi.errors.signals_received`), a KeyboardInterrupt stands for it.
     """
     seen = set()
     while exc is not None and id(exc) not in seen:
@@ -122,7 +124,7 @@ def _interruption(exc: BaseException) -> BaseException | None:
         if not isinstance(exc, Exception):
             return exc
         exc = exc.__cause__ or exc.__context__
-    return None
+    return KeyboardInterrupt() if signals_received() else None
 
 
 class _FrozenStepFailed(Exception):
