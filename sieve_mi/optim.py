@@ -95,6 +95,22 @@ class SwarmHistory:
         self.evaluations += other.evaluations
 
 
+class _Stall:
+    """Counts a search's iterations in a row whose best beat the last marked best by less than
+    ``gain`` (relative) or ``floor`` (absolute)."""
+
+    def __init__(self, best: float, gain: float, floor: float):
+        self.mark, self.idle, self.gain, self.floor = best, 0, gain, floor
+
+    def idle_after(self, best: float) -> int:
+        """Take one iteration's best; return the idle iterations in a row so far."""
+        if best > self.mark + max(self.floor, self.gain * abs(self.mark)):
+            self.mark, self.idle = best, 0
+        else:
+            self.idle += 1
+        return self.idle
+
+
 def particle_swarm(
     evaluate: Callable[[np.ndarray], np.ndarray],
     x0: np.ndarray,
@@ -130,12 +146,9 @@ def particle_swarm(
         Maps positions back onto the feasible set after every move (e.g. normalise quaternions).
     progress : callable, optional
         Called as ``progress(iteration, best_value)``.
-    patience : int
-        Stop early once the swarm's best has not improved for this many iterations in a row
-        (0: run every iteration). An improvement counts when it exceeds ``gain`` times the best
-        (relative) and at least ``floor``.
-    gain, floor : float
-        See ``patience``.
+    patience, gain, floor : int, float, float
+        Stop early once the swarm's best has not improved for ``patience`` iterations in a row
+        (0: run every iteration); an improvement must exceed ``gain`` times the best and ``floor``.
 
     Returns
     -------
@@ -143,16 +156,6 @@ def particle_swarm(
     best_value : float
     history : SwarmHistory
         ``history.stopped`` is the iteration the patience ended the swarm at (None: it ran all).
-
-    Examples
-    --------
-    A flat function stops after ``patience`` idle iterations:
-
-    >>> rng = np.random.default_rng(0)
-    >>> _, _, h = particle_swarm(lambda x: np.zeros(len(x)), rng.normal(size=(4, 2)), 10, rng,
-    ...                          patience=3)
-    >>> h.stopped, len(h.best)
-    (3, 4)
     """
     x = np.array(x0, dtype=np.float64)
     v = np.zeros_like(x) if v0 is None else np.array(v0, dtype=np.float64)
@@ -163,7 +166,7 @@ def particle_swarm(
     history.best.append(float(p_val[g]))
     if progress:
         progress(0, float(p_val[g]))
-    mark, idle = float(p_val[g]), 0  # the best that later ones must beat by a margin
+    stall = _Stall(float(p_val[g]), gain, floor)
     for it in range(1, iterations + 1):
         r1, r2 = rng.random(x.shape), rng.random(x.shape)
         v = inertia * v + c_personal * r1 * (p_best - x) + c_global * r2 * (p_best[g] - x)
@@ -178,11 +181,7 @@ def particle_swarm(
         history.best.append(float(p_val[g]))
         if progress:
             progress(it, float(p_val[g]))
-        if p_val[g] > mark + max(floor, gain * abs(mark)):
-            mark, idle = float(p_val[g]), 0
-        else:
-            idle += 1
-        if patience and idle >= patience and it < iterations:
+        if stall.idle_after(float(p_val[g])) >= patience > 0 and it < iterations:
             history.stopped = it
             break
     order = np.argsort(p_val)[::-1]

@@ -149,7 +149,7 @@ def _joined(a: list[int], b: list[int], u: int, v: int) -> list[int]:
     a_rot = a[ia:] + a[:ia]  # starts u, v, ...
     ib = b.index(v)
     b_rot = b[ib:] + b[:ib]  # starts v, u, ...
-    return a_rot[1:] + b_rot[2:] + [u]
+    return a_rot[1:] + [u] + b_rot[2:]  # v, ..., u along a, then on along b back to v
 
 
 def _merge_convex(verts: np.ndarray, polys: list[list[int]]) -> list[list[int]]:

@@ -58,6 +58,12 @@ def add_parser(sub) -> None:
     p.add_argument("--sieve", help="a plate mesh (holes along z) to shake the PART meshes on")
     p.add_argument("--units", help="length unit of --sieve's meshes (default mm)")
     p.add_argument("--out", help="with --sieve: also write DIR/shake.json, shake.png")
+    p.add_argument(
+        "--only",
+        metavar="NAMES",
+        help="shake only these shapes: their names separated by commas (as report.json names "
+        "them; with --sieve, the part files' stems), e.g. --only S,G",
+    )
     add_settings(p)
     p.add_argument(
         "--no-clip", action="store_true", help="skip shake.gif (one rendered trial per shape)"
@@ -102,13 +108,18 @@ def _clip_path(folder: str) -> str:
     return os.path.join(folder, f".shake.tmp-{os.getpid()}.gif")
 
 
-def shake_folder(folder: str, settings: ShakeSettings, progress=True, clip=True) -> dict:
-    """Shake a solve's output folder; add ``shake.json``, ``shake.png``, ``shake.gif`` to it."""
-    from sieve_mi.shake.inputs import from_folder
+def shake_folder(
+    folder: str, settings: ShakeSettings, progress=True, clip=True, only: list[str] | None = None
+) -> dict:
+    """Shake a solve's output folder; add ``shake.json``, ``shake.png``, ``shake.gif`` to it.
+
+    ``only``: the names of the shapes to shake (default every one); ``shake.json`` then lists
+    those alone."""
+    from sieve_mi.shake.inputs import from_folder, select
     from sieve_mi.shake.outputs import add_to_folder
     from sieve_mi.shake.run import shake
 
-    inp = from_folder(folder)
+    inp = select(from_folder(folder), only)
     tmp = _clip_path(folder) if clip else None
     try:
         report = shake(inp, settings, progress=progress, clip=tmp)
@@ -123,11 +134,11 @@ def _shake_files(args, settings: ShakeSettings, inputs: list[str]) -> dict:
     """``shake --sieve PLATE PART... [--out DIR]``."""
     import tempfile
 
-    from sieve_mi.shake.inputs import from_files
+    from sieve_mi.shake.inputs import from_files, only_names, select
     from sieve_mi.shake.outputs import write_new_folder
     from sieve_mi.shake.run import shake
 
-    inp = from_files(args.sieve, args.paths, args.units or "mm")
+    inp = select(from_files(args.sieve, args.paths, args.units or "mm"), only_names(args.only))
     if args.out is None:
         return shake(inp, settings, not args.quiet)
     with tempfile.TemporaryDirectory() as tmp:
@@ -139,9 +150,11 @@ def _shake_files(args, settings: ShakeSettings, inputs: list[str]) -> dict:
 
 def cmd_shake(args) -> int:
     """Run ``sieve-mi shake``; prints the summary table (or shake.json with ``--json``)."""
+    from sieve_mi.shake.inputs import only_names
     from sieve_mi.shake.outputs import summary, to_json
 
     settings = settings_from_args(args)
+    only = only_names(args.only)
     if args.sieve is None:
         if len(args.paths) != 1:
             raise SieveError("shake needs one solve output folder DIR, or --sieve PLATE PART...")
@@ -150,7 +163,7 @@ def cmd_shake(args) -> int:
                 "shake DIR writes into DIR and reads its units from report.json; "
                 "--out and --units go with --sieve PLATE PART..."
             )
-        report = shake_folder(args.paths[0], settings, not args.quiet, not args.no_clip)
+        report = shake_folder(args.paths[0], settings, not args.quiet, not args.no_clip, only)
         where = args.paths[0]
     else:
         inputs = [args.sieve, *args.paths]

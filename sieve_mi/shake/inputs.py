@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import load_trimesh
 
-__all__ = ["ShakeInput", "from_files", "from_folder"]
+__all__ = ["ShakeInput", "from_files", "from_folder", "only_names", "select"]
 
 
 @dataclass
@@ -89,3 +89,35 @@ def from_folder(folder: str) -> ShakeInput:
         raise SieveError(f"{folder}: has no pass_<i>.stl or block_<j>.stl to shake")
     units = str(report.get("units") or report.get("settings", {}).get("units") or "mm")
     return ShakeInput(plate, _mesh(plate), parts, units, folder)
+
+
+def only_names(text: str | None) -> list[str] | None:
+    """``--only``'s text as a list of names (comma-separated, blanks around them dropped); None
+    without the option; a one-line SieveError for a list with no name in it."""
+    if text is None:
+        return None
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise SieveError(f"shake: --only: expected shape names separated by commas, got {text!r}")
+    return names
+
+
+def select(inp: ShakeInput, names: list[str] | None) -> ShakeInput:
+    """``inp`` with only the parts named ``names`` (in ``inp``'s order); every part for None.
+
+    Raises
+    ------
+    SieveError
+        A name that is no part's, in one line that lists the parts' names.
+    """
+    if names is None:
+        return inp
+    known = [p[0] for p in inp.parts]
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise SieveError(
+            f"shake: --only: no shape named {', '.join(map(repr, unknown))}; "
+            f"the shapes are {', '.join(known)}"
+        )
+    parts = [p for p in inp.parts if p[0] in names]
+    return ShakeInput(inp.plate_path, inp.plate, parts, inp.units, inp.folder)

@@ -40,8 +40,9 @@ def wall_thickness(part: Part, unit_m: float) -> float:
 def plate_motion(t: np.ndarray, settings: ShakeSettings) -> tuple[np.ndarray, ...]:
     """The shaker's motion at times ``t``: lift (m), its speed (m/s), twist (rad), its rate.
 
-    z(t) = A sin(2 pi f t) and phi(t) = phi0 sin(2 pi f t): a vertical throw with a slight
-    rotation in phase, the "3-D throwing motion" of electromagnetic lab sieve shakers.
+    z(t) = A sin(2 pi f t), the vertical throw of electromagnetic lab sieve shakers, and
+    phi(t) = phi0 sin(2 pi f t), the slight rotation in phase of their "3-D throwing motion"
+    (``settings.twist``; 0 unless set, since no maker publishes its size; docs/shake.md).
 
     Parameters
     ----------

@@ -188,11 +188,16 @@ def html_section(report: dict, png: bytes) -> str:
         f"<th>Hausdorff ({escape(report['units'])})</th><th>sink mm</th></tr></thead>"
         f"<tbody>{rows}</tbody></table>"
         f"<p>{st['trials']} trials per shape, {st['duration']:g} s each; plate shaken "
-        f"{st['amplitude']:g} mm at {st['frequency']:g} Hz with a {st['twist']:g} degree twist; "
+        f"{st['amplitude']:g} mm at {st['frequency']:g} Hz{_twist_words(st['twist'])}; "
         f"seed {st['seed']}. Resting sink bound {report['engine']['sink_bound_mm']} mm: "
         f"{'kept' if report['fidelity_ok'] else 'NOT kept'}. Details: shake.json.</p>"
         f"</section>{_END}"
     )
+
+
+def _twist_words(twist: float) -> str:
+    """The twist in the card's sentence: nothing when the plate does not twist."""
+    return f" with a {twist:g} degree twist" if twist else ""
 
 
 def add_html_section(report: dict, folder: str) -> None:

@@ -172,9 +172,9 @@ def _clip(path, inp, plate, parts, shapes, settings, unit_m) -> dict:
     for (name, role, _, part), (_, _, _, mesh), entry in zip(parts, inp.parts, shapes):
         times = entry["pass_times_s"]
         trial = next((i for i, t in enumerate(times) if t is not None), 0)
-        keys = trajectory(plate, part, settings, unit_m, trial)
+        frames = trajectory(plate, part, settings, unit_m, trial, times[trial] is not None)
         mesh.metadata["name"] = name
-        rows.append((mesh, part.com, role, times[trial] is not None, keys))
+        rows.append((mesh, part.com, role, times[trial] is not None, frames))
         trials.append(trial)
     info = write_clip(path, inp.plate, plate, rows)
     return {**info, "trials": trials}
@@ -187,7 +187,9 @@ def motion_doc(settings: ShakeSettings) -> dict:
     z, dz, _, dphi = plate_motion(0.0, settings)
     w = 2 * math.pi * settings.frequency
     return {
-        "kind": "vertical throw with an in-phase twist about the vertical axis",
+        "kind": "vertical throw with an in-phase twist about the vertical axis"
+        if settings.twist
+        else "vertical throw",
         "peak_speed_m_s": float(dz),
         "peak_acceleration_g": float(settings.amplitude * 1e-3 * w * w / 9.81),
         "peak_twist_rate_rad_s": float(dphi),

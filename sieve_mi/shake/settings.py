@@ -93,9 +93,10 @@ class ShakeSettings:
         50.0, "shaker frequency (mains: 50 or 60)", unit="Hz", minimum=0.0, maximum=1000.0
     )
     twist: float = setting(
-        0.5,
+        0.0,
         "peak rotation of the plate about the vertical axis through its centre, in phase with "
-        "the lift",
+        "the lift (the slight rotary part of a 3-D throwing motion; no maker publishes its size, "
+        "so it is off unless set)",
         unit="deg",
         minimum=0.0,
         maximum=45.0,
