@@ -81,6 +81,8 @@ def certify(
         raise SieveError(f"budget {budget_s}: must be a positive number of seconds")
     t0 = time.perf_counter()
     settings = Settings(**{**(settings or Settings()).__dict__, "budget_s": budget_s})
+    if settings.bound not in ("first-order", "isotropic"):
+        raise SieveError(f"bound {settings.bound!r}: must be 'first-order' or 'isotropic'")
     hole = union_of_holes(holes)
     contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
     ball = bounds.inscribed_ball(shape)

@@ -8,6 +8,9 @@ docs/certify.md for the full argument).
   passes (a root-level proof).
 * :func:`width_test`: a batched pre-test for many cells at once: the points' dilated extent along a
   direction exceeds the width of H's convex hull along it.
+* :class:`LowerDistance` and :func:`translation_quadtree`: a batched test of many cells at once on
+  a grid of proved lower bounds of the distance to H: a quadtree over translations that must
+  discard every box (non-convex H too).
 * :class:`OffsetCache` and :func:`translations_left`: the exact test of a cell, the intersection over
   the points of (H grown by each point's displacement bound) shifted by the point's projection.
 """
@@ -22,6 +25,7 @@ import numpy as np
 from sieve_mi.geometry.meshes import Shape
 
 __all__ = [
+    "LowerDistance",
     "OffsetCache",
     "RADIUS_STEP",
     "ROUND_SEGMENTS",
@@ -31,6 +35,7 @@ __all__ = [
     "inscribed_ball",
     "inside",
     "no_disk_fits",
+    "translation_quadtree",
     "translations_left",
     "width_test",
 ]
@@ -222,13 +227,130 @@ def width_test(
     direction : (n,) int ndarray
         The direction that excludes each excluded cell (-1 otherwise).
     """
-    dots = proj @ dirs.T  # (n, k, M)
-    r = radii[..., None]
-    spread = (dots - r).max(axis=1) - (dots + r).min(axis=1)  # (n, M)
+    spread = np.empty((len(proj), len(dirs)))
+    for s in range(0, len(proj), 4096):  # (4096, k, M) at a time
+        dots = proj[s : s + 4096] @ dirs.T
+        r = radii[s : s + 4096, :, None]
+        spread[s : s + 4096] = (dots - r).max(axis=1) - (dots + r).min(axis=1)
     excess = spread - (support[0] - support[1])[None, :] - eta
     best = excess.argmax(axis=1)
     excluded = excess[np.arange(len(best)), best] > 0
     return excluded, np.where(excluded, best, -1)
+
+
+# ------------------------------------------------------------------------------------------------
+# Batched test: a quadtree over translations on proved lower bounds of the distance to H
+# ------------------------------------------------------------------------------------------------
+
+
+class LowerDistance:
+    """Proved lower bounds of the distance to H (0 inside) at any point, from a grid.
+
+    At every grid node g (``pixels`` across H's bounding box and a 5 % margin): 0 if g is
+    inside H (even-odd), else the distance to the nearest of boundary samples at most s apart
+    along every edge (both ends included), less s / 2: every boundary point has a sample within
+    s / 2, so this is at most the distance to the boundary, which outside H is the distance to H.
+    A point x reads its nearest node g: d(x, H) >= d(g, H) - |x - g| (1-Lipschitz), and also
+    d(x, H) >= the distance from x to H's bounding box; the larger of the two (each lowered by a
+    relative 1e-12 for rounding).
+
+    Parameters
+    ----------
+    segs : (m, 2, 2) ndarray
+        H's edges.
+    region : matplotlib.path.Path
+        H, even-odd (:func:`~sieve_mi.certify.search.even_odd_path`).
+    pixels : int
+        Nodes across the longer side.
+    """
+
+    def __init__(self, segs: np.ndarray, region, pixels: int = 600):
+        from scipy.spatial import cKDTree
+
+        self.hlo, self.hhi = segs.reshape(-1, 2).min(0), segs.reshape(-1, 2).max(0)
+        size = float(np.max(self.hhi - self.hlo))
+        self.lo = self.hlo - 0.05 * size
+        self.pitch = 1.1 * size / pixels
+        n = np.ceil((self.hhi + 0.05 * size - self.lo) / self.pitch).astype(np.int64) + 1
+        gx, gy = np.meshgrid(np.arange(n[0]), np.arange(n[1]), indexing="ij")
+        nodes = self.lo + self.pitch * np.column_stack([gx.ravel(), gy.ravel()])
+        inside = region.contains_points(nodes)
+        spacing = 0.5 * self.pitch
+        a, d = segs[:, 0], segs[:, 1] - segs[:, 0]
+        k = np.ceil(np.linalg.norm(d, axis=1) / spacing).astype(np.int64) + 1
+        u = np.concatenate([np.linspace(0.0, 1.0, j) for j in k])
+        seg = np.repeat(np.arange(len(k)), k)
+        samples = a[seg] + u[:, None] * d[seg]
+        lower = np.zeros(len(nodes))
+        near = cKDTree(samples).query(nodes[~inside])[0]
+        lower[~inside] = np.maximum(0.0, near - 0.5 * spacing * (1 + 1e-9) - 1e-12 * size)
+        self.flat, self.top = lower, n - 1
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """(P,) lower bounds of the distance from points (P, 2) to H, scene units."""
+        ij = np.rint((x - self.lo) / self.pitch).astype(np.int64)
+        np.clip(ij, 0, self.top, out=ij)
+        off = x - (self.lo + self.pitch * ij)
+        grid = self.flat[ij[:, 0] * (self.top[1] + 1) + ij[:, 1]]
+        grid -= np.sqrt((off * off).sum(1)) * (1 + 1e-12)
+        out = np.maximum(self.hlo - x, 0.0) + np.maximum(x - self.hhi, 0.0)
+        return np.maximum(grid, np.sqrt((out * out).sum(1)) * (1 - 1e-12))
+
+
+def translation_quadtree(
+    lower: LowerDistance, proj: np.ndarray, radii: np.ndarray, steps: int = 6, cap: int = 64
+) -> np.ndarray:
+    """Cells in which no translation puts every point within its radius of H, all cells at once.
+
+    If proj_i + t lies within r_i of H for every point i, then t lies in every box
+    (bounding box of H, grown by r_i) - proj_i, and for a square of centre c and half-diagonal e
+    holding t, d(c + proj_i, H) <= r_i + e. A quadtree over that box discards squares where some
+    point's lower bound (:class:`LowerDistance`) exceeds r_i + e; a cell is excluded when no
+    square is left after ``steps`` refinements (or none at all). A cell with more than ``cap``
+    squares at some step is given up on (not excluded).
+
+    Parameters
+    ----------
+    lower : LowerDistance
+    proj : (n, k, 2) ndarray
+        The points projected at each cell's centre rotation, scene units.
+    radii : (n, k) ndarray
+        Their displacement bounds (with every margin), scene units.
+    steps, cap : int
+
+    Returns
+    -------
+    (n,) bool ndarray
+        Excluded cells.
+    """
+    tlo = (lower.hlo[None, None] - radii[..., None] - proj).max(axis=1)
+    thi = (lower.hhi[None, None] + radii[..., None] - proj).min(axis=1)
+    excluded = (tlo > thi).any(axis=1)
+    cell = np.flatnonzero(~excluded)
+    centre, half = 0.5 * (tlo + thi)[cell], 0.5 * (thi - tlo).max(axis=1)[cell]
+    given_up = np.zeros(len(radii), dtype=bool)
+    quarter = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])
+    for step in range(steps + 1):
+        keep = np.empty(len(cell), dtype=bool)
+        for s in range(0, len(cell), 20_000):
+            c = cell[s : s + 20_000]
+            x = (centre[s : s + 20_000, None, :] + proj[c]).reshape(-1, 2)
+            e = math.sqrt(2.0) * half[s : s + 20_000, None]
+            far = lower(x).reshape(len(c), -1) > radii[c] + e
+            keep[s : s + 20_000] = ~far.any(axis=1)
+        cell, centre, half = cell[keep], centre[keep], half[keep]
+        if step == steps or not len(cell):
+            break
+        crowded = np.bincount(cell, minlength=len(radii)) > cap // 4
+        given_up |= crowded
+        ok = ~crowded[cell]
+        cell, centre, half = cell[ok], centre[ok], 0.5 * half[ok]
+        centre = (centre[:, None, :] + quarter[None] * half[:, None, None]).reshape(-1, 2)
+        cell, half = np.repeat(cell, 4), np.repeat(half, 4)
+    excluded[:] = True
+    excluded[cell] = False
+    excluded[given_up] = False
+    return excluded
 
 
 # ------------------------------------------------------------------------------------------------

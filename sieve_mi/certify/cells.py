@@ -11,6 +11,17 @@ largest at one of the box's eight corners (the set {v : angle(q0, v / |v|) <= a}
 for a < pi / 2, so the angle is a quasi-convex function of v and its maximum over a box is at a
 vertex). A rotation at S^3-angle theta from R0 rotates by 2 theta relative to it, which moves a
 point p by at most 2 sin(theta) |p|.
+
+First-order bound (:class:`Frames`, :func:`first_order`): with u(v) the face's vector (1 in slot
+``face``), D = |u|^2 and M(u) = D R(u / |u|) the rotation formula's homogeneous quadratic form,
+the projection f(v) = P R(q(v)) p = P M(u) p / D satisfies, exactly, for delta = v - v_c,
+
+    f(v) - f(v_c) = (D_c / D) J delta + (P M(delta~) p - f(v_c) |delta|^2) / D,
+
+with J = d f / d v at the centre and delta~ the 4-vector of delta (0 in slot ``face``). Since
+|M(w) p| = |w|^2 |p|, every point moves at most
+(D_c max_corners |J delta| + |h|^2 (|p| + |f(v_c)|)) / D_min over the cell (h the half-widths,
+D_min the least D over the box); docs/certify.md has the derivation.
 """
 
 from __future__ import annotations
@@ -22,11 +33,16 @@ import numpy as np
 __all__ = [
     "ANGLE_MARGIN",
     "Cells",
+    "FIRST_ORDER_MARGIN",
+    "Frames",
     "centres",
     "corners",
     "covering_angles",
     "displacement",
     "face_quaternions",
+    "first_order",
+    "frames",
+    "quadratic_form",
     "roots",
     "split",
     "volumes",
@@ -34,6 +50,10 @@ __all__ = [
 
 #: Added to every covering angle (radians): covers rounding in the corner angles (~1e-15).
 ANGLE_MARGIN = 1e-12
+#: Relative margin on every first-order displacement bound: covers rounding (~1e-15 relative).
+FIRST_ORDER_MARGIN = 1e-9
+#: Sign patterns of a box's corners up to a common sign (|J delta| is even in delta).
+_SIGNS = np.array([[1.0, 1.0, 1.0], [1.0, 1.0, -1.0], [1.0, -1.0, 1.0], [1.0, -1.0, -1.0]])
 
 
 @dataclass
@@ -150,3 +170,123 @@ def roots(faces: list[int], half: float) -> Cells:
 def volumes(cells: Cells) -> np.ndarray:
     """Box volumes in face coordinates (the measure the excluded fraction is reported in), (n,)."""
     return np.prod(cells.hi - cells.lo, axis=1)
+
+
+def quadratic_form(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The symmetric bilinear form B(a, b) of the homogeneous rotation formula.
+
+    M(w) = B(w, w) = |w|^2 R(w / |w|) for every 4-vector w != 0 (w, x, y, z order), each entry a
+    quadratic form in w; B(a, b) = (M(a + b) - M(a - b)) / 4.
+
+    Parameters
+    ----------
+    a, b : (..., 4) ndarray
+        4-vectors (need not be unit).
+
+    Returns
+    -------
+    (..., 3, 3) ndarray
+    """
+
+    def m(w):
+        w0, x, y, z = np.moveaxis(w, -1, 0)
+        rows = [
+            [w0 * w0 + x * x - y * y - z * z, 2 * (x * y - w0 * z), 2 * (x * z + w0 * y)],
+            [2 * (x * y + w0 * z), w0 * w0 - x * x + y * y - z * z, 2 * (y * z - w0 * x)],
+            [2 * (x * z - w0 * y), 2 * (y * z + w0 * x), w0 * w0 - x * x - y * y + z * z],
+        ]
+        return np.stack([np.stack(r, -1) for r in rows], -2)
+
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return 0.25 * (m(a + b) - m(a - b))
+
+
+@dataclass
+class Frames:
+    """What the first-order displacement bound needs of each cell (:func:`frames`).
+
+    Attributes
+    ----------
+    rot : (n, 3, 3) ndarray
+        Rotation at the cell's centre, R0.
+    steps : (n, 3, 3, 3) ndarray
+        ``steps[i, j]`` = h_j dR/dv_j at the centre: the rotation's change over half the box
+        along face coordinate j, to first order (h_j the half-width).
+    scale : (n,) ndarray
+        D_c / D_min >= 1: the centre's D = |u|^2 over the least D on the box.
+    quad : (n,) ndarray
+        |h|^2 / D_min, dimensionless.
+    """
+
+    rot: np.ndarray
+    steps: np.ndarray
+    scale: np.ndarray
+    quad: np.ndarray
+
+    def take(self, idx) -> Frames:
+        """The frames of the cells at ``idx``."""
+        return Frames(self.rot[idx], self.steps[idx], self.scale[idx], self.quad[idx])
+
+
+def _embed(face: np.ndarray, v: np.ndarray, slot: float) -> np.ndarray:
+    """4-vectors with ``slot`` in component ``face`` and ``v`` (n, 3) in the others, (n, 4)."""
+    u = np.empty((len(face), 4))
+    cols = np.arange(4)
+    for k in range(4):
+        sel = face == k
+        u[sel, k] = slot
+        u[np.ix_(sel, cols[cols != k])] = v[sel]
+    return u
+
+
+def frames(cells: Cells) -> Frames:
+    """Centre rotations and first-order data of every cell (see the module docstring)."""
+    vc = 0.5 * (cells.lo + cells.hi)
+    h = 0.5 * (cells.hi - cells.lo)
+    u = _embed(cells.face, vc, 1.0)
+    dc = (u * u).sum(1)
+    rot = quadratic_form(u, u) / dc[:, None, None]
+    steps = np.empty((len(cells), 3, 3, 3))
+    for j in range(3):
+        e = _embed(cells.face, np.eye(3)[np.full(len(cells), j)], 0.0)
+        d = (2.0 * quadratic_form(u, e) - 2.0 * vc[:, j, None, None] * rot) / dc[:, None, None]
+        steps[:, j] = h[:, j, None, None] * d
+    straddle = (cells.lo <= 0) & (cells.hi >= 0)
+    dmin = 1.0 + np.where(straddle, 0.0, np.minimum(cells.lo**2, cells.hi**2)).sum(1)
+    return Frames(rot, steps, dc / dmin, (h * h).sum(1) / dmin)
+
+
+def first_order(fr: Frames, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Projections at the centre and first-order displacement bounds, for every cell and point.
+
+    For every rotation R of cell i, |P R p - P R0 p| <= bound (the module docstring; P keeps x
+    and y).
+
+    Parameters
+    ----------
+    fr : Frames
+        n cells.
+    points : (k, 3) or (n, k, 3) ndarray
+        Points about the shape's centre, scene units; shared by all cells or one set per cell.
+
+    Returns
+    -------
+    proj : (n, k, 2) ndarray
+        P R0 p, scene units.
+    bound : (n, k) ndarray
+        (D_c max_corners |J delta| + |h|^2 (|p| + |P R0 p|)) / D_min, times 1 +
+        :data:`FIRST_ORDER_MARGIN`, scene units.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    rows = np.concatenate([fr.rot[:, :2], fr.steps[:, :, :2].reshape(-1, 6, 3)], axis=1)
+    out = rows @ (p.T if p.ndim == 2 else np.swapaxes(p, 1, 2))  # (n, 8, k)
+    a, b, c = out[:, 2:4], out[:, 4:6], out[:, 6:8]
+    plus, minus = a + b, a - b
+    lin2 = np.zeros(out.shape[::2])
+    for d in (plus + c, plus - c, minus + c, minus - c):
+        lin2 = np.maximum(lin2, d[:, 0] ** 2 + d[:, 1] ** 2)
+    proj = np.stack([out[:, 0], out[:, 1]], axis=-1)
+    centre = np.sqrt(out[:, 0] ** 2 + out[:, 1] ** 2)
+    second = fr.quad[:, None] * (np.sqrt((p * p).sum(-1)) + centre)
+    bound = (fr.scale[:, None] * np.sqrt(lin2) + second) * (1.0 + FIRST_ORDER_MARGIN)
+    return proj, bound

@@ -17,7 +17,10 @@ Certificate format (``"format": "sieve-mi-certificate/1"``; lengths in scene uni
   (2 - j) of c is set) or ``{"open": true}``. Evidence is ``{"kind": "width", "direction": m,
   "points": [...]}`` (direction m of ``directions`` unit vectors over a half circle) or
   ``{"kind": "translations", "points": [...]}``.
-* ``settings``: ``kappa`` (slack, see :class:`~sieve_mi.certify.search.Settings`), ``directions``.
+* ``settings``: ``kappa`` (slack, see :class:`~sieve_mi.certify.search.Settings`), ``directions``,
+  ``bound``: ``"first-order"`` (each point's displacement bound over a cell is the smaller of the
+  first-order bound and 2 sin(theta) |p|; docs/certify.md) or ``"isotropic"`` (2 sin(theta) |p|
+  only; certificates without ``bound`` were written before the first-order bound and mean this).
 * ``status`` and ``passage`` (quaternion, translation) as found.
 """
 
@@ -224,6 +227,10 @@ def build(
         "symmetry": symmetry,
         "root": root,
         "tree": tree,
-        "settings": {"kappa": settings.kappa, "directions": settings.directions},
+        "settings": {
+            "kappa": settings.kappa,
+            "directions": settings.directions,
+            "bound": settings.bound,
+        },
         "passage": outcome.passage if outcome is not None else None,
     }

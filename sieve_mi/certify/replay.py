@@ -11,7 +11,11 @@ ball evidence is trimesh's ``triangles.closest_point``. The replay
 2. checks the claimed symmetry group on the mesh and that the tree's roots are its domain's faces;
 3. walks the tree, rebuilding each cell's box by halving (so the leaves cover the domain by
    construction; a split node must have exactly 8 children);
-4. re-proves each leaf: ``width`` evidence by the width inequality along its direction,
+4. re-proves each leaf with each point's displacement bound over the cell, 2 sin(theta) |p| or,
+   for certificates whose ``settings.bound`` is ``"first-order"``, the smaller of that and the
+   first-order bound (:func:`first_order_bounds`, computed here by the chain rule through the
+   normalised quaternion; docs/certify.md): ``width`` evidence by the width inequality along its
+   direction,
    ``translations`` evidence by a quadtree over translations that must discard every box (a box of
    centre c and half-diagonal e is discarded when some point i has c + pi_i outside H at distance
    > r_i + e; boxes are refined down to the slack the search left, kappa times the displacement
@@ -41,6 +45,7 @@ __all__ = [
     "Replay",
     "cell_angle",
     "disk_never_fits",
+    "first_order_bounds",
     "no_translation",
     "points_in_triangles",
     "quaternion",
@@ -150,6 +155,67 @@ def cell_angle(face: int, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, f
     return q0, 2.0 * math.asin(min(1.0, worst / 2.0)) + 1e-12
 
 
+def _rotation_partials(q: np.ndarray) -> list[np.ndarray]:
+    """dM/dq_a (a = w, x, y, z) of the homogeneous rotation formula M(q) (:func:`rotation` for
+    unit q), each a 3 x 3 matrix linear in q."""
+    w, x, y, z = q
+    return [
+        2.0 * np.array([[w, -z, y], [z, w, -x], [-y, x, w]]),
+        2.0 * np.array([[x, y, z], [y, -x, -w], [z, w, -x]]),
+        2.0 * np.array([[-y, x, w], [x, y, z], [-w, z, -y]]),
+        2.0 * np.array([[-z, -w, x], [w, -z, y], [x, y, z]]),
+    ]
+
+
+def first_order_bounds(
+    face: int, lo: np.ndarray, hi: np.ndarray, points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Projections at the cell's centre and a bound on every point's displacement over the cell.
+
+    q(v) = u / |u| with u = v and 1 in slot ``face``; J's column j is P (dR/dv_j) p with
+    dR/dv_j = sum_a dM/dq_a (q0) dq_a/dv_j and dq/dv_j = (e_j - q0 q0_j) / |u_c|. The bound is
+    (D_c max_corners |J delta| + |h|^2 (|p| + |P R0 p|)) / D_min (D = |u|^2, h the half-widths;
+    docs/certify.md), times 1 + 1e-9 for rounding.
+
+    Parameters
+    ----------
+    face : int
+    lo, hi : (3,) ndarray
+        The cell's box in face coordinates.
+    points : (k, 3) ndarray
+        Scene units.
+
+    Returns
+    -------
+    proj : (k, 2) ndarray
+    bound : (k,) ndarray
+        Scene units.
+    """
+    vc, h = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    uc = np.insert(vc, face, 1.0)
+    norm = float(np.linalg.norm(uc))
+    q0 = uc / norm
+    partials = _rotation_partials(q0)
+    slots = [a for a in range(4) if a != face]
+    proj = points @ rotation(q0)[:2].T
+    columns = []
+    for j, slot in enumerate(slots):
+        dq = -q0 * q0[slot]
+        dq[slot] += 1.0
+        dq /= norm
+        d_rot = sum(dq[a] * partials[a] for a in range(4))
+        columns.append(h[j] * (points @ d_rot[:2].T))
+    lin = np.zeros(len(points))
+    for sy in (1.0, -1.0):
+        for sz in (1.0, -1.0):
+            d = columns[0] + sy * columns[1] + sz * columns[2]
+            lin = np.maximum(lin, np.hypot(d[:, 0], d[:, 1]))
+    nearest = np.where((lo <= 0) & (hi >= 0), 0.0, np.minimum(np.abs(lo), np.abs(hi)))
+    d_min = 1.0 + float(nearest @ nearest)
+    second = float(h @ h) * (np.linalg.norm(points, axis=1) + np.hypot(proj[:, 0], proj[:, 1]))
+    return proj, (norm * norm * lin + second) / d_min * (1.0 + 1e-9)
+
+
 def no_translation(hole: Hole, proj: np.ndarray, radii: np.ndarray, resolve: float) -> bool:
     """True if no t puts every proj_i + t within radii_i of H (quadtree over t, exact distances)."""
     lo = hole.vertices.min(0) - radii[0] - proj[0]
@@ -201,6 +267,9 @@ class Replay:
         self.hole = Hole(cert["hole"])
         self.radius = float(np.linalg.norm(self.vertices[np.unique(self.faces)], axis=1).max())
         self.kappa = float(cert["settings"]["kappa"])
+        self.bound = cert["settings"].get("bound", "isotropic")
+        if self.bound not in ("isotropic", "first-order"):
+            self.errors.append(f"unknown displacement bound {self.bound!r}")
         m = int(cert["settings"]["directions"])
         a = np.pi * np.arange(m) / m
         self.dirs = np.column_stack([np.cos(a), np.sin(a)])
@@ -312,6 +381,11 @@ class Replay:
         p = self.points[idx]
         proj = p @ rotation(q0)[:2].T
         radii = 2.0 * math.sin(theta) * np.linalg.norm(p, axis=1)
+        if self.bound == "first-order":
+            proj, first = first_order_bounds(face, lo, hi, p)
+            radii = np.minimum(radii, first)
+        elif self.bound != "isotropic":
+            return False
         if ev.get("kind") == "width":
             u = self.dirs[int(ev["direction"]) % len(self.dirs)]
             dots = proj @ u

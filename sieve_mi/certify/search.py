@@ -1,7 +1,10 @@
 """Branch and bound over rotation space: exclude cells, split the rest, or find a passage.
 
-Level by level (breadth first): all cells of a level get the batched width pre-test
-(:func:`~sieve_mi.certify.bounds.width_test`, NumPy over cells x points x directions); each
+Level by level (breadth first): all cells of a level get the batched tests with the points they
+inherited and their first-order displacement bounds (:func:`~sieve_mi.certify.cells.first_order`):
+the width test (:func:`~sieve_mi.certify.bounds.width_test`, NumPy over cells x points x
+directions), then a quadtree over translations on proved distance bounds
+(:func:`~sieve_mi.certify.bounds.translation_quadtree`); each
 survivor gets the exact polygon test with its own point set, which grows by the candidate point
 (a vertex, or a point on a mesh edge: :func:`edge_points`) that sticks out furthest at the cell's
 centre pose before the cell is split. A cell whose centre pose puts the exact silhouette inside H
@@ -19,9 +22,10 @@ import numpy as np
 from sieve_mi.certify import bounds, cells, symmetry
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import placed_vertices, projection
-from sieve_mi.geometry.rotations import from_matrix, to_matrix
+from sieve_mi.geometry.rotations import from_matrix
 
 __all__ = [
+    "BATCH_MIN",
     "DistanceField",
     "Node",
     "Outcome",
@@ -32,6 +36,10 @@ __all__ = [
     "farthest_points",
     "representative",
 ]
+
+
+#: A level's batched quadtree test runs once the width test leaves at least this many cells.
+BATCH_MIN = 256
 
 
 @dataclass
@@ -62,6 +70,11 @@ class Settings:
         the edges the group maps onto edges (:func:`~sieve_mi.certify.symmetry.symmetric_edges`).
     max_candidates : int
         The spacing grows so that vertices and edge points number at most this many.
+    bound : str
+        ``"first-order"`` (default): each point's displacement bound over a cell is the smaller
+        of the first-order one (:func:`~sieve_mi.certify.cells.first_order`) and the isotropic
+        2 sin(theta) |p|; ``"isotropic"``: the latter only (certificates before the first-order
+        bound).
     """
 
     budget_s: float = 30.0
@@ -72,6 +85,7 @@ class Settings:
     kappa: float = 0.02
     edge_spacing: float = 0.01
     max_candidates: int = 60_000
+    bound: str = "first-order"
 
 
 @dataclass
@@ -206,11 +220,13 @@ class DistanceField:
         inside = region.contains_points(centres).reshape(n)
         self.grid = self.pitch * (distance_transform_edt(~inside) - distance_transform_edt(inside))
         self.top = n - 1
+        self.flat = self.grid.ravel()
 
     def __call__(self, xy: np.ndarray) -> np.ndarray:
         """(P,) approximate signed distances (positive outside H) at points (P, 2), scene units."""
-        ij = np.clip(np.rint((xy - self.lo) / self.pitch).astype(int), 0, self.top)
-        return self.grid[ij[:, 0], ij[:, 1]]
+        ij = ((xy - (self.lo - 0.5 * self.pitch)) * (1.0 / self.pitch)).astype(np.intp)
+        np.clip(ij, 0, self.top, out=ij)
+        return self.flat[ij[:, 0] * (self.top[1] + 1) + ij[:, 1]]
 
 
 def count_open(node: Node) -> int:
@@ -239,6 +255,7 @@ class Search:
         self.group = group
         self.region = even_odd_path([np.asarray(c) for c in hole.to_polygons()])
         self.field = DistanceField(self.region, self.segs, 2.0 * shape.radius)
+        self.lower: bounds.LowerDistance | None = None
 
     @staticmethod
     def _candidates(shape: Shape, settings: Settings, group: str) -> tuple[np.ndarray, dict]:
@@ -258,10 +275,34 @@ class Search:
         idx = [i for i, p in enumerate(self.vertices) if tuple(p) in hull]
         return np.asarray(idx if idx else range(len(self.vertices)), dtype=np.int64)
 
-    def radii(self, theta: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-        """Displacement bounds with the slack of :class:`Settings` ``kappa``, (n, k)."""
-        slack = self.settings.kappa * self.shape.radius
-        return cells.displacement(theta, lengths + slack) + self.eta
+    def radii(self, fr: cells.Frames, theta: np.ndarray, points: np.ndarray):
+        """Projections at the cells' centres and the points' displacement bounds with margins.
+
+        The bound is the smaller of the first-order one (:func:`~sieve_mi.certify.cells.first_order`)
+        and the isotropic 2 sin(theta) |p|, plus the slack of :class:`Settings` ``kappa`` (the
+        isotropic bound of a point ``kappa`` R_B from the centre) and ``eta``.
+
+        Parameters
+        ----------
+        fr : Frames
+            n cells.
+        theta : (n,) ndarray
+            Their covering angles, radians.
+        points : (k, 3) or (n, k, 3) ndarray
+            Scene units.
+
+        Returns
+        -------
+        proj : (n, k, 2) ndarray
+        radii : (n, k) ndarray
+            Scene units.
+        """
+        proj, bound = cells.first_order(fr, points)
+        iso = 2.0 * np.sin(theta)[:, None] * np.linalg.norm(points, axis=-1)
+        if self.settings.bound == "first-order":
+            iso = np.minimum(bound, iso)
+        slack = 2.0 * np.sin(theta)[:, None] * self.settings.kappa * self.shape.radius
+        return proj, iso + slack + self.eta
 
     def run(self, roots: cells.Cells) -> Outcome:
         """Branch and bound from ``roots`` until every cell is decided, a passage or the budget."""
@@ -279,8 +320,8 @@ class Search:
     def _level(self, level, nodes, points, out: Outcome, t0: float):
         """Decide or split every cell of one level; returns the next level's cells."""
         theta = cells.covering_angles(level)
-        rot = to_matrix(cells.centres(level))
-        excluded, direction = self._pretest(rot, theta)
+        fr = cells.frames(level)
+        excluded, direction, boxed = self._pretest(fr, theta, points)
         split_idx, split_pts = [], []
         for i, node in enumerate(nodes):
             if out.passage is not None or time.perf_counter() - t0 > self.settings.budget_s:
@@ -288,9 +329,12 @@ class Search:
             out.examined += 1
             if excluded[i]:
                 node.evidence = {"kind": "width", "direction": int(direction[i])}
-                node.evidence["points"] = list(self.start)
+                node.evidence["points"] = list(points[i])
+            elif boxed[i]:
+                node.evidence = {"kind": "translations", "points": list(points[i])}
             else:
-                verdict, pts = self._examine(rot[i], float(theta[i]), list(points[i]), out)
+                own = self._inherited(points[i])
+                verdict, pts = self._examine(fr.take([i]), theta[i : i + 1], own, out)
                 if verdict == "excluded":
                     node.evidence = {"kind": "translations", "points": pts}
                 elif verdict == "passage" or theta[i] < self.settings.min_angle:
@@ -315,7 +359,7 @@ class Search:
             ]
             nodes[i].children = kids
             next_nodes += kids
-            next_pts += [self._inherited(split_pts[k])] * 8
+            next_pts += [list(split_pts[k])] * 8
         return children, next_nodes, next_pts
 
     def _inherited(self, pts: list) -> list:
@@ -326,38 +370,68 @@ class Search:
         added = [p for p in pts if p not in start]
         return start + (added[-room:] if room else [])
 
-    def _pretest(self, rot: np.ndarray, theta: np.ndarray):
-        """The batched width test of all cells of a level with the starting points."""
-        p = self.vertices[self.start]
-        proj = np.einsum("nij,kj->nki", rot[:, :2, :], p)
-        radii = self.radii(theta, self.lengths[self.start])
-        return bounds.width_test(proj, radii, self.support, self.dirs, self.eta)
+    def _pretest(self, fr: cells.Frames, theta: np.ndarray, points: list):
+        """The batched tests of all cells of a level, each with the points it inherited: the
+        width test, then, on the cells it leaves, the quadtree over translations on H's lower
+        distance grid (built once at least :data:`BATCH_MIN` cells are left).
 
-    def _examine(self, rot: np.ndarray, theta: float, pts: list, out: Outcome):
-        """The exact test of one cell, adding points while they help; ``(verdict, points)``."""
-        proj_all = self.vertices @ rot[:2].T
-        allowance = self.radii(np.array([theta]), self.lengths)[0]
-        left = bounds.translations_left(self.cache, proj_all[pts], allowance[pts])
+        Returns the width test's ``(excluded, direction)`` and the cells the quadtree excluded.
+        """
+        most = max(len(p) for p in points)
+        idx = np.array([p + [p[0]] * (most - len(p)) for p in points], dtype=np.int64)
+        parts = [
+            self.radii(
+                fr.take(slice(s, s + 16384)),
+                theta[s : s + 16384],
+                self.vertices[idx[s : s + 16384]],
+            )
+            for s in range(0, len(idx), 16384)
+        ]
+        proj = np.concatenate([p for p, _ in parts])
+        radii = np.concatenate([r for _, r in parts])
+        excluded, direction = bounds.width_test(proj, radii, self.support, self.dirs, self.eta)
+        boxed = np.zeros(len(excluded), dtype=bool)
+        rest = np.flatnonzero(~excluded)
+        if len(rest) >= BATCH_MIN:
+            if self.lower is None:
+                self.lower = bounds.LowerDistance(self.segs, self.region)
+            boxed[rest] = bounds.translation_quadtree(self.lower, proj[rest], radii[rest])
+        return excluded, direction, boxed
+
+    def _examine(self, fr: cells.Frames, theta: np.ndarray, pts: list, out: Outcome):
+        """The exact test of one cell, adding points while they help; ``(verdict, points)``.
+
+        The point search ranks the candidates by an estimate of their bounds: the isotropic
+        bound scaled by the largest first-order / isotropic ratio among the cell's points (one
+        NumPy pass; any choice of points is sound). A chosen point gets its exact bound."""
+        proj, radii = self.radii(fr, theta, self.vertices[pts])
+        left = bounds.translations_left(self.cache, proj[0], radii[0])
+        if left.is_empty():
+            return "excluded", pts
+        chord = 2.0 * float(np.sin(theta[0]))
+        floor = chord * self.settings.kappa * self.shape.radius + self.eta
+        ratio = float(np.max((radii[0] - floor) / np.maximum(chord * self.lengths[pts], 1e-300)))
+        allowance = (min(ratio, 1.0) * chord) * self.lengths + floor
+        proj_all = self.vertices @ fr.rot[0, :2].T
         while True:
-            if left.is_empty():
-                return "excluded", pts
             j = self._worst(proj_all + representative(left), allowance)
             if j is None or j in pts or len(pts) >= self.settings.max_points:
                 break
             pts.append(j)
-            part = bounds.translations_left(self.cache, proj_all[[j]], allowance[[j]])
-            left = left ^ part
-        if j is None and self._passage(rot, proj_all, pts, out):
+            _, r = self.radii(fr, theta, self.vertices[[j]])
+            left = left ^ bounds.translations_left(self.cache, proj_all[[j]], r[0])
+            if left.is_empty():
+                return "excluded", pts
+        if j is None and self._passage(fr.rot[0], proj_all, pts, out):
             return "passage", pts
         return "split", pts
 
     def _worst(self, placed: np.ndarray, allowance: np.ndarray) -> int | None:
-        """The vertex furthest outside H beyond its allowance at these placed positions, or None."""
-        signed = self.field(placed)
-        if not (signed > 0).any():
-            return None
-        excess = signed - allowance
-        return int(np.argmax(excess)) if excess.max() > 0 else None
+        """The candidate furthest outside H beyond its allowance at these placed positions (a
+        heuristic: H's distance grid), or None when every one is within it."""
+        excess = self.field(placed) - allowance
+        k = int(np.argmax(excess))
+        return k if excess[k] > 0 else None
 
     def _passage(self, rot: np.ndarray, proj_all: np.ndarray, pts: list, out: Outcome) -> bool:
         """Whether the centre pose fits: all vertices inside at a candidate t, then the silhouette."""

@@ -491,3 +491,162 @@ def test_replay_rejects_an_edge_point_off_the_edges(plate_proof):
     cert["shape"]["on_edge"][k] = [i, j, 0.5]  # a diagonal through the box: not an edge
     rep = replay(cert)
     assert not rep["valid"] and any("neither vertices nor on edges" in e for e in rep["errors"])
+
+
+# ------------------------------------------------------------------------------------------------
+# The first-order displacement bound (issue 28, item 1) and the batched quadtree (item 2)
+# ------------------------------------------------------------------------------------------------
+
+
+def _random_cells(rng, n, depths=(2, 9)):
+    """Random cells of the quaternion cube's faces at random depths (half-width 2^(1 - depth))."""
+    face = rng.integers(0, 4, n)
+    h = 2.0 ** (1 - rng.integers(*depths, n))
+    vc = -1.0 + h[:, None] * (2 * np.floor(rng.random((n, 3)) / h[:, None]) + 1)
+    return cells.Cells(face, vc - h[:, None], vc + h[:, None])
+
+
+def test_first_order_derivatives_match_finite_differences():
+    rng = np.random.default_rng(5)
+    c = _random_cells(rng, 20)
+    fr = cells.frames(c)
+    assert np.allclose(fr.rot, to_matrix(cells.centres(c)), atol=1e-14)
+    vc, h = 0.5 * (c.lo + c.hi), 0.5 * (c.hi - c.lo)
+    for j in range(3):
+        step = np.zeros(3)
+        step[j] = 1e-6
+        ahead = to_matrix(cells.face_quaternions(c.face, vc + step))
+        behind = to_matrix(cells.face_quaternions(c.face, vc - step))
+        numeric = (ahead - behind) / 2e-6 * h[:, j, None, None]
+        assert np.allclose(fr.steps[:, j], numeric, atol=1e-8)
+
+
+def test_first_order_bound_contains_sampled_projections():
+    """For random points and random rotations of random cells (corners included), the projection
+    lies within the bound of the centre's; the bound is also nearly attained for small cells (it
+    is exact to first order), and never worse than isotropic by more than its second-order term."""
+    rng = np.random.default_rng(7)
+    points = rng.normal(size=(40, 3)) * np.array([15.0, 10.0, 6.0])
+    c = _random_cells(rng, 48)
+    proj, bound = cells.first_order(cells.frames(c), points)
+    for i in range(len(c)):
+        v = c.lo[i] + rng.random((400, 3)) * (c.hi[i] - c.lo[i])
+        v = np.vstack([v, cells.corners(c.take([i]))[0]])
+        rot = to_matrix(cells.face_quaternions(np.full(len(v), c.face[i]), v))
+        moved = np.einsum("mij,kj->mki", rot[:, :2], points)
+        reach = np.linalg.norm(moved - proj[i][None], axis=-1).max(axis=0)
+        assert (reach <= bound[i]).all()
+        if c.hi[i, 0] - c.lo[i, 0] <= 2.0**-5:
+            assert (reach / bound[i]).max() > 0.9
+
+
+def test_first_order_radius_against_the_isotropic_one_known_answers():
+    """Face 0 (w = 1), the cell [-h, h]^3 about the identity: dR/dv_j = 2 [e_j]x, so a point p
+    moves by 2 e_j x p per unit v_j to first order. For p = a x^ only the turn about z shows
+    (along y): first-order radius 2 a h, plus the second-order term (D_c / D_min = 1,
+    |h|^2 = 3 h^2, |p| + |P p| = 2a): 2 a h + 6 a h^2. The isotropic radius is
+    2 sin(theta) a with tan(theta) = sqrt(3) h (the corner), about 2 sqrt(3) a h: sqrt(3) times
+    larger. For p = a z^ (along the view) the turns about x and y move it along y and x:
+    2 sqrt(2) a h (plus 3 a h^2: its projection is 0), sqrt(3 / 2) times smaller than
+    isotropic."""
+    a, h = 10.0, 2.0**-6
+    c = cells.roots([0], h)
+    fr = cells.frames(c)
+    assert np.allclose(fr.scale, 1.0) and np.allclose(fr.quad, 3 * h * h)
+    _, bound = cells.first_order(fr, np.array([[a, 0, 0], [0, 0, a]]))
+    assert bound[0, 0] == pytest.approx(2 * a * h + 6 * a * h * h, rel=1e-8)
+    assert bound[0, 1] == pytest.approx(2 * math.sqrt(2) * a * h + 3 * a * h * h, rel=1e-8)
+    iso = cells.displacement(cells.covering_angles(c), np.array([a, a]))[0]
+    assert iso[0] == pytest.approx(2 * math.sqrt(3) * a * h / math.sqrt(1 + 3 * h * h), rel=1e-9)
+    assert bound[0, 0] / iso[0] < 1 / math.sqrt(3) * (1 + 4 * h)
+    assert bound[0, 1] / iso[1] < math.sqrt(2 / 3) * (1 + 4 * h)
+
+
+def test_replay_first_order_bound_is_its_own_and_agrees():
+    from sieve_mi.certify.replay import first_order_bounds
+
+    rng = np.random.default_rng(11)
+    points = rng.normal(size=(30, 3)) * 12.0
+    c = _random_cells(rng, 30)
+    proj, bound = cells.first_order(cells.frames(c), points)
+    for i in range(len(c)):
+        p2, b2 = first_order_bounds(int(c.face[i]), c.lo[i], c.hi[i], points)
+        assert np.allclose(p2, proj[i], rtol=1e-12, atol=1e-12)
+        assert np.allclose(b2, bound[i], rtol=1e-12, atol=1e-12)
+
+
+def test_first_order_bound_proves_with_fewer_cells(nieuwland_hole, proof_108):
+    """The 1.08 cube against Nieuwland's hole, isotropic against first-order bounds: both proved
+    and replayed; the tighter bound needs fewer cells."""
+    iso = certify(
+        _shape(shapes.cube(1.08)),
+        [nieuwland_hole],
+        budget_s=60,
+        settings=Settings(bound="isotropic"),
+    )
+    assert iso.status == "proved" and replay(iso.certificate)["proved"]
+    assert proof_108.certificate["settings"]["bound"] == "first-order"
+    assert proof_108.cells_examined < 0.9 * iso.cells_examined
+
+
+def test_old_isotropic_certificates_still_replay(nieuwland_hole):
+    # A certificate written before the first-order bound has no "bound": the replay reads it as
+    # isotropic.
+    old = certify(
+        _shape(shapes.cube(1.08)),
+        [nieuwland_hole],
+        budget_s=60,
+        settings=Settings(bound="isotropic"),
+    ).certificate
+    del old["settings"]["bound"]
+    assert replay(old)["proved"]
+
+
+def test_replay_uses_the_bound_the_certificate_names(proof_108):
+    """A first-order proof relabelled isotropic fails (its leaves need the tighter radii); an
+    unknown bound is an error."""
+    cert = copy.deepcopy(proof_108.certificate)
+    cert["settings"]["bound"] = "isotropic"
+    assert not replay(cert)["valid"]
+    cert["settings"]["bound"] = "zeroth-order"
+    rep = replay(cert)
+    assert not rep["valid"] and any("unknown displacement bound" in e for e in rep["errors"])
+
+
+def test_lower_distance_is_a_lower_bound(two_squares):
+    from sieve_mi.certify.bounds import LowerDistance, inside
+    from sieve_mi.certify.search import even_odd_path
+
+    contours = [np.asarray(c, float) for c in two_squares.to_polygons()]
+    segs = contour_segments(contours)
+    lower = LowerDistance(segs, even_odd_path(contours))
+    rng = np.random.default_rng(2)
+    p = rng.uniform(-12, 12, size=(20000, 2))
+    exact = np.where(inside(p, segs), 0.0, boundary_distance(p, segs))
+    got = lower(p)
+    assert (got <= exact).all()
+    # close where the grid reaches (5 % of H's size around its box): the node is at most
+    # pitch / sqrt(2) away, counted twice (d(g) <= d(x) + |x - g|), plus half a sample spacing
+    # (a quarter pitch): within 1.67 pitches
+    near = ((p >= lower.lo) & (p <= lower.lo + lower.pitch * lower.top)).all(axis=1)
+    assert near.sum() > 2000
+    assert (got[near] >= exact[near] - 1.67 * lower.pitch).all()
+
+
+def test_translation_quadtree_excludes_what_the_width_test_cannot(two_squares):
+    """Two 4 mm squares, x in [-7, -3] and [3, 7]; points at x = -4, 0, 4 (a cell's projections).
+    With radius 0.2 the middle point needs |t_x| >= 2.8, and then one end point is 1.8 mm from
+    both squares: no translation works, though 8.4 mm fits the 14 mm hull. With radius 2,
+    t_x = 1.5 fits all three (1.5, 0 and 0.5 mm from H)."""
+    from sieve_mi.certify.bounds import LowerDistance, translation_quadtree
+    from sieve_mi.certify.search import even_odd_path
+
+    contours = [np.asarray(c, float) for c in two_squares.to_polygons()]
+    segs = contour_segments(contours)
+    lower = LowerDistance(segs, even_odd_path(contours))
+    proj = np.array([[[-4.0, 0.0], [0.0, 0.0], [4.0, 0.0]]] * 2)
+    radii = np.array([[0.2] * 3, [2.0] * 3])
+    dirs = np.array([[1.0, 0.0], [0.0, 1.0]])
+    support = np.stack([(segs[:, 0] @ dirs.T).max(0), (segs[:, 0] @ dirs.T).min(0)])
+    assert not width_test(proj, radii, support, dirs, 1e-9)[0].any()
+    assert translation_quadtree(lower, proj, radii, steps=8).tolist() == [True, False]
