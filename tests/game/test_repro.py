@@ -111,7 +111,8 @@ def _solve(scene, out, *extra):
 
 
 def _same_outputs(a, b):
-    """Every output file but report.json is byte-identical; report.json is, timings aside."""
+    """Every output file but report.json is byte-identical; report.json is, timings and memory
+    aside."""
     names = sorted(os.path.relpath(os.path.join(d, n), a) for d, _, ns in os.walk(a) for n in ns)
     assert names == sorted(
         os.path.relpath(os.path.join(d, n), b) for d, _, ns in os.walk(b) for n in ns
@@ -125,6 +126,7 @@ def _same_outputs(a, b):
             assert filecmp.cmp(a / n, b / n, shallow=False), n
     ra, rb = (json.loads((x / "report.json").read_text()) for x in (a, b))
     ra.pop("timings"), rb.pop("timings")
+    ra.pop("memory"), rb.pop("memory")  # resident memory, measured like the times
     for block in ra["block"] + rb["block"]:  # a proof's wall-clock time, like the timings
         block.get("certification", {}).pop("seconds", None)
     assert ra == rb
