@@ -638,8 +638,9 @@ def summary_table(report: dict) -> str:
     )
     if "total_s" in t:
         lines.append(stage_line(t))
-    if memory_line(report):
-        lines.append(memory_line(report))
+    memory = memory_line(report)
+    if memory:
+        lines.append(memory)
     plate = sheet_line(report)
     if plate:
         lines.append(plate)
