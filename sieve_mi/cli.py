@@ -134,7 +134,7 @@ def _settings(parser, cls: type, *names: str, flags: dict | None = None) -> None
     """
     from dataclasses import MISSING, fields
 
-    from sieve_mi.scene import field_of, spec_of, value_types
+    from sieve_mi.scene import field_of, option_help, spec_of, value_types
 
     for name in names or [f.name for f in fields(cls)]:
         f, kind = field_of(cls, name), value_types(cls)[name]
@@ -156,7 +156,7 @@ def _settings(parser, cls: type, *names: str, flags: dict | None = None) -> None
                 type=_given_as(kind),
                 default=default,
                 metavar=choices or flag[2:].upper().replace("-", "_"),
-                help=_option_help(cls, f, default),
+                help=option_help(cls, f, default),
             )
         options = parser.get_default("setting_options") or ()
         parser.set_defaults(setting_options=(*options, (flag, cls, name)))
@@ -176,18 +176,6 @@ def _given_as(kind: type):
 
     convert.__name__ = kind.__name__
     return convert
-
-
-def _option_help(cls: type, f, default) -> str:
-    """An option's help from its field: meaning; accepted values (range, unit, default)."""
-    from sieve_mi.scene import describe, spec_of
-
-    spec = spec_of(f)
-    text = spec.doc + (f"; one of {', '.join(spec.choices)}" if spec.choices else "")
-    shown = spec.default_doc if spec.default_doc is not None else default
-    notes = [describe(cls, f)] if spec.minimum is not None or spec.maximum is not None else []
-    notes += ([spec.unit] if spec.unit else []) + [f"default {shown}"]
-    return f"{text} ({', '.join(notes)})".replace("%", "%%")
 
 
 def _check_settings(args) -> None:

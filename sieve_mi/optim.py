@@ -13,6 +13,7 @@ __all__ = [
     "PSO_COEFFICIENT",
     "QUAT_KEYS",
     "SwarmHistory",
+    "live_poses",
     "nlopt_maximise",
     "particle_swarm",
     "pose_adam",
@@ -74,6 +75,34 @@ def renormalise_quaternions(opt, *also) -> None:
     dr.eval()
     for key, value in zip(QUAT_KEYS, unit):
         opt[key] = value
+
+
+def live_poses(best_loss, group, groups: int, fit_loss: float):
+    """Which poses still descend: those whose group has no pose with a loss <= ``fit_loss`` yet.
+
+    Parameters
+    ----------
+    best_loss : mi.Float
+        Each pose's best loss so far (K,).
+    group : mi.UInt32
+        Each pose's group (K,), in ``[0, groups)``.
+    groups : int
+        Number of groups.
+    fit_loss : float
+        The objective's loss of a pose that fits.
+
+    Returns
+    -------
+    mi.Bool
+        (K,): True where no pose of the group fits. An integer maximum per group, so the result
+        does not depend on the order of the scatter.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    fits = dr.zeros(mi.UInt32, groups)
+    dr.scatter_reduce(dr.ReduceOp.Max, fits, mi.UInt32(1), group, best_loss <= fit_loss)
+    return dr.gather(mi.UInt32, fits, group) == 0
 
 
 @dataclass

@@ -58,9 +58,11 @@ __all__ = [
     "check_folder_name",
     "check_name",
     "describe",
+    "documented",
     "field_of",
     "key_of",
     "load_scene",
+    "option_help",
     "read_file",
     "read_shape",
     "read_tables",
@@ -209,8 +211,20 @@ def describe(cls: type, f: dataclasses.Field) -> str:
     return text
 
 
-def _documented(cls: type) -> type:
-    """Append an ``Attributes`` section built from the fields' :class:`Spec` to the docstring."""
+def option_help(cls: type, f, default) -> str:
+    """A command-line option's help from its field: meaning; accepted values (range, unit,
+    default), with ``%`` escaped for argparse."""
+    spec = spec_of(f)
+    text = spec.doc + (f"; one of {', '.join(spec.choices)}" if spec.choices else "")
+    shown = spec.default_doc if spec.default_doc is not None else default
+    notes = [describe(cls, f)] if spec.minimum is not None or spec.maximum is not None else []
+    notes += ([spec.unit] if spec.unit else []) + [f"default {shown}"]
+    return f"{text} ({', '.join(notes)})".replace("%", "%%")
+
+
+def documented(cls: type) -> type:
+    """Class decorator: append a numpydoc ``Attributes`` section built from the fields'
+    :class:`Spec` (type and bounds, default, meaning, unit) to the docstring."""
     lines = ["", "    Attributes", "    ----------"]
     for f in fields(cls):
         spec = spec_of(f)
@@ -258,7 +272,7 @@ def _checked(where: str):
 
 
 @_checked("shape")
-@_documented
+@documented
 @dataclass
 class ShapeEntry:
     """One ``[[pass]]`` or ``[[block]]`` table, or a mesh given in code (:meth:`Scene.from_meshes`).
@@ -288,7 +302,7 @@ class ShapeEntry:
 
 
 @_checked("fabrication")
-@_documented
+@documented
 @dataclass
 class Fabrication:
     """``[fabrication]``: how the hole is made physical."""
@@ -330,7 +344,7 @@ class Fabrication:
 
 
 @_checked("solver")
-@_documented
+@documented
 @dataclass
 class Solver:
     """``[solver]``: the search (paper Sec. 6 defaults)."""
@@ -351,6 +365,11 @@ class Solver:
     )
     starts: int = setting(10, "random starts of each B per evaluation", minimum=1, maximum=10_000)
     steps: int = setting(100, "Adam steps per start", minimum=0, maximum=1_000_000)
+    settle: bool = setting(
+        True,
+        "in the search's attacks, stop a hole's other B starts once one B fits it (the hole's "
+        "value is 0 either way; false: every start runs every step, as the paper)",
+    )
     learning_rate: float = setting(
         0.05, "Adam's learning rate", minimum=0, exclusive_min=True, maximum=1
     )
@@ -395,7 +414,7 @@ class Solver:
 
 
 @_checked("verdict")
-@_documented
+@documented
 @dataclass
 class Verdict:
     """``[verdict]``: the long re-run of player B that declares the winner."""
@@ -427,7 +446,7 @@ class Verdict:
 
 
 @_checked("layout")
-@_documented
+@documented
 @dataclass
 class Layout:
     """``[layout]``: how several pass shapes make one hole (paper Sec. 5.3, eq. 14)."""
@@ -458,7 +477,7 @@ class Layout:
 
 
 @_checked("check")
-@_documented
+@documented
 @dataclass
 class Check:
     """``sieve-mi check``'s search: player B's budget (the verdict's defaults) and the fit scale.
@@ -489,7 +508,7 @@ class Check:
 
 
 @_checked("check")
-@_documented
+@documented
 @dataclass
 class CheckInputs:
     """How ``sieve-mi check`` reads its part and its sieve (``certify``: ``scale`` and ``axis``).
@@ -511,7 +530,7 @@ class CheckInputs:
     units: str = setting("mm", "unit name for the report")
 
 
-@_documented
+@documented
 @dataclass
 class Scene:
     """A parsed, validated scene (the top level of the file)."""

@@ -20,20 +20,25 @@ overflows, :meth:`~sieve_mi.game.players.PlayerB.descend` runs the descent again
 
 from __future__ import annotations
 
-from sieve_mi.optim import POSE_KEYS, QUAT_KEYS, renormalise_quaternions
+from sieve_mi.optim import POSE_KEYS, QUAT_KEYS, live_poses, renormalise_quaternions
 
 __all__ = ["frozen_step"]
 
 
-def _step(opt, best, best_loss, overflow, loss, stack, pose_hole, key):
-    """One Adam step; ``key`` = (scale, capacity, poses, pairs) are Python values (recording key)."""
+def _step(opt, best, best_loss, overflow, loss, stack, pose_hole, key, group=None):
+    """One Adam step; ``key`` = (scale, capacity, poses, pairs[, groups, fit_loss]) are Python
+    values (recording key); ``group`` (mi.UInt32, K) the poses' settling groups, if any."""
     import drjit as dr
 
     scale, capacity = key[0], key[1]
     q = tuple(opt[k] for k in QUAT_KEYS)
     t = (opt["tx"] * scale, opt["ty"] * scale)
-    total, per_pose, over = loss.loss_fixed(q, t, stack, pose_hole, capacity)
-    dr.backward(total)
+    live = None if group is None else live_poses(best_loss, group, key[4], key[5])
+    total, per_pose, over = loss.loss_fixed(q, t, stack, pose_hole, capacity, live=live)
+    if live is not None:
+        per_pose = dr.select(live, per_pose, float("inf"))  # a settled pose keeps its best
+    # every pose settled between two checks: nothing depends on the poses any more
+    dr.backward(total, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
     # Each start keeps the best pose it visited (Adam may step past a fit).
     improved = per_pose < best_loss
     best = [dr.select(improved, dr.detach(opt[k]), b) for k, b in zip(POSE_KEYS, best)]
@@ -62,7 +67,10 @@ def frozen_step():
     stack : HoleStack
     pose_hole : mi.UInt32
     key : tuple
-        (scale, capacity, K, pairs): the frame's half extent, ``loss.capacity(q)``, and sizes.
+        (scale, capacity, K, pairs): the frame's half extent, ``loss.capacity(q)``, and sizes;
+        with settling, then the number of groups and the objective's ``fit_loss``.
+    group : mi.UInt32, optional
+        Each pose's settling group (:meth:`sieve_mi.game.players.PlayerB.attack`'s ``settle``).
     """
     import drjit as dr
 

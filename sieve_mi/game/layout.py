@@ -394,8 +394,9 @@ class _PlacementGame:
         """Eq. 14 energy and the weakest B's β of placements ``x`` (P, 6): (P,) and (P,)."""
         holes = self.player.holes(x[:, :4], x[:, 4:] * self.reach, base=self.base)
         attack = self.player_b.attack(
-            holes, starts, steps, self.learning_rate, self.rng, memory=self.memory
-        )
+            holes, starts, steps, self.learning_rate, self.rng, memory=self.memory,
+            settle=self.player.settle,
+        )  # fmt: skip
         area = np.array([hh.mask.mean() for hh in holes])
         n = np.array([pieces(hh.mask) for hh in holes])
         return eq14(attack.value(), area, n, self.settings), attack.value()

@@ -34,6 +34,7 @@ from sieve_mi.objectives import OBJECTIVES, Objective, make_objective
 from sieve_mi.optim import (
     POSE_KEYS,
     QUAT_KEYS,
+    live_poses,
     nlopt_maximise,
     particle_swarm,
     pose_adam,
@@ -131,6 +132,173 @@ class _FrozenStepFailed(Exception):
     """Dr.Jit failed to record or replay a frozen step (the cause is chained)."""
 
 
+#: A descent whose poses settle (:meth:`PlayerB.attack`'s ``settle``) checks every this many
+#: steps whether all of its groups have: one read-back of a flag.
+SETTLE_CHECK = 5
+
+
+class _Settle:
+    """The groups of one descent that stop when one of their poses fits.
+
+    Parameters
+    ----------
+    group : mi.UInt32
+        Each pose's group (K,), numbered from 0.
+    groups : int
+    fit_loss : float
+        The objective's loss of a fitting pose.
+    """
+
+    def __init__(self, group, groups: int, fit_loss: float):
+        self.group, self.groups, self.fit_loss = group, int(groups), float(fit_loss)
+
+    @classmethod
+    def make(cls, group, loss) -> _Settle | None:
+        """Settling for poses in groups ``group`` ((K,) ints, or None: no settling) under the
+        objective ``loss`` (None where it has no ``fit_loss``)."""
+        import mitsuba as mi
+
+        fit_loss = getattr(loss, "fit_loss", None)
+        if group is None or fit_loss is None or len(group) == 0:
+            return None
+        _, dense = np.unique(np.asarray(group), return_inverse=True)
+        return cls(mi.UInt32(dense.astype(np.uint32)), int(dense.max()) + 1, fit_loss)
+
+    def live(self, best_loss):
+        """(K,) mi.Bool: the poses whose group has not settled."""
+        return live_poses(best_loss, self.group, self.groups, self.fit_loss)
+
+    @staticmethod
+    def due(step: int) -> bool:
+        """Whether to check after step ``step`` (0-based)."""
+        return (step + 1) % SETTLE_CHECK == 0
+
+    def subset(self, keep) -> _Settle:
+        """The same groups for the poses ``keep`` (mi.UInt32) only."""
+        import drjit as dr
+        import mitsuba as mi
+
+        return _Settle(dr.gather(mi.UInt32, self.group, keep), self.groups, self.fit_loss)
+
+
+def _rows(best) -> np.ndarray:
+    """A descent's best poses (list of 6 mi.Float, :data:`~sieve_mi.optim.POSE_KEYS` order) as
+    a (K, 6) float64 array."""
+    return np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
+
+
+def _keep_poses(opt, keep, best, best_loss, settle):
+    """Keep only the poses ``keep`` (mi.UInt32) of a descent: of its
+    :func:`~sieve_mi.optim.pose_adam` optimiser (with their Adam moments and the shared step
+    count, Dr.Jit's ``(t, m, v, v_max)`` state), of ``best``, ``best_loss`` and ``settle``;
+    returns the last three."""
+    import drjit as dr
+    import mitsuba as mi
+
+    for key in POSE_KEYS:
+        value, promoted, lr, (t, m, v, v_max) = opt.state[key]
+        value = dr.gather(mi.Float, dr.detach(value), keep)
+        dr.enable_grad(value)
+        moments = (dr.gather(mi.Float, m, keep), dr.gather(mi.Float, v, keep))
+        opt.state[key] = (value, promoted, lr, (t, *moments, v_max))
+        dr.make_opaque(value, *moments)
+    best = [dr.gather(mi.Float, b, keep) for b in best]
+    best_loss = dr.gather(mi.Float, best_loss, keep)
+    dr.make_opaque(best, best_loss)
+    return best, best_loss, settle.subset(keep)
+
+
+class _Descent:
+    """The state of one batched descent of :meth:`PlayerB.descend`: Adam over the poses still
+    descending, each start's best pose and loss, and the final poses of those that left."""
+
+    def __init__(self, player, holes, pose_hole, pose_shape, q0, t0, learning_rate, group):
+        import drjit as dr
+        import mitsuba as mi
+
+        from sieve_mi.geometry.hole import HoleStack
+
+        self.loss, self.stack = player.objective, HoleStack(holes)
+        self.pose_hole, self.pose_shape = np.asarray(pose_hole), np.asarray(pose_shape)
+        self.scale = player.frame.half_extent
+        self.opt = pose_adam(q0, np.asarray(t0) / self.scale, learning_rate)
+        self.best = [dr.detach(self.opt[key]) for key in POSE_KEYS]
+        self.best_loss = dr.opaque(mi.Float, np.inf, len(q0))
+        self.settle = _Settle.make(group, self.loss)
+        self.final = np.empty((len(q0), len(POSE_KEYS)))
+        self.where = np.arange(len(q0))  # the original index of each pose still descending
+        self._bind()
+
+    def _bind(self) -> None:
+        import mitsuba as mi
+
+        self.loss.bind(self.pose_shape[self.where])
+        self.hole_idx = mi.UInt32(self.pose_hole[self.where].astype(np.uint32))
+
+    def evaluate(self, live=None):
+        """Total and per-pose loss at the optimiser's poses; with ``live`` (mi.Bool), the
+        others sum nothing and get an infinite loss (a settled pose keeps its best)."""
+        import drjit as dr
+
+        opt, scale = self.opt, self.scale
+        q = tuple(opt[key] for key in QUAT_KEYS)
+        t = (opt["tx"] * scale, opt["ty"] * scale)
+        if live is None:
+            return self.loss.loss(q, t, self.stack, self.hole_idx)
+        total, per_pose = self.loss.loss(q, t, self.stack, self.hole_idx, live=live)
+        return total, dr.select(live, per_pose, np.inf)
+
+    def keep_best(self, per_pose) -> None:
+        """Each start keeps the best pose it visited (Adam may step past a fit)."""
+        import drjit as dr
+
+        improved = per_pose < self.best_loss
+        self.best = [
+            dr.select(improved, dr.detach(self.opt[key]), b) for key, b in zip(POSE_KEYS, self.best)
+        ]
+        self.best_loss = dr.select(improved, per_pose, self.best_loss)
+
+    def traced_step(self) -> None:
+        """One Adam step, traced."""
+        import drjit as dr
+
+        live = None if self.settle is None else self.settle.live(self.best_loss)
+        total, per_pose = self.evaluate(live)
+        # every pose settled between two checks: nothing depends on the poses any more
+        dr.backward(total, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+        self.keep_best(per_pose)
+        self.opt.step(eval=False)
+        renormalise_quaternions(self.opt, self.best, self.best_loss)
+
+    def shrink(self, live: np.ndarray) -> bool:
+        """Keep descending only the ``live`` poses ((K,) bool); the others' best poses are
+        final. Returns whether any pose is left."""
+        import mitsuba as mi
+
+        self.final[self.where[~live]] = _rows(self.best)[~live]
+        self.where = self.where[live]
+        if not len(self.where):
+            return False
+        keep = mi.UInt32(np.flatnonzero(live).astype(np.uint32))
+        self.best, self.best_loss, self.settle = _keep_poses(
+            self.opt, keep, self.best, self.best_loss, self.settle
+        )
+        self._bind()
+        return True
+
+    def result(self, stepped: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Every start's best pose: quaternions (K, 4) and translations (K, 2), scene units;
+        ``stepped``: the last step's pose is scored too."""
+        import drjit as dr
+
+        if len(self.where):
+            if stepped:
+                with dr.suspend_grad():
+                    self.keep_best(self.evaluate()[1])
+            self.final[self.where] = _rows(self.best)
+        return normalize(self.final[:, :4]), self.final[:, 4:] * self.scale
+
+
 class PlayerB:
     """Fits B's shapes into holes by batched Adam from random starts.
 
@@ -207,6 +375,7 @@ class PlayerB:
         centres: np.ndarray | None = None,
         memory: AttackMemory | None = None,
         keep: int = 0,
+        settle: str | None = None,
     ) -> Attack:
         """Player B's best attempt on each hole, for each shape.
 
@@ -235,6 +404,14 @@ class PlayerB:
             updated with this attack's results.
         keep : int
             Keep the ``keep`` best poses per hole and shape in ``Attack.candidates``.
+        settle : {None, "shape", "hole"}
+            Stop descending the other starts of a group as soon as one of its starts fits (its
+            loss is at most the objective's ``fit_loss``; objectives without one ignore this):
+            ``"shape"`` groups the starts of one shape against one hole, whose β is 0 either
+            way; ``"hole"`` all starts against one hole, whose value (the min over shapes) is 0
+            either way. The settled starts keep the best pose they had reached, and a descent
+            whose groups have all settled ends early. None (the verdict's choice) descends every
+            start for every step, so that each shape's fitting starts are all counted.
         """
         n_h, n_b = len(holes), len(self.shapes)
         k = n_h * n_b * starts
@@ -254,8 +431,9 @@ class PlayerB:
                 w = min(len(mq), starts - 1)
                 q0[:, b, :w], t0[:, b, :w] = mq[:w], mt[:w]
             q0, t0 = q0.reshape(k, 4), t0.reshape(k, 2)
+        group = {None: None, "shape": pose_hole * n_b + pose_shape, "hole": pose_hole}[settle]
         quats, trans = self.descend(
-            holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress
+            holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress, group=group
         )
         attack = self._score(holes, quats, trans, pose_hole, pose_shape, starts, keep)
         if memory is not None:
@@ -273,6 +451,7 @@ class PlayerB:
         steps: int,
         learning_rate: float,
         progress: Callable[[int], None] | None = None,
+        group: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Batched Adam from given starting poses; returns each start's best pose.
 
@@ -289,6 +468,10 @@ class PlayerB:
         steps : int
         learning_rate : float
         progress : callable, optional
+        group : (K,) ndarray of int, optional
+            Groups of poses that settle together (see :meth:`attack`'s ``settle``): once one
+            pose of a group fits, the others stop where their best pose is; when every group has
+            settled the descent ends.
 
         Returns
         -------
@@ -310,7 +493,7 @@ class PlayerB:
         parts = self.chunks(pose_shape)
         if len(parts) == 1:
             return self._descend_falling_back(
-                holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress
+                holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress, group
             )
         quats, trans = np.empty((len(q0), 4)), np.empty((len(q0), 2))
         for i, part in enumerate(parts):  # the progress bar follows the last chunk
@@ -318,6 +501,7 @@ class PlayerB:
                 holes, pose_hole[part], pose_shape[part], np.asarray(q0)[part],
                 np.asarray(t0)[part], steps, learning_rate,
                 progress if i == len(parts) - 1 else None,
+                None if group is None else np.asarray(group)[part],
             )  # fmt: skip
         return quats, trans
 
@@ -364,17 +548,17 @@ class PlayerB:
         return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
     def _descend_falling_back(
-        self, holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress=None
+        self, holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress=None, group=None
     ):
         """One descent of all given poses at once, with the frozen steps' fallbacks."""
         args = (holes, pose_hole, pose_shape, q0, t0, steps, learning_rate)
         try:
-            return self._descend(*args, progress)
+            return self._descend(*args, progress, group=group)
         except _FrozenStepFailed as failure:
             self._stop_freezing(failure.__cause__)
         except _BufferOverflow:  # more active pairs than the buffer held: this descent traced
-            return self._descend(*args, may_freeze=False)
-        return self._descend(*args)
+            return self._descend(*args, group=group, may_freeze=False)
+        return self._descend(*args, group=group)
 
     def _descend(
         self,
@@ -387,51 +571,49 @@ class PlayerB:
         learning_rate,
         progress=None,
         *,
+        group=None,
         may_freeze: bool = True,
     ):
         """:meth:`descend` without its fallbacks; raises :class:`_BufferOverflow` or
         :class:`_FrozenStepFailed` when a frozen descent must run again traced. ``may_freeze=False``
-        traces every step."""
-        import drjit as dr
-        import mitsuba as mi
+        traces every step.
 
-        from sieve_mi.geometry.hole import HoleStack
+        With ``group``, every :data:`SETTLE_CHECK` steps the poses of settled groups leave the
+        descent (their best poses are final) once they are at least half of it: the rest goes on
+        as a smaller batch, with its Adam state, so that settled poses cost nothing.
+        """
+        run = _Descent(self, holes, pose_hole, pose_shape, q0, t0, learning_rate, group)
 
-        loss = self.objective
-        stack = HoleStack(holes)
-        loss.bind(pose_shape)
-        scale = self.frame.half_extent
-        opt = pose_adam(q0, np.asarray(t0) / scale, learning_rate)
-        hole_idx = mi.UInt32(np.asarray(pose_hole).astype(np.uint32))
-        best = [dr.detach(opt[key]) for key in POSE_KEYS]
-        best_loss = dr.opaque(mi.Float, np.inf, len(q0))
+        def freeze():
+            if not (may_freeze and steps > 0):
+                return None
+            return self._frozen_steps(
+                run.loss, run.opt, run.stack, run.hole_idx, run.scale, run.settle
+            )
 
-        def evaluate():
-            q = tuple(opt[key] for key in QUAT_KEYS)
-            return loss.loss(q, (opt["tx"] * scale, opt["ty"] * scale), stack, hole_idx)
-
-        def keep_best(per_pose, best, best_loss):
-            # Each start keeps the best pose it visited (Adam may step past a fit).
-            improved = per_pose < best_loss
-            kept = [dr.select(improved, dr.detach(opt[key]), b) for key, b in zip(POSE_KEYS, best)]
-            return kept, dr.select(improved, per_pose, best_loss)
-
-        may_freeze = may_freeze and steps > 0
-        frozen = self._frozen_steps(loss, opt, stack, hole_idx, scale) if may_freeze else None
+        frozen, first_frozen = freeze(), 2  # steps 1, 2 differ in layout: traced
         try:
             for step in range(steps):
-                if frozen is not None and step >= 2:  # steps 1, 2 differ in layout: traced
-                    best, best_loss = frozen(best, best_loss)
+                if frozen is not None and step >= first_frozen:
+                    run.best, run.best_loss = frozen(run.best, run.best_loss)
                 else:
-                    total, per_pose = evaluate()
-                    dr.backward(total)
-                    best, best_loss = keep_best(per_pose, best, best_loss)
-                    opt.step(eval=False)
-                    renormalise_quaternions(opt, best, best_loss)
+                    run.traced_step()
                 if progress:
                     progress(step + 1)
+                if run.settle is None or not run.settle.due(step):
+                    continue
+                live = np.asarray(run.settle.live(run.best_loss), dtype=bool)
+                if 2 * live.sum() > len(live):  # too few settled to pay for a smaller batch
+                    continue
+                if frozen is not None and frozen.overflowed():
+                    raise _BufferOverflow
+                if not run.shrink(live):  # every group settled: the descent is over
+                    if progress:
+                        progress(steps)
+                    break
+                frozen, first_frozen = freeze(), step + 1
         except Exception as exc:  # drjit.freeze is experimental: trace instead of failing
-            if frozen is None:
+            if frozen is None or isinstance(exc, _BufferOverflow):
                 raise
             interrupt = _interruption(exc)
             if interrupt is not None:  # Ctrl-C or SIGTERM while Dr.Jit recorded: never eaten
@@ -439,11 +621,7 @@ class PlayerB:
             raise _FrozenStepFailed from exc
         if frozen is not None and frozen.overflowed():
             raise _BufferOverflow
-        if steps > 0:
-            with dr.suspend_grad():
-                best, _ = keep_best(evaluate()[1], best, best_loss)
-        final = np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
-        return normalize(final[:, :4]), final[:, 4:] * scale
+        return run.result(steps > 0)
 
     def _stop_freezing(self, exc: Exception) -> None:
         """Trace every later step of this player, after Dr.Jit failed on a frozen one."""
@@ -459,7 +637,7 @@ class PlayerB:
             stacklevel=3,
         )
 
-    def _frozen_steps(self, loss, opt, stack, hole_idx, scale):
+    def _frozen_steps(self, loss, opt, stack, hole_idx, scale, settle=None):
         """The frozen Adam step of one descent (:mod:`sieve_mi.game.frozen`), or None if not frozen.
 
         Returns a callable ``step(best, best_loss) -> (best, best_loss)`` that updates ``opt``,
@@ -478,14 +656,17 @@ class PlayerB:
         self._frozen = self._frozen or frozen_step()
         capacity = loss.capacity(tuple(opt[name] for name in QUAT_KEYS))
         record = (scale, capacity, loss.pose_count, loss.pair_count)
+        if settle is not None:
+            record += (settle.groups, settle.fit_loss)
         state = {"overflow": dr.opaque(mi.Bool, False)}
+        group = None if settle is None else settle.group
 
         def step(best, best_loss):
             # Literals (Adam's step counter after the traced steps) become evaluated arrays, so
             # the first frozen step has the layout of the later ones (else it is recorded twice).
             dr.make_opaque(opt.state, best, best_loss)
             best, best_loss, state["overflow"] = self._frozen(
-                opt, best, best_loss, state["overflow"], loss, stack, hole_idx, record
+                opt, best, best_loss, state["overflow"], loss, stack, hole_idx, record, group
             )
             return best, best_loss
 
@@ -563,11 +744,22 @@ class PlayerA:
         self.tolerance = tolerance
         self.fill_holes = fill_holes
         self.renderer = SilhouetteRenderer(shape)
+        #: How player B's attacks on this player's holes settle (:meth:`PlayerB.attack`): per
+        #: hole, since a hole's value is 0 once any B fits it; only for filled holes, where the
+        #: clearance loss is 0 exactly when B fits (an island of plate inside H would let a
+        #: silhouette's edges all lie in H while the silhouette covers the island).
+        self.settle = "hole" if fill_holes else None
 
     @classmethod
-    def from_settings(cls, shape: Shape, frame: Frame, fabrication: Fabrication) -> PlayerA:
-        """Player A with the ``[fabrication]`` table's ``tolerance`` and ``fill_holes``."""
-        return cls(shape, frame, fabrication.tolerance, fabrication.fill_holes)
+    def from_settings(
+        cls, shape: Shape, frame: Frame, fabrication: Fabrication, solver: Solver | None = None
+    ) -> PlayerA:
+        """Player A with the ``[fabrication]`` table's ``tolerance`` and ``fill_holes``, and the
+        ``[solver]`` table's ``settle`` where given."""
+        player = cls(shape, frame, fabrication.tolerance, fabrication.fill_holes)
+        if solver is not None and not solver.settle:
+            player.settle = None
+        return player
 
     def silhouettes(self, quats: np.ndarray, trans: np.ndarray | None = None) -> np.ndarray:
         """A's silhouettes on the frame for K poses, (K, N, N) bool (translations default to zero)."""
@@ -673,7 +865,8 @@ class PlayerA:
         raster but not on the plate: it gets -1, below every real hole.
         """
         holes = self.holes(quats)
-        values = player_b.attack(holes, starts, steps, learning_rate, rng).value()
+        attack = player_b.attack(holes, starts, steps, learning_rate, rng, settle=self.settle)
+        values = attack.value()
         return np.where([h.mask.any() for h in holes], values, -1.0)
 
     def _canonical_seeds(self, evaluate, count: int, keep: int) -> tuple[np.ndarray, int]:

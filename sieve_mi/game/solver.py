@@ -123,7 +123,7 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Ba
     """Player A's rotation for one shape alone against all of B (Secs. 5.1, 5.2)."""
     s, fab = scene.solver, scene.fabrication
     frame = hole_frame(a, fab.tolerance, s.resolution)
-    player_a = PlayerA.from_settings(a, frame, fab)
+    player_a = PlayerA.from_settings(a, frame, fab, s)
     player_b = PlayerB.from_settings(blocks, frame, s)
 
     def report(it, best):
@@ -231,7 +231,7 @@ def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: _Bar):
     """Several A in one hole: the placements of :func:`sieve_mi.game.layout.merge` on the union frame."""
     s, fab = scene.solver, scene.fabrication
     frame = union_frame([p.radius for p in passes], fab.tolerance, s.resolution)
-    players = [PlayerA.from_settings(p, frame, fab) for p in passes]
+    players = [PlayerA.from_settings(p, frame, fab, s) for p in passes]
     player_b = PlayerB.from_settings(blocks, frame, s)
     return merge(
         players,

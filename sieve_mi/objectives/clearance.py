@@ -41,6 +41,11 @@ class ClearanceObjective(EdgeSampledObjective):
 
     #: :meth:`loss_fixed` computes this loss, so player B may freeze its steps (:mod:`sieve_mi.game.frozen`).
     freezable = True
+    #: A pose whose loss is at most this (pixels squared) fits: every sample on its silhouette
+    #: edges lies inside H, where one sample a thousandth of a pixel outside already adds 1e-6.
+    #: Player B stops descending the other starts of a hole that a pose fits
+    #: (:meth:`sieve_mi.game.players.PlayerB.attack`'s ``settle``); ``live`` below masks them.
+    fit_loss = 1e-6
     #: The Dr.Jit arrays a frozen function (:func:`drjit.freeze`) must see as its inputs.
     DRJIT_STRUCT = {
         "a": object,
@@ -57,8 +62,9 @@ class ClearanceObjective(EdgeSampledObjective):
         "_edge_pose_ends": object,
     }
 
-    def loss(self, q, t, holes: HoleStack, pose_hole):
-        """See :meth:`sieve_mi.objectives.Objective.loss`.
+    def loss(self, q, t, holes: HoleStack, pose_hole, live=None):
+        """See :meth:`sieve_mi.objectives.Objective.loss`; with ``live`` (mi.Bool, K) the other
+        poses sum nothing (their loss and gradient are 0, and they cost no work).
 
         ``per_pose`` is the clearance loss in pixels squared. Every sum runs in an order that
         depends only on the inputs, never on thread scheduling, so the same inputs give the same
@@ -66,9 +72,9 @@ class ClearanceObjective(EdgeSampledObjective):
         is the loss' exact gradient, reduced per pose the same way and attached to the AD graph
         through per-pose (element-wise) operations only.
         """
-        return self._loss(q, t, holes, pose_hole)[:2]
+        return self._loss(q, t, holes, pose_hole, live=live)[:2]
 
-    def loss_fixed(self, q, t, holes: HoleStack, pose_hole, capacity: int):
+    def loss_fixed(self, q, t, holes: HoleStack, pose_hole, capacity: int, live=None):
         """:meth:`loss` without data-dependent sizes or reads, for :func:`drjit.freeze`.
 
         The active pairs go into a buffer of ``capacity`` entries (in the same ascending order as
@@ -82,7 +88,7 @@ class ClearanceObjective(EdgeSampledObjective):
         overflow : mi.Bool
             One entry: more than ``capacity`` pairs were active (the results are then wrong).
         """
-        return self._loss(q, t, holes, pose_hole, capacity)
+        return self._loss(q, t, holes, pose_hole, capacity, live)
 
     def capacity(self, q) -> int:
         """A buffer size for :meth:`loss_fixed` at poses near quaternions ``q`` (4 mi.Float).
@@ -95,7 +101,7 @@ class ClearanceObjective(EdgeSampledObjective):
         total = dr.width(self._pairs[0])
         return int(min(max(1024, 1 << int(np.ceil(np.log2(max(2 * active, 1))))), max(total, 1)))
 
-    def _loss(self, q, t, holes: HoleStack, pose_hole, capacity: int | None = None):
+    def _loss(self, q, t, holes: HoleStack, pose_hole, capacity: int | None = None, live=None):
         """:meth:`loss` (``capacity`` None) or :meth:`loss_fixed`: total, per_pose, overflow."""
         dr, mi = self.dr, self.mi
         rows = quat_rows(*q)
@@ -103,9 +109,9 @@ class ClearanceObjective(EdgeSampledObjective):
             r = [dr.detach(x) for x in rows[:6]]
             td = (dr.detach(t[0]), dr.detach(t[1]))
             if capacity is None:
-                active, layout, overflow = self._active_pairs(rows), None, mi.Bool(False)
+                active, layout, overflow = self._active_pairs(rows, live), None, mi.Bool(False)
             else:
-                active, count, overflow = self._active_fixed(rows, capacity)
+                active, count, overflow = self._active_fixed(rows, capacity, live)
                 layout = (count, capacity // CHUNK + self.pose_count)
             sums = self._pose_sums(active, r, td, holes, pose_hole, layout)
         per_pose = sums[0]

@@ -314,23 +314,25 @@ class EdgeSampledObjective:
         self._edge_pairs = (pair_pose, pair_edge, first, pieces)
         dr.eval(self._edge_pairs)
 
-    def _silhouette_flags(self, rows):
+    def _silhouette_flags(self, rows, live=None):
         """Whether each (pose, segment) pair's segment is on the silhouette (mi.Bool)."""
         pair_pose, pair_seg = self._pairs
-        return self._flags(rows, pair_pose, pair_seg, self.m1, self.m2, self.always)
+        return self._flags(rows, pair_pose, pair_seg, self.m1, self.m2, self.always, live)
 
-    def _flags(self, rows, pose, item, m1, m2, always):
+    def _flags(self, rows, pose, item, m1, m2, always, live=None):
         """The silhouette test ``(r3 . m1)(r3 . m2) >= 0 or always`` of (pose, item) pairs, where
-        items are segments or edges (``m1``, ``m2``, ``always`` indexed by ``item``)."""
+        items are segments or edges (``m1``, ``m2``, ``always`` indexed by ``item``); with
+        ``live`` (mi.Bool, K), pairs of the other poses are never active."""
         dr, mi = self.dr, self.mi
         with dr.suspend_grad():
             r3 = mi.Vector3f(dr.detach(rows[6]), dr.detach(rows[7]), dr.detach(rows[8]))
             r3p = dr.gather(mi.Vector3f, r3, pose)
             s1 = dr.dot(r3p, dr.gather(mi.Vector3f, m1, item))
             s2 = dr.dot(r3p, dr.gather(mi.Vector3f, m2, item))
-            return (s1 * s2 >= 0) | dr.gather(mi.Bool, always, item)
+            flag = (s1 * s2 >= 0) | dr.gather(mi.Bool, always, item)
+            return flag if live is None else flag & dr.gather(mi.Bool, live, pose)
 
-    def _active_fixed(self, rows, capacity: int):
+    def _active_fixed(self, rows, capacity: int, live=None):
         """:meth:`_active_pairs` in a buffer of fixed size, without reading anything back.
 
         Per (pose, edge) pair where :attr:`per_edge` holds (as :meth:`_active_pairs`): each active
@@ -351,10 +353,12 @@ class EdgeSampledObjective:
         dr, mi = self.dr, self.mi
         if self.per_edge:
             pair_pose, pair_edge, first, pieces = self._edge_pairs
-            flag = self._flags(rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always)
+            flag = self._flags(
+                rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always, live
+            )
             size, ends = dr.select(flag, pieces, 0), self._edge_pose_ends
         else:
-            flag = self._silhouette_flags(rows)
+            flag = self._silhouette_flags(rows, live)
             size, ends, first = dr.select(flag, mi.UInt32(1), mi.UInt32(0)), self._pose_ends, None
         slot = dr.prefix_sum(size)  # exclusive: the buffer slot of each item's first pair
         upto = slot + size
@@ -379,8 +383,9 @@ class EdgeSampledObjective:
         # Past the buffer there is nothing to read: sum nothing (the caller discards the results).
         return active, dr.select(overflow, 0, count), overflow
 
-    def _active_pairs(self, rows):
-        """Indices (ascending) of the (pose, segment) pairs whose segment is on the silhouette.
+    def _active_pairs(self, rows, live=None):
+        """Indices (ascending) of the (pose, segment) pairs whose segment is on the silhouette
+        (of the ``live`` poses only, where given: mi.Bool, K).
 
         The silhouette test depends on the parent edge only, so it runs once per (pose, edge)
         pair (about four times fewer tests than per segment); the active edges are then expanded
@@ -390,9 +395,9 @@ class EdgeSampledObjective:
         """
         dr, mi = self.dr, self.mi
         if not self.per_edge:
-            return dr.compress(self._silhouette_flags(rows))
+            return dr.compress(self._silhouette_flags(rows, live))
         pair_pose, pair_edge, first, pieces = self._edge_pairs
-        flag = self._flags(rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always)
+        flag = self._flags(rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always, live)
         with dr.suspend_grad():
             edges = dr.compress(flag)
             return expand_ranges(

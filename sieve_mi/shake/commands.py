@@ -21,26 +21,16 @@ __all__ = [
 ]
 
 
-def _option_help(f) -> str:
-    """An option's help from its declaration: meaning (bounds, unit, default)."""
-    from sieve_mi.scene import describe, spec_of
-
-    spec = spec_of(f)
-    unit = f", {spec.unit}" if spec.unit else ""
-    return f"{spec.doc} ({describe(ShakeSettings, f)}{unit}, default {f.default})".replace(
-        "%", "%%"
-    )
-
-
 def add_settings(parser) -> None:
     """Add an option per :class:`ShakeSettings` field to ``parser`` (``--coacd-threshold`` for
     ``coacd_threshold``); its value lands in ``args.<field>`` as given (None when absent) and is
     checked by :func:`settings_from_args`."""
+    from sieve_mi.scene import option_help
+
     for f in fields(ShakeSettings):
         flag = "--" + f.name.replace("_", "-")
-        parser.add_argument(
-            flag, dest=f.name, default=None, metavar=f.name.upper(), help=_option_help(f)
-        )
+        help_ = option_help(ShakeSettings, f, f.default)
+        parser.add_argument(flag, dest=f.name, default=None, metavar=f.name.upper(), help=help_)
 
 
 def add_parser(sub) -> None:

@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 
 from sieve_mi.errors import SieveError
-from sieve_mi.scene import describe, read_value, setting, spec_of
+from sieve_mi.scene import documented, read_value, setting, spec_of
 
 __all__ = [
     "CONTACT",
@@ -50,21 +50,7 @@ CONTACT = {
 TIMESTEP_MAX_MS = CONTACT["solref"][0] / 2 * 1e3
 
 
-def _attributes(cls: type) -> type:
-    """Append a numpydoc ``Attributes`` section built from the fields' Specs to the docstring."""
-    lines = ["", "    Attributes", "    ----------"]
-    for f in fields(cls):
-        spec = spec_of(f)
-        unit = f" ({spec.unit})" if spec.unit else ""
-        lines += [
-            f"    {f.name} : {describe(cls, f)}, default {f.default!r}",
-            f"        {spec.doc[:1].upper()}{spec.doc[1:]}{unit}.",
-        ]
-    cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n" + "\n".join(lines) + "\n"
-    return cls
-
-
-@_attributes
+@documented
 @dataclass(frozen=True)
 class ShakeSettings:
     """What a shake run does; every field is a ``sieve-mi shake`` option of the same name

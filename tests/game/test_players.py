@@ -150,3 +150,59 @@ def test_player_b_objective_is_public_and_made_once(cube20):
     other = PlayerB.from_settings([sphere(12.0, 2)], f, Solver(objective="overlap", freeze=False))
     assert (other.objective_name, other.freeze) == ("overlap", False)
     assert PlayerB.from_settings([], f, Solver(), objective="clearance").freeze is True
+
+
+def _two_holes(cube20):
+    """The face-on cube's hole (22 mm rounded square, inscribed disk 11 mm) and the hole of the
+    cube seen along its space diagonal (a hexagon, inscribed radius 20/sqrt(2) + 1 = 15.1 mm)."""
+    f, a, _ = _cube_hole(cube20)
+    quats = np.array(
+        [[1.0, 0, 0, 0], [0.8880738339771153, 0.32505758367186816, -0.32505758367186816, 0.0]]
+    )
+    return f, a.holes(quats)
+
+
+@pytest.mark.parametrize("settle", ["hole", "shape"])
+def test_settled_starts_stop_and_the_others_descend_bit_for_bit(cube20, settle):
+    # A 24 mm sphere cannot enter the square (12 > 11 mm) and fits the hexagon (12 < 15.1 mm):
+    # the hexagon's starts settle as soon as one fits and leave the batch; the square's never do,
+    # and with their Adam state carried over they must end exactly where they end without
+    # settling (each pose's descent is its own).
+    f, holes = _two_holes(cube20)
+    b = PlayerB([sphere(12.0)], f)
+    calls = {None: 0, settle: 0}
+
+    def attack(mode):
+        def progress(_):
+            calls[mode] += 1
+
+        return b.attack(holes, 8, 100, 0.05, rng(3), progress=progress, settle=mode)
+
+    plain, settled = attack(None), attack(settle)
+    assert plain.beta[1, 0] == 0.0 and settled.beta[1, 0] == 0.0
+    assert plain.fits[1, 0] >= 1 and settled.fits[1, 0] >= 1
+    # The square's starts: same best pose and scores, bit for bit.
+    assert np.array_equal(plain.quats[0], settled.quats[0])
+    assert np.array_equal(plain.trans[0], settled.trans[0])
+    assert plain.beta[0, 0] == settled.beta[0, 0] > 0
+    assert calls[None] == calls[settle] == 100  # one call per step, the last one says "done"
+
+
+def test_a_descent_whose_holes_all_settle_ends_early(cube20):
+    # The 20 mm sphere fits both holes: once each hole has a fitting start the descent is over,
+    # long before its 400 steps, and the value of each hole is the 0 it would have been.
+    f, holes = _two_holes(cube20)
+    b = PlayerB([sphere(10.0)], f)
+    done = []
+    attack = b.attack(holes, 8, 400, 0.05, rng(4), progress=done.append, settle="hole")
+    assert list(attack.value()) == [0.0, 0.0]
+    assert done[-1] == 400 and len(done) < 100
+
+
+def test_settling_needs_a_loss_that_knows_a_fit(cube20):
+    # The overlap objective declares no fit_loss: settle is ignored, every start runs its steps.
+    f, holes = _two_holes(cube20)
+    b = PlayerB([sphere(10.0)], f, objective="overlap")
+    done = []
+    b.attack(holes, 2, 20, 0.05, rng(5), progress=done.append, settle="hole")
+    assert done == list(range(1, 21))
