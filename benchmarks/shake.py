@@ -18,7 +18,7 @@ import manifold3d
 import trimesh
 
 from sieve_mi.shake.fidelity import measure_sink
-from sieve_mi.shake.geometry import part_from_mesh, plate_from_outline
+from sieve_mi.shake.geometry import part_from_mesh, plate_from_mesh, plate_from_outline
 from sieve_mi.shake.settings import ShakeSettings
 from sieve_mi.shake.stats import summarize
 from sieve_mi.shake.trials import run_trials
@@ -42,7 +42,17 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--workers", type=int, default=0)
     ap.add_argument("--only", default="")
+    ap.add_argument(
+        "--seat",
+        metavar="DIR",
+        help="instead: how close --only's shapes of solve DIR come to "
+        "their pass pose over --trials trials (benchmarks.shake.seating)",
+    )
     args = ap.parse_args()
+    if args.seat:
+        for name in args.only.split(","):
+            print(seating(args.seat, name, args.trials), flush=True)
+        return
     settings = ShakeSettings(trials=args.trials, duration=args.duration, workers=args.workers)
     print("| case | trials | passed | fraction [95 % CI] | median s | sink mm | s / 1,000 trials |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
@@ -62,10 +72,6 @@ def main() -> None:
             f"| {med} | {sink:.4f} | {per_k:.0f} |",
             flush=True,
         )
-
-
-if __name__ == "__main__":
-    main()
 
 
 def _silhouette(mesh):
@@ -116,3 +122,100 @@ def window(
     ]
     span = (max(yaws) - min(yaws) + step_deg) if yaws else 0.0
     return area, span, float((hi[0] - lo[0]) * (hi[1] - lo[1]))
+
+
+def _symmetry(mesh) -> int:
+    """Turns about z (2: 180°, 1: none) that map the part's pass-pose silhouette onto itself
+    (symmetric difference under 1 % of its area)."""
+    from shapely import affinity
+
+    sil = _silhouette(mesh)
+    c = sil.centroid
+    turned = affinity.rotate(sil, 180.0, origin=c)
+    return 2 if sil.symmetric_difference(turned).area < 0.01 * sil.area else 1
+
+
+def seating(folder: str, name: str, trials: int, every: int = 40, settings=None) -> dict:
+    """How close a part's shaken trials come to its pass pose on a solve's plate.
+
+    The part (``pass_<i>.stl`` of the solve, already in its pass pose over its place in the
+    hole) passes when it lies the right side up (tilt from its pass pose under 5°), turned to
+    within a few degrees of its place (yaw, modulo the silhouette's own symmetry) and centred on
+    its place to within a fraction of a millimetre (``window``). Every ``every`` steps of each
+    trial this records the tilt, the yaw error, the horizontal distance of the centre of mass from
+    its place and how deep the part's lowest point is below the plate's top face (a part seated
+    in the hole's mouth is below it).
+
+    Returns
+    -------
+    dict
+        Fractions of sampled time: ``flat_up`` (tilt < 5°), ``flat_down`` (> 175°, the mirror
+        image up), ``up_and_turned`` (flat up, yaw error < 6°), ``up_turned_near`` (and within 2
+        mm of its place), ``in_mouth`` (lowest point over 1 mm below the top face) with the
+        median tilt and distance from its place there; the closest approach to its place while
+        up and turned (mm); the symmetry used; trials, passes.
+    """
+    import mujoco
+    import numpy as np
+
+    from sieve_mi.shake.inputs import from_folder, select
+    from sieve_mi.shake.model import build_model, plate_motion
+    from sieve_mi.shake.settings import metres_per_unit
+    from sieve_mi.shake.trials import drop_state
+
+    settings = settings or ShakeSettings(trials=trials, workers=1)
+    inp = select(from_folder(folder), [name])
+    unit_m = metres_per_unit(inp.units)
+    plate = plate_from_mesh(inp.plate, inp.plate_path)
+    ((_, role, _, mesh),) = inp.parts
+    part = part_from_mesh(mesh, name, role, settings.coacd_threshold)
+    fold = _symmetry(mesh)
+    seat = (part.com[:2] - plate.offset[:2]) * unit_m
+    low = np.concatenate(part.hulls) * unit_m  # the pieces' vertices, body frame
+    model = build_model(plate, part, settings, unit_m)
+    data = mujoco.MjData(model)
+    dt = model.opt.timestep
+    steps = int(round(settings.duration / dt))
+    z, dz, phi, dphi = plate_motion(np.arange(steps) * dt, settings)
+    rows, passes = [], 0
+    for trial in range(trials):
+        mujoco.mj_resetData(model, data)
+        pos, quat = drop_state(trial, plate, part, settings, unit_m)
+        data.qpos[2:5], data.qpos[5:9] = pos, quat
+        for k in range(steps):
+            data.qpos[0], data.qpos[1], data.qvel[0], data.qvel[1] = z[k], phi[k], dz[k], dphi[k]
+            mujoco.mj_step(model, data)
+            if k % every:
+                continue
+            rot = np.empty(9)
+            mujoco.mju_quat2Mat(rot, data.qpos[5:9])
+            rot = rot.reshape(3, 3)
+            tilt = np.degrees(np.arccos(np.clip(rot[2, 2], -1, 1)))
+            period = 360.0 / fold
+            yaw = (np.degrees(np.arctan2(rot[1, 0], rot[0, 0])) + period / 2) % period - period / 2
+            off = np.linalg.norm(data.qpos[2:4] - seat) * 1e3
+            depth = (z[k] - (data.qpos[4] + (low @ rot.T)[:, 2].min())) * 1e3
+            if data.qpos[4] < -plate.thickness * unit_m:
+                break
+            rows.append((tilt, abs(yaw), off, depth))
+        passes += int(data.qpos[4] < -plate.thickness * unit_m)
+    a = np.asarray(rows)
+    up, turned, mouth = a[:, 0] < 5, a[:, 1] < 6, a[:, 3] > 1
+    return {
+        "name": name,
+        "trials": trials,
+        "passed": passes,
+        "symmetry": fold,
+        "flat_up": float(up.mean()),
+        "flat_down": float((a[:, 0] > 175).mean()),
+        "up_and_turned": float((up & turned).mean()),
+        "up_turned_near": float((up & turned & (a[:, 2] < 2)).mean()),
+        "closest_mm": float(a[up & turned, 2].min()) if (up & turned).any() else None,
+        "in_mouth": float(mouth.mean()),
+        "in_mouth_tilt_deg": float(np.median(a[mouth, 0])) if mouth.any() else None,
+        "in_mouth_offset_mm": float(np.median(a[mouth, 2])) if mouth.any() else None,
+    }
+
+
+if __name__ == "__main__":
+    main()

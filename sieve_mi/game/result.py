@@ -125,6 +125,9 @@ class Result:
     started: float | None = None
     #: Peak resident memory per stage (:class:`sieve_mi.backend.MemoryWatch`), or None.
     memory: object = None
+    #: :meth:`overlay_sections`' polygons, made on first use (a 500k-face B's projection takes
+    #: minutes; the images and the page both draw it).
+    _sections: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def blocks(self) -> list[BlockAttempt]:
@@ -161,15 +164,17 @@ class Result:
         b : list of manifold3d.CrossSection
             Each B's projection in its best attempt.
         """
-        a = [
-            silhouette(s, q, t, is_closed(s))
-            for s, q, t in zip(self.pass_shapes, self.pass_quats, self.pass_trans)
-        ]
-        b = [
-            silhouette(s, self.attack.quats[0, j], self.attack.trans[0, j], is_closed(s))
-            for j, s in enumerate(self.block_shapes)
-        ]
-        return self.outline, a, b
+        if self._sections is None:
+            a = [
+                silhouette(s, q, t, is_closed(s))
+                for s, q, t in zip(self.pass_shapes, self.pass_quats, self.pass_trans)
+            ]
+            b = [
+                silhouette(s, self.attack.quats[0, j], self.attack.trans[0, j], is_closed(s))
+                for j, s in enumerate(self.block_shapes)
+            ]
+            self._sections = (a, b)
+        return self.outline, *self._sections
 
     @property
     def a_mask(self) -> np.ndarray:

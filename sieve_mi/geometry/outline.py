@@ -121,7 +121,58 @@ def projection(
     if len(tri) == 0:
         return manifold3d.CrossSection()
     tri[signed < 0] = tri[signed < 0][:, ::-1]
-    return manifold3d.CrossSection(list(tri), manifold3d.FillRule.Positive)
+    loops = boundary_loops(np.asarray(faces)[keep], signed < 0)
+    xy = np.asarray(vertices, dtype=np.float64)[:, :2]
+    return manifold3d.CrossSection([xy[loop] for loop in loops], manifold3d.FillRule.Positive)
+
+
+def boundary_loops(faces: np.ndarray, flip: np.ndarray) -> list[np.ndarray]:
+    """The oriented boundary of a set of triangles, as closed loops of vertex indices.
+
+    Each triangle (counter-clockwise in the projection once the ``flip`` ones are reversed)
+    contributes its three edges; an edge met once each way (two neighbours side by side) cancels,
+    so what is left is the boundary chain of the set, and every point of the plane has the same
+    winding number about it as the number of triangles that cover it. Filled with the positive
+    rule it is therefore exactly the union of the triangles, from a few edges instead of all the
+    triangles (a closed mesh's front faces leave only its silhouette edges: a 525k-face beetle
+    keeps about 1 % of its edges).
+
+    Parameters
+    ----------
+    faces : (F, 3) ndarray of int
+    flip : (F,) bool ndarray
+        Triangles to reverse.
+
+    Returns
+    -------
+    list of (n,) int ndarrays
+        Closed loops (the last vertex joins the first); every vertex has as many boundary edges
+        in as out, so the edges split into such loops.
+    """
+    f = np.asarray(faces, dtype=np.int64).copy()
+    f[flip] = f[flip][:, ::-1]
+    a = f.ravel()
+    b = f[:, [1, 2, 0]].ravel()
+    n = int(max(a.max(initial=-1), b.max(initial=-1))) + 1
+    keys, counts = np.unique(a * n + b, return_counts=True)
+    rev = np.searchsorted(keys, (keys % n) * n + keys // n)
+    rev = np.minimum(rev, len(keys) - 1)
+    back = np.where(keys[rev] == (keys % n) * n + keys // n, counts[rev], 0)
+    net = counts - back
+    keys, net = keys[net > 0], net[net > 0]
+    edges = np.repeat(keys, net)
+    out: dict[int, list[int]] = {}
+    for start, end in zip((edges // n).tolist(), (edges % n).tolist()):
+        out.setdefault(start, []).append(end)
+    loops = []
+    for first in list(out):
+        while out.get(first):
+            loop, at = [first], out[first].pop()
+            while at != first:
+                loop.append(at)
+                at = out[at].pop()
+            loops.append(np.asarray(loop))
+    return loops
 
 
 def filled(section: manifold3d.CrossSection) -> manifold3d.CrossSection:

@@ -300,3 +300,45 @@ def test_scoring_casts_each_ray_once_and_counts_pixels(cube20):
     assert n_rays == 2 * size * size and len(casts) == 1
     np.testing.assert_array_equal(scores.beta, [0.0, 1.0])
     assert scores.protrusion[0] == 0 and scores.protrusion[1] > 0
+
+
+def _union_of_triangles(vertices, faces):
+    """Ground truth for a projection: shapely's union of the projected triangles."""
+    import shapely
+
+    tris = [shapely.Polygon(t[:, :2]) for t in np.asarray(vertices)[faces]]
+    return shapely.union_all([t for t in tris if t.area > 1e-15])
+
+
+@pytest.mark.parametrize("closed", [True, False])
+def test_projection_from_boundary_loops_is_the_union_of_the_triangles(closed):
+    # A closed sphere at an odd rotation: its front faces' boundary is its silhouette, a disk of
+    # radius 12 (up to the polygonal outline); with every triangle (closed=False) the front and
+    # back faces' boundaries both remain and still fill exactly the same region.
+    from sieve_mi.geometry.outline import placed_vertices, projection
+
+    s = sphere(12.0)
+    v = placed_vertices(
+        s, np.array([0.9, 0.3, -0.2, 0.1]) / np.linalg.norm([0.9, 0.3, -0.2, 0.1]), [3.0, -1.0]
+    )
+    got = projection(v, s.faces, closed=closed)
+    want = _union_of_triangles(v, s.faces)
+    assert got.area() == pytest.approx(want.area, rel=1e-9)
+    assert got.area() == pytest.approx(np.pi * 12.0**2, rel=0.01)
+
+
+def test_projection_counts_overlapping_folds_once():
+    # Two unit squares (two triangles each) that overlap by half and share no vertex, plus a
+    # triangle folded back over the first square: the union is 1.5 (a 1 x 1.5 rectangle), which
+    # a boundary chain with multiplicities must reproduce.
+    from sieve_mi.geometry.outline import boundary_loops, projection
+
+    v = np.array(
+        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+         [0, 0.5, 0], [1, 0.5, 0], [1, 1.5, 0], [0, 1.5, 0], [0.5, 0.5, 1.0]],
+        dtype=float,
+    )  # fmt: skip
+    f = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7], [0, 8, 1]])
+    assert projection(v, f).area() == pytest.approx(1.5, rel=1e-12)
+    # The first square's two triangles share their diagonal, which cancels: one loop of 4.
+    assert sorted(len(loop) for loop in boundary_loops(f[:2], np.zeros(2, bool))) == [4]
