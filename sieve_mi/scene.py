@@ -368,7 +368,8 @@ class Solver:
     settle: bool = setting(
         True,
         "in the search's attacks, stop a hole's other B starts once one B fits it (the hole's "
-        "value is 0 either way; false: every start runs every step, as the paper)",
+        "value is 0 either way), and in the verdict stop each start that fits (false: every "
+        "start runs every step, as the paper)",
     )
     learning_rate: float = setting(
         0.05, "Adam's learning rate", minimum=0, exclusive_min=True, maximum=1

@@ -181,6 +181,17 @@ class _Settle:
         return _Settle(dr.gather(mi.UInt32, self.group, keep), self.groups, self.fit_loss)
 
 
+def _settle_groups(settle, pose_hole, pose_shape, n_b: int):
+    """Each pose's settling group for :meth:`PlayerB.attack`'s ``settle`` (None: no settling)."""
+    if settle is None:
+        return None
+    return {
+        "start": np.arange(len(pose_hole)),
+        "shape": pose_hole * n_b + pose_shape,
+        "hole": pose_hole,
+    }[settle]
+
+
 def _rows(best) -> np.ndarray:
     """A descent's best poses (list of 6 mi.Float, :data:`~sieve_mi.optim.POSE_KEYS` order) as
     a (K, 6) float64 array."""
@@ -404,14 +415,15 @@ class PlayerB:
             updated with this attack's results.
         keep : int
             Keep the ``keep`` best poses per hole and shape in ``Attack.candidates``.
-        settle : {None, "shape", "hole"}
-            Stop descending the other starts of a group as soon as one of its starts fits (its
-            loss is at most the objective's ``fit_loss``; objectives without one ignore this):
-            ``"shape"`` groups the starts of one shape against one hole, whose β is 0 either
-            way; ``"hole"`` all starts against one hole, whose value (the min over shapes) is 0
-            either way. The settled starts keep the best pose they had reached, and a descent
-            whose groups have all settled ends early. None (the verdict's choice) descends every
-            start for every step, so that each shape's fitting starts are all counted.
+        settle : {None, "start", "shape", "hole"}
+            Stop descending the starts of a group as soon as one of its starts fits (its loss is
+            at most the objective's ``fit_loss``; objectives without one ignore this):
+            ``"start"`` each start alone (a start that fits is done: the verdict, which counts
+            the fitting starts); ``"shape"`` the starts of one shape against one hole, whose β
+            is 0 either way; ``"hole"`` all starts against one hole, whose value (the min over
+            shapes) is 0 either way (the search). The settled starts keep the best pose they had
+            reached, and a descent whose groups have all settled ends early. None: every start
+            runs every step.
         """
         n_h, n_b = len(holes), len(self.shapes)
         k = n_h * n_b * starts
@@ -431,7 +443,7 @@ class PlayerB:
                 w = min(len(mq), starts - 1)
                 q0[:, b, :w], t0[:, b, :w] = mq[:w], mt[:w]
             q0, t0 = q0.reshape(k, 4), t0.reshape(k, 2)
-        group = {None: None, "shape": pose_hole * n_b + pose_shape, "hole": pose_hole}[settle]
+        group = _settle_groups(settle, pose_hole, pose_shape, n_b)
         quats, trans = self.descend(
             holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress, group=group
         )

@@ -207,6 +207,7 @@ def judge(
         centres=start_centres(grown, trans, groups),
         memory=None if separate else memory,
         keep=CANDIDATES,
+        settle="start" if fab.fill_holes and scene.solver.settle else None,
     )
     margin = fab.block_margin > 0
     attack = exact_rescore(

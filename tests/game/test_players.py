@@ -206,3 +206,16 @@ def test_settling_needs_a_loss_that_knows_a_fit(cube20):
     done = []
     b.attack(holes, 2, 20, 0.05, rng(5), progress=done.append, settle="hole")
     assert done == list(range(1, 21))
+
+
+def test_a_start_that_fits_stops_and_still_counts(cube20):
+    # The verdict settles each start alone: the 20 mm sphere fits both holes from every start,
+    # so every start counts as fitting either way, and the descent ends once all have fitted.
+    f, holes = _two_holes(cube20)
+    b = PlayerB([sphere(10.0)], f)
+    plain = b.attack(holes, 8, 300, 0.05, rng(6))
+    done = []
+    alone = b.attack(holes, 8, 300, 0.05, rng(6), progress=done.append, settle="start")
+    assert plain.fits.tolist() == alone.fits.tolist() == [[8], [8]]
+    assert list(alone.beta[:, 0]) == [0.0, 0.0]
+    assert done[-1] == 300 and len(done) < 100
