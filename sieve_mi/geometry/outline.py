@@ -117,11 +117,9 @@ def projection(
         front = signed > 0
         if (keep & front).any():
             keep &= front
-    tri, signed = tri[keep], signed[keep]
-    if len(tri) == 0:
+    if not keep.any():
         return manifold3d.CrossSection()
-    tri[signed < 0] = tri[signed < 0][:, ::-1]
-    loops = boundary_loops(np.asarray(faces)[keep], signed < 0)
+    loops = boundary_loops(np.asarray(faces)[keep], signed[keep] < 0)
     xy = np.asarray(vertices, dtype=np.float64)[:, :2]
     return manifold3d.CrossSection([xy[loop] for loop in loops], manifold3d.FillRule.Positive)
 
@@ -134,8 +132,8 @@ def boundary_loops(faces: np.ndarray, flip: np.ndarray) -> list[np.ndarray]:
     so what is left is the boundary chain of the set, and every point of the plane has the same
     winding number about it as the number of triangles that cover it. Filled with the positive
     rule it is therefore exactly the union of the triangles, from a few edges instead of all the
-    triangles (a closed mesh's front faces leave only its silhouette edges: a 525k-face beetle
-    keeps about 1 % of its edges).
+    triangles (a closed mesh's front faces leave only its silhouette edges: 8 % of the cow's;
+    the 525k-face beetle, open, every triangle counted, keeps 1.1 % of its edges).
 
     Parameters
     ----------
@@ -155,10 +153,9 @@ def boundary_loops(faces: np.ndarray, flip: np.ndarray) -> list[np.ndarray]:
     b = f[:, [1, 2, 0]].ravel()
     n = int(max(a.max(initial=-1), b.max(initial=-1))) + 1
     keys, counts = np.unique(a * n + b, return_counts=True)
-    rev = np.searchsorted(keys, (keys % n) * n + keys // n)
-    rev = np.minimum(rev, len(keys) - 1)
-    back = np.where(keys[rev] == (keys % n) * n + keys // n, counts[rev], 0)
-    net = counts - back
+    reverse = (keys % n) * n + keys // n  # the key of the same edge the other way
+    at = np.minimum(np.searchsorted(keys, reverse), len(keys) - 1)
+    net = counts - np.where(keys[at] == reverse, counts[at], 0)
     keys, net = keys[net > 0], net[net > 0]
     edges = np.repeat(keys, net)
     out: dict[int, list[int]] = {}
