@@ -159,9 +159,9 @@ def seating(folder: str, name: str, trials: int, every: int = 40, settings=None)
     import numpy as np
 
     from sieve_mi.shake.inputs import from_folder, select
-    from sieve_mi.shake.model import build_model, plate_motion
+    from sieve_mi.shake.model import build_model
     from sieve_mi.shake.settings import metres_per_unit
-    from sieve_mi.shake.trials import drop_state
+    from sieve_mi.shake.trials import run_trial
 
     settings = settings or ShakeSettings(trials=trials, workers=1)
     inp = select(from_folder(folder), [name])
@@ -170,35 +170,28 @@ def seating(folder: str, name: str, trials: int, every: int = 40, settings=None)
     ((_, role, _, mesh),) = inp.parts
     part = part_from_mesh(mesh, name, role, settings.coacd_threshold)
     fold = _symmetry(mesh)
+    period = 360.0 / fold
     seat = (part.com[:2] - plate.offset[:2]) * unit_m
     low = np.concatenate(part.hulls) * unit_m  # the pieces' vertices, body frame
     model = build_model(plate, part, settings, unit_m)
     data = mujoco.MjData(model)
-    dt = model.opt.timestep
-    steps = int(round(settings.duration / dt))
-    z, dz, phi, dphi = plate_motion(np.arange(steps) * dt, settings)
-    rows, passes = [], 0
-    for trial in range(trials):
-        mujoco.mj_resetData(model, data)
-        pos, quat = drop_state(trial, plate, part, settings, unit_m)
-        data.qpos[2:5], data.qpos[5:9] = pos, quat
-        for k in range(steps):
-            data.qpos[0], data.qpos[1], data.qvel[0], data.qvel[1] = z[k], phi[k], dz[k], dphi[k]
-            mujoco.mj_step(model, data)
-            if k % every:
-                continue
-            rot = np.empty(9)
-            mujoco.mju_quat2Mat(rot, data.qpos[5:9])
-            rot = rot.reshape(3, 3)
-            tilt = np.degrees(np.arccos(np.clip(rot[2, 2], -1, 1)))
-            period = 360.0 / fold
-            yaw = (np.degrees(np.arctan2(rot[1, 0], rot[0, 0])) + period / 2) % period - period / 2
-            off = np.linalg.norm(data.qpos[2:4] - seat) * 1e3
-            depth = (z[k] - (data.qpos[4] + (low @ rot.T)[:, 2].min())) * 1e3
-            if data.qpos[4] < -plate.thickness * unit_m:
-                break
-            rows.append((tilt, abs(yaw), off, depth))
-        passes += int(data.qpos[4] < -plate.thickness * unit_m)
+    rows, rot = [], np.empty(9)
+
+    def observe(k, data, lift):
+        if k % every or data.qpos[4] < -plate.thickness * unit_m:
+            return
+        mujoco.mju_quat2Mat(rot, data.qpos[5:9])
+        r = rot.reshape(3, 3)
+        tilt = np.degrees(np.arccos(np.clip(r[2, 2], -1, 1)))
+        yaw = (np.degrees(np.arctan2(r[1, 0], r[0, 0])) + period / 2) % period - period / 2
+        off = np.linalg.norm(data.qpos[2:4] - seat) * 1e3
+        depth = (lift - (data.qpos[4] + (low @ r.T)[:, 2].min())) * 1e3
+        rows.append((tilt, abs(yaw), off, depth))
+
+    passes = sum(
+        run_trial(model, data, i, plate, part, settings, unit_m, observe).passed
+        for i in range(trials)
+    )
     a = np.asarray(rows)
     up, turned, mouth = a[:, 0] < 5, a[:, 1] < 6, a[:, 3] > 1
     return {

@@ -68,8 +68,13 @@ def drop_state(trial: int, plate: Plate, part: Part, settings: ShakeSettings, un
     return np.array([xy[0], xy[1], z]), np.array([q[3], q[0], q[1], q[2]])
 
 
-def run_trial(model, data, trial: int, plate: Plate, part: Part, settings, unit_m: float):
+def run_trial(
+    model, data, trial: int, plate: Plate, part: Part, settings, unit_m: float, observe=None
+):
     """Run one trial in ``model`` (from :func:`~sieve_mi.shake.model.build_model`).
+
+    ``observe``, if given, is called as ``observe(k, data, lift)`` after every step ``k`` (the
+    plate's lift then, m), for diagnostics such as ``benchmarks.shake.seating``.
 
     Returns
     -------
@@ -87,6 +92,8 @@ def run_trial(model, data, trial: int, plate: Plate, part: Part, settings, unit_
     for k in range(steps):
         qpos[0], qpos[1], qvel[0], qvel[1] = z[k], phi[k], dz[k], dphi[k]
         mujoco.mj_step(model, data)
+        if observe is not None:
+            observe(k, data, z[k])
         if k % CHECK_EVERY == 0:
             outside = bool(np.any(np.abs(qpos[2:4]) > frame))
             if outside:  # over the wall (whatever its height now)
