@@ -35,7 +35,7 @@ from scipy import ndimage
 
 from sieve_mi.game.attack import AttackMemory
 from sieve_mi.game.players import PlayerA, PlayerB
-from sieve_mi.geometry.hole import Hole, build_hole, dilate, pieces
+from sieve_mi.geometry.hole import Hole, build_hole, dilate, fill_gaps, pieces
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import angle_between, from_axis_angle, normalize, quat_multiply
@@ -263,7 +263,7 @@ def candidate_placements(
         for i in idx:
             dr_, dc_ = int(sr.flat[i]), int(sc.flat[i])
             union = base | _shifted(sils[k], dr_, dc_)
-            filled = ndimage.binary_fill_holes(union)
+            filled = fill_gaps(union)
             if pieces(filled) != 1:
                 continue
             qs.append(quats[k])

@@ -1,7 +1,7 @@
 """Scoring poses with binary masks: the normalised outside area beta (paper eq. 12) and the
 protrusion, the largest distance by which a pose's silhouette sticks out of the hole.
 
-Every pose is rasterised in a window of the hole's pixel lattice that covers its bounding disk, so
+Every pose is rasterised in a window of the hole's pixel lattice that covers its projection's bounding box, so
 parts of the shape outside the hole's frame are counted too. Rays, hole lookups and the per-pose
 reductions run in one Dr.Jit kernel for all poses.
 """
@@ -17,7 +17,14 @@ from sieve_mi.geometry.hole import Hole
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 
-__all__ = ["MaskWindow", "PoseScores", "mask_window", "score_poses", "window_for"]
+__all__ = [
+    "MaskWindow",
+    "PoseScores",
+    "mask_window",
+    "projection_windows",
+    "score_poses",
+    "window_for",
+]
 
 
 class MaskWindow(NamedTuple):
@@ -46,10 +53,12 @@ class PoseScores:
 
 
 def window_for(renderer: SilhouetteRenderer, frame: Frame, trans: np.ndarray):
-    """Lattice windows covering each pose's bounding disk: (row0, col0, size).
+    """Square lattice windows covering each pose's bounding disk: (row0, col0, size).
 
     The window side is capped at twice the frame plus a margin; a capped window is centred on the
-    pose (a projection larger than it cannot fit anyway, see :func:`score_poses`).
+    pose (a projection larger than it cannot fit anyway, see :func:`score_poses`). These are the
+    windows of the masks that figures show (:func:`mask_window`); scores use the smaller
+    :func:`projection_windows`.
     """
     h = frame.pixel_size
     r = renderer.shape.radius
@@ -64,6 +73,36 @@ def window_for(renderer: SilhouetteRenderer, frame: Frame, trans: np.ndarray):
     )
     start = np.floor(start).astype(np.int64) - 1
     return start[:, 1], start[:, 0], size
+
+
+def projection_windows(frame: Frame, lo: np.ndarray, hi: np.ndarray):
+    """Lattice windows covering each pose's projected bounding box, one pixel beyond it.
+
+    Every pixel centre a pose's silhouette covers lies in its projection's bounding box, so these
+    windows see the same covered pixels as :func:`window_for`'s bounding-disk squares; a flat or
+    long shape needs far fewer rays (a letter seen edge-on: a tenth).
+
+    Parameters
+    ----------
+    frame : Frame
+    lo, hi : (K, 2) ndarrays
+        Each projection's lower and upper (x, y) corners, scene units
+        (:meth:`~sieve_mi.geometry.silhouettes.SilhouetteRenderer.projected_extent`).
+
+    Returns
+    -------
+    row0, col0, rows, cols : (K,) ndarrays of int
+        Top-left lattice pixel and size of each window; a side is capped at twice the frame
+        plus a margin, centred on the box (a projection larger than that cannot fit anyway).
+    """
+    cap = 2 * frame.resolution + 3
+    top_left = np.floor(frame.to_pixel(np.column_stack([lo[:, 0], hi[:, 1]]))).astype(np.int64) - 1
+    bottom_right = np.ceil(frame.to_pixel(np.column_stack([hi[:, 0], lo[:, 1]]))).astype(np.int64)
+    bottom_right += 1
+    size = bottom_right - top_left + 1  # (columns, rows)
+    start = np.where(size > cap, (top_left + bottom_right + 1) // 2 - cap // 2, top_left)
+    size = np.minimum(size, cap)
+    return start[:, 1], start[:, 0], size[:, 1], size[:, 0]
 
 
 def score_poses(
@@ -90,11 +129,14 @@ def score_poses(
     pose_hole : (K,) ndarray of int, optional
         Which hole each pose is scored against (default: the first).
     return_masks : bool
-        Also return the windows and masks (for figures).
+        Also return the windows and masks (for figures); the windows are then
+        :func:`window_for`'s squares, else :func:`projection_windows` (same scores, fewer rays).
+    chunk_rays : int
+        Rays traced by one kernel at most (poses are split between kernels, never within one).
 
     Returns
     -------
-    PoseScores, and if asked (row0, col0, size, masks)
+    PoseScores, and if asked (row0, col0, size, masks) with masks (K, size, size) bool
     """
     import drjit as dr
     import mitsuba as mi
@@ -107,14 +149,19 @@ def score_poses(
     k_total = len(quats)
     pose_hole = np.zeros(k_total, int) if pose_hole is None else np.asarray(pose_hole)
     stack = HoleStack(holes)
-    row0, col0, size = window_for(renderer, frame, trans)
-    n, npix = frame.resolution, size * size
+    lo, hi = renderer.projected_extent(quats, trans)
+    if return_masks:
+        row0, col0, size = window_for(renderer, frame, trans)
+        rows = cols = np.full(k_total, size, dtype=np.int64)
+    else:
+        row0, col0, rows, cols = projection_windows(frame, lo, hi)
+    n = frame.resolution
     beta, prot = np.ones(k_total), np.zeros(k_total)
     masks = np.zeros((k_total, size, size), dtype=bool) if return_masks else None
-    per = max(1, chunk_rays // npix)
-    for s in range(0, k_total, per):
-        sl = slice(s, min(k_total, s + per))
-        hit, pose, row, col = renderer.trace(quats[sl], trans[sl], frame, row0[sl], col0[sl], size)
+    for sl in _ray_chunks(rows * cols, chunk_rays):
+        hit, pose, row, col = renderer.trace(
+            quats[sl], trans[sl], frame, row0[sl], col0[sl], rows[sl], cols[sl]
+        )
         rc, cc = dr.clip(row, 0, n - 1), dr.clip(col, 0, n - 1)
         hole_of = dr.gather(mi.UInt32, mi.UInt32(pose_hole[sl].astype(np.uint32)), pose)
         d = stack.gather(hole_of, mi.UInt32(rc), mi.UInt32(cc))
@@ -122,47 +169,63 @@ def score_poses(
         dist = (d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))) * frame.pixel_size
         out = hit & ~inside
         per_ray = (dr.select(hit, 1.0, 0.0), dr.select(out, 1.0, 0.0), dr.select(out, dist, 0.0))
-        dr.eval(*per_ray)  # one ray-casting kernel; unevaluated, each reduction would trace again
-        area = dr.block_sum(per_ray[0], npix)
-        outside = dr.block_sum(per_ray[1], npix)
-        worst = dr.block_reduce(dr.ReduceOp.Max, per_ray[2], npix)
-        area, outside, worst = (np.asarray(a, dtype=np.float64) for a in (area, outside, worst))
+        dr.eval(
+            pose, *per_ray
+        )  # one ray-casting kernel; unevaluated, each reduction would trace again
+        k = sl.stop - sl.start
+        sums = [dr.zeros(mi.Float, k) for _ in range(3)]
+        for target, value, op in zip(sums, per_ray, (dr.ReduceOp.Add,) * 2 + (dr.ReduceOp.Max,)):
+            dr.scatter_reduce(op, target, value, pose)  # sums of 1s: exact in any order
+        area, outside, worst = (np.asarray(a, dtype=np.float64) for a in sums)
         beta[sl] = np.where(area > 0, outside / np.maximum(area, 1), 1.0)
         prot[sl] = worst
         if return_masks:
             masks[sl] = np.asarray(hit, dtype=bool).reshape(-1, size, size)
-    _score_clipped(renderer, holes, quats, trans, pose_hole, (row0, col0, size), beta, prot)
+    _score_clipped(holes, (lo, hi), pose_hole, (row0, col0, rows, cols), beta, prot)
     scores = PoseScores(beta=beta, protrusion=prot)
     if return_masks:
         return scores, (row0, col0, size, masks)
     return scores
 
 
-def _score_clipped(renderer, holes, quats, trans, pose_hole, window, beta, prot) -> None:
+def _ray_chunks(pixels: np.ndarray, chunk_rays: int) -> list[slice]:
+    """Consecutive ranges of poses of at most ``chunk_rays`` window pixels each (at least one
+    pose per range); ``pixels`` (K,) are the windows' pixel counts."""
+    bounds, total, start = [], 0, 0
+    for i, p in enumerate(np.asarray(pixels, dtype=np.int64)):
+        if i > start and total + p > chunk_rays:
+            bounds.append(slice(start, i))
+            start, total = i, 0
+        total += int(p)
+    bounds.append(slice(start, len(pixels)))
+    return bounds
+
+
+def _score_clipped(holes, extent, pose_hole, window, beta, prot) -> None:
     """Poses whose projection leaves their (capped) window: never a fit.
 
     Their protrusion is at least the hole's outside distance at the corners of the projection's
     bounding box and their β at least one pixel's worth; ``beta`` and ``prot`` (K,) are updated
-    in place. ``window`` is :func:`window_for`'s (row0, col0, size).
+    in place. ``extent`` is the projections' (lo, hi) corners, ``window`` the windows'
+    (row0, col0, rows, cols).
     """
-    row0, col0, size = window
+    (lo, hi), (row0, col0, rows, cols) = extent, window
     frame = holes[0].frame
-    lo, hi = renderer.projected_extent(quats, trans)
     h = frame.pixel_size
     x0 = -frame.half_extent + (col0 + 0.5) * h
     y0 = frame.half_extent - (row0 + 0.5) * h
     clipped = (
         (lo[:, 0] < x0 - h)
-        | (hi[:, 0] > x0 + (size - 1) * h + h)
+        | (hi[:, 0] > x0 + (cols - 1) * h + h)
         | (hi[:, 1] > y0 + h)
-        | (lo[:, 1] < y0 - (size - 1) * h - h)
+        | (lo[:, 1] < y0 - (rows - 1) * h - h)
     )
     for k in np.flatnonzero(clipped):
         corners = np.array(
             [[lo[k, 0], lo[k, 1]], [lo[k, 0], hi[k, 1]], [hi[k, 0], lo[k, 1]], [hi[k, 0], hi[k, 1]]]
         )
         prot[k] = max(prot[k], float(holes[pose_hole[k]].outside_distance(corners).max()))
-        beta[k] = max(beta[k], 1.0 / (size * size))
+        beta[k] = max(beta[k], 1.0 / (rows[k] * cols[k]))
 
 
 def mask_window(

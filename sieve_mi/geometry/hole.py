@@ -17,7 +17,15 @@ from scipy import ndimage
 
 from sieve_mi.geometry.raster import Frame, crop_window
 
-__all__ = ["Hole", "HoleStack", "build_hole", "dilate", "pieces", "split_pieces"]
+__all__ = [
+    "Hole",
+    "HoleStack",
+    "build_hole",
+    "dilate",
+    "fill_gaps",
+    "pieces",
+    "split_pieces",
+]
 
 
 @dataclass
@@ -181,13 +189,34 @@ def dilate(mask: np.ndarray, frame: Frame, tolerance: float) -> np.ndarray:
     """Pixel centres within ``tolerance`` of the mask, rounded to the nearest half pixel.
 
     On average the raster dilation then equals the tolerance instead of falling short of it.
+    The distance transform runs on the mask's bounding box grown by the radius only: every
+    centre within reach lies there, and its nearest mask pixel too, so the result is the
+    whole frame's transform, thresholded.
     """
     if tolerance <= 0 or not mask.any():
         return np.asarray(mask, dtype=bool)
-    return (
-        ndimage.distance_transform_edt(~mask) * frame.pixel_size
-        <= tolerance + 0.5 * frame.pixel_size
-    )
+    reach = tolerance + 0.5 * frame.pixel_size
+    grow = int(np.ceil(reach / frame.pixel_size)) + 1
+    rows, cols = np.flatnonzero(mask.any(1)), np.flatnonzero(mask.any(0))
+    r0, r1 = max(rows[0] - grow, 0), min(rows[-1] + grow + 1, mask.shape[0])
+    c0, c1 = max(cols[0] - grow, 0), min(cols[-1] + grow + 1, mask.shape[1])
+    out = np.zeros(mask.shape, dtype=bool)
+    crop = ~np.asarray(mask[r0:r1, c0:c1], dtype=bool)
+    out[r0:r1, c0:c1] = ndimage.distance_transform_edt(crop) * frame.pixel_size <= reach
+    return out
+
+
+def fill_gaps(mask: np.ndarray) -> np.ndarray:
+    """The mask with every gap it encloses filled: ``scipy.ndimage.binary_fill_holes``'s result.
+
+    A pixel outside the mask stays empty iff a 4-connected path of such pixels joins it to the
+    frame's border; one labelling of the complement finds them all at once (scipy's filling
+    grows the border region a pixel a pass instead).
+    """
+    mask = np.asarray(mask, dtype=bool)
+    labels, _ = ndimage.label(~mask)  # the default structure: 4-connected
+    border = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    return ~np.isin(labels, border[border > 0])
 
 
 def build_hole(
@@ -218,7 +247,7 @@ def build_hole(
     for e in extra or []:
         union |= e
     if fill_holes:
-        union = ndimage.binary_fill_holes(union)
+        union = fill_gaps(union)
     return Hole.from_mask(union, frame)
 
 

@@ -107,7 +107,8 @@ class SilhouetteRenderer:
         frame: Frame,
         row0: np.ndarray,
         col0: np.ndarray,
-        size: int,
+        size,
+        cols=None,
     ):
         """Trace one ray per pixel centre of K windows of the frame's pixel lattice (Dr.Jit arrays).
 
@@ -121,36 +122,35 @@ class SilhouetteRenderer:
             Defines the pixel lattice (pixel size and origin).
         row0, col0 : (K,) ndarrays of int
             Lattice index of each window's top-left pixel (0, 0 is the frame's top-left pixel).
-        size : int
-            Window side in pixels.
+        size : int or (K,) ndarray of int
+            Window side in pixels, or each window's number of rows.
+        cols : (K,) ndarray of int, optional
+            Each window's number of columns (default: ``size``, square windows).
 
         Returns
         -------
         hit : mi.Bool
-            K * size * size entries, pose-major, then row, then column.
+            One entry per window pixel, pose-major, then row, then column (pose k's entries
+            start at the sum of the earlier windows' pixel counts).
         pose, row, col : mi.UInt32, mi.Int32, mi.Int32
             Pose index and lattice row and column of every entry.
         """
         mi, dr = self._mi, self._dr
         quats, trans = np.atleast_2d(quats), np.atleast_2d(trans)
-        rt = np.transpose(to_matrix(quats), (0, 2, 1)).reshape(len(quats), 9)  # R^T, row-major
-        cols = [mi.Float(rt[:, i].astype(np.float32)) for i in range(9)]
+        k = len(quats)
+        rows = np.broadcast_to(np.asarray(size, dtype=np.int64), k)
+        cols = rows if cols is None else np.broadcast_to(np.asarray(cols, dtype=np.int64), k)
+        rt = np.transpose(to_matrix(quats), (0, 2, 1)).reshape(k, 9)  # R^T, row-major
+        g = [mi.Float(rt[:, i].astype(np.float32)) for i in range(9)]
         tx, ty = mi.Float(trans[:, 0].astype(np.float32)), mi.Float(trans[:, 1].astype(np.float32))
-        r0 = mi.Int32(np.asarray(row0, dtype=np.int32))
-        c0 = mi.Int32(np.asarray(col0, dtype=np.int32))
-        n_pix = size * size
-        idx = dr.arange(mi.UInt32, len(quats) * n_pix)
-        pose = idx // n_pix
-        p = idx % n_pix
-        row = dr.gather(mi.Int32, r0, pose) + mi.Int32(p // size)
-        col = dr.gather(mi.Int32, c0, pose) + mi.Int32(p % size)
+        pose, row, col = _window_pixels(mi, dr, row0, col0, rows, cols)
         h, n = frame.pixel_size, frame.resolution
         film = mi.Point2f((mi.Float(col) + 0.5) / n, (mi.Float(row) + 0.5) / n)
         world, _ = frame.sensor().sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
         x = world.o.x - dr.gather(mi.Float, tx, pose)
         y = world.o.y - dr.gather(mi.Float, ty, pose)
         reach = self.shape.radius * 1.01 + h
-        g = [dr.gather(mi.Float, c, pose) for c in cols]
+        g = [dr.gather(mi.Float, c, pose) for c in g]
         origin = mi.Point3f(
             g[0] * x + g[1] * y - g[2] * reach,
             g[3] * x + g[4] * y - g[5] * reach,
@@ -257,3 +257,28 @@ class SilhouetteRenderer:
         p = np.einsum("kij,hj->khi", to_matrix(np.atleast_2d(quats))[:, :2, :], self.shape.hull)
         p = p + np.atleast_2d(trans)[:, None, :]
         return p.min(1), p.max(1)
+
+
+def _window_pixels(mi, dr, row0, col0, rows, cols):
+    """Pose, lattice row and lattice column of every pixel of K windows (Dr.Jit arrays).
+
+    Window k has ``rows[k] x cols[k]`` pixels from lattice pixel (``row0[k]``, ``col0[k]``);
+    its entries follow those of windows 0..k-1, row by row. Sizes are arrays, not literals, so
+    windows of any sizes share one kernel; each entry finds its pose by binary search in the
+    windows' running pixel counts.
+    """
+    k = len(rows)
+    ends = np.concatenate([[0], np.cumsum(np.asarray(rows) * np.asarray(cols))])
+    if ends[-1] >= 2**32:
+        raise ValueError("more than 2**32 window pixels in one trace; trace fewer poses at once")
+    ends_d = mi.UInt32(ends.astype(np.uint32))  # K + 1 entries: the last one is the total
+    idx = dr.arange(mi.UInt32, int(ends[-1]))
+    # the first window whose start lies beyond the entry, minus one
+    pose = dr.binary_search(0, k, lambda i: dr.gather(mi.UInt32, ends_d, i) <= idx) - 1
+    p = mi.Int32(idx - dr.gather(mi.UInt32, ends_d, pose))
+    # at least 1: the vectorised division also runs in the padding lanes past the last entry,
+    # whose masked gathers read 0 (an integer division by zero stops the process)
+    width = dr.maximum(dr.gather(mi.Int32, mi.Int32(np.asarray(cols, dtype=np.int32)), pose), 1)
+    row = dr.gather(mi.Int32, mi.Int32(np.asarray(row0, dtype=np.int32)), pose) + p // width
+    col = dr.gather(mi.Int32, mi.Int32(np.asarray(col0, dtype=np.int32)), pose) + p % width
+    return pose, row, col

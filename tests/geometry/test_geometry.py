@@ -178,6 +178,55 @@ def test_hole_dilation_and_filling(cube20):
     assert hole.outside_distance(np.array([[15.0, 0.0]]))[0] == pytest.approx(3.0, abs=1.5 * h)
 
 
+def test_dilation_of_one_pixel_is_the_lattice_disk_and_crops_change_nothing():
+    # One pixel dilated by t covers the lattice points within t + h/2 of it (Gauss's circle
+    # count); a shape touching the frame's corner dilates as the whole frame's transform does.
+    from scipy import ndimage
+
+    from sieve_mi.geometry.hole import dilate
+
+    f = Frame(64, 8.0)
+    h = f.pixel_size
+    dot = np.zeros((64, 64), dtype=bool)
+    dot[30, 33] = True
+    t = 7.3 * h
+    i, j = np.mgrid[-20:21, -20:21]
+    assert dilate(dot, f, t).sum() == ((i**2 + j**2) * h**2 <= (t + h / 2) ** 2).sum()
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        blob = ndimage.binary_opening(rng.random((64, 64)) < 0.45) & (rng.random((64, 64)) < 0.2)
+        blob[:, 40:] = False
+        blob[0, 0] = True
+        whole = ndimage.distance_transform_edt(~blob) * h <= t + h / 2
+        np.testing.assert_array_equal(dilate(blob, f, t), whole)
+
+
+def test_filling_closes_what_a_4_connected_path_cannot_leave():
+    # A square ring is filled; a ring with a one-pixel door is not; a diamond drawn with
+    # diagonal steps only is filled (the empty pixels inside cannot step diagonally out);
+    # random masks are filled exactly as scipy's binary_fill_holes fills them.
+    from scipy import ndimage
+
+    from sieve_mi.geometry.hole import fill_gaps
+
+    ring = np.zeros((20, 20), dtype=bool)
+    ring[4:15, 4:15] = True
+    ring[6:13, 6:13] = False
+    assert fill_gaps(ring).sum() == 11 * 11
+    door = ring.copy()
+    door[9, 4:6] = False
+    np.testing.assert_array_equal(fill_gaps(door), door)
+    diamond = np.zeros((20, 20), dtype=bool)
+    for k in range(5):
+        diamond[[10 - k, 10 + k, 5 + k, 15 - k], [5 + k, 15 - k, 10 + k, 10 - k]] = True
+    inside = ((np.abs(np.arange(20)[:, None] - 10) + np.abs(np.arange(20)[None] - 10)) <= 5).sum()
+    assert fill_gaps(diamond).sum() == inside
+    rng = np.random.default_rng(2)
+    for p in (0.3, 0.5, 0.7):
+        m = rng.random((40, 40)) < p
+        np.testing.assert_array_equal(fill_gaps(m), ndimage.binary_fill_holes(m))
+
+
 def test_sensor_rays_are_the_pixel_centres():
     # Mitsuba's orthographic sensor framing the raster gives, at film position ((i + 0.5) / N,
     # (j + 0.5) / N), the ray through pixel (j, i)'s centre, also beyond the frame.
@@ -276,7 +325,7 @@ def test_scoring_casts_each_ray_once_and_counts_pixels(cube20):
     # it lies wholly outside the hole (beta 1).
     import drjit as dr
 
-    from sieve_mi.game.scoring import score_poses, window_for
+    from sieve_mi.game.scoring import projection_windows, score_poses
     from sieve_mi.geometry.hole import Hole
 
     frame = Frame(96, 30.0)
@@ -295,11 +344,49 @@ def test_scoring_casts_each_ray_once_and_counts_pixels(cube20):
     finally:
         dr.set_flag(dr.JitFlag.KernelHistory, False)
     n_rays = max(k["size"] for k in history)
-    casts = [k for k in history if k["size"] == n_rays and str(k["type"]).endswith("JIT")]
-    size = window_for(renderer, frame, trans)[2]
-    assert n_rays == 2 * size * size and len(casts) == 1
+    wide = [k for k in history if k["size"] == n_rays and str(k["type"]).endswith("JIT")]
+    # one kernel casts the rays, one more sums each window's entries (scatter-reduce): it
+    # reads the evaluated per-ray values and casts nothing
+    sums = [k for k in wide if "@reduce_" in k["ir"].getvalue()]
+    _, _, rows, cols = projection_windows(frame, *renderer.projected_extent(quats, trans))
+    assert n_rays == int((rows * cols).sum()) and len(wide) == 2 and len(sums) == 1
     np.testing.assert_array_equal(scores.beta, [0.0, 1.0])
     assert scores.protrusion[0] == 0 and scores.protrusion[1] > 0
+
+
+def test_projection_windows_score_like_the_bounding_disk_squares():
+    # A 40 x 30 x 4 mm slab at random poses against three rectangular holes: windows around each
+    # projection's bounding box see the same covered pixels as the squares around the bounding
+    # disk (side 2 x 25.2 mm), so beta and protrusion agree to the bit, with fewer rays: seen
+    # face-on the box is 40 x 30 mm, edge-on 40 x 4 mm.
+    from sieve_mi.game.scoring import projection_windows, score_poses, window_for
+    from sieve_mi.geometry.hole import Hole
+    from sieve_mi.geometry.rotations import random_uniform
+
+    slab = shape_from_trimesh(trimesh.creation.box((40.0, 30.0, 4.0)), name="slab")
+    renderer = SilhouetteRenderer(slab)
+    frame = Frame(128, 30.0)
+    xx, yy = np.meshgrid(*frame.centres())
+    holes = [
+        Hole.from_mask((np.abs(xx) < a) & (np.abs(yy) < b), frame)
+        for a, b in [(21.0, 16.0), (21.0, 3.0), (5.0, 5.0)]
+    ]
+    rng = np.random.default_rng(3)
+    quats = np.vstack([[1.0, 0, 0, 0], [np.sqrt(0.5), np.sqrt(0.5), 0, 0], random_uniform(60, rng)])
+    trans = np.vstack([[0.0, 0.0], [0.0, 0.0], rng.uniform(-3.0, 3.0, (60, 2))])
+    which = np.concatenate([[0, 1], rng.integers(0, 3, 60)])
+    got = score_poses(renderer, holes, quats, trans, pose_hole=which)
+    want, _ = score_poses(renderer, holes, quats, trans, pose_hole=which, return_masks=True)
+    np.testing.assert_array_equal(got.beta, want.beta)
+    np.testing.assert_array_equal(got.protrusion, want.protrusion)
+    assert got.beta[0] == 0 and got.beta[1] == 0 and (got.beta[2:] > 0).any()
+    _, _, rows, cols = projection_windows(frame, *renderer.projected_extent(quats, trans))
+    side = window_for(renderer, frame, trans)[2]
+    h = frame.pixel_size
+    # each window is its box plus at most two pixels on either side
+    for got_side, box_side in [(rows[0], 30.0), (cols[0], 40.0), (rows[1], 4.0), (cols[1], 40.0)]:
+        assert box_side <= got_side * h <= box_side + 5 * h
+    assert (rows * cols).sum() < 0.7 * len(quats) * side * side
 
 
 def _union_of_triangles(vertices, faces):
