@@ -3,12 +3,16 @@
 Usage::
 
     python -m benchmarks.run [--variant llvm_ad_mono|cuda_ad_mono] [--only NAME[,NAME]] [--objective clearance|overlap]
-                             [--quick] [--out benchmarks/results] [--tag MACHINE]
+                             [--quick] [--set TABLE.KEY=VALUE ...] [--out benchmarks/results] [--tag MACHINE]
 
 Every scene runs in its own process (so its peak memory is its own) and prints one table row:
 faces, raster pixels, edge samples, search and verdict time, winner, and per-B loss and
 protrusion. Results go to ``<out>/<machine>-<variant>.json`` and ``.md`` (machine: ``--tag`` or the
 host name).
+
+``--set`` changes one scene key for every scene of the run, e.g. ``--set solver.settle=false`` or
+``--set layout.mode='"separate"'`` (the value is TOML); rows and file names then say so, so that
+two runs compare a setting (run them one after the other, on the same machine).
 """
 
 from __future__ import annotations
@@ -49,7 +53,7 @@ SCENES = {
     ),
 }
 #: Scene keys beyond the defaults, per benchmark scene (kept equal to the bundled scene files).
-EXTRA = {"letters": ["[fabrication]", "tolerance = 0.5"]}
+EXTRA = {"letters": {"fabrication": {"tolerance": "0.5"}}}
 PAPER = (
     "search 10x10 PSO, 10 starts x 100 Adam steps; verdict 100 starts x 500 steps; 256^2 rasters"
 )
@@ -74,29 +78,38 @@ def mesh_path(name: str) -> str:
     return os.path.join(SCENE_MESHES, name)
 
 
-def scene_text(name: str, objective: str, quick: bool) -> str:
+def scene_text(name: str, objective: str, quick: bool, overrides=()) -> str:
+    """The scene file of a benchmark scene; ``overrides`` are ``TABLE.KEY=VALUE`` strings (TOML
+    values) applied last."""
     passes, blocks, _ = SCENES[name]
     lines = [f'name = "bench-{name}"']
     for p, s in passes:
         lines += ["[[pass]]", f'mesh = "{mesh_path(p)}"', f"scale = {s}"]
     for p, s in blocks:
         lines += ["[[block]]", f'mesh = "{mesh_path(p)}"', f"scale = {s}"]
-    lines += EXTRA.get(name, [])
-    lines += ["[solver]", f'objective = "{objective}"']
+    tables = {"solver": {"objective": f'"{objective}"'}}
+    for table, keys in EXTRA.get(name, {}).items():
+        tables.setdefault(table, {}).update(keys)
     if quick:
-        lines += [
-            "particles = 4",
-            "iterations = 2",
-            "starts = 4",
-            "steps = 30",
-            "[verdict]",
-            "starts = 20",
-            "steps = 100",
-        ]
+        tables["solver"].update(particles="4", iterations="2", starts="4", steps="30")
+        tables.setdefault("verdict", {}).update(starts="20", steps="100")
+    for table, key, value in map(parse_override, overrides):
+        tables.setdefault(table, {})[key] = value
+    for table, keys in tables.items():
+        lines += [f"[{table}]"] + [f"{k} = {v}" for k, v in keys.items()]
     return "\n".join(lines) + "\n"
 
 
-def run_one(name: str, variant: str, objective: str, quick: bool) -> dict:
+def parse_override(text: str) -> tuple[str, str, str]:
+    """``"solver.settle=false"`` -> ``("solver", "settle", "false")``."""
+    key, sep, value = text.partition("=")
+    table, dot, name = key.strip().partition(".")
+    if not (sep and dot and table and name and value.strip()):
+        raise ValueError(f"--set {text!r}: write TABLE.KEY=VALUE, e.g. solver.settle=false")
+    return table, name.strip(), value.strip()
+
+
+def run_one(name: str, variant: str, objective: str, quick: bool, overrides=()) -> dict:
     """Run one scene in this process and return its row (called in a child process)."""
     import sieve_mi  # noqa: F401
     from sieve_mi.api import solve
@@ -105,7 +118,7 @@ def run_one(name: str, variant: str, objective: str, quick: bool) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "scene.toml")
         with open(path, "w") as fh:
-            fh.write(scene_text(name, objective, quick))
+            fh.write(scene_text(name, objective, quick, overrides))
         scene = load_scene(path)
         t0 = time.perf_counter()
         result = solve(scene, variant=variant, progress=False)
@@ -134,6 +147,7 @@ def run_one(name: str, variant: str, objective: str, quick: bool) -> dict:
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         "stage_peaks_gb": dict(result.memory.peaks) if result.memory is not None else {},
         "quick": quick,
+        "overrides": list(overrides),
     }
 
 
@@ -192,11 +206,23 @@ def main(argv=None) -> int:
     )
     p.add_argument("--out", default=os.path.join(HERE, "results"))
     p.add_argument("--tag", help="machine name in the result file names (default: the host name)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="TABLE.KEY=VALUE",
+        help="change a scene key in every scene (TOML value; repeatable)",
+    )
     p.add_argument("--one", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     objectives = args.objective.split(",")
+    try:
+        [parse_override(o) for o in args.set]
+    except ValueError as exc:
+        print(f"benchmarks: {exc}", file=sys.stderr)
+        return 2
     if args.one:
-        row = run_one(args.one, args.variant, objectives[0], args.quick)
+        row = run_one(args.one, args.variant, objectives[0], args.quick, args.set)
         print("ROW " + json.dumps(row))
         return 0
     names = args.only.split(",") if args.only else list(SCENES)
@@ -206,6 +232,8 @@ def main(argv=None) -> int:
             return 2
     rows = []
     header = f"Machine: {machine()}; variant {args.variant}; settings: {'QUICK (not comparable)' if args.quick else PAPER}"
+    if args.set:
+        header += "; changed: " + ", ".join(args.set)
     print(header)
     for n in names:
         for obj in objectives:
@@ -220,6 +248,7 @@ def main(argv=None) -> int:
                 "--objective",
                 obj,
             ] + (["--quick"] if args.quick else [])
+            cmd += [f"--set={o}" for o in args.set]
             proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
             line = [ln for ln in proc.stdout.splitlines() if ln.startswith("ROW ")]
             if proc.returncode != 0 or not line:
@@ -238,6 +267,7 @@ def main(argv=None) -> int:
     os.makedirs(args.out, exist_ok=True)
     tag = (
         f"{args.tag or platform.node() or 'machine'}-{args.variant}{'-quick' if args.quick else ''}"
+        + "".join("-" + "".join(c if c.isalnum() else "_" for c in o) for o in args.set)
     )
     with open(os.path.join(args.out, f"{tag}.json"), "w") as fh:
         json.dump({"machine": machine(), "variant": args.variant, "rows": rows}, fh, indent=2)
