@@ -138,9 +138,6 @@ def score_poses(
     -------
     PoseScores, and if asked (row0, col0, size, masks) with masks (K, size, size) bool
     """
-    import drjit as dr
-    import mitsuba as mi
-
     from sieve_mi.geometry.hole import HoleStack
 
     holes = [holes] if isinstance(holes, Hole) else list(holes)
@@ -155,28 +152,13 @@ def score_poses(
         rows = cols = np.full(k_total, size, dtype=np.int64)
     else:
         row0, col0, rows, cols = projection_windows(frame, lo, hi)
-    n = frame.resolution
     beta, prot = np.ones(k_total), np.zeros(k_total)
     masks = np.zeros((k_total, size, size), dtype=bool) if return_masks else None
     for sl in _ray_chunks(rows * cols, chunk_rays):
-        hit, pose, row, col = renderer.trace(
-            quats[sl], trans[sl], frame, row0[sl], col0[sl], rows[sl], cols[sl]
+        window = (row0[sl], col0[sl], rows[sl], cols[sl])
+        hit, area, outside, worst = _cast_and_count(
+            renderer, stack, quats[sl], trans[sl], pose_hole[sl], window
         )
-        rc, cc = dr.clip(row, 0, n - 1), dr.clip(col, 0, n - 1)
-        hole_of = dr.gather(mi.UInt32, mi.UInt32(pose_hole[sl].astype(np.uint32)), pose)
-        d = stack.gather(hole_of, mi.UInt32(rc), mi.UInt32(cc))
-        inside = (row == rc) & (col == cc) & (d == 0)
-        dist = (d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))) * frame.pixel_size
-        out = hit & ~inside
-        per_ray = (dr.select(hit, 1.0, 0.0), dr.select(out, 1.0, 0.0), dr.select(out, dist, 0.0))
-        dr.eval(
-            pose, *per_ray
-        )  # one ray-casting kernel; unevaluated, each reduction would trace again
-        k = sl.stop - sl.start
-        sums = [dr.zeros(mi.Float, k) for _ in range(3)]
-        for target, value, op in zip(sums, per_ray, (dr.ReduceOp.Add,) * 2 + (dr.ReduceOp.Max,)):
-            dr.scatter_reduce(op, target, value, pose)  # sums of 1s: exact in any order
-        area, outside, worst = (np.asarray(a, dtype=np.float64) for a in sums)
         beta[sl] = np.where(area > 0, outside / np.maximum(area, 1), 1.0)
         prot[sl] = worst
         if return_masks:
@@ -186,6 +168,29 @@ def score_poses(
     if return_masks:
         return scores, (row0, col0, size, masks)
     return scores
+
+
+def _cast_and_count(renderer, stack, quats, trans, pose_hole, window):
+    """One kernel of rays over K poses' windows: the hits, and per pose (K,) float64 the covered
+    pixels, those outside the hole, and the largest distance of one outside (scene units)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    frame = stack.frame
+    n = frame.resolution
+    hit, pose, row, col = renderer.trace(quats, trans, frame, *window)
+    rc, cc = dr.clip(row, 0, n - 1), dr.clip(col, 0, n - 1)
+    hole_of = dr.gather(mi.UInt32, mi.UInt32(pose_hole.astype(np.uint32)), pose)
+    d = stack.gather(hole_of, mi.UInt32(rc), mi.UInt32(cc))
+    inside = (row == rc) & (col == cc) & (d == 0)
+    dist = (d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))) * frame.pixel_size
+    out = hit & ~inside
+    per_ray = (dr.select(hit, 1.0, 0.0), dr.select(out, 1.0, 0.0), dr.select(out, dist, 0.0))
+    dr.eval(pose, *per_ray)  # one ray-casting kernel; unevaluated, each reduction would trace again
+    sums = [dr.zeros(mi.Float, len(quats)) for _ in range(3)]
+    for target, value, op in zip(sums, per_ray, (dr.ReduceOp.Add,) * 2 + (dr.ReduceOp.Max,)):
+        dr.scatter_reduce(op, target, value, pose)  # sums of 1s: exact in any order
+    return (hit, *(np.asarray(a, dtype=np.float64) for a in sums))
 
 
 def _ray_chunks(pixels: np.ndarray, chunk_rays: int) -> list[slice]:
