@@ -217,7 +217,8 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     objectives = args.objective.split(",")
     try:
-        [parse_override(o) for o in args.set]
+        for o in args.set:
+            parse_override(o)
     except ValueError as exc:
         print(f"benchmarks: {exc}", file=sys.stderr)
         return 2

@@ -1,9 +1,9 @@
 """Scoring poses with binary masks: the normalised outside area beta (paper eq. 12) and the
 protrusion, the largest distance by which a pose's silhouette sticks out of the hole.
 
-Every pose is rasterised in a window of the hole's pixel lattice that covers its projection's bounding box, so
-parts of the shape outside the hole's frame are counted too. Rays, hole lookups and the per-pose
-reductions run in one Dr.Jit kernel for all poses.
+Every pose is rasterised in a window of the hole's pixel lattice that covers its projection's
+bounding box, so parts of the shape outside the hole's frame are counted too. Rays and hole
+lookups run in one Dr.Jit kernel for all poses, the per-pose sums in one more.
 """
 
 from __future__ import annotations
@@ -156,13 +156,14 @@ def score_poses(
     masks = np.zeros((k_total, size, size), dtype=bool) if return_masks else None
     for sl in _ray_chunks(rows * cols, chunk_rays):
         window = (row0[sl], col0[sl], rows[sl], cols[sl])
-        hit, area, outside, worst = _cast_and_count(
+        covered, area, outside, worst = _cast_and_count(
             renderer, stack, quats[sl], trans[sl], pose_hole[sl], window
         )
         beta[sl] = np.where(area > 0, outside / np.maximum(area, 1), 1.0)
         prot[sl] = worst
         if return_masks:
-            masks[sl] = np.asarray(hit, dtype=bool).reshape(-1, size, size)
+            # the evaluated 0/1 values: reading ``hit`` itself would cast the rays again
+            masks[sl] = (np.asarray(covered) > 0).reshape(-1, size, size)
     _score_clipped(holes, (lo, hi), pose_hole, (row0, col0, rows, cols), beta, prot)
     scores = PoseScores(beta=beta, protrusion=prot)
     if return_masks:
@@ -171,8 +172,9 @@ def score_poses(
 
 
 def _cast_and_count(renderer, stack, quats, trans, pose_hole, window):
-    """One kernel of rays over K poses' windows: the hits, and per pose (K,) float64 the covered
-    pixels, those outside the hole, and the largest distance of one outside (scene units)."""
+    """One kernel of rays over K poses' windows: the covered pixels (mi.Float, 1 or 0 per window
+    pixel, evaluated), and per pose (K,) float64 their count, those outside the hole, and the
+    largest distance of one outside (scene units)."""
     import drjit as dr
     import mitsuba as mi
 
@@ -190,7 +192,7 @@ def _cast_and_count(renderer, stack, quats, trans, pose_hole, window):
     sums = [dr.zeros(mi.Float, len(quats)) for _ in range(3)]
     for target, value, op in zip(sums, per_ray, (dr.ReduceOp.Add,) * 2 + (dr.ReduceOp.Max,)):
         dr.scatter_reduce(op, target, value, pose)  # sums of 1s: exact in any order
-    return (hit, *(np.asarray(a, dtype=np.float64) for a in sums))
+    return (per_ray[0], *(np.asarray(a, dtype=np.float64) for a in sums))
 
 
 def _ray_chunks(pixels: np.ndarray, chunk_rays: int) -> list[slice]:
