@@ -258,8 +258,8 @@ class LowerDistance:
     ----------
     segs : (m, 2, 2) ndarray
         H's edges.
-    region : matplotlib.path.Path
-        H, even-odd (:func:`~sieve_mi.certify.search.even_odd_path`).
+    region : object with ``contains_points((P, 2)) -> (P,) bool``
+        H, even-odd (:class:`~sieve_mi.certify.search.EvenOdd`).
     pixels : int
         Nodes across the longer side.
     """

@@ -27,12 +27,13 @@ from sieve_mi.geometry.rotations import from_matrix
 __all__ = [
     "BATCH_MIN",
     "DistanceField",
+    "EvenOdd",
     "Node",
     "Outcome",
+    "PASSAGE_PROBES",
     "Search",
     "Settings",
     "count_open",
-    "even_odd_path",
     "farthest_points",
     "representative",
 ]
@@ -40,6 +41,9 @@ __all__ = [
 
 #: A level's batched quadtree test runs once the width test leaves at least this many cells.
 BATCH_MIN = 256
+#: A candidate passage's points are tested inside H first at this many of them, those furthest
+#: out by the distance grid (the same answer as testing all: all of them are tested if these are in).
+PASSAGE_PROBES = 64
 
 
 @dataclass
@@ -182,15 +186,47 @@ def representative(section: manifold3d.CrossSection) -> np.ndarray:
     return np.array([((x + xn) * cross).sum(), ((y + yn) * cross).sum()]) / (6 * best_area)
 
 
-def even_odd_path(contours: list[np.ndarray]):
-    """A matplotlib Path of all contours, filled even-odd (fast point in polygon for the heuristics)."""
-    from matplotlib.path import Path
+class EvenOdd:
+    """H as a point set, filled even-odd over its contours: fast point-in-polygon for the search.
 
-    verts = np.concatenate([np.vstack([c, c[:1]]) for c in contours])
-    codes = np.concatenate(
-        [[Path.MOVETO] + [Path.LINETO] * (len(c) - 1) + [Path.CLOSEPOLY] for c in contours]
-    )
-    return Path(verts, codes)
+    Each contour is a prepared shapely polygon; a point is inside H when an odd number of them
+    contain it (GEOS's exact predicates; a point on a contour counts as outside it). Its users
+    need exactness away from the outline only: the heuristics, and
+    :class:`~sieve_mi.certify.bounds.LowerDistance`, whose nodes on or near the outline get a bound
+    of about 0 either way.
+
+    Parameters
+    ----------
+    contours : list of (n, 2) ndarrays
+        H's contours (any orientation), scene units; those of fewer than 3 points bound nothing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> outer = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]])
+    >>> region = EvenOdd([outer, 1.0 + 0.5 * outer])  # a 4 mm square with a 2 mm square hole
+    >>> region.contains_points(np.array([[0.5, 0.5], [2.0, 2.0], [5.0, 1.0]])).tolist()
+    [True, False, False]
+    """
+
+    def __init__(self, contours: list[np.ndarray]):
+        import shapely
+
+        self.rings = [
+            shapely.Polygon(np.asarray(c, dtype=np.float64)) for c in contours if len(c) >= 3
+        ]
+        for ring in self.rings:
+            shapely.prepare(ring)
+
+    def contains_points(self, points: np.ndarray) -> np.ndarray:
+        """(P,) bool: whether each of the points (P, 2) lies inside H."""
+        import shapely
+
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        inside = np.zeros(len(points), dtype=bool)
+        for ring in self.rings:
+            inside ^= shapely.contains_xy(ring, points[:, 0], points[:, 1])
+        return inside
 
 
 class DistanceField:
@@ -200,8 +236,8 @@ class DistanceField:
 
     Parameters
     ----------
-    region : matplotlib.path.Path
-        H, even-odd.
+    region : EvenOdd
+        H.
     segs : (m, 2, 2) ndarray
         H's edges.
     pad : float
@@ -253,7 +289,7 @@ class Search:
         hull_idx = self._hull_indices()
         self.start = farthest_points(self.vertices, hull_idx, settings.initial_points)
         self.group = group
-        self.region = even_odd_path([np.asarray(c) for c in hole.to_polygons()])
+        self.region = EvenOdd([np.asarray(c) for c in hole.to_polygons()])
         self.field = DistanceField(self.region, self.segs, 2.0 * shape.radius)
         self.lower: bounds.LowerDistance | None = None
 
@@ -440,7 +476,13 @@ class Search:
         if left.is_empty():
             return False
         t = representative(left)
-        if not self.region.contains_points(proj_all + t).all():
+        placed = proj_all + t
+        # the points furthest out by the distance grid first: one of them usually settles it
+        few = min(PASSAGE_PROBES, len(placed))
+        probes = np.argpartition(-self.field(placed), few - 1)[:few]
+        if not self.region.contains_points(placed[probes]).all():
+            return False
+        if not self.region.contains_points(placed).all():
             return False
         quat = from_matrix(rot)
         sil = projection(placed_vertices(self.shape, quat, t), self.shape.faces)

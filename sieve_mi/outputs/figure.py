@@ -35,6 +35,7 @@ __all__ = [
     "MARGIN",
     "PASS_RGB",
     "PLATE_RGB",
+    "PNG_LEVEL",
     "SAMPLER",
     "SKY_RGB",
     "SUN_AZIMUTH_OFFSET",
@@ -64,6 +65,10 @@ MARGIN = 0.05
 TITLE_BAND = 0.08
 #: Corners whose normal deviates from the vertex's mean normal by more than this are shaded flat, degrees.
 CREASE_ANGLE = 35.0
+
+#: zlib level of figure.png: 1 writes 1200 x 900 pixels in 0.09 s instead of 0.48 s (level 6,
+#: PIL's default) for a file 10 % larger (2026-12-03).
+PNG_LEVEL = 1
 
 #: Light transport and sampling.
 INTEGRATOR = {"type": "path", "max_depth": 4}
@@ -465,7 +470,8 @@ def _write_png(path: str, rgb: np.ndarray, title: str | None) -> None:
     fd, tmp = tempfile.mkstemp(prefix=".figure-", suffix=".png", dir=folder)
     try:
         with os.fdopen(fd, "wb") as fh:
-            Image.fromarray(rgb).save(fh, format="PNG")
+            # zlib level 1: the same pixels, a tenth larger, five times faster to write
+            Image.fromarray(rgb).save(fh, format="PNG", compress_level=PNG_LEVEL)
         os.chmod(tmp, 0o644)
         os.replace(tmp, path)
     except BaseException:

@@ -613,13 +613,38 @@ def test_replay_uses_the_bound_the_certificate_names(proof_108):
     assert not rep["valid"] and any("unknown displacement bound" in e for e in rep["errors"])
 
 
+def test_even_odd_region_matches_the_crossing_count(two_squares):
+    """H as shapely's prepared contours, even-odd, against the NumPy crossing count on 20k random
+    points: two squares, and a 10 mm square with a 4 mm square hole holding a 2 mm island (three
+    nested contours: inside, outside, inside again)."""
+    import manifold3d
+
+    from sieve_mi.certify.bounds import inside
+    from sieve_mi.certify.search import EvenOdd
+
+    sq = manifold3d.CrossSection.square
+    nested = (sq((10.0, 10.0), center=True) - sq((4.0, 4.0), center=True)) + sq(
+        (2.0, 2.0), center=True
+    )
+    rng = np.random.default_rng(5)
+    p = rng.uniform(-12, 12, size=(20000, 2))
+    for hole in (two_squares, nested):
+        contours = [np.asarray(c, float) for c in hole.to_polygons()]
+        got = EvenOdd(contours).contains_points(p)
+        assert (got == inside(p, contour_segments(contours))).all()
+    region = EvenOdd([np.asarray(c, float) for c in nested.to_polygons()])
+    # the ring between 2 and 4 mm is outside, the island and the band from 4 to 10 mm inside
+    probe = np.array([[0.0, 0.0], [1.5, 0.0], [3.0, 0.0], [6.0, 0.0]])
+    assert region.contains_points(probe).tolist() == [True, False, True, False]
+
+
 def test_lower_distance_is_a_lower_bound(two_squares):
     from sieve_mi.certify.bounds import LowerDistance, inside
-    from sieve_mi.certify.search import even_odd_path
+    from sieve_mi.certify.search import EvenOdd
 
     contours = [np.asarray(c, float) for c in two_squares.to_polygons()]
     segs = contour_segments(contours)
-    lower = LowerDistance(segs, even_odd_path(contours))
+    lower = LowerDistance(segs, EvenOdd(contours))
     rng = np.random.default_rng(2)
     p = rng.uniform(-12, 12, size=(20000, 2))
     exact = np.where(inside(p, segs), 0.0, boundary_distance(p, segs))
@@ -639,11 +664,11 @@ def test_translation_quadtree_excludes_what_the_width_test_cannot(two_squares):
     both squares: no translation works, though 8.4 mm fits the 14 mm hull. With radius 2,
     t_x = 1.5 fits all three (1.5, 0 and 0.5 mm from H)."""
     from sieve_mi.certify.bounds import LowerDistance, translation_quadtree
-    from sieve_mi.certify.search import even_odd_path
+    from sieve_mi.certify.search import EvenOdd
 
     contours = [np.asarray(c, float) for c in two_squares.to_polygons()]
     segs = contour_segments(contours)
-    lower = LowerDistance(segs, even_odd_path(contours))
+    lower = LowerDistance(segs, EvenOdd(contours))
     proj = np.array([[[-4.0, 0.0], [0.0, 0.0], [4.0, 0.0]]] * 2)
     radii = np.array([[0.2] * 3, [2.0] * 3])
     dirs = np.array([[1.0, 0.0], [0.0, 1.0]])
