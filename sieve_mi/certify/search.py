@@ -172,8 +172,8 @@ def representative(section: manifold3d.CrossSection) -> np.ndarray:
     best, best_area = None, -np.inf
     for contour in section.to_polygons():
         c = np.asarray(contour, dtype=np.float64)
-        x, y = c[:, 0], c[:, 1]
-        xn, yn = np.append(x[1:], x[0]), np.append(y[1:], y[0])
+        nxt = np.concatenate([c[1:], c[:1]])  # each vertex's successor, in one copy
+        x, y, xn, yn = c[:, 0], c[:, 1], nxt[:, 0], nxt[:, 1]
         cross = x * yn - xn * y
         area = 0.5 * cross.sum()
         if area > best_area:
