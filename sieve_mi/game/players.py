@@ -17,7 +17,7 @@ import numpy as np
 from sieve_mi.backend import release_cached_memory
 from sieve_mi.errors import SieveError, signals_received
 from sieve_mi.game.attack import Attack, AttackMemory
-from sieve_mi.game.scoring import score_poses
+from sieve_mi.game.scoring import score_poses, with_core
 from sieve_mi.geometry.hole import Hole, build_hole
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.raster import Frame
@@ -344,7 +344,7 @@ class PlayerB:
         self.frame = frame
         #: The objective's name (a key of :data:`sieve_mi.objectives.OBJECTIVES`).
         self.objective_name = objective
-        self.renderers = [SilhouetteRenderer(s) for s in shapes]
+        self.renderers = [with_core(SilhouetteRenderer(s)) for s in shapes]
         self._samples = samples_per_segment
         self._loss = None
         self.freeze = bool(freeze)
@@ -755,7 +755,7 @@ class PlayerA:
         self.frame = frame
         self.tolerance = tolerance
         self.fill_holes = fill_holes
-        self.renderer = SilhouetteRenderer(shape)
+        self.renderer = with_core(SilhouetteRenderer(shape))
         #: How player B's attacks on this player's holes settle (:meth:`PlayerB.attack`): per
         #: hole, since a hole's value is 0 once any B fits it; only for filled holes, where the
         #: clearance loss is 0 exactly when B fits (an island of plate inside H would let a

@@ -22,8 +22,12 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import to_matrix
 
-__all__ = ["SilhouetteRenderer", "mesh_scene", "register_integrator"]
+__all__ = ["CORE_MARGIN", "SilhouetteRenderer", "mesh_scene", "register_integrator"]
 
+#: A pixel centre is taken as covered without a ray when it lies within (1 - CORE_MARGIN) times the
+#: core ball's radius of the ball's shadow's centre (float32 rays and poses: a relative 1e-4 is
+#: some 1000 roundings away).
+CORE_MARGIN = 1e-4
 #: Variants in which the ``silhouette`` integrator has been registered with Mitsuba.
 _REGISTERED: set = set()
 
@@ -99,6 +103,10 @@ class SilhouetteRenderer:
         self.shape = shape
         self._scene = mesh_scene(shape.vertices, shape.faces, shape.name or "shape")
         self._mi, self._dr = mi, dr
+        #: ``(centre (3,), radius)``: a ball inside the closed solid, or None; set by the caller
+        #: (:func:`sieve_mi.certify.bounds.inscribed_ball`). Pixel centres in its shadow are hits
+        #: without a ray (:meth:`trace`).
+        self.core = None
 
     def trace(
         self,
@@ -131,7 +139,9 @@ class SilhouetteRenderer:
         -------
         hit : mi.Bool
             One entry per window pixel, pose-major, then row, then column (pose k's entries
-            start at the sum of the earlier windows' pixel counts).
+            start at the sum of the earlier windows' pixel counts). With a :attr:`core`, the
+            pixels in its shadow are hits without a ray (the same answer: such a ray enters the
+            core, inside the closed solid, so it crosses the surface).
         pose, row, col : mi.UInt32, mi.Int32, mi.Int32
             Pose index and lattice row and column of every entry.
         """
@@ -158,7 +168,16 @@ class SilhouetteRenderer:
         )
         ray = mi.Ray3f(origin, mi.Vector3f(g[2], g[5], g[8]))
         ray.maxt = mi.Float(2.0 * reach)
-        return self._scene.ray_test(ray), pose, row, col
+        if self.core is None:
+            return self._scene.ray_test(ray), pose, row, col
+        # A ray through the core's shadow enters the core, so it crosses the surface: a hit.
+        (cx, cy, cz), radius = self.core
+        cx, cy, cz = float(cx), float(cy), float(cz)
+        # the core's centre in the ray's coordinates: R c (rows of R are the columns of R^T)
+        px = g[0] * cx + g[3] * cy + g[6] * cz
+        py = g[1] * cx + g[4] * cy + g[7] * cz
+        inner = dr.square(x - px) + dr.square(y - py) < (radius * (1.0 - CORE_MARGIN)) ** 2
+        return inner | self._scene.ray_test(ray, ~inner), pose, row, col
 
     def masks(
         self,

@@ -389,6 +389,61 @@ def test_projection_windows_score_like_the_bounding_disk_squares():
     assert (rows * cols).sum() < 0.7 * len(quats) * side * side
 
 
+def _sphere_and_cube():
+    """A 20 mm ball at the origin and a 6 mm cube 20 mm to its right (two closed parts): the
+    shape's centre (its box's) lies off the ball's, so the core is off-centre."""
+    ball = trimesh.creation.icosphere(4, 10.0)
+    cube = trimesh.creation.box((6.0, 6.0, 6.0))
+    cube.apply_translation([20.0, 0.0, 0.0])
+    return shape_from_trimesh(trimesh.util.concatenate([ball, cube]), name="ball+cube")
+
+
+@pytest.mark.parametrize("which", ["sphere", "box", "ball+cube"])
+def test_a_core_scores_every_pose_like_the_rays(which):
+    # A ray through the shadow of a ball inside the closed solid enters the ball, so it hits:
+    # with that ball as the renderer's core no ray is cast there, and every pose scores to the
+    # same bit against three holes (120 random poses). The shapes: a 24 mm icosphere (its ball,
+    # radius > 11.9 mm, covers nearly every covered pixel), a 20 x 20 x 14 mm box (ball radius 7)
+    # and a ball with a cube beside it (the core off the shape's centre). A ball that is too big
+    # (30 mm) is no core: it changes the scores, so the comparison can fail.
+    from sieve_mi.certify.bounds import inscribed_ball
+    from sieve_mi.game.scoring import core_ball, score_poses
+    from sieve_mi.geometry.hole import Hole
+    from sieve_mi.geometry.rotations import random_uniform
+
+    shape = {
+        "sphere": lambda: sphere(12.0, 4),
+        "box": lambda: shape_from_trimesh(trimesh.creation.box((20.0, 20.0, 14.0)), name="box"),
+        "ball+cube": _sphere_and_cube,
+    }[which]()
+    ball = inscribed_ball(shape)
+    assert ball is not None
+    frame = Frame(128, 30.0)
+    xx, yy = np.meshgrid(*frame.centres())
+    holes = [
+        Hole.from_mask((np.abs(xx) < a) & (np.abs(yy) < b), frame)
+        for a, b in [(11.5, 11.5), (13.0, 9.0), (20.0, 20.0)]
+    ]
+    rng = np.random.default_rng(11)
+    quats = random_uniform(120, rng)
+    trans = rng.uniform(-4.0, 4.0, (120, 2))
+    which_hole = rng.integers(0, 3, 120)
+    plain = SilhouetteRenderer(shape)
+    want = score_poses(plain, holes, quats, trans, pose_hole=which_hole)
+    cored = SilhouetteRenderer(shape)
+    cored.core = ball
+    got = score_poses(cored, holes, quats, trans, pose_hole=which_hole)
+    np.testing.assert_array_equal(got.beta, want.beta)
+    np.testing.assert_array_equal(got.protrusion, want.protrusion)
+    assert 0 < (want.beta > 0).sum() < len(quats)
+    cored.core = (ball[0], 30.0)
+    assert (score_poses(cored, holes, quats, trans, pose_hole=which_hole).beta > want.beta).any()
+    if which == "sphere":  # the icosphere's inscribed ball is nearly the sphere: a core
+        assert 11.9 < ball[1] <= 12.0 and core_ball(shape) is not None
+    if which == "box":  # radius 7 of a 15.8 mm radius: too small to pay, no core by default
+        assert abs(ball[1] - 7.0) < 0.5 and core_ball(shape) is None
+
+
 def _union_of_triangles(vertices, faces):
     """Ground truth for a projection: shapely's union of the projected triangles."""
     import shapely
