@@ -389,6 +389,34 @@ def test_projection_windows_score_like_the_bounding_disk_squares():
     assert (rows * cols).sum() < 0.7 * len(quats) * side * side
 
 
+@pytest.mark.parametrize("sizes", ["mixed", "with empty windows", "all one pixel"])
+def test_trace_numbers_every_window_pixel(sizes):
+    # Each traced entry's pose, row and column, against NumPy's expansion of the windows: pose k's
+    # rows[k] x cols[k] pixels from (row0[k], col0[k]), row by row, after the earlier windows'.
+    # The pose comes from a table of buckets no longer than the smallest window (an entry's
+    # window is its bucket's first or the next), so windows of 1 pixel, of none and of 37 x 250
+    # are mixed here.
+    rng = np.random.default_rng(4)
+    k = 40
+    rows, cols = rng.integers(1, 40, k), rng.integers(1, 260, k)
+    if sizes == "with empty windows":
+        rows[[3, 4, 17]] = 0
+    if sizes == "all one pixel":
+        rows[:], cols[:] = 1, 1
+    row0, col0 = rng.integers(-20, 100, k), rng.integers(-20, 100, k)
+    renderer = SilhouetteRenderer(sphere(5.0, 2))
+    quats = np.tile([1.0, 0, 0, 0], (k, 1))
+    _, pose, row, col = renderer.trace(
+        quats, np.zeros((k, 2)), Frame(64, 10.0), row0, col0, rows, cols
+    )
+    want_pose = np.repeat(np.arange(k), rows * cols)
+    local = np.concatenate([np.arange(r * c) for r, c in zip(rows, cols)])
+    width = cols[want_pose]
+    np.testing.assert_array_equal(np.asarray(pose), want_pose)
+    np.testing.assert_array_equal(np.asarray(row), row0[want_pose] + local // width)
+    np.testing.assert_array_equal(np.asarray(col), col0[want_pose] + local % width)
+
+
 def _sphere_and_cube():
     """A 20 mm ball at the origin and a 6 mm cube 20 mm to its right (two closed parts): the
     shape's centre (its box's) lies off the ball's, so the core is off-centre."""
