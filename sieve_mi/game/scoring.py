@@ -198,14 +198,18 @@ def score_poses(
     masks = np.zeros((k_total, size, size), dtype=bool) if return_masks else None
     for sl in _ray_chunks(rows * cols, chunk_rays):
         window = (row0[sl], col0[sl], rows[sl], cols[sl])
-        covered, area, outside, worst = _cast_and_count(
-            renderer, stack, quats[sl], trans[sl], pose_hole[sl], window
-        )
-        beta[sl] = np.where(area > 0, outside / np.maximum(area, 1), 1.0)
-        prot[sl] = worst
         if return_masks:
+            covered, area, outside, worst = _cast_and_count(
+                renderer, stack, quats[sl], trans[sl], pose_hole[sl], window
+            )
             # the evaluated 0/1 values: reading ``hit`` itself would cast the rays again
             masks[sl] = (np.asarray(covered) > 0).reshape(-1, size, size)
+        else:
+            area, outside, worst = _walk_and_count(
+                renderer, stack, quats[sl], trans[sl], pose_hole[sl], window
+            )
+        beta[sl] = np.where(area > 0, outside / np.maximum(area, 1), 1.0)
+        prot[sl] = worst
     _score_clipped(holes, (lo, hi), pose_hole, (row0, col0, rows, cols), beta, prot)
     scores = PoseScores(beta=beta, protrusion=prot)
     if return_masks:
@@ -235,6 +239,41 @@ def _cast_and_count(renderer, stack, quats, trans, pose_hole, window):
     for target, value, op in zip(sums, per_ray, (dr.ReduceOp.Add,) * 2 + (dr.ReduceOp.Max,)):
         dr.scatter_reduce(op, target, value, pose)  # sums of 1s: exact in any order
     return (per_ray[0], *(np.asarray(a, dtype=np.float64) for a in sums))
+
+
+def _walk_and_count(renderer, stack, quats, trans, pose_hole, window):
+    """:func:`_cast_and_count`'s per-pose counts, from one thread per window row
+    (:meth:`~sieve_mi.geometry.silhouettes.SilhouetteRenderer.walk_rows`): the same pixels and
+    the same arithmetic per pixel, so the same counts (integers, and a maximum), with each pose's
+    data gathered once per row instead of once per pixel. Returns (K,) float64 each."""
+    import drjit as dr
+    import mitsuba as mi
+
+    frame = stack.frame
+    n, h = frame.resolution, frame.pixel_size
+
+    def visit(hit, row, col, extra, acc):
+        area, outside, worst = acc
+        rc, cc = dr.clip(row, 0, n - 1), dr.clip(col, 0, n - 1)
+        d = stack.gather(extra[0], mi.UInt32(rc), mi.UInt32(cc))
+        inside = (row == rc) & (col == cc) & (d == 0)
+        dist = (d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))) * h
+        out = hit & ~inside
+        return [
+            area + dr.select(hit, 1.0, 0.0),
+            outside + dr.select(out, 1.0, 0.0),
+            dr.maximum(worst, dr.select(out, dist, 0.0)),
+        ]
+
+    lanes = int(np.sum(window[2]))
+    start = [dr.zeros(mi.Float, lanes) for _ in range(3)]
+    hole_of = mi.UInt32(np.asarray(pose_hole).astype(np.uint32))
+    acc, pose = renderer.walk_rows(quats, trans, frame, *window, visit, start, extra=[hole_of])
+    dr.eval(pose, *acc)
+    sums = [dr.zeros(mi.Float, len(quats)) for _ in range(3)]
+    for target, value, op in zip(sums, acc, (dr.ReduceOp.Add,) * 2 + (dr.ReduceOp.Max,)):
+        dr.scatter_reduce(op, target, value, pose)  # sums of whole numbers: exact in any order
+    return tuple(np.asarray(a, dtype=np.float64) for a in sums)
 
 
 def _ray_chunks(pixels: np.ndarray, chunk_rays: int) -> list[slice]:

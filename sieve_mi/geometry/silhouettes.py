@@ -150,17 +150,80 @@ class SilhouetteRenderer:
         k = len(quats)
         rows = np.broadcast_to(np.asarray(size, dtype=np.int64), k)
         cols = rows if cols is None else np.broadcast_to(np.asarray(cols, dtype=np.int64), k)
-        rt = np.transpose(to_matrix(quats), (0, 2, 1)).reshape(k, 9)  # R^T, row-major
-        g = [mi.Float(rt[:, i].astype(np.float32)) for i in range(9)]
-        tx, ty = mi.Float(trans[:, 0].astype(np.float32)), mi.Float(trans[:, 1].astype(np.float32))
         pose, row, col = _window_pixels(mi, dr, row0, col0, rows, cols)
+        return (
+            self._pixel_hits(self._pose_arrays(quats, trans), pose, row, col, frame),
+            pose,
+            row,
+            col,
+        )
+
+    def walk_rows(
+        self, quats, trans, frame: Frame, row0, col0, rows, cols, visit, start: list, extra=()
+    ):
+        """One thread per window row, walking its pixel centres left to right (a Dr.Jit loop).
+
+        The same rays and hits as :meth:`trace` (the same arithmetic per pixel), but each row
+        gathers its pose's rotation, translation and window once, not once per pixel; what is
+        wanted of the hits is accumulated per row by ``visit``.
+
+        Parameters
+        ----------
+        quats, trans, frame, row0, col0, rows, cols
+            As for :meth:`trace` (``rows`` and ``cols`` (K,) arrays).
+        visit : callable
+            ``visit(hit, row, col, extra, acc) -> acc``: folds one pixel (mi.Bool, mi.Int32,
+            mi.Int32) into the row's accumulators ``acc`` (a list of Dr.Jit arrays); ``extra``
+            is the list of ``extra`` arrays at the row's pose.
+        start : list
+            The accumulators' initial values, one entry per row each.
+        extra : sequence of Dr.Jit arrays
+            Per-pose values (K entries each) that ``visit`` needs, gathered once per row.
+
+        Returns
+        -------
+        acc : list
+            The accumulators after each row's last pixel (one entry per window row, pose-major).
+        pose : mi.UInt32
+            Each row's pose.
+        """
+        mi, dr = self._mi, self._dr
+        quats, trans = np.atleast_2d(quats), np.atleast_2d(trans)
+        k = len(quats)
+        rows = np.broadcast_to(np.asarray(rows, dtype=np.int64), k)
+        cols = np.broadcast_to(np.asarray(cols, dtype=np.int64), k)
+        pose, row, first = _window_pixels(mi, dr, row0, col0, rows, np.ones(k, dtype=np.int64))
+        end = first + dr.gather(mi.Int32, mi.Int32(cols.astype(np.int32)), pose)
+        per_pose = [dr.gather(mi.Float, a, pose) for a in self._pose_arrays(quats, trans)]
+        at_row = [dr.gather(type(a), a, pose) for a in extra]
+
+        def body(col, *acc):
+            hit = self._pixel_hits(per_pose, None, row, col, frame)
+            return (col + 1, *visit(hit, row, col, at_row, list(acc)))
+
+        out = dr.while_loop((first, *start), lambda col, *_: col < end, body, label="rows")
+        return list(out[1:]), pose
+
+    def _pose_arrays(self, quats: np.ndarray, trans: np.ndarray) -> list:
+        """Per pose: R^T row-major (9 mi.Float), then the translation (2 mi.Float)."""
+        mi = self._mi
+        rt = np.transpose(to_matrix(quats), (0, 2, 1)).reshape(len(quats), 9)
+        return [mi.Float(rt[:, i].astype(np.float32)) for i in range(9)] + [
+            mi.Float(trans[:, i].astype(np.float32)) for i in range(2)
+        ]
+
+    def _pixel_hits(self, per_pose: list, pose, row, col, frame: Frame):
+        """Whether the rays through lattice pixels (row, col) hit: ``per_pose`` from
+        :meth:`_pose_arrays`, gathered by ``pose`` (None: already one entry per ray)."""
+        mi, dr = self._mi, self._dr
+        if pose is not None:
+            per_pose = [dr.gather(mi.Float, a, pose) for a in per_pose]
+        g, (tx, ty) = per_pose[:9], per_pose[9:]
         h, n = frame.pixel_size, frame.resolution
         film = mi.Point2f((mi.Float(col) + 0.5) / n, (mi.Float(row) + 0.5) / n)
         world, _ = frame.sensor().sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
-        x = world.o.x - dr.gather(mi.Float, tx, pose)
-        y = world.o.y - dr.gather(mi.Float, ty, pose)
+        x, y = world.o.x - tx, world.o.y - ty
         reach = self.shape.radius * 1.01 + h
-        g = [dr.gather(mi.Float, c, pose) for c in g]
         origin = mi.Point3f(
             g[0] * x + g[1] * y - g[2] * reach,
             g[3] * x + g[4] * y - g[5] * reach,
@@ -169,7 +232,7 @@ class SilhouetteRenderer:
         ray = mi.Ray3f(origin, mi.Vector3f(g[2], g[5], g[8]))
         ray.maxt = mi.Float(2.0 * reach)
         if self.core is None:
-            return self._scene.ray_test(ray), pose, row, col
+            return self._scene.ray_test(ray)
         # A ray through the core's shadow enters the core, so it crosses the surface: a hit.
         (cx, cy, cz), radius = self.core
         cx, cy, cz = float(cx), float(cy), float(cz)
@@ -177,7 +240,7 @@ class SilhouetteRenderer:
         px = g[0] * cx + g[3] * cy + g[6] * cz
         py = g[1] * cx + g[4] * cy + g[7] * cz
         inner = dr.square(x - px) + dr.square(y - py) < (radius * (1.0 - CORE_MARGIN)) ** 2
-        return inner | self._scene.ray_test(ray, ~inner), pose, row, col
+        return inner | self._scene.ray_test(ray, ~inner)
 
     def masks(
         self,

@@ -319,10 +319,11 @@ def test_rendered_masks_equal_the_traced_ones(which):
 
 
 def test_scoring_casts_each_ray_once_and_counts_pixels(cube20):
-    # score_poses reduces one ray-casting pass three ways (area, outside, worst distance): the
-    # rays are cast by one kernel, not once per reduction. A 12 mm sphere centred in a 40 mm
-    # square hole has no pixel outside it (beta 0); moved 43 mm aside, beyond the frame's edge,
-    # it lies wholly outside the hole (beta 1).
+    # score_poses reduces one ray-casting pass three ways (area, outside, worst distance): one
+    # thread per window row walks its pixels, casting each ray once, in one kernel; one more
+    # kernel sums the rows per pose. A 12 mm sphere centred in a 40 mm square hole has no pixel
+    # outside it (beta 0); moved 43 mm aside, beyond the frame's edge, it lies wholly outside the
+    # hole (beta 1).
     import drjit as dr
 
     from sieve_mi.game.scoring import projection_windows, score_poses
@@ -343,13 +344,13 @@ def test_scoring_casts_each_ray_once_and_counts_pixels(cube20):
         history = dr.kernel_history()
     finally:
         dr.set_flag(dr.JitFlag.KernelHistory, False)
-    n_rays = max(k["size"] for k in history)
-    wide = [k for k in history if k["size"] == n_rays and str(k["type"]).endswith("JIT")]
-    # one kernel casts the rays, one more sums each window's entries (scatter-reduce): it
-    # reads the evaluated per-ray values and casts nothing
-    sums = [k for k in wide if "@reduce_" in k["ir"].getvalue()]
     _, _, rows, cols = projection_windows(frame, *renderer.projected_extent(quats, trans))
-    assert n_rays == int((rows * cols).sum()) and len(wide) == 2 and len(sums) == 1
+    jit = [k for k in history if str(k["type"]).endswith("JIT")]
+    walks = [k for k in jit if "rows" in k["ir"].getvalue()]  # the loop's label
+    # one kernel walks the rows (one thread each) and casts; one more sums them and casts nothing
+    assert len(walks) == 1 and walks[0]["size"] == int(rows.sum())
+    sums = [k for k in jit if "@reduce_" in k["ir"].getvalue()]
+    assert len(sums) == 1 and sums[0] is not walks[0]
     np.testing.assert_array_equal(scores.beta, [0.0, 1.0])
     assert scores.protrusion[0] == 0 and scores.protrusion[1] > 0
 
