@@ -336,9 +336,21 @@ class SilhouetteRenderer:
         lo, hi : (K, 2) ndarrays
             Lower and upper (x, y) corners in scene units.
         """
-        p = np.einsum("kij,hj->khi", to_matrix(np.atleast_2d(quats))[:, :2, :], self.shape.hull)
-        p = p + np.atleast_2d(trans)[:, None, :]
-        return p.min(1), p.max(1)
+        r, hull = to_matrix(np.atleast_2d(quats)), self.shape.hull
+        trans = np.atleast_2d(trans)
+        # (K, H) per axis, products summed left to right (einsum took ten times as long)
+        x = (
+            r[:, 0, 0, None] * hull[:, 0]
+            + r[:, 0, 1, None] * hull[:, 1]
+            + r[:, 0, 2, None] * hull[:, 2]
+        )
+        y = (
+            r[:, 1, 0, None] * hull[:, 0]
+            + r[:, 1, 1, None] * hull[:, 1]
+            + r[:, 1, 2, None] * hull[:, 2]
+        )
+        x, y = x + trans[:, :1], y + trans[:, 1:2]
+        return np.column_stack([x.min(1), y.min(1)]), np.column_stack([x.max(1), y.max(1)])
 
 
 def _window_pixels(mi, dr, row0, col0, rows, cols):
