@@ -374,7 +374,9 @@ def _window_pixels(mi, dr, row0, col0, rows, cols):
     shift = max(smallest.bit_length() - 1, 0)  # 0 where a window is empty: buckets of one entry
     starts = np.arange(0, int(ends[-1]) + 1, 1 << shift, dtype=np.int64)
     first = np.searchsorted(ends[1:], starts, side="right")  # each bucket's first entry's window
-    pose = dr.gather(mi.UInt32, mi.UInt32(first.astype(np.uint32)), idx >> shift)
+    # opaque: a literal shift would make one kernel per window size
+    bucket = idx >> dr.opaque(mi.UInt32, shift)
+    pose = dr.gather(mi.UInt32, mi.UInt32(first.astype(np.uint32)), bucket)
     pose += mi.UInt32(dr.gather(mi.UInt32, ends_d, pose + 1) <= idx)
     p = mi.Int32(idx - dr.gather(mi.UInt32, ends_d, pose))
     # at least 1: the vectorised division also runs in the padding lanes past the last entry,
