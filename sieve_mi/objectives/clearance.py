@@ -97,7 +97,7 @@ class ClearanceObjective(EdgeSampledObjective):
         attacks of the same size share one recording of a frozen step.
         """
         dr = self.dr
-        active = dr.width(self.active_pairs(q))
+        active = self.active_count(q)
         total = dr.width(self._pairs[0])
         return int(min(max(1024, 1 << int(np.ceil(np.log2(max(2 * active, 1))))), max(total, 1)))
 

@@ -441,6 +441,22 @@ class EdgeSampledObjective:
         with dr.suspend_grad():
             return self._active_pairs(quat_rows(*[dr.detach(x) for x in q]))
 
+    def active_count(self, q) -> int:
+        """How many entries :meth:`active_pairs` has at quaternions ``q`` (4 mi.Float), from
+        one sum over the silhouette test, without building the list (one synchronisation)."""
+        dr, mi = self.dr, self.mi
+        if self.pair_count == 0:
+            return 0
+        with dr.suspend_grad():
+            rows = quat_rows(*[dr.detach(x) for x in q])
+            if self.per_edge:
+                pair_pose, pair_edge, _, pieces = self._edge_pairs
+                flag = self._flags(rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always)
+                size = dr.select(flag, pieces, 0)
+            else:
+                size = dr.select(self._silhouette_flags(rows), mi.UInt32(1), mi.UInt32(0))
+            return int(dr.sum(size)[0])
+
     def active_fixed(self, q, capacity: int):
         """:meth:`active_pairs` in a buffer of ``capacity`` entries, reading nothing back.
 

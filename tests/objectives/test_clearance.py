@@ -177,3 +177,7 @@ def test_per_edge_silhouette_test_keeps_exactly_the_per_segment_pairs(mi, cube20
     fast = np.array(obj.active_pairs(qa))
     slow = np.array(mi.UInt32(__import__("drjit").compress(obj.silhouette_flags(qa))))
     assert len(fast) > 1000 and np.array_equal(fast, slow)
+    # the count that sizes a frozen step's buffer, without the list, both ways of testing
+    assert obj.active_count(qa) == len(fast)
+    obj.per_edge = False
+    assert obj.active_count(qa) == len(fast)
