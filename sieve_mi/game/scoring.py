@@ -35,7 +35,8 @@ __all__ = [
 #: :attr:`~sieve_mi.geometry.silhouettes.SilhouetteRenderer.core`) when its radius is at least this
 #: fraction of the shape's radius; a smaller ball's shadow saves fewer rays than its test costs.
 CORE_MIN_RATIO = 0.5
-#: Inscribed balls already found, by shape: ``id(shape) -> (shape, ball or None)``.
+#: Inscribed balls already found, by shape: ``id(shape) -> (weak reference to it, ball or None)``
+#: (weak: the cache never keeps a mesh alive).
 _CORES: dict = {}
 
 
@@ -49,15 +50,17 @@ def core_ball(shape: Shape) -> tuple[np.ndarray, float] | None:
     A 24 mm icosphere holds a ball of radius 11.95 mm; a letter's (radius 21 mm) is 2.3 mm thick:
     the sphere gets a core, the letter none.
     """
+    import weakref
+
     known = _CORES.get(id(shape))
-    if known is not None and known[0] is shape:
+    if known is not None and known[0]() is shape:
         return known[1]
     ball = inscribed_ball(shape)
     if ball is not None and ball[1] < CORE_MIN_RATIO * shape.radius:
         ball = None
-    if len(_CORES) >= 256:  # a long sweep or cascade loads many shapes: forget the oldest
-        _CORES.pop(next(iter(_CORES)))
-    _CORES[id(shape)] = (shape, ball)
+    for key in [k for k, (ref, _) in _CORES.items() if ref() is None]:
+        del _CORES[key]  # shapes gone since
+    _CORES[id(shape)] = (weakref.ref(shape), ball)
     return ball
 
 
