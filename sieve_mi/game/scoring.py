@@ -8,6 +8,7 @@ lookups run in one Dr.Jit kernel for all poses, the per-pose sums in one more.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -50,8 +51,6 @@ def core_ball(shape: Shape) -> tuple[np.ndarray, float] | None:
     A 24 mm icosphere holds a ball of radius 11.95 mm; a letter's (radius 21 mm) is 2.3 mm thick:
     the sphere gets a core, the letter none.
     """
-    import weakref
-
     known = _CORES.get(id(shape))
     if known is not None and known[0]() is shape:
         return known[1]
@@ -227,21 +226,32 @@ def _cast_and_count(renderer, stack, quats, trans, pose_hole, window):
     import drjit as dr
     import mitsuba as mi
 
-    frame = stack.frame
-    n = frame.resolution
-    hit, pose, row, col = renderer.trace(quats, trans, frame, *window)
-    rc, cc = dr.clip(row, 0, n - 1), dr.clip(col, 0, n - 1)
+    hit, pose, row, col = renderer.trace(quats, trans, stack.frame, *window)
     hole_of = dr.gather(mi.UInt32, mi.UInt32(pose_hole.astype(np.uint32)), pose)
-    d = stack.gather(hole_of, mi.UInt32(rc), mi.UInt32(cc))
-    inside = (row == rc) & (col == cc) & (d == 0)
-    dist = (d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))) * frame.pixel_size
-    out = hit & ~inside
+    out, dist = _outside(stack, hole_of, row, col, hit)
     per_ray = (dr.select(hit, 1.0, 0.0), dr.select(out, 1.0, 0.0), dr.select(out, dist, 0.0))
     dr.eval(pose, *per_ray)  # one ray-casting kernel; unevaluated, each reduction would trace again
     sums = [dr.zeros(mi.Float, len(quats)) for _ in range(3)]
     for target, value, op in zip(sums, per_ray, (dr.ReduceOp.Add,) * 2 + (dr.ReduceOp.Max,)):
         dr.scatter_reduce(op, target, value, pose)  # sums of 1s: exact in any order
     return (per_ray[0], *(np.asarray(a, dtype=np.float64) for a in sums))
+
+
+def _outside(stack, hole_of, row, col, hit):
+    """Per pixel: whether it is covered and outside its hole (mi.Bool), and its distance to the
+    hole (mi.Float, scene units): the hole's distance at the nearest frame pixel plus the way
+    to it; ``hole_of`` (mi.UInt32) is each pixel's hole in ``stack``."""
+    import drjit as dr
+    import mitsuba as mi
+
+    n = stack.frame.resolution
+    rc, cc = dr.clip(row, 0, n - 1), dr.clip(col, 0, n - 1)
+    d = stack.gather(hole_of, mi.UInt32(rc), mi.UInt32(cc))
+    inside = (row == rc) & (col == cc) & (d == 0)
+    dist = (
+        d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))
+    ) * stack.frame.pixel_size
+    return hit & ~inside, dist
 
 
 def _walk_and_count(renderer, stack, quats, trans, pose_hole, window):
@@ -253,15 +263,10 @@ def _walk_and_count(renderer, stack, quats, trans, pose_hole, window):
     import mitsuba as mi
 
     frame = stack.frame
-    n, h = frame.resolution, frame.pixel_size
 
     def visit(hit, row, col, extra, acc):
         area, outside, worst = acc
-        rc, cc = dr.clip(row, 0, n - 1), dr.clip(col, 0, n - 1)
-        d = stack.gather(extra[0], mi.UInt32(rc), mi.UInt32(cc))
-        inside = (row == rc) & (col == cc) & (d == 0)
-        dist = (d + dr.sqrt(mi.Float(dr.square(row - rc) + dr.square(col - cc)))) * h
-        out = hit & ~inside
+        out, dist = _outside(stack, extra[0], row, col, hit)
         return [
             area + dr.select(hit, 1.0, 0.0),
             outside + dr.select(out, 1.0, 0.0),
