@@ -332,6 +332,29 @@ class EdgeSampledObjective:
             flag = (s1 * s2 >= 0) | dr.gather(mi.Bool, always, item)
             return flag if live is None else flag & dr.gather(mi.Bool, live, pose)
 
+    def _item_sizes(self, rows, live=None):
+        """Active pairs of every tested item: per (pose, edge) pair its segments where the edge
+        is on the silhouette (:attr:`per_edge`), else 1 per (pose, segment) pair on it.
+
+        Returns
+        -------
+        size : mi.UInt32
+            One entry per item (0 where not on the silhouette).
+        ends : tuple of mi.UInt32
+            Each pose's first item and one past its last.
+        first : mi.UInt32 or None
+            Per edge item, its first (pose, segment) pair; None for segment items.
+        """
+        dr, mi = self.dr, self.mi
+        if self.per_edge:
+            pair_pose, pair_edge, first, pieces = self._edge_pairs
+            flag = self._flags(
+                rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always, live
+            )
+            return dr.select(flag, pieces, 0), self._edge_pose_ends, first
+        flag = self._silhouette_flags(rows, live)
+        return dr.select(flag, mi.UInt32(1), mi.UInt32(0)), self._pose_ends, None
+
     def _active_fixed(self, rows, capacity: int, live=None):
         """:meth:`_active_pairs` in a buffer of fixed size, without reading anything back.
 
@@ -351,18 +374,10 @@ class EdgeSampledObjective:
             One entry: more than ``capacity`` pairs are active.
         """
         dr, mi = self.dr, self.mi
-        if self.per_edge:
-            pair_pose, pair_edge, first, pieces = self._edge_pairs
-            flag = self._flags(
-                rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always, live
-            )
-            size, ends = dr.select(flag, pieces, 0), self._edge_pose_ends
-        else:
-            flag = self._silhouette_flags(rows, live)
-            size, ends, first = dr.select(flag, mi.UInt32(1), mi.UInt32(0)), self._pose_ends, None
+        size, ends, first = self._item_sizes(rows, live)
         slot = dr.prefix_sum(size)  # exclusive: the buffer slot of each item's first pair
         upto = slot + size
-        n = dr.width(flag)
+        n = dr.width(size)
         total = dr.gather(mi.UInt32, upto, mi.UInt32(n - 1))
         item = dr.arange(mi.UInt32, n)
         owner = dr.zeros(mi.UInt32, capacity)  # 1 + the item that starts at each slot, else 0
@@ -444,17 +459,11 @@ class EdgeSampledObjective:
     def active_count(self, q) -> int:
         """How many entries :meth:`active_pairs` has at quaternions ``q`` (4 mi.Float), from
         one sum over the silhouette test, without building the list (one synchronisation)."""
-        dr, mi = self.dr, self.mi
+        dr = self.dr
         if self.pair_count == 0:
             return 0
         with dr.suspend_grad():
-            rows = quat_rows(*[dr.detach(x) for x in q])
-            if self.per_edge:
-                pair_pose, pair_edge, _, pieces = self._edge_pairs
-                flag = self._flags(rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always)
-                size = dr.select(flag, pieces, 0)
-            else:
-                size = dr.select(self._silhouette_flags(rows), mi.UInt32(1), mi.UInt32(0))
+            size = self._item_sizes(quat_rows(*[dr.detach(x) for x in q]))[0]
             return int(dr.sum(size)[0])
 
     def active_fixed(self, q, capacity: int):
