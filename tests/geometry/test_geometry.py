@@ -355,23 +355,26 @@ def test_scoring_casts_each_ray_once_and_counts_pixels(cube20):
     assert scores.protrusion[0] == 0 and scores.protrusion[1] > 0
 
 
+def _rectangles(frame, half_sides):
+    """Holes on ``frame``: the centred rectangles |x| < a, |y| < b for each (a, b), scene units."""
+    from sieve_mi.geometry.hole import Hole
+
+    xx, yy = np.meshgrid(*frame.centres())
+    return [Hole.from_mask((np.abs(xx) < a) & (np.abs(yy) < b), frame) for a, b in half_sides]
+
+
 def test_projection_windows_score_like_the_bounding_disk_squares():
     # A 40 x 30 x 4 mm slab at random poses against three rectangular holes: windows around each
     # projection's bounding box see the same covered pixels as the squares around the bounding
     # disk (side 2 x 25.2 mm), so beta and protrusion agree to the bit, with fewer rays: seen
     # face-on the box is 40 x 30 mm, edge-on 40 x 4 mm.
     from sieve_mi.game.scoring import projection_windows, score_poses, window_for
-    from sieve_mi.geometry.hole import Hole
     from sieve_mi.geometry.rotations import random_uniform
 
     slab = shape_from_trimesh(trimesh.creation.box((40.0, 30.0, 4.0)), name="slab")
     renderer = SilhouetteRenderer(slab)
     frame = Frame(128, 30.0)
-    xx, yy = np.meshgrid(*frame.centres())
-    holes = [
-        Hole.from_mask((np.abs(xx) < a) & (np.abs(yy) < b), frame)
-        for a, b in [(21.0, 16.0), (21.0, 3.0), (5.0, 5.0)]
-    ]
+    holes = _rectangles(frame, [(21.0, 16.0), (21.0, 3.0), (5.0, 5.0)])
     rng = np.random.default_rng(3)
     quats = np.vstack([[1.0, 0, 0, 0], [np.sqrt(0.5), np.sqrt(0.5), 0, 0], random_uniform(60, rng)])
     trans = np.vstack([[0.0, 0.0], [0.0, 0.0], rng.uniform(-3.0, 3.0, (60, 2))])
@@ -437,7 +440,6 @@ def test_a_core_scores_every_pose_like_the_rays(which):
     # (30 mm) is no core: it changes the scores, so the comparison can fail.
     from sieve_mi.certify.bounds import inscribed_ball
     from sieve_mi.game.scoring import core_ball, score_poses
-    from sieve_mi.geometry.hole import Hole
     from sieve_mi.geometry.rotations import random_uniform
 
     shape = {
@@ -448,11 +450,7 @@ def test_a_core_scores_every_pose_like_the_rays(which):
     ball = inscribed_ball(shape)
     assert ball is not None
     frame = Frame(128, 30.0)
-    xx, yy = np.meshgrid(*frame.centres())
-    holes = [
-        Hole.from_mask((np.abs(xx) < a) & (np.abs(yy) < b), frame)
-        for a, b in [(11.5, 11.5), (13.0, 9.0), (20.0, 20.0)]
-    ]
+    holes = _rectangles(frame, [(11.5, 11.5), (13.0, 9.0), (20.0, 20.0)])
     rng = np.random.default_rng(11)
     quats = random_uniform(120, rng)
     trans = rng.uniform(-4.0, 4.0, (120, 2))
