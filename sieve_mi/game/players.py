@@ -229,7 +229,8 @@ class _Descent:
 
         from sieve_mi.geometry.hole import HoleStack
 
-        self.loss, self.stack = player.objective, HoleStack(holes)
+        self.loss = player.objective
+        self.stack = HoleStack(holes, corners=getattr(self.loss, "hole_corners", False))
         self.pose_hole, self.pose_shape = np.asarray(pose_hole), np.asarray(pose_shape)
         self.scale = player.frame.half_extent
         self.opt = pose_adam(q0, np.asarray(t0) / self.scale, learning_rate)

@@ -189,7 +189,7 @@ def score_poses(
     quats, trans = np.atleast_2d(quats), np.atleast_2d(trans)
     k_total = len(quats)
     pose_hole = np.zeros(k_total, int) if pose_hole is None else np.asarray(pose_hole)
-    stack = HoleStack(holes)
+    stack = HoleStack(holes, corners=False)
     lo, hi = renderer.projected_extent(quats, trans)
     if return_masks:
         row0, col0, size = window_for(renderer, frame, trans)

@@ -140,6 +140,9 @@ class HoleStack:
     ----------
     holes : list of Hole
         All on the same frame.
+    corners : bool, optional
+        Also build :attr:`corners` (4 times the memory of :attr:`texture`), for the clearance
+        loss' bilinear reads. True by default.
 
     Attributes
     ----------
@@ -148,12 +151,17 @@ class HoleStack:
         Number of holes.
     texture : mi.Float
         ``count * N^2`` outside distances in pixels (0 inside a hole).
+    corners : mi.Float or None
+        ``4 count N^2`` entries: for every pixel, its own outside distance and those of its
+        right, lower and lower-right neighbours (the last row and column repeat themselves), so
+        that :meth:`gather_corners` reads them as one packet. None when built with
+        ``corners=False`` (scores read single pixels only).
     """
 
-    #: The Dr.Jit array a frozen function (:func:`drjit.freeze`) must see as its input.
-    DRJIT_STRUCT = {"texture": object}
+    #: The Dr.Jit arrays a frozen function (:func:`drjit.freeze`) must see as its inputs.
+    DRJIT_STRUCT = {"texture": object, "corners": object}
 
-    def __init__(self, holes: list[Hole]):
+    def __init__(self, holes: list[Hole], corners: bool = True):
         import mitsuba as mi
 
         frame = holes[0].frame
@@ -163,6 +171,44 @@ class HoleStack:
         self.count = len(holes)
         stack = np.stack([h.outside for h in holes]) / frame.pixel_size
         self.texture = mi.Float(stack.astype(np.float32).ravel())
+        self.corners = self._corner_table() if corners else None
+
+    def _corner_table(self):
+        """:attr:`corners`, built on the device from :attr:`texture` (one kernel)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        n = self.frame.resolution
+        i = dr.arange(mi.UInt32, self.count * n * n * 4)
+        texel, corner = i >> 2, i & 3
+        col, row = texel % n, (texel // n) % n
+        right = dr.select(((corner & 1) != 0) & (col < n - 1), 1, 0)
+        below = dr.select(((corner & 2) != 0) & (row < n - 1), n, 0)
+        table = dr.gather(mi.Float, self.texture, texel + right + below)
+        dr.eval(table)
+        return table
+
+    def gather_corners(self, hole, row, col):
+        """The outside distances (pixels) at the four pixels (row, col), (row, col + 1),
+        (row + 1, col) and (row + 1, col + 1) of hole ``hole``, in that order.
+
+        What bilinear interpolation needs, read as one packet (:attr:`corners`) instead of
+        four gathers; the values are :meth:`gather`'s, bit for bit.
+
+        Parameters
+        ----------
+        hole, row, col : mi.UInt32
+            Hole index and pixel indices, ``row`` and ``col`` at most N - 2.
+
+        Returns
+        -------
+        mi.Vector4f
+        """
+        import drjit as dr
+        import mitsuba as mi
+
+        n = self.frame.resolution
+        return dr.gather(mi.Vector4f, self.corners, hole * (n * n) + row * n + col)
 
     def gather(self, hole, row, col, active=True):
         """Outside distance in pixels at pixel (row, col) of hole ``hole``.

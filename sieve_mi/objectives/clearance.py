@@ -46,18 +46,21 @@ class ClearanceObjective(EdgeSampledObjective):
     #: Player B stops descending the other starts of a hole that a pose fits
     #: (:meth:`sieve_mi.game.players.PlayerB.attack`'s ``settle``); ``live`` below masks them.
     fit_loss = 1e-6
+    #: :meth:`hole_distance` reads its holes' four corners at once: stacks for this loss are
+    #: built with :attr:`~sieve_mi.geometry.hole.HoleStack.corners`.
+    hole_corners = True
     #: The Dr.Jit arrays a frozen function (:func:`drjit.freeze`) must see as its inputs.
     DRJIT_STRUCT = {
         "a": object,
         "d": object,
+        "ends": object,
         "m1": object,
         "m2": object,
         "always": object,
         "_pairs": object,
         "_pose_ends": object,
-        "e_m1": object,
-        "e_m2": object,
-        "e_always": object,
+        "tests": object,
+        "e_tests": object,
         "_edge_pairs": object,
         "_edge_pose_ends": object,
     }
@@ -202,10 +205,7 @@ class ClearanceObjective(EdgeSampledObjective):
         iu = dr.minimum(mi.UInt32(dr.floor(uc)), n - 2)
         iv = dr.minimum(mi.UInt32(dr.floor(vc)), n - 2)
         fu, fv = uc - mi.Float(iu), vc - mi.Float(iv)
-        d00 = holes.gather(hole_index, iv, iu)
-        d01 = holes.gather(hole_index, iv, iu + 1)
-        d10 = holes.gather(hole_index, iv + 1, iu)
-        d11 = holes.gather(hole_index, iv + 1, iu + 1)
+        d00, d01, d10, d11 = holes.gather_corners(hole_index, iv, iu)
         top, bottom = dr.lerp(d00, d01, fu), dr.lerp(d10, d11, fu)
         d = dr.lerp(top, bottom, fv) + root - 1e-3
         # Inside the frame the bilinear part varies with u, v; outside, the extension does.

@@ -39,6 +39,8 @@ __all__ = [
 CHUNK = 16
 #: Segments per edge from which the silhouette test runs per (pose, edge), not per segment.
 PER_EDGE_RATIO = 1.5
+#: What a silhouette test reads of its segment or edge (:func:`_test_table`).
+_TEST = ("m1", "m2", "always")
 
 
 def _edge_table(segs: list) -> dict:
@@ -71,6 +73,48 @@ def _edge_table(segs: list) -> dict:
         "count": count,
         "offset": np.cumsum(count) - count,
     }
+
+
+def _test_table(m1: np.ndarray, m2: np.ndarray, always: np.ndarray):
+    """The silhouette tests of N items as one flat mi.Float, 8 entries per item: ``m1`` (3),
+    ``m2`` (3), ``always`` (1.0 or 0.0) and a 0 of padding, so that one packet reads an item's
+    test (:meth:`EdgeSampledObjective._flags`).
+
+    Parameters
+    ----------
+    m1, m2 : (N, 3) float
+    always : (N,) bool
+    """
+    table = np.zeros((len(m1), 8), dtype=np.float32)
+    table[:, 0:3], table[:, 3:6], table[:, 6] = m1, m2, always
+    return _packet_table(table)
+
+
+def _packet_table(rows: np.ndarray):
+    """``rows`` ((N, 8) float) as a flat mi.Float (8N) in Dr.Jit's own memory, which is aligned.
+
+    Dr.Jit reads a row of it as one packet only from aligned memory. An array made from a
+    NumPy array on the CPU uses NumPy's memory, aligned or not by chance (and then every read
+    falls back to 8 gathers; copies and identity gathers keep the same memory): a scatter into
+    a new array is what makes it Dr.Jit's.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    host = mi.Float(np.ascontiguousarray(rows, dtype=np.float32).ravel())
+    table = dr.zeros(mi.Float, dr.width(host))
+    dr.scatter(table, host, dr.arange(mi.UInt32, dr.width(host)))
+    dr.eval(table)
+    return table
+
+
+def _packet_type():
+    """Dr.Jit's ArrayXf of the active Mitsuba variant's backend: the type of packet gathers of
+    8 consecutive floats (``dr.gather(_packet_type(), flat, index, shape=(8, n))``)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    return (dr.cuda.ad if mi.variant().startswith("cuda") else dr.llvm.ad).ArrayXf
 
 
 def expand_ranges(start, length):
@@ -180,6 +224,11 @@ class EdgeSampledObjective:
         Segments of each shape, and each shape's first segment.
     a, d : mi.Vector3f
         First end and direction (second end minus first) of every segment (S), mesh frame.
+    ends : mi.Float
+        The same, 8 entries per segment (a, d, two zeros), read as one packet by the losses.
+    tests, e_tests : mi.Float
+        The silhouette test of every segment and of every edge, 8 entries each
+        (:func:`_test_table`), read as one packet.
     per_edge : bool
         Whether the silhouette test runs per (pose, edge) pair rather than per (pose, segment).
     pose_count : int
@@ -210,11 +259,14 @@ class EdgeSampledObjective:
         self.a = cat("a")
         d = np.concatenate([s.b - s.a for s in segs]).astype(np.float32)
         self.d = mi.Vector3f(d[:, 0], d[:, 1], d[:, 2])
-        self.m1, self.m2 = cat("m1"), cat("m2")
+        ends = np.zeros((len(d), 8), dtype=np.float32)
+        ends[:, :3], ends[:, 3:6] = np.concatenate([s.a for s in segs]), d
+        self.ends = _packet_table(ends)
+        self.m1, self.m2 = cat("m1"), cat("m2")  # the overlap loss' test per segment
         self.always = mi.Bool(np.concatenate([s.always for s in segs]))
         self._edges = _edge_table(segs)
-        self.e_m1, self.e_m2 = (mi.Vector3f(*self._edges[k].T) for k in ("m1", "m2"))
-        self.e_always = mi.Bool(self._edges["always"])
+        self.tests = _test_table(*(np.concatenate([getattr(s, k) for s in segs]) for k in _TEST))
+        self.e_tests = _test_table(*(self._edges[k] for k in _TEST))
         # testing per edge pays where edges are cut into several segments (not for fine meshes)
         self.per_edge = self.segment_count >= PER_EDGE_RATIO * len(self._edges["pieces"])
         self._pairs = None
@@ -317,19 +369,29 @@ class EdgeSampledObjective:
     def _silhouette_flags(self, rows, live=None):
         """Whether each (pose, segment) pair's segment is on the silhouette (mi.Bool)."""
         pair_pose, pair_seg = self._pairs
-        return self._flags(rows, pair_pose, pair_seg, self.m1, self.m2, self.always, live)
+        return self._flags(rows, pair_pose, pair_seg, self.tests, live)
 
-    def _flags(self, rows, pose, item, m1, m2, always, live=None):
+    def _flags(self, rows, pose, item, tests, live=None):
         """The silhouette test ``(r3 . m1)(r3 . m2) >= 0 or always`` of (pose, item) pairs, where
-        items are segments or edges (``m1``, ``m2``, ``always`` indexed by ``item``); with
-        ``live`` (mi.Bool, K), pairs of the other poses are never active."""
+        items are segments or edges (``tests``: their :func:`_test_table`); with ``live``
+        (mi.Bool, K), pairs of the other poses are never active.
+
+        Each pair reads its pose's third rotation row and its item's test as one packet each
+        (the pose's rows are packed first, one small kernel), not as ten gathers.
+        """
         dr, mi = self.dr, self.mi
         with dr.suspend_grad():
-            r3 = mi.Vector3f(dr.detach(rows[6]), dr.detach(rows[7]), dr.detach(rows[8]))
-            r3p = dr.gather(mi.Vector3f, r3, pose)
-            s1 = dr.dot(r3p, dr.gather(mi.Vector3f, m1, item))
-            s2 = dr.dot(r3p, dr.gather(mi.Vector3f, m2, item))
-            flag = (s1 * s2 >= 0) | dr.gather(mi.Bool, always, item)
+            k, n = dr.width(rows[6]), dr.width(pose)
+            packed = dr.zeros(mi.Float, 4 * k)
+            at = dr.arange(mi.UInt32, k) * 4
+            for j in range(3):
+                dr.scatter(packed, dr.detach(rows[6 + j]), at + j)
+            r = dr.gather(_packet_type(), packed, pose, shape=(4, n))
+            e = dr.gather(_packet_type(), tests, item, shape=(8, n))
+            r3 = mi.Vector3f(r[0], r[1], r[2])
+            s1 = dr.dot(r3, mi.Vector3f(e[0], e[1], e[2]))
+            s2 = dr.dot(r3, mi.Vector3f(e[3], e[4], e[5]))
+            flag = (s1 * s2 >= 0) | (e[6] != 0)
             return flag if live is None else flag & dr.gather(mi.Bool, live, pose)
 
     def _item_sizes(self, rows, live=None):
@@ -348,9 +410,7 @@ class EdgeSampledObjective:
         dr, mi = self.dr, self.mi
         if self.per_edge:
             pair_pose, pair_edge, first, pieces = self._edge_pairs
-            flag = self._flags(
-                rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always, live
-            )
+            flag = self._flags(rows, pair_pose, pair_edge, self.e_tests, live)
             return dr.select(flag, pieces, 0), self._edge_pose_ends, first
         flag = self._silhouette_flags(rows, live)
         return dr.select(flag, mi.UInt32(1), mi.UInt32(0)), self._pose_ends, None
@@ -412,7 +472,7 @@ class EdgeSampledObjective:
         if not self.per_edge:
             return dr.compress(self._silhouette_flags(rows, live))
         pair_pose, pair_edge, first, pieces = self._edge_pairs
-        flag = self._flags(rows, pair_pose, pair_edge, self.e_m1, self.e_m2, self.e_always, live)
+        flag = self._flags(rows, pair_pose, pair_edge, self.e_tests, live)
         with dr.suspend_grad():
             edges = dr.compress(flag)
             return expand_ranges(
@@ -495,7 +555,8 @@ class EdgeSampledObjective:
         """Segment index, first end and direction (mesh frame) of (pose, segment) pairs ``pair``."""
         dr, mi = self.dr, self.mi
         seg = dr.gather(mi.UInt32, self._pairs[1], pair)
-        return seg, dr.gather(mi.Vector3f, self.a, seg), dr.gather(mi.Vector3f, self.d, seg)
+        e = dr.gather(_packet_type(), self.ends, seg, shape=(8, dr.width(pair)))
+        return seg, mi.Vector3f(e[0], e[1], e[2]), mi.Vector3f(e[3], e[4], e[5])
 
     def _fractions(self) -> list:
         """Where the samples lie along a segment, as fractions of its length (centred, ascending)."""
