@@ -418,11 +418,11 @@ class EdgeSampledObjective:
     def _active_fixed(self, rows, capacity: int, live=None):
         """:meth:`_active_pairs` in a buffer of fixed size, without reading anything back.
 
-        Per (pose, edge) pair where :attr:`per_edge` holds (as :meth:`_active_pairs`): each active
-        edge's segments get consecutive buffer slots from an exclusive prefix sum of their
-        counts; each edge writes its index at its first slot, and an inclusive running maximum
-        over the buffer tells every slot its edge (slots grow with the edge index). Otherwise
-        per (pose, segment) pair, each active pair writing itself at its slot.
+        Per (pose, edge) pair where :attr:`per_edge` holds (as :meth:`_active_pairs`), else per
+        (pose, segment) pair: an exclusive prefix sum of the active pairs of every tested item
+        gives each item its first buffer slot, and each active item writes its pairs there
+        (an edge its segments' pairs, one after another). Items are in the order of the pairs,
+        so the buffer holds :meth:`_active_pairs`' indices in the same order.
 
         Returns
         -------
@@ -436,24 +436,24 @@ class EdgeSampledObjective:
         dr, mi = self.dr, self.mi
         size, ends, first = self._item_sizes(rows, live)
         slot = dr.prefix_sum(size)  # exclusive: the buffer slot of each item's first pair
-        upto = slot + size
         n = dr.width(size)
-        total = dr.gather(mi.UInt32, upto, mi.UInt32(n - 1))
-        item = dr.arange(mi.UInt32, n)
-        owner = dr.zeros(mi.UInt32, capacity)  # 1 + the item that starts at each slot, else 0
-        # size > 0, not flag: flag is not evaluated, the test would run again in this kernel
-        dr.scatter(owner, item + 1, slot, (size > 0) & (slot < capacity))
-        i = dr.arange(mi.UInt32, capacity)
-        if first is None:  # one pair per item: the slot's item is its pair
-            active = owner - 1
+        last = mi.UInt32(n - 1)
+        total = dr.gather(mi.UInt32, slot, last) + dr.gather(mi.UInt32, size, last)
+        active = dr.zeros(mi.UInt32, capacity)
+        if first is None:  # one pair per item: the item is its pair
+            dr.scatter(active, dr.arange(mi.UInt32, n), slot, (size > 0) & (slot < capacity))
         else:
-            owner = dr.prefix_reduce(dr.ReduceOp.Max, owner, exclusive=False)
-            edge = dr.maximum(owner, 1) - 1
-            active = dr.gather(mi.UInt32, first, edge) + (i - dr.gather(mi.UInt32, slot, edge))
-        active = dr.select(i < total, active, 0)
+
+            def body(j):
+                dr.scatter(active, first + j, slot + j, slot + j < capacity)
+                return (j + 1,)
+
+            dr.while_loop((dr.zeros(mi.UInt32, n),), lambda j: j < size, body, label="active list")
         start, end = ends
-        before = dr.gather(mi.UInt32, upto, start - 1, start > 0)
-        count = dr.select(end > start, dr.gather(mi.UInt32, upto, end - 1, end > start) - before, 0)
+        count = dr.gather(mi.UInt32, slot, end - 1, end > start) + dr.gather(
+            mi.UInt32, size, end - 1, end > start
+        )
+        count = dr.select(end > start, count - dr.gather(mi.UInt32, slot, start, end > start), 0)
         overflow = total > capacity
         # Past the buffer there is nothing to read: sum nothing (the caller discards the results).
         return active, dr.select(overflow, 0, count), overflow
