@@ -181,3 +181,63 @@ def test_per_edge_silhouette_test_keeps_exactly_the_per_segment_pairs(mi, cube20
     assert obj.active_count(qa) == len(fast)
     obj.per_edge = False
     assert obj.active_count(qa) == len(fast)
+
+
+def test_packet_tables_hold_each_segments_ends_and_each_items_test(mi, cube20):
+    # The losses read a segment's ends and an item's silhouette test as one packet of 8 floats:
+    # the tables must hold, row for row, the segments' (a, b - a) and the (m1, m2, always) of
+    # every segment and every edge, for a mix of shapes with an open one (always-tested edges).
+    import trimesh
+
+    from sieve_mi.geometry.meshes import segments, shape_from_trimesh
+
+    open_box = trimesh.creation.box((10.0, 6.0, 4.0))
+    open_box.update_faces(np.arange(len(open_box.faces)) > 1)
+    shapes = [cube20, sphere(12.0), shape_from_trimesh(open_box, name="open")]
+    frame = Frame(128, 20.0)
+    obj = ClearanceObjective(shapes, frame)
+    segs = [segments(s, frame.pixel_size, obj.samples) for s in shapes]
+
+    def cat(attr):
+        return np.concatenate([getattr(s, attr) for s in segs]).astype(np.float32)
+
+    ends = np.asarray(obj.ends).reshape(-1, 8)
+    d = np.concatenate([s.b - s.a for s in segs]).astype(np.float32)
+    np.testing.assert_array_equal(ends[:, :3], cat("a"))
+    np.testing.assert_array_equal(ends[:, 3:6], d)
+    tests = np.asarray(obj.tests).reshape(-1, 8)
+    np.testing.assert_array_equal(tests[:, :3], cat("m1"))
+    np.testing.assert_array_equal(tests[:, 3:6], cat("m2"))
+    np.testing.assert_array_equal(tests[:, 6], cat("always"))
+    e = obj.edge_table
+    edge_tests = np.asarray(obj.e_tests).reshape(-1, 8)
+    np.testing.assert_array_equal(edge_tests[:, :3], e["m1"])
+    np.testing.assert_array_equal(edge_tests[:, 3:6], e["m2"])
+    np.testing.assert_array_equal(edge_tests[:, 6], e["always"])
+    assert e["always"].any() and not e["always"].all()  # the open box's rim, and the rest
+    assert not ends[:, 6:].any() and not tests[:, 7].any()
+
+
+def test_corner_table_holds_each_pixels_four_neighbours(mi):
+    # The clearance loss reads a pixel's distance and its right, lower and lower-right
+    # neighbours' as one packet: the same numbers as four single reads, for two holes, every
+    # pixel up to row and column N - 2 (the last row and column repeat themselves).
+    from sieve_mi.geometry.hole import Hole
+
+    n = 24
+    frame = Frame(n, 10.0)
+    yy, xx = np.mgrid[0:n, 0:n]
+    holes = [
+        Hole.from_mask((xx - 11) ** 2 + (yy - 12) ** 2 < 30, frame),
+        Hole.from_mask((np.abs(xx - 6) < 4) & (np.abs(yy - 15) < 6), frame),
+    ]
+    stack = HoleStack(holes)
+    h, r, c = (a.ravel().astype(np.uint32) for a in np.mgrid[0:2, 0 : n - 1, 0 : n - 1])
+    got = np.array(stack.gather_corners(mi.UInt32(h), mi.UInt32(r), mi.UInt32(c)))
+    dist = np.stack([hole.outside for hole in holes]).astype(np.float32) / frame.pixel_size
+    want = [dist[h, r, c], dist[h, r, c + 1], dist[h, r + 1, c], dist[h, r + 1, c + 1]]
+    np.testing.assert_array_equal(got, np.array(want, dtype=np.float32))
+    assert (got > 0).any() and (got == 0).any()  # outside and inside pixels both read
+    last = np.asarray(stack.corners).reshape(2, n, n, 4)[:, n - 1, n - 1]
+    np.testing.assert_array_equal(last, np.repeat(dist[:, n - 1, n - 1, None], 4, axis=1))
+    assert HoleStack(holes, corners=False).corners is None
