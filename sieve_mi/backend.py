@@ -29,6 +29,7 @@ __all__ = [
     "default_variant",
     "find_llvm",
     "gpu_available",
+    "process_age",
     "release_cached_memory",
     "select_rgb_variant",
     "set_threads",
@@ -275,6 +276,27 @@ def _peak_gb() -> float:
 
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return peak / 2**30 if sys.platform == "darwin" else peak / 2**20
+
+
+def process_age() -> float | None:
+    """Seconds since this process started (Python's start-up and imports included), or None
+    where the system does not say (it is read from Linux's ``/proc``, to 1/100 s).
+
+    Examples
+    --------
+    >>> age = process_age()
+    >>> age is None or age >= 0.0
+    True
+    """
+    try:
+        with open("/proc/self/stat") as fh:
+            fields = fh.read().rsplit(")", 1)[1].split()
+        with open("/proc/uptime") as fh:
+            uptime = float(fh.read().split()[0])
+        # field 22 of stat (the 20th after the command's closing bracket): start, clock ticks
+        return max(0.0, uptime - int(fields[19]) / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 class MemoryWatch:

@@ -8,6 +8,7 @@ import os
 import signal
 import sys
 import threading
+import time
 
 from sieve_mi.errors import (
     EXIT_BAD_INPUT,
@@ -230,6 +231,7 @@ def _certify_parser(sub) -> None:
 
 def cmd_solve(args) -> int:
     from sieve_mi import api as sm
+    from sieve_mi.backend import process_age
     from sieve_mi.outputs.outdir import validate
     from sieve_mi.outputs.report import input_paths, summary_table
 
@@ -240,7 +242,12 @@ def cmd_solve(args) -> int:
     from sieve_mi.shake.commands import shake_after_solve, solve_shake_settings
 
     shake = solve_shake_settings(args.shake)
+    before, startup = time.perf_counter(), process_age()
     result = sm.solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
+    if startup is not None and result.started is not None:
+        # The times count from the process's start: Python, imports and reading the scene first.
+        result.timings = {"startup_s": startup + (result.started - before), **result.timings}
+        result.started = before - startup
     report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
     if args.json:  # report.json's content, for scripts (jq); everything else on stderr
         import json

@@ -39,13 +39,26 @@ def _good_scene(write_scene, extra=""):
 
 @pytest.mark.slow
 def test_solve_writes_every_output(write_scene, tmp_path):
+    import time
+
     import mitsuba as mi
 
     scene = _good_scene(write_scene)
     out = tmp_path / "result"
+    t0 = time.perf_counter()
     p = run_cli("solve", scene, "--out", str(out), "--quiet")
+    wall = time.perf_counter() - t0
     assert "winner" in p.stdout
     report = json.loads((out / "report.json").read_text())
+    # the times count from the process's start (Python and the imports are "startup"): the
+    # stages add up to the total, which is this wall time less writing report.json and exiting
+    t = report["timings"]
+    if sys.platform.startswith("linux"):
+        assert 0.0 < t["startup_s"] < t["total_s"]
+        assert list(t)[0] == "startup_s" and "time: " in p.stdout and " = startup " in p.stdout
+    stages = sum(v for k, v in t.items() if k != "total_s")
+    assert stages == pytest.approx(t["total_s"], rel=0.05)
+    assert 0.8 * wall <= t["total_s"] <= wall
     assert p.returncode == (0 if report["winner"] == "A" else 3), p.stderr  # docs/cli.md
     for key in ("winner", "pass", "block", "settings", "timings", "pixel_size"):
         assert key in report

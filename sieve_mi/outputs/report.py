@@ -652,7 +652,8 @@ def summary_table(report: dict) -> str:
 
 #: report.json's stage timings, in the order they run, with the console's labels.
 STAGES = (
-    ("init_s", "init"), ("load_s", "load"), ("screen_s", "screen"), ("search_s", "search"),
+    ("startup_s", "startup"), ("init_s", "init"), ("load_s", "load"), ("screen_s", "screen"),
+    ("search_s", "search"),
     ("verdict_s", "verdict"), ("certify_s", "certify"), ("thin_s", "thin plate"),
     ("images_s", "images"),
     ("fabrication_s", "plate"), ("figure_s", "figure"), ("passage_s", "passage"),
