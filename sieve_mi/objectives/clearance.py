@@ -51,12 +51,7 @@ class ClearanceObjective(EdgeSampledObjective):
     hole_corners = True
     #: The Dr.Jit arrays a frozen function (:func:`drjit.freeze`) must see as its inputs.
     DRJIT_STRUCT = {
-        "a": object,
-        "d": object,
         "ends": object,
-        "m1": object,
-        "m2": object,
-        "always": object,
         "_pairs": object,
         "_pose_ends": object,
         "tests": object,

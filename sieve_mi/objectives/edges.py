@@ -256,12 +256,11 @@ class EdgeSampledObjective:
             a = np.concatenate([getattr(s, attr) for s in segs]).astype(np.float32)
             return mi.Vector3f(a[:, 0], a[:, 1], a[:, 2])
 
-        self.a = cat("a")
-        d = np.concatenate([s.b - s.a for s in segs]).astype(np.float32)
-        self.d = mi.Vector3f(d[:, 0], d[:, 1], d[:, 2])
-        ends = np.zeros((len(d), 8), dtype=np.float32)
-        ends[:, :3], ends[:, 3:6] = np.concatenate([s.a for s in segs]), d
+        ends = np.zeros((self.segment_count, 8), dtype=np.float32)
+        ends[:, :3] = np.concatenate([s.a for s in segs])
+        ends[:, 3:6] = np.concatenate([s.b - s.a for s in segs])
         self.ends = _packet_table(ends)
+        self.a, self.d = (mi.Vector3f(*ends[:, k : k + 3].T) for k in (0, 3))
         self.m1, self.m2 = cat("m1"), cat("m2")  # the overlap loss' test per segment
         self.always = mi.Bool(np.concatenate([s.always for s in segs]))
         self._edges = _edge_table(segs)
