@@ -15,6 +15,7 @@ passes the hole H iff some rotation R and in-plane translation t put proj(R B) +
 
 from __future__ import annotations
 
+import numbers
 import time
 
 import manifold3d
@@ -43,6 +44,21 @@ def union_of_holes(holes: list[manifold3d.CrossSection]) -> manifold3d.CrossSect
     if hole.is_empty() or hole.area() <= 0:
         raise SieveError("the hole is empty")
     return hole
+
+
+def _check_arguments(shape, holes, budget_s) -> None:
+    """One-line SieveErrors for arguments of the wrong kind (as the CLI refuses them)."""
+    if not isinstance(shape, Shape):
+        raise SieveError(
+            f"certify: shape must be a Shape (sieve_mi.load_shape), not {type(shape).__name__}"
+        )
+    if not isinstance(holes, (list, tuple)) or not all(
+        isinstance(h, manifold3d.CrossSection) for h in holes
+    ):
+        raise SieveError("certify: holes must be a list of manifold3d.CrossSection")
+    number = isinstance(budget_s, numbers.Real) and not isinstance(budget_s, (bool, np.bool_))
+    if not (number and 0 < budget_s < float("inf")):
+        raise SieveError(f"budget {budget_s!r}: must be a positive number of seconds")
 
 
 def certify(
@@ -77,8 +93,7 @@ def certify(
         ``status`` "proved", "passage" or "undecided", with timings, cell counts, the excluded
         fraction, the passage pose if any, and the certificate (``write_certificate``).
     """
-    if not (budget_s > 0 and np.isfinite(budget_s)):
-        raise SieveError(f"budget {budget_s}: must be a positive number of seconds")
+    _check_arguments(shape, holes, budget_s)
     t0 = time.perf_counter()
     settings = Settings(**{**(settings or Settings()).__dict__, "budget_s": budget_s})
     if settings.bound not in ("first-order", "isotropic"):

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,8 +39,11 @@ from sieve_mi.geometry.meshes import Shape, mesh_sha256
 __all__ = [
     "Certification",
     "FORMAT",
+    "REQUIRED",
     "build",
+    "is_certificate",
     "mesh_hash",
+    "read_certificate_file",
     "tree_to_dict",
     "writable_certificate",
 ]
@@ -113,61 +117,138 @@ class Certification:
         }
 
     def write_certificate(self, path: str, inputs: tuple[str, ...] = ()) -> None:
-        """Write the certificate (JSON) to ``path``, atomically (a temporary file, then renamed).
+        """Write the certificate (JSON) to ``path``, atomically.
 
         ``path`` is checked first with :func:`writable_certificate` (never a file sieve-mi did
-        not write, never one of ``inputs``); a failed write leaves no temporary file behind.
+        not write, never one of ``inputs``). The JSON goes to a new temporary file in the same
+        folder (created exclusively, so no file of the user's is touched), is flushed to disk and
+        then renamed over ``path`` (``os.replace``): an interrupted or failed write leaves
+        ``path`` as it was and no temporary file behind.
+
+        Raises
+        ------
+        SieveError
+            If ``path`` is refused or cannot be written.
         """
         writable_certificate(path, inputs)
-        tmp = f"{path}.tmp{os.getpid()}"
+        folder = os.path.dirname(os.path.abspath(path))
         try:
-            with open(tmp, "w") as fh:
+            fd, tmp = tempfile.mkstemp(
+                prefix=f".{os.path.basename(path)}.", suffix=".tmp", dir=folder
+            )
+        except OSError as e:
+            raise SieveError(
+                f"--certificate {path}: cannot write the certificate ({e.strerror})"
+            ) from None
+        try:
+            with os.fdopen(fd, "w") as fh:
                 json.dump(self.certificate, fh)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.chmod(tmp, _new_file_mode())
             os.replace(tmp, path)
         except OSError as e:
-            raise SieveError(f"{path}: cannot write the certificate ({e.strerror})") from None
+            raise SieveError(
+                f"--certificate {path}: cannot write the certificate ({e.strerror})"
+            ) from None
         finally:
-            if os.path.exists(tmp):
+            if os.path.lexists(tmp):
                 os.remove(tmp)
 
 
-def _is_certificate(path: str) -> bool:
-    """Whether the file at ``path`` is a certificate sieve-mi wrote (its JSON names :data:`FORMAT`)."""
-    try:
-        with open(path, encoding="utf-8") as fh:
-            head = fh.read(4096)
-            if f'"format": "{FORMAT}"' not in head and f'"format":"{FORMAT}"' not in head:
-                return json.loads(head + fh.read()).get("format") == FORMAT
-            return True
-    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+def _new_file_mode() -> int:
+    """The permission bits ``open(path, "w")`` would give a new file (0o666 less the umask)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+#: The keys every certificate has, at the top level and in ``shape`` and ``settings`` (those of
+#: the first certificates too: ``on_edge`` and ``settings.bound`` came later).
+REQUIRED = {
+    "": ("format", "status", "shape", "hole", "symmetry", "root", "tree", "settings", "passage"),
+    "shape": ("sha256", "vertices", "faces", "points"),
+    "settings": ("kappa", "directions"),
+}
+
+
+def is_certificate(data) -> bool:
+    """Whether parsed JSON ``data`` is a sieve-mi certificate: a JSON object whose top-level
+    ``format`` is :data:`FORMAT` and that has a certificate's structure (the keys of
+    :data:`REQUIRED`; ``shape`` and ``settings`` objects, ``hole`` and ``tree`` lists).
+
+    A file is recognised only by parsing it, never by a string it contains: a note that quotes
+    the format line, or a JSON collection holding a certificate, is not a certificate.
+    """
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
         return False
+    if not all(k in data for k in REQUIRED[""]):
+        return False
+    for part in ("shape", "settings"):
+        if not isinstance(data[part], dict) or not all(k in data[part] for k in REQUIRED[part]):
+            return False
+    return isinstance(data["hole"], list) and isinstance(data["tree"], list)
+
+
+def read_certificate_file(path: str):
+    """The parsed JSON of the file at ``path``, or None when it is not JSON text.
+
+    Only a file whose first non-blank character is ``{`` is parsed (a binary file, a note or a
+    mesh is never read whole); too deep a nesting or too long an integer reads as not JSON.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(64).lstrip()
+            if not head.startswith(b"{"):
+                return None
+            fh.seek(0)
+            return json.loads(fh.read().decode("utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError, MemoryError):
+        return None
 
 
 def writable_certificate(path: str, inputs: tuple[str, ...] = ()) -> None:
     """Refuse, in one line, a certificate path that writing would lose data at.
 
-    The same rule as ``--out``: sieve-mi replaces only a certificate it wrote itself, never one of
-    the run's ``inputs`` (mesh, plate, SVG), a folder, or any other file.
+    The same rule as ``--out``: sieve-mi replaces only a certificate it wrote itself (recognised
+    by parsing it, :func:`is_certificate`), never one of the run's ``inputs`` (mesh, plate, SVG),
+    a folder, a symbolic link, a read-only file, any other file, or a file in a folder it cannot
+    write to. Called before any work and again just before the write.
 
     Raises
     ------
     SieveError
     """
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise SieveError(f"--certificate {path!r}: name a file (e.g. cert.json)")
+    path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path):
-        raise SieveError(f"--certificate {path}: is a folder; name a file (e.g. {path}/cert.json)")
+    if os.path.isdir(path) or path.endswith((os.sep, "/")):
+        example = os.path.join(path.rstrip("/" + os.sep) or os.sep, "cert.json")
+        raise SieveError(f"--certificate {path}: is a folder; name a file (e.g. {example})")
+    if os.path.islink(path):
+        raise SieveError(f"--certificate {path}: is a symbolic link; name a regular file")
     if not os.path.isdir(folder):
         raise SieveError(f"--certificate {path}: its folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise SieveError(f"--certificate {path}: its folder {folder} is not writable")
     if not os.path.lexists(path):
         return
+    _existing_is_replaceable(path, inputs)
+
+
+def _existing_is_replaceable(path: str, inputs: tuple[str, ...]) -> None:
+    """Refuse an existing ``path`` unless it is a writable certificate that is no input."""
     for given in inputs:
         if given and os.path.exists(given) and os.path.samefile(path, given):
             raise SieveError(f"--certificate {path}: is an input of this run; name another file")
-    if not os.path.isfile(path) or not _is_certificate(path):
+    if not os.path.isfile(path) or not is_certificate(read_certificate_file(path)):
         raise SieveError(
             f"--certificate {path}: exists and is not a sieve-mi certificate; name another file "
             "(sieve-mi never overwrites a file it did not write)"
         )
+    if not os.access(path, os.W_OK):
+        raise SieveError(f"--certificate {path}: is read-only; name another file")
 
 
 def tree_to_dict(node) -> dict:

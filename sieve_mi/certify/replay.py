@@ -5,6 +5,9 @@ certificate's contours, distances are exact point-to-segment distances computed 
 polygon is matplotlib's ``Path`` (even-odd over the contours), and the distance to the mesh for the
 ball evidence is trimesh's ``triangles.closest_point``. The replay
 
+0. checks the structure (:func:`check_structure`: every field's type and shape, every number
+   finite and at most :data:`MAX_COORDINATE`, every index in range; a SieveError naming the
+   field otherwise);
 1. checks that the stored mesh matches its hash (and the file at ``shape.path``, when present) and
    that every evidence point is a vertex of the mesh or lies on one of its edges (recomputed here
    from the edge and its parameter; edge points only without a symmetry reduction);
@@ -22,7 +25,12 @@ ball evidence is trimesh's ``triangles.closest_point``. The replay
    bound of the shape's radius), ``ball`` evidence by the winding number, the distance to the mesh
    and a quadtree showing that no disk of the ball's radius fits in H;
 5. checks a claimed passage: every vertex inside H, no projected edge crossing H's boundary, and no
-   vertex of H inside a projected triangle.
+   vertex of H inside a projected triangle;
+6. re-derives the ``status`` from what steps 1-5 showed (a ball root or every cell excluded:
+   proved; a passage that fits: passage; open cells and no passage: undecided) and rejects a
+   claimed status that differs, or claims that contradict (a ball proof with a passage or a cell
+   tree, a passage where every cell is excluded). Every rejection lists at least one error, each
+   starting with the field it concerns.
 """
 
 from __future__ import annotations
@@ -38,6 +46,8 @@ import numpy as np
 from sieve_mi.errors import SieveError
 
 __all__ = [
+    "MAX_COORDINATE",
+    "MAX_DIRECTIONS",
     "MAX_ERRORS",
     "Hole",
     "MAX_BOXES",
@@ -49,6 +59,8 @@ __all__ = [
     "no_translation",
     "points_in_triangles",
     "quaternion",
+    "STATUSES",
+    "check_structure",
     "replay",
     "rotation",
     "segments_cross",
@@ -269,7 +281,7 @@ class Replay:
         self.kappa = float(cert["settings"]["kappa"])
         self.bound = cert["settings"].get("bound", "isotropic")
         if self.bound not in ("isotropic", "first-order"):
-            self.errors.append(f"unknown displacement bound {self.bound!r}")
+            self.errors.append(f"settings.bound: unknown displacement bound {self.bound!r}")
         m = int(cert["settings"]["directions"])
         a = np.pi * np.arange(m) / m
         self.dirs = np.column_stack([np.cos(a), np.sin(a)])
@@ -281,20 +293,18 @@ class Replay:
         h.update(np.ascontiguousarray(self.vertices).tobytes())
         h.update(np.ascontiguousarray(self.faces).tobytes())
         if h.hexdigest() != self.cert["shape"]["sha256"]:
-            self.errors.append("the stored mesh does not match its sha256")
+            self.errors.append("shape.sha256: does not match the stored mesh (vertices, faces)")
         path = self.cert["shape"].get("path", "")
         if path and os.path.isfile(path):
-            from sieve_mi.geometry.meshes import load_shape
-
-            s = load_shape(path, scale=float(self.cert["shape"].get("scale", 1.0)))
-            if not (
+            s = self._load_mesh(path)
+            if s is not None and not (
                 np.array_equal(s.vertices, self.vertices) and np.array_equal(s.faces, self.faces)
             ):
-                self.errors.append(f"{path} differs from the certificate's mesh")
+                self.errors.append(f"shape.path: {path} differs from the certificate's mesh")
         known = {tuple(v) for v in self.vertices[np.unique(self.faces)]}
         refs = self.cert["shape"].get("on_edge") or [None] * len(self.points)
         if len(refs) != len(self.points):
-            self.errors.append("on_edge does not have one entry per point")
+            self.errors.append("shape.on_edge: not one entry per point")
             return
         bad = [
             i
@@ -302,7 +312,19 @@ class Replay:
             if not self._on_mesh(i, p, r, known)
         ]
         if bad:
-            self.errors.append(f"points {bad[:5]} are neither vertices nor on edges of the mesh")
+            self.errors.append(
+                f"shape.points: points {bad[:5]} are neither vertices nor on edges of the mesh"
+            )
+
+    def _load_mesh(self, path: str):
+        """The mesh file the certificate names, or None (and an error) when it cannot be read."""
+        from sieve_mi.geometry.meshes import load_shape
+
+        try:
+            return load_shape(path, scale=float(self.cert["shape"].get("scale", 1.0)))
+        except SieveError as exc:
+            self.errors.append(f"shape.path: {exc}")
+            return None
 
     def _on_mesh(self, k: int, p: np.ndarray, ref, known: set) -> bool:
         """Whether point k is a vertex, or lies on the mesh edge ``ref`` = [i, j, lam] (then its
@@ -334,13 +356,15 @@ class Replay:
             ],
         }
         if group not in ("none", "klein", "octahedral"):
-            self.errors.append(f"unknown symmetry {group!r}")
+            self.errors.append(f"symmetry: unknown group {group!r}")
             return [0, 1, 2, 3], 1.0
         verts = self.vertices[np.unique(self.faces)]
         known = set(map(tuple, verts))
         for m in turns.get(group, []):
             if set(map(tuple, verts @ m.T)) != known:
-                self.errors.append(f"the mesh is not symmetric under the claimed {group} group")
+                self.errors.append(
+                    f"symmetry: the mesh is not symmetric under the claimed {group} group"
+                )
                 break
         if group == "none":
             return [0, 1, 2, 3], 1.0
@@ -369,11 +393,15 @@ class Replay:
             if ref is not None:
                 e = frozenset((tuple(v[int(ref[0])]), tuple(v[int(ref[1])])))
                 if e not in closed:
-                    self.errors.append("an edge point on an edge the symmetry does not preserve")
+                    self.errors.append(
+                        "shape.on_edge: a point on an edge the symmetry does not preserve"
+                    )
                     return
 
     def check_leaf(self, face: int, lo: np.ndarray, hi: np.ndarray, ev: dict) -> bool:
         """Re-prove one excluded cell from its evidence."""
+        if not isinstance(ev, dict) or not isinstance(ev.get("points"), list):
+            return False
         idx = np.asarray(ev.get("points", []), dtype=np.int64)
         if len(idx) == 0 or idx.min() < 0 or idx.max() >= len(self.points):
             return False
@@ -405,12 +433,15 @@ class Replay:
         """
         if len(self.errors) >= MAX_ERRORS:
             return
-        if depth > 60:
-            self.errors.append("the cell tree is deeper than 60 levels")
+        if not isinstance(node, dict):
+            self.errors.append(f"tree: a node at depth {depth} is not an object")
+        elif depth > 60:
+            self.errors.append("tree: deeper than 60 levels")
         elif "c" in node:
             kids = node["c"]
             if not isinstance(kids, list) or len(kids) != 8:
-                self.errors.append(f"a split cell at depth {depth} has {len(kids)} children, not 8")
+                n = len(kids) if isinstance(kids, list) else "no list of"
+                self.errors.append(f"tree: a split cell at depth {depth} has {n} children, not 8")
                 return
             mid = 0.5 * (lo + hi)
             for c, kid in enumerate(kids):
@@ -420,7 +451,7 @@ class Replay:
             self.leaves += 1
             if not self.check_leaf(face, lo, hi, node["e"]):
                 self.errors.append(
-                    f"leaf face {face} box {lo.tolist()}..{hi.tolist()}: evidence does not hold"
+                    f"tree: leaf face {face} box {lo.tolist()}..{hi.tolist()}: evidence does not hold"
                 )
         else:
             self.open += 1
@@ -432,21 +463,21 @@ class Replay:
         mesh = trimesh.Trimesh(self.vertices, self.faces, process=False)
         centre, rho = np.asarray(root["centre"], dtype=np.float64), float(root["radius"])
         if not (mesh.is_watertight and mesh.is_winding_consistent):
-            self.errors.append("ball evidence needs a closed, consistently oriented mesh")
+            self.errors.append("root: ball evidence needs a closed, consistently oriented mesh")
             return
         tri = self.vertices[self.faces]
         foot = trimesh.triangles.closest_point(tri, np.repeat(centre[None], len(tri), axis=0))
         if not np.linalg.norm(foot - centre, axis=1).min() >= rho:
-            self.errors.append(f"the ball of radius {rho} is not inside the mesh")
+            self.errors.append(f"root.radius: the ball of radius {rho} is not inside the mesh")
         a = self.vertices[self.faces] - centre
         la, lb, lc = np.linalg.norm(a, axis=2).T
         triple = np.einsum("ij,ij->i", a[:, 0], np.cross(a[:, 1], a[:, 2]))
         den = la * lb * lc + lc * (a[:, 0] * a[:, 1]).sum(1)
         den += la * (a[:, 1] * a[:, 2]).sum(1) + lb * (a[:, 2] * a[:, 0]).sum(1)
         if abs(np.arctan2(triple, den).sum() / (2 * np.pi)) < 0.5:
-            self.errors.append("the ball's centre is not enclosed by the mesh")
+            self.errors.append("root.centre: the ball's centre is not enclosed by the mesh")
         if not disk_never_fits(self.hole, rho):
-            self.errors.append(f"a disk of radius {rho} may fit in the hole")
+            self.errors.append(f"root.radius: a disk of radius {rho} may fit in the hole")
 
     def check_passage(self, passage: dict) -> None:
         """The pose puts the exact projection inside H."""
@@ -505,43 +536,49 @@ def points_in_triangles(points: np.ndarray, tri: np.ndarray) -> bool:
 MAX_ERRORS = 10
 
 
+#: The claims a certificate can make.
+STATUSES = ("proved", "passage", "undecided")
+
+
 def replay(source) -> dict:
     """Re-check a certificate (a path or the loaded dict) independently of the search.
+
+    Every claimed field is re-derived from the evidence: the mesh from its hash (and the file at
+    ``shape.path``), the symmetry from the mesh, each leaf, the ball and the passage by their own
+    tests, and the ``status`` from what the evidence shows (a ball proof or a complete tree of
+    excluded cells: proved; a passage that fits: passage; open cells and no passage: undecided).
+    A claim the evidence does not support makes the certificate invalid, with an error naming the
+    field; an invalid certificate always has at least one error.
 
     Returns
     -------
     dict
-        ``valid`` (every check passed and the tree is complete), ``proved`` (valid and the claim is
-        a proof with no open cell), ``status`` claimed, ``leaves`` re-proved, ``open`` cells,
+        ``valid`` (every check passed and the claimed status is the one the evidence shows),
+        ``proved`` (valid and proved), ``status`` claimed, ``leaves`` re-proved, ``open`` cells,
         ``errors`` (the first 10 problems) and ``seconds``.
 
     Raises
     ------
     SieveError
-        If the file cannot be read or is not a sieve-mi certificate.
+        If ``source`` is not a path or a dict, the file cannot be read, or it is not a
+        well-formed sieve-mi certificate (a missing key, a wrong type, a number that is not
+        finite or is out of range); one line naming the field.
     """
     t0 = time.perf_counter()
-    cert = _load(source)
+    where = _where(source)
+    cert = _load(source, where)
+    check_structure(cert, where)
     try:
-        r = Replay(cert)
-        r.check_mesh()
-        faces, half = r.check_symmetry()
-        if cert.get("root"):
-            r.check_ball(cert["root"])
-        elif len(cert["tree"]) != len(faces):
-            r.errors.append(f"the tree has {len(cert['tree'])} roots, the domain {len(faces)}")
-        else:
-            for face, node in zip(faces, cert["tree"]):
-                r.walk(node, face, np.full(3, -half), np.full(3, half))
-        if cert.get("passage"):
-            r.check_passage(cert["passage"])
-    except (KeyError, TypeError, ValueError, IndexError) as exc:
-        raise SieveError(f"malformed certificate ({type(exc).__name__}: {exc})") from None
-    status = cert.get("status")
-    valid = not r.errors and (status != "proved" or r.open == 0)
+        r = _run_checks(cert)
+    except (KeyError, TypeError, ValueError, IndexError, OverflowError, AttributeError) as exc:
+        raise SieveError(f"{where}: malformed certificate ({type(exc).__name__}: {exc})") from None
+    except RecursionError:
+        raise SieveError(f"{where}: malformed certificate (nested too deeply)") from None
+    status = cert["status"]
+    r.errors[:0] = _status_errors(cert, r)  # first, so that they are among those reported
     return {
-        "valid": valid,
-        "proved": valid and status == "proved" and r.open == 0,
+        "valid": not r.errors,
+        "proved": not r.errors and status == "proved",
         "status": status,
         "leaves": r.leaves,
         "open": r.open,
@@ -550,19 +587,228 @@ def replay(source) -> dict:
     }
 
 
-def _load(source) -> dict:
+def _run_checks(cert: dict) -> Replay:
+    """Every check of the evidence (module docstring, steps 1-5); the problems in ``errors``."""
+    r = Replay(cert)
+    r.check_mesh()
+    faces, half = r.check_symmetry()
+    if cert["root"]:
+        r.check_ball(cert["root"])
+        if cert["tree"]:
+            r.errors.append("tree: a ball proof (root) has no cell tree")
+    elif len(cert["tree"]) != len(faces):
+        r.errors.append(
+            f"tree: {len(cert['tree'])} roots, the {cert['symmetry']} domain has {len(faces)}"
+        )
+    else:
+        for face, node in zip(faces, cert["tree"]):
+            r.walk(node, face, np.full(3, -half), np.full(3, half))
+    if cert["passage"]:
+        r.check_passage(cert["passage"])
+    return r
+
+
+def _status_errors(cert: dict, r: Replay) -> list[str]:
+    """The claimed ``status`` against the one the evidence shows, and claims that contradict.
+
+    Evidence shows: a ball root, proved; else a passage, passage; else open cells, undecided;
+    else (every cell of the domain excluded), proved. Open cells are counted only by a walk
+    without errors, so with other errors only the claims themselves are compared.
+    """
+    claim, errors = cert["status"], []
+    if claim not in STATUSES:
+        errors.append(f"status: {claim!r} is not one of {', '.join(STATUSES)}")
+    if cert["root"] and cert["passage"]:
+        errors.append("passage: a ball proof (root) and a passage contradict each other")
+    if errors or r.errors:
+        return errors
+    if cert["passage"] and not r.open:
+        return ["passage: every cell of the tree is excluded, yet a passage is claimed"]
+    if cert["root"]:
+        shown, why = "proved", "a ball proof at the root"
+    elif cert["passage"]:
+        shown, why = "passage", "a passage pose that fits"
+    elif r.open:
+        shown, why = "undecided", f"open cells: {r.open}, and no passage"
+    else:
+        shown, why = "proved", "every cell of the domain excluded"
+    if claim != shown:
+        errors.append(f"status: claims {claim}, but the evidence shows {shown} ({why})")
+    return errors
+
+
+#: Largest magnitude of a coordinate, radius or translation in a certificate (scene units).
+MAX_COORDINATE = 1e12
+#: Most width directions a certificate may name (the search uses 36).
+MAX_DIRECTIONS = 100_000
+
+
+def _where(source) -> str:
+    if isinstance(source, dict):
+        return "certificate"
+    if isinstance(source, (str, os.PathLike)):
+        return os.fspath(source)
+    raise SieveError(f"certificate: expected a file path or a dict, got {type(source).__name__}")
+
+
+def _load(source, where: str) -> dict:
+    """The certificate as a dict; SieveError unless it is a sieve-mi certificate (parsed)."""
+    from sieve_mi.certify.certificate import FORMAT, is_certificate
+
     if isinstance(source, dict):
         cert = source
     else:
-        if not os.path.isfile(source):
-            raise SieveError(f"{source}: certificate not found")
-        try:
-            with open(source) as fh:
-                cert = json.load(fh)
-        except (OSError, ValueError) as exc:
-            raise SieveError(f"{source}: not a readable JSON certificate ({exc})") from None
-    if not isinstance(cert, dict) or cert.get("format") != "sieve-mi-certificate/1":
+        cert = _read_json(where)
+    if not is_certificate(cert):
+        if isinstance(cert, dict) and cert.get("format") == FORMAT:
+            missing = _missing_key(cert)
+            raise SieveError(f"{where}: not a sieve-mi certificate ({missing})")
         raise SieveError(
-            f"{source if isinstance(source, str) else 'certificate'}: not a sieve-mi certificate"
+            f'{where}: not a sieve-mi certificate (a JSON object whose "format" is {FORMAT!r})'
         )
     return cert
+
+
+def _read_json(path: str):
+    if not os.path.exists(path):
+        raise SieveError(f"{path}: certificate not found")
+    if not os.path.isfile(path):
+        raise SieveError(f"{path}: is not a regular file; name a certificate file")
+    try:
+        with open(path, encoding="utf-8") as fh:
+            return json.load(fh)
+    except RecursionError:
+        raise SieveError(f"{path}: not a readable JSON certificate (nested too deeply)") from None
+    except (OSError, ValueError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if "integer string conversion" in first:
+            first = "an integer with too many digits"
+        raise SieveError(f"{path}: not a readable JSON certificate ({first})") from None
+
+
+def _missing_key(cert: dict) -> str:
+    from sieve_mi.certify.certificate import REQUIRED
+
+    for part, keys in REQUIRED.items():
+        block = cert if not part else cert.get(part)
+        if not isinstance(block, dict):
+            return f"{part} is not an object"
+        for k in keys:
+            if k not in block:
+                return f"no key {(part + '.' if part else '') + k!r}"
+    return "hole and tree must be lists"
+
+
+def check_structure(cert: dict, where: str = "certificate") -> None:
+    """Types, shapes and ranges of every field the replay reads (before any geometry).
+
+    Raises
+    ------
+    SieveError
+        One line naming the field: not a string, not an array of the right shape, a number not
+        finite or above :data:`MAX_COORDINATE`, an index out of range.
+    """
+    shape, settings = cert["shape"], cert["settings"]
+    for key, value in (("status", cert["status"]), ("symmetry", cert["symmetry"]),
+                       ("shape.sha256", shape["sha256"])):  # fmt: skip
+        if not isinstance(value, str):
+            raise SieveError(f"{where}: {key} must be a string, not {type(value).__name__}")
+    for key in ("path", "name"):
+        if not isinstance(shape.get(key, ""), str):
+            raise SieveError(f"{where}: shape.{key} must be a string")
+    vertices = _numbers(shape["vertices"], "shape.vertices", (-1, 3), where)
+    faces = _indices(shape["faces"], "shape.faces", (-1, 3), len(vertices), where)
+    if len(vertices) == 0 or len(faces) == 0:
+        raise SieveError(f"{where}: shape: the mesh has no vertices or no faces")
+    _numbers(shape["points"], "shape.points", (-1, 3), where, allow_empty=True)
+    _check_on_edge(shape.get("on_edge"), len(vertices), where)
+    if "scale" in shape:
+        _positive(shape["scale"], "shape.scale", where)
+    if not cert["hole"]:
+        raise SieveError(f"{where}: hole: no contour")
+    for i, c in enumerate(cert["hole"]):
+        if len(_numbers(c, f"hole[{i}]", (-1, 2), where)) < 3:
+            raise SieveError(f"{where}: hole[{i}]: a contour needs at least 3 points")
+    _positive(settings["kappa"], "settings.kappa", where)
+    d = settings["directions"]
+    if isinstance(d, bool) or not isinstance(d, int) or not 1 <= d <= MAX_DIRECTIONS:
+        raise SieveError(f"{where}: settings.directions must be an integer in 1..{MAX_DIRECTIONS}")
+    if not isinstance(settings.get("bound", "isotropic"), str):
+        raise SieveError(f"{where}: settings.bound must be a string")
+    _check_root_and_passage(cert, where)
+
+
+def _check_root_and_passage(cert: dict, where: str) -> None:
+    root, passage = cert["root"], cert["passage"]
+    if root is not None and not isinstance(root, dict):
+        raise SieveError(f"{where}: root must be null or an object")
+    if root:
+        if root.get("kind", "ball") != "ball":
+            raise SieveError(f"{where}: root.kind {root.get('kind')!r}: only 'ball' is known")
+        _numbers(root.get("centre"), "root.centre", (3,), where)
+        _positive(root.get("radius"), "root.radius", where)
+    if passage is not None and not isinstance(passage, dict):
+        raise SieveError(f"{where}: passage must be null or an object")
+    if passage:
+        q = _numbers(passage.get("quaternion"), "passage.quaternion", (4,), where)
+        _numbers(passage.get("translation"), "passage.translation", (2,), where)
+        if not np.linalg.norm(q) > 1e-12:
+            raise SieveError(f"{where}: passage.quaternion is zero, not a rotation")
+
+
+def _check_on_edge(refs, n_vertices: int, where: str) -> None:
+    if refs is None:
+        return
+    if not isinstance(refs, list):
+        raise SieveError(f"{where}: shape.on_edge must be a list")
+    for k, ref in enumerate(refs):
+        if ref is None:
+            continue
+        ok = isinstance(ref, list) and len(ref) == 3
+        ok = ok and all(isinstance(i, int) and not isinstance(i, bool) for i in ref[:2])
+        ok = ok and all(0 <= i < n_vertices for i in ref[:2])
+        ok = ok and isinstance(ref[2], (int, float)) and abs(ref[2]) <= MAX_COORDINATE
+        if not ok:
+            raise SieveError(
+                f"{where}: shape.on_edge[{k}] must be null or [i, j, lam] with vertex indices i, j"
+            )
+
+
+def _numbers(value, key: str, shape: tuple, where: str, allow_empty: bool = False) -> np.ndarray:
+    """``value`` as a float64 array of ``shape`` (-1: any length), finite and bounded."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise SieveError(f"{where}: {key} must be an array of numbers") from None
+    if allow_empty and a.size == 0:
+        return a.reshape(0, *shape[1:])
+    if a.ndim != len(shape) or any(n != -1 and n != m for n, m in zip(shape, a.shape)):
+        want = " x ".join("n" if n == -1 else str(n) for n in shape)
+        raise SieveError(f"{where}: {key} must be an array of {want} numbers")
+    if not np.all(np.isfinite(a)) or np.any(np.abs(a) > MAX_COORDINATE):
+        raise SieveError(
+            f"{where}: {key} holds a number that is not finite or exceeds {MAX_COORDINATE:g}"
+        )
+    return a
+
+
+def _indices(value, key: str, shape: tuple, n: int, where: str) -> np.ndarray:
+    """``value`` as an int64 array of ``shape``, every entry in [0, n)."""
+    try:
+        a = np.asarray(value)
+        ok = a.dtype.kind in "iu" and a.ndim == len(shape) and a.shape[1:] == shape[1:]
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok:
+        raise SieveError(f"{where}: {key} must be an array of n x 3 integer indices")
+    if a.size and (a.min() < 0 or a.max() >= n):
+        raise SieveError(f"{where}: {key}: an index is outside 0..{n - 1}")
+    return a.astype(np.int64)
+
+
+def _positive(value, key: str, where: str) -> float:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if not (ok and 0 < value <= MAX_COORDINATE):  # NaN fails; no float() of a huge int
+        shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
+        raise SieveError(f"{where}: {key} must be a positive finite number, not {shown}")
+    return float(value)
