@@ -29,11 +29,14 @@ __all__ = [
     "default_variant",
     "find_llvm",
     "gpu_available",
+    "max_threads",
     "process_age",
     "release_cached_memory",
     "select_rgb_variant",
     "set_threads",
+    "stop_workers",
     "use_variant",
+    "worker_pool",
 ]
 
 #: Variants sieve-mi supports: CPU (LLVM) and GPU (CUDA), both monochrome with autodiff.
@@ -186,6 +189,31 @@ def select_rgb_variant(mi, before: str | None) -> str:
     return before
 
 
+def max_threads() -> int:
+    """The most CPU threads sieve-mi gives Dr.Jit: this machine's cores times four.
+
+    More threads than that only slow the kernels down, and a count in the millions makes the
+    thread pool spend minutes creating threads (during which the process cannot stop).
+
+    Examples
+    --------
+    >>> max_threads() == 4 * (os.cpu_count() or 1)
+    True
+    """
+    return 4 * (os.cpu_count() or 1)
+
+
+def _thread_count(value, say: str) -> int:
+    """``value`` as a thread count in [1, :func:`max_threads`]; ``say`` names it in the error."""
+    top = max_threads()
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
+        raise SieveError(
+            f"{say}: must be a whole number from 1 to {top} (four per core on this machine's "
+            f"{os.cpu_count() or 1} cores)"
+        )
+    return value
+
+
 def set_threads(count) -> None:
     """Run Dr.Jit's CPU kernels on ``count`` threads (``--threads N``; Mitsuba's ``-t``).
 
@@ -195,35 +223,150 @@ def set_threads(count) -> None:
     Parameters
     ----------
     count : int
-        At least 1.
+        From 1 to :func:`max_threads`.
 
     Raises
     ------
     SieveError
-        If ``count`` is not a whole number of at least 1.
+        If ``count`` is not a whole number in that range.
     """
-    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-        raise SieveError(f"--threads {count}: must be a whole number of at least 1")
+    count = _thread_count(count, f"--threads {str(count)[:40]}")
     os.environ[THREADS_ENV] = str(count)
     apply_threads()
 
 
 def apply_threads() -> int | None:
-    """Apply ``$SIEVE_MI_THREADS`` (set by :func:`set_threads`) to Dr.Jit; return it (None: unset)."""
+    """Apply ``$SIEVE_MI_THREADS`` (set by :func:`set_threads`) to Dr.Jit; return it (None: unset).
+
+    Raises
+    ------
+    SieveError
+        If the variable is not a whole number from 1 to :func:`max_threads`.
+    """
     text = os.environ.get(THREADS_ENV)
     if not text:
         return None
-    try:
-        count = int(text)
-    except ValueError:
-        raise SieveError(f"{THREADS_ENV}={text}: must be a whole number of at least 1") from None
-    if count < 1:
-        raise SieveError(f"{THREADS_ENV}={text}: must be a whole number of at least 1")
+    digits = text.strip()
+    count = int(digits) if digits.isdigit() and len(digits) <= 18 else None
+    count = _thread_count(count, f"{THREADS_ENV}={text[:40]}")
     configure_llvm()
     import drjit as dr
 
     dr.set_thread_count(count)
     return count
+
+
+#: Linux ``prctl`` option: the signal a process gets when its parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+def _start_worker(initializer, initargs) -> None:
+    """First thing a pool's worker process runs: its signals, then ``initializer(*initargs)``.
+
+    The parent stops its workers itself (:func:`worker_pool`), so a worker ignores Ctrl-C (sent
+    to the whole terminal's process group), dies quietly on SIGTERM or SIGHUP (no traceback of
+    the handler it inherited by fork), and on Linux is killed when its parent dies, even by
+    SIGKILL (``PR_SET_PDEATHSIG``): no orphan keeps computing after its run has ended.
+    """
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for name in ("SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_DFL)
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL))
+    if initializer is not None:
+        initializer(*initargs)
+
+
+def stop_workers(pool) -> None:
+    """Kill a :class:`~concurrent.futures.ProcessPoolExecutor`'s workers now; wait for none.
+
+    ``shutdown(wait=True)`` (what leaving a ``with`` block does) waits for every submitted job,
+    which after an interrupt may be many minutes of proofs or searches. The workers compute
+    only (they write no file), so they are killed, pending jobs are cancelled, and the dead
+    processes are reaped (at most a second each).
+    """
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    for proc in processes:
+        with contextlib.suppress(Exception):
+            proc.kill()
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in processes:
+        with contextlib.suppress(Exception):
+            proc.join(timeout=1.0)
+
+
+@contextlib.contextmanager
+def worker_pool(workers: int, *, method: str = "fork", initializer=None, initargs=(), what: str):
+    """A process pool whose workers stop at once when the block is left by an exception.
+
+    Every process pool of sieve-mi is made here, so an interrupt (Ctrl-C, SIGTERM, SIGHUP) or an
+    error ends the workers within seconds instead of waiting for their jobs, and a worker that
+    dies (a crash in a native library) becomes one line instead of ``BrokenProcessPool``.
+
+    Parameters
+    ----------
+    workers : int
+        Number of worker processes (at least 1).
+    method : str
+        :mod:`multiprocessing` start method: ``"fork"`` (cheap; the parent's modules are
+        there) or ``"forkserver"`` (a clean process, for libraries that do not survive a fork
+        of a process with threads).
+    initializer, initargs
+        Run once in each worker, after its signals are set (:func:`_start_worker`).
+    what : str
+        What the workers do, for the message when one dies ("thin-plate search").
+
+    Yields
+    ------
+    concurrent.futures.ProcessPoolExecutor
+
+    Raises
+    ------
+    SieveError
+        A worker process died (its exit signal named).
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    pool = ProcessPoolExecutor(
+        max(1, int(workers)),
+        mp_context=multiprocessing.get_context(method),
+        initializer=_start_worker,
+        initargs=(initializer, tuple(initargs)),
+    )
+    try:
+        yield pool
+    except BrokenProcessPool:
+        codes = [p.exitcode for p in (getattr(pool, "_processes", None) or {}).values()]
+        stop_workers(pool)
+        raise SieveError(
+            f"a {what} worker process died ({_exit_words(codes)}); this is a bug in sieve-mi or "
+            "a library it uses: please report it with the input files"
+        ) from None
+    except BaseException:
+        stop_workers(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _exit_words(codes) -> str:
+    """How worker processes ended, in words: ``"signal SIGSEGV"`` or ``"exit code 1"``."""
+    import signal
+
+    for code in codes:
+        if code is not None and code < 0:
+            with contextlib.suppress(ValueError):
+                return f"signal {signal.Signals(-code).name}"
+        if code:
+            return f"exit code {code}"
+    return "no exit status"
 
 
 @contextlib.contextmanager

@@ -165,15 +165,18 @@ def _settings(parser, cls: type, *names: str, flags: dict | None = None) -> None
 
 def _given_as(kind: type):
     """argparse's ``type`` for a setting of ``kind``: the text as an int or float where it is
-    one, else the text itself, which :func:`_check_settings` then refuses in one line."""
+    one (``2.0`` for an int as a float, which is 2, as in a scene file), else the text itself,
+    which :func:`_check_settings` then refuses in one line."""
     if kind not in (int, float):
         return None
 
     def convert(text: str):
-        try:
-            return kind(text)
-        except ValueError:
-            return text
+        for read in (kind, float):
+            try:
+                return read(text)
+            except ValueError:
+                pass
+        return text
 
     convert.__name__ = kind.__name__
     return convert
@@ -452,32 +455,58 @@ def _certify_summary(name: str, r) -> str:
     return line
 
 
+def _dispatch(args) -> int:
+    """Apply the shared options, then run ``args.command``; its exit code."""
+    from sieve_mi.backend import apply_threads, set_threads
+
+    _check_settings(args)
+    if args.threads is not None:
+        set_threads(args.threads)
+    else:
+        apply_threads()  # $SIEVE_MI_THREADS, checked as --threads is
+    if args.command == "solve":
+        return cmd_solve(args)
+    if args.command == "check":
+        return cmd_check(args)
+    if args.command == "certify":
+        return cmd_certify(args)
+    if args.command == "view":
+        return cmd_view(args)
+    if args.command == "shake":
+        from sieve_mi.shake.commands import cmd_shake
+
+        return cmd_shake(args)
+    from sieve_mi.cascade.commands import COMMANDS  # sort, sweep
+
+    return COMMANDS[args.command](args)
+
+
+def _import_swallowers() -> None:
+    """Import, before the signal handlers are set, the libraries that would swallow them.
+
+    trimesh imports its optional dependencies inside ``except BaseException``, so a Ctrl-C or a
+    SIGTERM turned into an exception during that import was lost and the run went on to the
+    end. Imported here, a signal kills the process outright (nothing is written yet).
+    """
+    import trimesh  # noqa: F401
+
+
+def _command(args) -> int:
+    """Run the subcommand; a signal that some library swallowed still ends it as one."""
+    code = _dispatch(args)
+    received = signals_received()
+    if received:
+        raise Terminated(received[-1]) if received[-1] != signal.SIGINT else KeyboardInterrupt
+    return code
+
+
 def main(argv: list[str] | None = None) -> int:
     clear_signals()
     args = _parser().parse_args(argv)
+    _import_swallowers()
     try:
         with _termination_as_interrupt():
-            _check_settings(args)
-            if args.threads is not None:
-                from sieve_mi.backend import set_threads
-
-                set_threads(args.threads)
-            if args.command == "solve":
-                return cmd_solve(args)
-            if args.command == "check":
-                return cmd_check(args)
-            if args.command == "certify":
-                return cmd_certify(args)
-            if args.command == "view":
-                return cmd_view(args)
-            if args.command == "shake":
-                from sieve_mi.shake.commands import cmd_shake
-
-                return cmd_shake(args)
-            if args.command in ("sort", "sweep"):
-                from sieve_mi.cascade.commands import COMMANDS
-
-                return COMMANDS[args.command](args)
+            return _command(args)
     except SieveError as exc:
         print(f"sieve-mi: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -499,7 +528,6 @@ def main(argv: list[str] | None = None) -> int:
         word = "interrupted" if signum == signal.SIGINT else "terminated"
         print(f"sieve-mi: {word}", file=sys.stderr)
         return 128 + int(signum)
-    return 1
 
 
 def _interruption(exc: BaseException) -> BaseException | None:

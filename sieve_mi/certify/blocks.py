@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 
 import manifold3d
 import numpy as np
 
+from sieve_mi.backend import worker_pool
 from sieve_mi.certify.certificate import Certification
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import dilated, hole_outline, is_closed
@@ -130,7 +130,7 @@ def _proofs(shapes: list[Shape], contours: list, budget_s: float, workers, tops:
         for j, shape in enumerate(shapes):
             yield j, _prove(shape, contours, budget_s, tops[j])
         return
-    with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork")) as pool:
+    with worker_pool(n, what="certify") as pool:
         jobs = {
             pool.submit(_prove, shape, contours, budget_s, tops[j]): j
             for j, shape in enumerate(shapes)

@@ -29,7 +29,9 @@ __all__ = [
     "beside_plate",
     "stacked",
     "fabricate",
+    "figure_file",
     "plate",
+    "plate_files",
     "plate_thickness",
     "shape_mesh",
     "to_trimesh",
@@ -239,6 +241,7 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
     Files: ``sieve.stl``, ``sieve.3mf`` (the plate), ``hole.svg`` (the exact outline),
     ``pass_<i>.stl`` (each A in its pass orientation above the hole), ``block_<j>.stl`` (each B in its
     best attempt, above the hole at the attempt's position) and ``figure.png`` (a Mitsuba rendering).
+    :func:`plate_files` then :func:`figure_file`.
 
     Parameters
     ----------
@@ -252,7 +255,22 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
     -------
     dict
         The ``fabrication`` section of ``report.json``: thickness, border, plate size, outline area,
-        agreement with the raster, files and warnings.
+        agreement with the raster, files and warnings; ``figure_s``, the figure's seconds.
+    """
+    made, meshes = plate_files(result, out_dir)
+    made["figure_s"] = figure_file(result, out_dir, made, meshes) if figure else 0.0
+    return made
+
+
+def plate_files(result, out_dir: str) -> tuple[dict, tuple]:
+    """The plate and placed-shape files of :func:`fabricate` (everything but the figure).
+
+    Returns
+    -------
+    made : dict
+        The ``fabrication`` section of ``report.json`` (without ``figure_s``).
+    meshes : tuple
+        ``(plate, passes, blocks, lift)`` for :func:`figure_file`.
     """
     scene = result.scene
     fab = scene.fabrication
@@ -280,25 +298,8 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
         + [f"pass_{i}.stl" for i in range(len(passes))]
         + [f"block_{j}.stl" for j in range(len(blocks))]
     )
-    figure_s = 0.0
-    if figure:
-        from sieve_mi.outputs.figure import render_figure
-
-        t_figure = time.perf_counter()
-        beside = beside_plate(sieve.mesh, blocks)
-        render_figure(
-            os.path.join(out_dir, "figure.png"),
-            sieve.mesh,
-            stacked(passes, lift),
-            beside,
-            [b.blocked for b in result.blocks],  # a thin-plate or certified passage passes
-            title=f"{scene.name}: winner {result.winner}",
-        )
-        files.append("figure.png")
-        figure_s = time.perf_counter() - t_figure
     (x0, y0, z0), (x1, y1, z1) = sieve.mesh.bounds
-    return {
-        "figure_s": figure_s,
+    made = {
         "thickness": sieve.thickness,
         "required_thickness": required,
         **({"sheet": result.sheet.to_dict()} if getattr(result, "sheet", None) is not None else {}),
@@ -309,6 +310,25 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
         "files": files,
         "warnings": sieve.warnings,
     }
+    return made, (sieve.mesh, passes, blocks, lift)
+
+
+def figure_file(result, out_dir: str, made: dict, meshes: tuple) -> float:
+    """Render ``figure.png`` of :func:`plate_files`' meshes; list it in ``made``; its seconds."""
+    from sieve_mi.outputs.figure import render_figure
+
+    t_figure = time.perf_counter()
+    sieve, passes, blocks, lift = meshes
+    render_figure(
+        os.path.join(out_dir, "figure.png"),
+        sieve,
+        stacked(passes, lift),
+        beside_plate(sieve, blocks),
+        [b.blocked for b in result.blocks],  # a thin-plate or certified passage passes
+        title=f"{result.scene.name}: winner {result.winner}",
+    )
+    made["files"].append("figure.png")
+    return time.perf_counter() - t_figure
 
 
 def stacked(meshes: list[trimesh.Trimesh], gap: float) -> list[trimesh.Trimesh]:

@@ -13,9 +13,16 @@ Every command that writes a folder (``solve``, ``check --out``) goes through :fu
   rename the old aside, rename the new in, restore the old on failure); the old one is removed
   last. SIGINT, SIGTERM and SIGHUP are held back during the swap and the clean-up.
 * Any exception, KeyboardInterrupt included, removes the temporary folder (and the parent
-  folders the run created, if they are empty). Temporary folders
+  folders the run created, if they are empty), unless the writer salvages an interrupted
+  folder (``salvage``: a solve stopped after its verdict keeps report.json and the plate,
+  and its report names the missing files). Temporary folders
   of runs that were killed outright (their pid is gone) are removed by the next run that writes
   into the same parent folder.
+
+A command that adds files to an earlier output (``shake DIR``) goes through :func:`add_files`: the
+folder must carry the marker and hold nothing the marker does not list (:func:`check_addition`,
+run before the work too); each file is written beside its name and renamed over it, and the
+marker lists it.
 """
 
 from __future__ import annotations
@@ -29,15 +36,18 @@ import secrets
 import shutil
 import signal
 import socket
+import sys
 import tempfile
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 from sieve_mi.errors import SieveError
 
 __all__ = [
     "MARKER",
     "TMP_PREFIX",
+    "add_files",
+    "check_addition",
     "deferred_signals",
     "is_replaceable",
     "read_marker",
@@ -183,6 +193,95 @@ def is_replaceable(folder: str) -> bool:
         return False
     files, folders = _entries(folder)
     return files - {MARKER} <= set(marker["files"]) and folders <= set(marker["folders"])
+
+
+def check_addition(folder: str, names: Iterable[str], *, hint: str = "") -> dict:
+    """Check that sieve-mi may write the files ``names`` into its output ``folder``; touch nothing.
+
+    The folder needs a readable marker and must hold nothing that the marker does not list (a
+    user's file there, even one named like an output, makes the folder refused); each of
+    ``names`` may be missing or a listed file, not a folder.
+
+    Parameters
+    ----------
+    folder : str
+        An existing sieve-mi output folder.
+    names : iterable of str
+        The files to add or replace (plain names in ``folder``).
+    hint : str
+        What to do instead when the folder has no marker (ends that message).
+
+    Returns
+    -------
+    dict
+        The folder's marker.
+
+    Raises
+    ------
+    SieveError
+        One line saying why the folder is refused.
+    """
+    marker = read_marker(folder) if os.path.isdir(folder) else None
+    if marker is None:
+        raise SieveError(
+            f"{folder}: has no readable {MARKER} marker, so sieve-mi did not write it; "
+            f"{hint or 'choose a sieve-mi output folder'}"
+        )
+    files, folders = _entries(folder)
+    unlisted = sorted(
+        (files - {MARKER} - set(marker["files"])) | (folders - set(marker["folders"]))
+    )
+    if unlisted:
+        more = f" (and {len(unlisted) - 1} more)" if len(unlisted) > 1 else ""
+        raise SieveError(
+            f"{folder}: holds {unlisted[0]}{more}, which its {MARKER} marker does not list "
+            "(sieve-mi did not write it); move it out of the folder or choose another folder"
+        )
+    for name in names:
+        path = os.path.join(folder, name)
+        if os.path.isdir(path) and not os.path.islink(path):
+            raise SieveError(f"{path}: is a folder where sieve-mi writes a file; move it away")
+    if not os.access(folder, os.W_OK | os.X_OK) or not _can_create(folder):
+        raise SieveError(f"{folder}: cannot write into it; check its permissions")
+    return marker
+
+
+def add_files(folder: str, contents: dict[str, bytes], *, hint: str = "") -> None:
+    """Add (or replace) files in sieve-mi's output ``folder`` and list them in its marker.
+
+    The folder is checked as by :func:`check_addition` (again, right before writing). The marker
+    is rewritten first (listing a file that is not there yet is harmless; a written file that it
+    does not list would make the folder refused), then each file is written to a temporary file
+    beside it and renamed over it, with SIGINT, SIGTERM and SIGHUP held back.
+
+    Parameters
+    ----------
+    folder : str
+    contents : dict of str to bytes
+        File name in ``folder`` to its new content.
+    hint : str
+        As for :func:`check_addition`.
+
+    Raises
+    ------
+    SieveError
+        The folder is refused, or a file could not be written (one line).
+    """
+    marker = check_addition(folder, contents, hint=hint)
+    marker["files"] = sorted(set(marker["files"]) | set(contents))
+    text = json.dumps(marker, indent=1).encode()
+    with deferred_signals():
+        for name, data in ((MARKER, text), *contents.items()):
+            tmp = os.path.join(folder, f".{name}.sieve-mi-tmp-{os.getpid()}")
+            try:
+                with open(tmp, "wb") as fh:
+                    fh.write(data)
+                os.replace(tmp, os.path.join(folder, name))
+            except OSError as exc:
+                raise SieveError(f"{folder}: could not write {name} ({exc})") from None
+            finally:
+                if os.path.lexists(tmp):
+                    os.remove(tmp)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -333,7 +432,12 @@ def swap_in(tmp: str, dest: str) -> None:
 
 @contextlib.contextmanager
 def writing(
-    out_dir: str, *, command: str, inputs: Iterable[str] = (), option: str = "--out"
+    out_dir: str,
+    *,
+    command: str,
+    inputs: Iterable[str] = (),
+    option: str = "--out",
+    salvage: Callable[[str], str | None] | None = None,
 ) -> Iterator[str]:
     """Yield a fresh temporary folder; when the block ends without error, make it ``out_dir``.
 
@@ -347,6 +451,12 @@ def writing(
         Input files of the command; a destination that holds one is refused.
     option : str
         The option name used in messages.
+    salvage : callable, optional
+        Called with the temporary folder when the block is interrupted (KeyboardInterrupt,
+        which SIGTERM and SIGHUP become); if it returns a note (one line: what was kept and
+        what is missing), the folder, as it stands, is finished and swapped in as for a
+        completed run, the note is printed on stderr, and the interrupt goes on (a solve
+        stopped after its verdict keeps report.json and the plate). Signals are held meanwhile.
 
     Yields
     ------
@@ -373,19 +483,49 @@ def writing(
             remove_stale(parent)
             tmp = _make_temp(parent)
         yield tmp
-        write_marker(tmp, command)
+        _finish(tmp, dest, out_dir, command, inputs, option)
+    except KeyboardInterrupt:
         with deferred_signals():
-            validate(out_dir, inputs=inputs, option=option)
             try:
-                swap_in(tmp, dest)
-            except OSError as exc:
-                raise SieveError(f"{option} {out_dir}: could not be replaced ({exc})") from None
+                note = _salvaged(tmp, salvage) if tmp is not None and salvage else None
+                if note:
+                    _finish(tmp, dest, out_dir, command, inputs, option)
+                    print(f"sieve-mi: {note}", file=sys.stderr)
+            except BaseException:  # noqa: BLE001 - nothing kept; the interrupt goes on below
+                pass
+            finally:
+                _clean_up(tmp, parent, created)
+        raise
     except BaseException:
         with deferred_signals():
-            if tmp is not None:
-                shutil.rmtree(tmp, ignore_errors=True)
-            _remove_created(parent, created)
+            _clean_up(tmp, parent, created)
         raise
+
+
+def _finish(tmp: str, dest: str, out_dir: str, command: str, inputs: list, option: str) -> None:
+    """Write the marker into ``tmp``, check the destination again and swap ``tmp`` in."""
+    write_marker(tmp, command)
+    with deferred_signals():
+        validate(out_dir, inputs=inputs, option=option)
+        try:
+            swap_in(tmp, dest)
+        except OSError as exc:
+            raise SieveError(f"{option} {out_dir}: could not be replaced ({exc})") from None
+
+
+def _salvaged(tmp: str, salvage: Callable[[str], str | None]) -> str | None:
+    """``salvage(tmp)``: what it kept of the interrupted folder, or None (also on an error)."""
+    try:
+        return salvage(tmp)
+    except Exception:  # noqa: BLE001 - salvaging is best effort; the interrupt is what matters
+        return None
+
+
+def _clean_up(tmp: str | None, parent: str, created: str | None) -> None:
+    """Remove the temporary folder (if still there) and the parent folders the run made."""
+    if tmp is not None and os.path.lexists(tmp):
+        shutil.rmtree(tmp, ignore_errors=True)
+    _remove_created(parent, created)
 
 
 def _first_missing(path: str) -> str | None:

@@ -494,28 +494,81 @@ def write_outputs(
     mark = watch.mark if watch is not None else (lambda stage: None)
     if watch is not None:
         watch.start()
-    with outdir.writing(out_dir, command="solve", inputs=input_paths(result.scene)) as tmp:
-        _write_images(result, tmp)  # report.json's dict and the images, from t_start
+    done: list[str] = []  # the stages whose files are complete, for a run stopped midway
+    salvage = _salvage(report, done, figure and fabricate, animation)
+    inputs = input_paths(result.scene)
+    with outdir.writing(out_dir, command="solve", inputs=inputs, salvage=salvage) as tmp:
         _write_certificates(result, report, tmp)
-        timings["images_s"] = round(time.perf_counter() - t_start, 4)
-        mark("images")
         if fabricate:
-            from sieve_mi.outputs.fabrication import fabricate as make_sieve
+            from sieve_mi.outputs.fabrication import figure_file, plate_files
 
             t0 = time.perf_counter()
-            report["fabrication"] = made = make_sieve(result, tmp, figure=figure)
-            figure_s = made.pop("figure_s")
-            timings["fabrication_s"] = round(time.perf_counter() - t0 - figure_s, 4)
-            if figure:
-                timings["figure_s"] = round(figure_s, 4)
+            report["fabrication"], meshes = plate_files(result, tmp)
+            timings["fabrication_s"] = round(time.perf_counter() - t0, 4)
             mark("fabrication")
-        _write_passage(result, report, tmp, animation, mark)
+        done.append("verdict")  # report.json and the plate, from here on kept if stopped
+        _write_images(result, tmp)  # report.json's dict and the images, from t_start
+        timings["images_s"] = round(
+            time.perf_counter() - t_start - timings.get("fabrication_s", 0), 4
+        )
+        mark("images")
+        done.append("images")
+        if fabricate and figure:
+            timings["figure_s"] = round(figure_file(result, tmp, report["fabrication"], meshes), 4)
+            mark("figure")
+            done.append("figure")
+        _write_passage(result, report, tmp, animation, mark, done)
     if watch is not None:
         watch.stop()
     return report
 
 
-def _write_passage(result: Result, report: dict, tmp: str, animation: bool, mark) -> None:
+#: The files of each output stage after the verdict (a stage's files are kept only when it ended).
+_STAGE_FILES = {
+    "images": ("hole.png", "hole.exr", "masks.exr", "masks", "convergence.png", "overlay.png"),
+    "figure": ("figure.png",),
+    "animation": ("passage.gif",),
+    "page": ("report.html",),
+}
+
+
+def _salvage(report: dict, done: list, figure: bool, animation: bool):
+    """What a solve stopped while writing its outputs keeps (:func:`outdir.writing`'s ``salvage``).
+
+    Once the verdict's files are written (the certificates, the plate and its placed shapes),
+    an interrupt keeps them: the unfinished stages' files are removed, report.json is written
+    with ``"incomplete"`` naming the missing files, and one line on stderr says so. Before that,
+    nothing is kept (the old folder stays as it was).
+    """
+    import shutil
+
+    def keep(tmp: str) -> str | None:
+        if "verdict" not in done:
+            return None
+        stages = ["images"] + ["figure"] * figure + ["animation"] * animation + ["page"]
+        missing = [f for st in stages if st not in done for f in _STAGE_FILES[st]]
+        for name in missing:
+            path = os.path.join(tmp, name)
+            if os.path.isdir(path):
+                shutil.rmtree(path, ignore_errors=True)
+            elif os.path.lexists(path):
+                os.remove(path)
+        if not missing:  # stopped after every file: the folder is complete
+            return "stopped after writing every output; they are kept"
+        report["incomplete"] = {"reason": "stopped while writing the outputs", "missing": missing}
+        with open(os.path.join(tmp, "report.json"), "w") as fh:
+            json.dump(report, fh, indent=2)
+        return (
+            "stopped while writing the outputs; kept report.json and the plate; "
+            f"missing: {', '.join(missing)} (solve again to make them)"
+        )
+
+    return keep
+
+
+def _write_passage(
+    result: Result, report: dict, tmp: str, animation: bool, mark, done: list
+) -> None:
     """passage.gif (with ``animation``), report.json and report.html into ``tmp``.
 
     The GIF's record and its time go into ``report`` before report.json is written; the page,
@@ -535,6 +588,7 @@ def _write_passage(result: Result, report: dict, tmp: str, animation: bool, mark
         t0 = time.perf_counter()
         report["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
         timings["animation_s"] = round(time.perf_counter() - t0, 4)
+        done.append("animation")
     mark("passage")
     t0 = time.perf_counter()
     files = page_files(tmp) + ["report.json"]
@@ -546,6 +600,7 @@ def _write_passage(result: Result, report: dict, tmp: str, animation: bool, mark
     report["memory"] = memory_dict(result.memory)
     with open(os.path.join(tmp, "report.json"), "w") as fh:
         json.dump(report, fh, indent=2)
+    done.append("page")
 
 
 def _write_certificates(result: Result, report: dict, tmp: str) -> None:

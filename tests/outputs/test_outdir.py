@@ -7,6 +7,7 @@ at any point leaves the old complete output (or the new complete one), never a m
 
 from __future__ import annotations
 
+import filecmp
 import json
 import os
 import signal
@@ -345,9 +346,8 @@ def _raise_interrupt(*args, **kwargs):
 @pytest.mark.parametrize(
     "module, name",
     [
-        ("sieve_mi.outputs.report", "overlay_figure"),  # before the fabrication step
-        ("sieve_mi.outputs.fabrication", "write_svg"),  # during it: sieve.stl is already written
-        ("sieve_mi.outputs.outdir", "write_marker"),  # after it: report.json is written
+        ("sieve_mi.outputs.fabrication", "write_svg"),  # the plate's files: sieve.stl is written
+        ("sieve_mi.outputs.outdir", "write_marker"),  # every output written, the marker fails
         ("sieve_mi.outputs.outdir", "_exchange"),  # at the swap itself
     ],
 )
@@ -367,6 +367,40 @@ def test_an_interrupted_solve_leaves_the_old_output(
     with pytest.raises(KeyboardInterrupt):
         _write(tiny_result, tmp_path / "new" / "fresh")  # a first run leaves nothing at all
     assert not (tmp_path / "new").exists() and temp_folders(tmp_path) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "module, name, missing",
+    [
+        ("sieve_mi.outputs.report", "overlay_figure", ["hole.png", "masks", "overlay.png"]),
+        ("sieve_mi.outputs.viewer", "write_page", ["report.html"]),
+    ],
+)
+def test_a_solve_stopped_after_its_verdict_keeps_the_verdict_and_the_plate(
+    tiny_result, tmp_path, monkeypatch, capsys, module, name, missing
+):
+    whole = _write(tiny_result, tmp_path / "whole")
+    out = tmp_path / "out"
+    _write(tiny_result, out)
+    (out / "hole.svg").write_text("old")  # tells the old output from the new one
+    monkeypatch.setattr(sys.modules[module], name, _raise_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        _write(tiny_result, out)
+    assert temp_folders(tmp_path) == []
+    assert_complete(out)  # the marker lists exactly what is there: a later solve replaces it
+    report = json.loads((out / "report.json").read_text())
+    assert set(missing) <= set(report["incomplete"]["missing"])
+    assert not any((out / f).exists() for f in report["incomplete"]["missing"])
+    assert report["block"][0]["blocked"] == whole["block"][0]["blocked"]
+    assert report["fabrication"]["thickness"] == whole["fabrication"]["thickness"]
+    for f in ("sieve.stl", "hole.svg", "pass_0.stl", "block_0.stl"):
+        assert filecmp.cmp(out / f, tmp_path / "whole" / f, shallow=False), f
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "kept report.json and the plate; missing:" in err[0]
+    monkeypatch.undo()
+    _write(tiny_result, out)  # the next solve completes it
+    assert "incomplete" not in json.loads((out / "report.json").read_text())
 
 
 @pytest.mark.slow
@@ -391,7 +425,11 @@ def test_a_signal_while_writing_leaves_the_old_output(scene_dir, tiny_result, tm
     _, err = proc.communicate(timeout=300)
     assert proc.returncode == code, err
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("sieve-mi: ")
-    assert snapshot(out) == before and temp_folders(tmp_path) == []
+    assert temp_folders(tmp_path) == []
+    if snapshot(out) != before:  # the signal came after the verdict's files: those are kept
+        assert "kept report.json and the plate" in err
+        assert_complete(out)
+        assert json.loads((out / "report.json").read_text())["incomplete"]["missing"]
 
 
 # ------------------------------------------------------------------------------------------------
