@@ -16,7 +16,11 @@ import numpy as np
 
 from sieve_mi.errors import SieveError
 
-__all__ = ["parse_path", "read_svg_hole"]
+__all__ = ["MAX_COORDINATE", "parse_path", "read_svg_hole"]
+
+#: Largest coordinate of a hole outline (scene units; the polygon library works on a 1e-8 grid in
+#: 64-bit integers and refuses coordinates from about 4e10 on).
+MAX_COORDINATE = 1e9
 
 _TOKEN = re.compile(r"[MLZmlz]|[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
@@ -62,7 +66,12 @@ def read_svg_hole(path: str) -> manifold3d.CrossSection:
     contours = [c for d in ds for c in parse_path(d, path)]
     if not contours or not all(np.all(np.isfinite(c)) for c in contours):
         raise SieveError(f"{path}: no polygon with finite coordinates in any <path d=...>")
-    hole = manifold3d.CrossSection(contours, manifold3d.FillRule.EvenOdd)
+    if any(np.abs(c).max() > MAX_COORDINATE for c in contours):
+        raise SieveError(f"{path}: a coordinate exceeds {MAX_COORDINATE:g} scene units")
+    try:
+        hole = manifold3d.CrossSection(contours, manifold3d.FillRule.EvenOdd)
+    except RuntimeError as exc:  # Clipper2's own range check
+        raise SieveError(f"{path}: the path cannot be read as a polygon ({exc})") from None
     if hole.is_empty() or hole.area() <= 0:
         raise SieveError(f"{path}: the path encloses no area")
     return hole

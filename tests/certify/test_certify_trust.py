@@ -369,3 +369,20 @@ def test_certify_api_refuses_arguments_of_the_wrong_kind(args, message):
     shape, holes, *budget = (ball if a == "BALL" else a for a in args)
     with pytest.raises(SieveError, match=message):
         certify(shape, holes, **({"budget_s": budget[0]} if budget else {}))
+
+
+@pytest.mark.parametrize(
+    "d, message",
+    [
+        ("M 0 0 L 1e308 0 L 1e308 1e308 Z", "a coordinate exceeds 1e+09 scene units"),
+        ("M 0 0 L 1" + "0" * 400 + " 0 L 10 10 Z", "no polygon with finite coordinates"),
+    ],
+    ids=["beyond-the-polygon-range", "400-digit-number"],
+)
+def test_svg_hole_with_huge_coordinates_is_one_line(tmp_path, run, capsys, d, message):
+    svg = tmp_path / "h.svg"
+    svg.write_text(f'<svg><path d="{d}"/></svg>')
+    before = _tree_state(tmp_path)
+    code = cli.main(["certify", str(tmp_path / "ball24.stl"), "--hole", str(svg)])
+    assert code == 2 and message in _one_error_line(capsys)
+    assert _tree_state(tmp_path) == before
