@@ -39,6 +39,7 @@ from sieve_mi.geometry.meshes import Shape, mesh_sha256
 __all__ = [
     "Certification",
     "FORMAT",
+    "MAX_CERTIFICATE_BYTES",
     "REQUIRED",
     "build",
     "is_certificate",
@@ -190,13 +191,20 @@ def is_certificate(data) -> bool:
     return isinstance(data["hole"], list) and isinstance(data["tree"], list)
 
 
+#: Largest file :func:`read_certificate_file` parses (bytes); a larger one is not taken for one.
+MAX_CERTIFICATE_BYTES = 1 << 30
+
+
 def read_certificate_file(path: str):
     """The parsed JSON of the file at ``path``, or None when it is not JSON text.
 
-    Only a file whose first non-blank character is ``{`` is parsed (a binary file, a note or a
-    mesh is never read whole); too deep a nesting or too long an integer reads as not JSON.
+    Only a file whose first non-blank character is ``{`` and of at most
+    :data:`MAX_CERTIFICATE_BYTES` is parsed (a binary file, a note, a mesh or a large data set
+    is never read whole); too deep a nesting or too long an integer reads as not JSON.
     """
     try:
+        if os.path.getsize(path) > MAX_CERTIFICATE_BYTES:
+            return None
         with open(path, "rb") as fh:
             head = fh.read(64).lstrip()
             if not head.startswith(b"{"):

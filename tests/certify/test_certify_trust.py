@@ -386,3 +386,16 @@ def test_svg_hole_with_huge_coordinates_is_one_line(tmp_path, run, capsys, d, me
     code = cli.main(["certify", str(tmp_path / "ball24.stl"), "--hole", str(svg)])
     assert code == 2 and message in _one_error_line(capsys)
     assert _tree_state(tmp_path) == before
+
+
+def test_a_file_larger_than_any_certificate_is_not_read_and_not_replaced(
+    tmp_path, run, capsys, monkeypatch
+):
+    cert = tmp_path / "c.json"
+    assert run("--certificate", str(cert)) == 0
+    capsys.readouterr()
+    monkeypatch.setattr(certificate, "MAX_CERTIFICATE_BYTES", cert.stat().st_size - 1)
+    before = _tree_state(tmp_path)
+    assert run("--certificate", str(cert)) == 2
+    assert "is not a sieve-mi certificate" in _one_error_line(capsys)
+    assert _tree_state(tmp_path) == before
