@@ -407,7 +407,7 @@ def cmd_certify(args) -> int:
     from sieve_mi.certify.certificate import writable_certificate
 
     if args.replay is not None:
-        if args.shape or args.certificate:
+        if args.shape or args.certificate is not None:
             raise SieveError(
                 "--replay takes only the certificate file (no SHAPE, no --certificate)"
             )
@@ -426,7 +426,7 @@ def cmd_certify(args) -> int:
     if not args.shape or (args.sieve is None and args.hole is None):
         raise SieveError("certify needs SHAPE and --sieve PLATE or --hole SVG (or --replay CERT)")
     inputs = (args.shape, args.sieve, args.hole)
-    if args.certificate:
+    if args.certificate is not None:
         writable_certificate(args.certificate, inputs)  # before any work, and again when written
     from sieve_mi.game.check import holes_from_mesh
     from sieve_mi.geometry.meshes import load_shape
@@ -434,7 +434,7 @@ def cmd_certify(args) -> int:
     shape = load_shape(args.shape, scale=args.scale)
     holes = holes_from_mesh(args.sieve, args.axis) if args.sieve else [read_svg_hole(args.hole)]
     result = certify(shape, holes, budget_s=args.certify_budget, scale=args.scale)
-    if args.certificate:
+    if args.certificate is not None:
         result.write_certificate(args.certificate, inputs)
     if args.json:
         print(json.dumps(result.to_dict(), indent=2))

@@ -158,6 +158,13 @@ def test_certificate_paths_that_would_lose_data_are_refused(tmp_path, run, capsy
     assert _tree_state(tmp_path) == before
 
 
+def test_an_empty_certificate_path_is_refused_not_ignored(tmp_path, run, capsys):
+    before = _tree_state(tmp_path)
+    assert run("--certificate", "") == 2
+    assert "--certificate '': name a file" in _one_error_line(capsys)
+    assert _tree_state(tmp_path) == before
+
+
 def test_an_unwritable_folder_is_refused_before_the_work(tmp_path, run, capsys, monkeypatch):
     # root may write anywhere, so the folder's permission is what os.access reports here
     real = os.access
