@@ -9,7 +9,6 @@
 from __future__ import annotations
 
 import dataclasses
-import functools
 import os
 
 from sieve_mi import scene as _scene
@@ -78,9 +77,35 @@ def load_scene(path) -> Scene:
     return _scene.load_scene(path)
 
 
-@functools.wraps(_meshes.load_shape)
-def load_shape(path, *args, **kwargs):
-    return _meshes.load_shape(_path(path, "load_shape"), *args, **kwargs)
+def load_shape(path, *, scale: float = 1.0, name: str | None = None) -> _meshes.Shape:
+    """Read, validate, scale and centre a mesh file (STL, OBJ, PLY, OFF, GLB, ... as trimesh
+    reads), as ``sieve-mi check SHAPE --scale S`` does.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Mesh file.
+    scale : float
+        Uniform scale from file units to scene units (> 0), checked as ``--scale`` is.
+    name : str, optional
+        Label in reports; default the file's stem.
+
+    Returns
+    -------
+    sieve_mi.geometry.meshes.Shape
+
+    Raises
+    ------
+    SieveError
+        One line: a bad argument, a missing or unreadable file, a file with no triangles.
+    """
+    path = _path(path, "load_shape")
+    scale = _scene.read_value(_scene.ShapeEntry, "scale", scale, "load_shape")
+    if name is not None:
+        if not isinstance(name, str):
+            raise SieveError(f"load_shape: name: expected a string, got {_scene.shown(name)}")
+        _scene.check_name("load_shape", "name", name)
+    return _meshes.load_shape(path, scale=scale, name=name)
 
 
 class Result(_game_result.Result):

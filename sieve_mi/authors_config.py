@@ -10,7 +10,6 @@ naming it. The mapping, key by key: ``docs/authors-config.md``.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 
@@ -24,7 +23,10 @@ from sieve_mi.scene import (
     Solver,
     Verdict,
     check_folder_name,
+    key_text,
+    parse_json,
     read_value,
+    shown,
 )
 
 __all__ = [
@@ -54,9 +56,15 @@ SETTINGS = {
 
 
 def _number(low: float, integer: bool = False):
+    """A check of a number >= ``low`` (a whole one where ``integer``: 3 or 3.0, as a scene's
+    integer keys take)."""
+
     def ok(v) -> bool:
-        kind = int if integer else (int, float)
-        return isinstance(v, kind) and not isinstance(v, bool) and math.isfinite(v) and v >= low
+        if isinstance(v, bool) or not isinstance(v, int | float) or v < low:
+            return False
+        if isinstance(v, int):  # finite, of any size
+            return True
+        return math.isfinite(v) and (v.is_integer() or not integer)
 
     return ok
 
@@ -127,11 +135,10 @@ def _read_json(path: str) -> dict:
         raise SieveError(f"{path}: {os.path.getsize(path):,} bytes; a configuration is short JSON")
     try:
         with open(path, encoding="utf-8-sig") as fh:
-            data = json.load(fh)
+            text = fh.read(SCENE_FILE_MAX + 1)
     except (OSError, UnicodeDecodeError) as exc:
         raise SieveError(f"{path}: could not be read ({exc})") from None
-    except json.JSONDecodeError as exc:
-        raise SieveError(f"{path}: not valid JSON ({exc})") from None
+    data = parse_json(text, path)  # numbers, nesting and duplicate keys checked
     if not isinstance(data, dict):
         raise SieveError(f"{path}: expected a JSON object of the paper authors' configuration")
     return data
@@ -141,7 +148,7 @@ def _check_keys(path: str, data: dict, known, where: str = "") -> None:
     for key in data:
         if key not in known:
             raise SieveError(
-                f"{path}: {where}{key}: unknown key of the paper authors' configuration format "
+                f"{path}: {where}{key_text(key)}: unknown key of the paper authors' configuration format "
                 f"(known: {', '.join(sorted(known))})"
             )
 
@@ -158,8 +165,9 @@ def mesh_path(path: str, filename, where: str) -> str:
     for rel in (filename, os.path.join(os.pardir, "data", filename)):
         if os.path.isfile(os.path.join(folder, rel)):
             return rel
+    name = filename if filename.isprintable() else shown(filename)
     raise SieveError(
-        f"{path}: {where}.filename: {filename}: mesh file not found (looked beside the "
+        f"{path}: {where}.filename: {name}: mesh file not found (looked beside the "
         "configuration and in ../data/)"
     )
 
@@ -219,7 +227,7 @@ def _settings(path: str, data: dict) -> dict:
         shape = data["image_shape"]
         if not (isinstance(shape, list) and len(shape) == 2 and shape[0] == shape[1]):
             raise SieveError(
-                f"{path}: image_shape: {shape!r:.40}: sieve-mi's raster is square; give [N, N]"
+                f"{path}: image_shape: {shown(shape, 40)}: sieve-mi's raster is square; give [N, N]"
             )
         for table, cls in (("solver", Solver), ("verdict", Verdict)):
             tables[table]["resolution"] = read_value(

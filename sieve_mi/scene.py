@@ -23,8 +23,10 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import math
 import os
+import re
 import tomllib
 import types
 import typing
@@ -37,7 +39,9 @@ from sieve_mi.objectives import OBJECTIVES
 from sieve_mi.optim import NLOPT_METHODS, PSO_COEFFICIENT
 
 __all__ = [
+    "DIGITS_MAX",
     "LENGTH_MAX",
+    "NESTING_MAX",
     "SEED_MAX",
     "AXIS_NAMES",
     "Check",
@@ -52,6 +56,7 @@ __all__ = [
     "Solver",
     "Spec",
     "UNITS",
+    "UnknownSettingError",
     "Verdict",
     "NAME_MAX",
     "SCENE_FILE_MAX",
@@ -61,13 +66,18 @@ __all__ = [
     "documented",
     "field_of",
     "key_of",
+    "key_text",
     "load_scene",
     "option_help",
+    "parse_json",
+    "parse_toml",
     "read_file",
     "read_shape",
     "read_tables",
     "read_value",
+    "refuse_unknown",
     "setting",
+    "shown",
     "spec_of",
     "table_fields",
     "value_types",
@@ -247,16 +257,59 @@ def documented(cls: type) -> type:
     return cls
 
 
+class UnknownSettingError(SieveError, AttributeError):
+    """A setting's name that its settings class does not have (a typo): a one-line
+    :class:`~sieve_mi.errors.SieveError` that is also the AttributeError Python raises for an
+    attribute that cannot be set."""
+
+
+def refuse_unknown(cls: type, name: str, where: str) -> None:
+    """Raise :class:`UnknownSettingError` unless ``name`` is a field of dataclass ``cls``.
+
+    Parameters
+    ----------
+    cls : type
+        A settings dataclass.
+    name : str
+        The name given (an attribute set, a keyword argument).
+    where : str
+        What it is a setting of, for the message (``"solver"``, ``"check"``).
+    """
+    known = [f.name for f in fields(cls)]
+    if name not in known:
+        raise UnknownSettingError(
+            f"{where}: {key_text(name)}: unknown setting; known: {', '.join(sorted(known))}"
+        )
+
+
 def _checked(where: str):
-    """Class decorator: assigning a field of a made instance checks the value like a scene
-    file's key (:func:`read_value`), so ``scene.solver.particles = -5`` is the same one-line
-    :class:`~sieve_mi.errors.SieveError` as ``particles = -5`` in the file, at once."""
+    """Class decorator: a settings dataclass whose values are checked like a scene file's keys
+    (:func:`read_value`), in code as in a file.
+
+    Making an instance checks every value it is given (``Solver(particles=-5)``); assigning a
+    field of a made instance checks the new value (``scene.solver.particles = -5``): either is
+    the one-line :class:`~sieve_mi.errors.SieveError` that ``particles = -5`` in a scene file is,
+    at once. A name that is not a field (``scene.solver.particle = 5``, ``Solver(particle=5)``)
+    is refused (:class:`UnknownSettingError`), never silently kept.
+    """
 
     def decorate(cls: type) -> type:
         checked = {f.name for f in fields(cls) if spec_of(f) is not None}
         optional = {f.name for f in fields(cls) if f.default is None}  # None: back to the default
+        init = cls.__init__
+
+        @functools.wraps(init)
+        def __init__(self, *args, **kwargs):
+            for name in kwargs:
+                refuse_unknown(cls, name, where)
+            init(self, *args, **kwargs)
+            for f in fields(cls):  # in their order: the first bad one is named
+                value = getattr(self, f.name)
+                if f.name in checked and not (value is None and f.name in optional):
+                    object.__setattr__(self, f.name, read_value(cls, f.name, value, where))
 
         def __setattr__(self, name, value):
+            refuse_unknown(cls, name, where)
             if (
                 name in checked
                 and name in self.__dict__
@@ -265,7 +318,7 @@ def _checked(where: str):
                 value = read_value(cls, name, value, where)
             object.__setattr__(self, name, value)
 
-        cls.__setattr__ = __setattr__
+        cls.__init__, cls.__setattr__ = __init__, __setattr__
         return cls
 
     return decorate
@@ -485,7 +538,7 @@ class Check:
 
     Not a table of a scene file: the options ``--starts``, ``--steps``, ``--learning-rate``,
     ``--resolution``, ``--seed``, ``--no-fit`` and ``--fit-tolerance`` of ``sieve-mi check``, and
-    :class:`sieve_mi.game.check.CheckSettings` (this class) in code, where values are not checked.
+    :class:`sieve_mi.game.check.CheckSettings` (this class) in code, checked as the options are.
     """
 
     starts: int = _like(Verdict, "starts", doc="random starts of the fitting search")
@@ -553,6 +606,14 @@ class Scene:
     def __post_init__(self):
         self.directory = os.path.dirname(os.path.abspath(self.path))
 
+    def __setattr__(self, name, value):
+        """Set a field; a name that is not one is refused, and a new ``name``, ``units`` or
+        table is checked as a scene file's would be (one-line SieveError)."""
+        refuse_unknown(Scene, name, "scene")
+        if name in self.__dict__:
+            value = _scene_value(name, value)
+        object.__setattr__(self, name, value)
+
     @classmethod
     def from_meshes(
         cls, passes: list, blocks: list, *, name: str = "scene", directory: str | None = None
@@ -612,6 +673,21 @@ class Scene:
         return {f.name: getattr(self, f.name) for f in table_fields()}
 
 
+def _scene_value(name: str, value):
+    """A new value of :class:`Scene` field ``name``, checked: a table of its class, a usable
+    folder name, one of the units."""
+    kind = value_types(Scene)[name]
+    if dataclasses.is_dataclass(kind) and not isinstance(value, kind):
+        raise SieveError(f"scene: {name}: expected a {kind.__name__} table, got {shown(value)}")
+    if name == "units":
+        return read_value(Scene, name, value, "scene")
+    if name == "name":
+        if not isinstance(value, str):
+            raise SieveError(f"scene: name: expected a string, got {shown(value)}")
+        check_folder_name("scene", value)
+    return value
+
+
 def table_fields() -> list[dataclasses.Field]:
     """The fields of :class:`Scene` that are settings tables (``[fabrication]``, ``[solver]``, ...)."""
     kinds = value_types(Scene)
@@ -662,7 +738,7 @@ class Reader:
         self.path, self.table, self.where = path, table, where
 
     def error(self, key: str, what: str) -> SieveError:
-        return SieveError(f"{self.path}: {self.where}{key}: {what}")
+        return SieveError(f"{self.path}: {self.where}{key_text(key)}: {what}")
 
     def check_keys(self, allowed) -> None:
         for key in self.table:
@@ -689,25 +765,27 @@ class Reader:
             if value in spec.choices:
                 return value
             words = " or ".join(repr(c) for c in spec.choices)
-            raise self.error(key, f"expected a number or {words}, got {value!r}")
+            raise self.error(key, f"expected a number or {words}, got {shown(value)}")
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(
-                key, f"expected a {'whole number' if integer else 'number'}, got {value!r}"
+                key, f"expected a {'whole number' if integer else 'number'}, got {shown(value)}"
             )
-        if integer and (isinstance(value, float) and not value.is_integer()):
-            raise self.error(key, f"expected a whole number, got {value!r}")
-        if not math.isfinite(value):
-            raise self.error(key, f"expected a finite number, got {value!r}")
+        if not (isinstance(value, int) or math.isfinite(value)):  # an int of any size is finite
+            raise self.error(key, f"expected a finite number, got {shown(value)}")
+        if integer and isinstance(value, float) and not value.is_integer():
+            raise self.error(key, f"expected a whole number, got {shown(value)}")
         low, high = spec.minimum, spec.maximum
         if low is not None and (value <= low if spec.exclusive_min else value < low):
             raise self.error(
-                key, f"must be {'>' if spec.exclusive_min else '>='} {low}, got {value!r}"
+                key, f"must be {'>' if spec.exclusive_min else '>='} {low}, got {shown(value)}"
             )
         if high is not None and (value >= high if spec.exclusive_max else value > high):
             raise self.error(
-                key, f"must be {'<' if spec.exclusive_max else '<='} {high}, got {value!r}"
+                key, f"must be {'<' if spec.exclusive_max else '<='} {high}, got {shown(value)}"
             )
-        return int(value) if integer else float(value)
+        if integer or abs(value) <= _FLOAT_MAX:
+            return int(value) if integer else float(value)
+        raise self.error(key, f"{shown(value)} is beyond a number's range (±1.8e308)")
 
     def integer(self, key: str, spec: Spec) -> int:
         return self.number(key, spec, integer=True)
@@ -715,15 +793,15 @@ class Reader:
     def boolean(self, key: str, spec: Spec) -> bool:
         value = self.table[key]
         if not isinstance(value, bool):
-            raise self.error(key, f"expected true or false, got {value!r}")
+            raise self.error(key, f"expected true or false, got {shown(value)}")
         return value
 
     def string(self, key: str, spec: Spec) -> str:
         value = self.table[key]
         if not isinstance(value, str) or not value:
-            raise self.error(key, f"expected a non-empty string, got {value!r}")
+            raise self.error(key, f"expected a non-empty string, got {shown(value)}")
         if spec.choices is not None and value not in spec.choices:
-            raise self.error(key, f"{value!r} is not one of: {', '.join(spec.choices)}")
+            raise self.error(key, f"{shown(value)} is not one of: {', '.join(spec.choices)}")
         return value
 
     def quaternion(self, key: str, spec: Spec) -> list[float]:
@@ -734,15 +812,18 @@ class Reader:
             and len(q) == 4
             and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in q)
         ):
-            raise self.error(key, f"expected a quaternion [w, x, y, z], got {q!r}")
+            raise self.error(key, f"expected a quaternion [w, x, y, z], got {shown(q)}")
+        if any(abs(v) > _FLOAT_MAX for v in q if isinstance(v, int)):
+            raise self.error(key, f"quaternion {shown(q)} has a number beyond ±1.8e308")
         qn = np.asarray(q, float)
         norm = float(np.linalg.norm(qn))
         if not np.all(np.isfinite(qn)) or norm < 1e-9:
-            raise self.error(key, f"quaternion {q!r} has no direction")
+            raise self.error(key, f"quaternion {shown(q)} has no direction")
         if abs(norm - 1.0) > 1e-3:
             raise self.error(
                 key,
-                f"quaternion {q!r} is not a unit quaternion (norm {norm:.4g}); divide it by its norm",
+                f"quaternion {shown(q)} is not a unit quaternion (norm {norm:.4g}); divide it "
+                "by its norm",
             )
         return [float(v) for v in qn / norm]
 
@@ -845,6 +926,267 @@ def check_folder_name(path: str, name: str, key: str = "name") -> None:
         )
 
 
+#: Deepest nesting of arrays and tables a scene file or a configuration may have (a scene needs
+#: three: a ``[[pass]]`` list, its table, a rotation); deeper is refused before Python's recursion
+#: limit is reached.
+NESTING_MAX = 32
+#: Most digits of an integer a file may give (Python's own limit of text-to-int conversion; no
+#: setting takes more than 20 digits, so only the message is at stake).
+DIGITS_MAX = 4300
+#: Bits of the largest integer of :data:`DIGITS_MAX` digits.
+_BITS_MAX = int(DIGITS_MAX * math.log2(10))
+#: The largest finite float (an int beyond it cannot be a float setting).
+_FLOAT_MAX = 1.7976931348623157e308
+#: Keys shown as they are in messages; any other key is quoted (``repr``).
+_PLAIN_KEY = re.compile(r"[A-Za-z0-9_\-.]{1,40}")
+
+
+def shown(value, limit: int = 60) -> str:
+    """A value as a message shows it: its ``repr`` on one line, at most ``limit`` characters.
+
+    Never fails: an integer too long to print is described by its number of digits, a value
+    nested too deeply to ``repr`` by its type.
+
+    Examples
+    --------
+    >>> shown("a" * 100, 10)
+    "'aaaaaaaa…"
+    >>> shown(10**5000)
+    'an integer of 5,001 digits'
+    """
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 256:
+        return f"an integer of {_digits(value):,} digits"
+    try:
+        text = repr(value).replace("\n", " ")
+    except (ValueError, RecursionError):
+        text = f"<{type(value).__name__}>"
+    return _cut(text, limit)
+
+
+def _cut(text: str, limit: int = 20) -> str:
+    """``text`` cut to ``limit`` characters (an ellipsis marks a cut)."""
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def _digits(value: int) -> int:
+    """Decimal digits of ``abs(value)``, without converting it to text (Python refuses that for
+    more than :data:`DIGITS_MAX` digits)."""
+    n = int(abs(value).bit_length() * math.log10(2)) + 1
+    return n - 1 if n > 1 and abs(value) < 10 ** (n - 1) else n
+
+
+def key_text(key) -> str:
+    """A key as a message names it: as it is when plain (``solver``, ``mesh_A_pso_iters``), else
+    quoted and cut short (:func:`shown`), so a key with a newline stays on one line."""
+    return key if isinstance(key, str) and _PLAIN_KEY.fullmatch(key) else shown(key, 40)
+
+
+def _trail_text(trail: tuple) -> str:
+    """A value's place in a parsed document, e.g. ``pass[0].rotation`` (at most 6 steps)."""
+    text = ""
+    for i, step in enumerate(trail):
+        if i == 6:
+            return text + ".…"
+        text += f"[{step}]" if isinstance(step, int) else ("." if text else "") + key_text(step)
+    return text or "(top level)"
+
+
+class _Unreadable:
+    """A number a file gives that Python cannot hold (an integer of more than
+    :data:`DIGITS_MAX` digits, a float beyond ±1.8e308): a marker in the parsed document, so that
+    :func:`_check_document` refuses it naming its key."""
+
+    def __init__(self, what: str):
+        self.what = what
+
+
+def _parse_float(text: str):
+    """A float literal of a TOML or JSON file: the float, or :class:`_Unreadable` where it is
+    out of a float's range (Python would make it ``inf`` without a word)."""
+    value = float(text)
+    if math.isinf(value) and text.lstrip("+-")[:3].lower() != "inf":
+        return _Unreadable(f"{_cut(text)} is beyond a number's range (±1.8e308)")
+    return value
+
+
+def _parse_int(text: str):
+    """An integer literal of a JSON file: the int, or :class:`_Unreadable` beyond
+    :data:`DIGITS_MAX` digits."""
+    if len(text.lstrip("-")) > DIGITS_MAX:
+        return _Unreadable(f"an integer of {len(text.lstrip('-')):,} digits")
+    return int(text)
+
+
+def _check_document(data, path: str, max_depth: int | None) -> None:
+    """Refuse, naming the key, what a parsed document holds that no reader should meet: a number
+    Python cannot hold (:class:`_Unreadable`, an integer of over :data:`DIGITS_MAX` digits) or,
+    with ``max_depth``, arrays and tables nested deeper than that (walked without recursion)."""
+    stack = [(data, (), 0)]
+    while stack:
+        value, trail, depth = stack.pop()
+        if isinstance(value, _Unreadable):
+            raise SieveError(f"{path}: {_trail_text(trail)}: {value.what}; give a smaller number")
+        if (
+            isinstance(value, int)
+            and not isinstance(value, bool)
+            and value.bit_length() > _BITS_MAX
+        ):
+            raise SieveError(f"{path}: {_trail_text(trail)}: {shown(value)}; give a smaller number")
+        if isinstance(value, dict):
+            children = value.items()
+        elif isinstance(value, list):
+            children = enumerate(value)
+        else:
+            continue
+        if max_depth is not None and depth > max_depth:
+            raise SieveError(
+                f"{path}: {_trail_text(trail)}: arrays or tables nested more than {max_depth} "
+                "deep; give numbers, strings and short lists"
+            )
+        stack.extend((v, (*trail, k), depth + 1) for k, v in children)
+
+
+#: What a key, a table header, a string or a bracket of a TOML or JSON text looks like (for
+#: :func:`_where_in_text`, which names the place of an error that the parser did not).
+_TOKENS = re.compile(
+    r'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"(?:\\.|[^"\\\n])*"|\'[^\'\n]*\'|#[^\n]*|[\[\]{}]'
+)
+_TOML_KEY = re.compile(r"(?m)^[ \t]*([^\s=#\[][^=\n]*?)[ \t]*=")
+_TOML_TABLE = re.compile(r"(?m)^[ \t]*\[\[?[ \t]*([^\]\n]+?)[ \t]*\]")
+_JSON_KEY = re.compile(r'"((?:\\.|[^"\\\n]){0,40})"\s*:')
+
+
+def _where_in_text(text: str, pos: int, toml: bool) -> str:
+    """The key and line at character ``pos`` of a TOML or JSON text, e.g. ``solver.particles
+    (line 7)``: the last key given before it, under its table (a heuristic, for messages)."""
+    head, line = text[:pos], text.count("\n", 0, pos) + 1
+    if toml:
+        keys, tables = list(_TOML_KEY.finditer(head)), list(_TOML_TABLE.finditer(head))
+        key = keys[-1].group(1).strip() if keys else ""
+        if tables and (not keys or tables[-1].start() < keys[-1].start()):
+            key = f"{tables[-1].group(1).strip()}.{key}" if key else tables[-1].group(1).strip()
+    else:
+        keys = list(_JSON_KEY.finditer(head))
+        key = keys[-1].group(1) if keys else ""
+    return f"{key_text(key) if key else '(top level)'} (line {line})"
+
+
+def _too_deep_at(text: str) -> int:
+    """Where a TOML or JSON text first opens an array or table deeper than :data:`NESTING_MAX`
+    (strings and comments skipped); 0 if nowhere."""
+    depth = 0
+    for m in _TOKENS.finditer(text):
+        token = m.group()
+        if token in "[{":
+            depth += 1
+            if depth > NESTING_MAX:
+                return m.start()
+        elif token in "]}":
+            depth = max(depth - 1, 0)
+    return 0
+
+
+def _too_long_at(text: str) -> int:
+    """Where a TOML text gives an integer of more than :data:`DIGITS_MAX` digits; 0 if nowhere."""
+    m = re.search(r"[0-9](?:_?[0-9]){" + str(DIGITS_MAX) + ",}", text)
+    return m.start() if m else 0
+
+
+def parse_toml(text: str, path: str) -> dict:
+    """A TOML document, every number and nesting checked: one line naming the file and key.
+
+    Parameters
+    ----------
+    text : str
+        The file's text (a leading byte-order mark is dropped).
+    path : str
+        The file, for messages.
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    SieveError
+        Invalid TOML; an integer of more than :data:`DIGITS_MAX` digits or a float beyond
+        ±1.8e308; arrays or tables nested deeper than :data:`NESTING_MAX`.
+    """
+    text = text.removeprefix("\ufeff")  # a byte-order mark is not TOML's
+    try:
+        data = tomllib.loads(text, parse_float=_parse_float)
+    except tomllib.TOMLDecodeError as exc:
+        raise SieveError(f"{path}: not valid TOML ({exc})") from None
+    except RecursionError:
+        where = _where_in_text(text, _too_deep_at(text), toml=True)
+        raise SieveError(f"{path}: {where}: arrays or tables nested more than {NESTING_MAX} "
+                         "deep; give numbers, strings and short lists") from None  # fmt: skip
+    except ValueError:  # int() of tomllib: more digits than Python converts
+        where = _where_in_text(text, _too_long_at(text), toml=True)
+        raise SieveError(f"{path}: {where}: an integer of more than {DIGITS_MAX:,} digits; "
+                         "give a smaller number") from None  # fmt: skip
+    _check_document(data, path, NESTING_MAX)
+    return data
+
+
+def parse_json(text: str, path: str, max_depth: int | None = NESTING_MAX):
+    """A JSON document, every number, key and nesting checked: one line naming the file and key.
+
+    The reader every JSON input of sieve-mi should use instead of ``json.load``: Python's reader
+    lets a later duplicate key replace the earlier one silently, turns a float beyond ±1.8e308
+    into ``inf``, and raises ValueError or RecursionError on a long integer or deep nesting.
+
+    Parameters
+    ----------
+    text : str
+        The file's text.
+    path : str
+        The file, for messages.
+    max_depth : int or None
+        Deepest nesting of arrays and objects accepted (None: any that Python parses, as a
+        certificate's tree needs).
+
+    Returns
+    -------
+    object
+        The document (dict, list, str, int, float, bool or None).
+
+    Raises
+    ------
+    SieveError
+        Invalid JSON; a key given twice in one object; an integer of more than
+        :data:`DIGITS_MAX` digits or a float beyond ±1.8e308; nesting deeper than ``max_depth``
+        (or than Python can parse).
+
+    Examples
+    --------
+    >>> parse_json('{"a": 1, "a": 2}', "c.json")
+    Traceback (most recent call last):
+    ...
+    sieve_mi.errors.SieveError: c.json: a: given twice in one object; keep one
+    """
+
+    def unique(pairs):
+        out = {}
+        for key, value in pairs:
+            if key in out:
+                raise SieveError(f"{path}: {key_text(key)}: given twice in one object; keep one")
+            out[key] = value
+        return out
+
+    try:
+        data = json.loads(text, object_pairs_hook=unique, parse_int=_parse_int,
+                          parse_float=_parse_float)  # fmt: skip
+    except json.JSONDecodeError as exc:
+        raise SieveError(f"{path}: not valid JSON ({exc})") from None
+    except RecursionError:
+        where = _where_in_text(text, _too_deep_at(text), toml=False)
+        raise SieveError(f"{path}: {where}: arrays or objects nested too deeply; give numbers, "
+                         "strings and short lists") from None  # fmt: skip
+    _check_document(data, path, max_depth)
+    return data
+
+
 def read_file(path: str) -> dict:
     """The TOML document at ``path``; a missing, unreadable or invalid file is a SieveError."""
     if not os.path.exists(path):
@@ -858,11 +1200,9 @@ def read_file(path: str) -> dict:
     try:
         with open(path, "rb") as fh:
             text = fh.read(SCENE_FILE_MAX + 1).decode("utf-8")
-        return tomllib.loads(text.removeprefix("\ufeff"))  # a byte-order mark is not TOML's
-    except tomllib.TOMLDecodeError as exc:
-        raise SieveError(f"{path}: not valid TOML ({exc})") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise SieveError(f"{path}: could not be read ({exc})") from None
+    return parse_toml(text, path)
 
 
 def load_scene(path: str) -> Scene:

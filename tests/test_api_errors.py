@@ -226,3 +226,168 @@ def test_a_mixture_shape_name_is_reported_under_its_key(tmp_path):
     with pytest.raises(sm.SieveError) as e:
         load_mixture(str(path))
     _one_line(e, "shape[0].name: '../x' is used as a folder name")
+
+
+# --- the API validates like the CLI (issue 40, rows 12, 13, 16 and 17) --------------------------
+
+CUBE = os.path.join(os.path.dirname(DEFAULT), "meshes", "cube.stl")
+
+
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"sieve": CUBE, "axis": "w"}, "check: axis: 'w' is not one of: x, y, z"),
+        ({"sieve": CUBE, "axis": None}, "check: axis: expected a non-empty string, got None"),
+        ({"sieve": CUBE, "settings": {}}, "check: settings: expected a CheckSettings"),
+        ({"sieve": CUBE, "settings": {"starts": 3}}, "got {'starts': 3}"),
+        ({"sieve": CUBE, "image": "hole.png"}, "check: give sieve=PLATE (a plate mesh) or image=HOLE (a hole image), not both"),
+        ({"sieve": 123}, "check: sieve: expected a file path (str), got 123"),
+        ({"image": b"hole.png"}, "check: image: expected a file path (str), got b'hole.png'"),
+        ({"sieve": CUBE, "units": 5}, "check: units: expected a non-empty string, got 5"),
+        ({"image": "hole.png", "pixel_size": -1}, "check: pixel_size: must be > 0, got -1"),
+        ({"image": "hole.png", "pixel_size": float("nan")}, "check: pixel_size: expected a finite number"),
+        ({"sieve": CUBE, "progress": 3}, "check: progress: expected a function or None, got 3"),
+    ],
+)  # fmt: skip
+def test_check_refuses_bad_arguments_in_one_line_before_any_work(kwargs, needle):
+    # Were KeyError ('w'), AttributeError (a dict for settings), or image= silently ignored.
+    t0 = time.perf_counter()
+    with pytest.raises(sm.SieveError) as e:
+        sm.check(CUBE, **kwargs)
+    _one_line(e, needle)
+    assert "--" not in str(e.value) and time.perf_counter() - t0 < 1.0
+
+
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"thin_budget": 0}, "check: thin_budget: must be > 0, got 0"),
+        ({"thin_budget": float("nan")}, "check: thin_budget: expected a finite number, got nan"),
+        ({"starts": 0}, "check: starts: must be >= 1, got 0"),
+        ({"starts": 2.5}, "check: starts: expected a whole number, got 2.5"),
+        ({"fit_tolerance": 1}, "check: fit_tolerance: must be < 1, got 1"),
+        ({"strats": 4}, "check: strats: unknown setting; known: fit, fit_tolerance, learning_rate"),
+    ],
+)
+def test_check_settings_are_checked_when_made(kwargs, needle):
+    from sieve_mi.game.check import CheckSettings
+
+    with pytest.raises(sm.SieveError) as e:
+        CheckSettings(**kwargs)
+    _one_line(e, needle)
+    assert CheckSettings(starts=4.0, thin_budget=1).starts == 4  # whole floats are integers
+
+
+@pytest.mark.parametrize(
+    "table, make, needle",
+    [
+        ("solver", {"particles": 0}, "solver: particles: must be >= 1, got 0"),
+        ("verdict", {"thin_budget": -1.0}, "verdict: thin_budget: must be > 0, got -1.0"),
+        ("layout", {"mode": "stacked"}, "layout: mode: 'stacked' is not one of"),
+        ("fabrication", {"thickness": "thin"}, "fabrication: thickness: expected a number or 'thinnest'"),
+    ],
+)  # fmt: skip
+def test_settings_tables_are_checked_when_made(scene, table, make, needle):
+    cls = type(getattr(scene, table))
+    with pytest.raises(sm.SieveError) as e:
+        cls(**make)
+    _one_line(e, needle)
+
+
+@pytest.mark.parametrize(
+    "target, name, needle",
+    [
+        ("solver", "nosuchkey", "solver: nosuchkey: unknown setting; known: c_global, c_personal"),
+        ("verdict", "start", "verdict: start: unknown setting; known: certify, certify_budget"),
+        ("fabrication", "tolerence", "fabrication: tolerence: unknown setting"),
+        ("layout", "a\nb", "layout: 'a\\nb': unknown setting"),
+        (None, "unit", "scene: unit: unknown setting; known: blocks, directory, fabrication"),
+    ],
+)
+def test_an_unknown_setting_name_is_refused_not_ignored(scene, target, name, needle):
+    # A typo in a setting was silently kept as a new attribute, and the run used the default.
+    obj = scene if target is None else getattr(scene, target)
+    with pytest.raises(AttributeError) as e:  # what Python raises for a name it cannot set
+        setattr(obj, name, 1)
+    assert isinstance(e.value, sm.SieveError)  # and the CLI's one line
+    _one_line(e, needle)
+    assert not hasattr(obj, name)
+
+
+@pytest.mark.parametrize(
+    "name, value, needle",
+    [
+        ("units", "furlong", "scene: units: 'furlong' is not one of: mm, cm, m, in, um"),
+        ("name", "../x", "scene: name: '../x' is used as a folder name"),
+        ("name", 3, "scene: name: expected a string, got 3"),
+        ("solver", {}, "scene: solver: expected a Solver table, got {}"),
+    ],
+)
+def test_scene_fields_are_checked_when_set(name, value, needle):
+    scene = sm.load_scene(DEFAULT)
+    before = getattr(scene, name)
+    with pytest.raises(sm.SieveError) as e:
+        setattr(scene, name, value)
+    _one_line(e, needle)
+    assert getattr(scene, name) == before
+
+
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"scale": -1}, "load_shape: scale: must be > 0, got -1"),
+        ({"scale": "x"}, "load_shape: scale: expected a number, got 'x'"),
+        ({"name": "a\nb"}, "load_shape: name: 'a\\nb' has control characters"),
+        ({"name": 3}, "load_shape: name: expected a string, got 3"),
+    ],
+)
+def test_load_shape_checks_its_arguments(kwargs, needle):
+    with pytest.raises(sm.SieveError) as e:
+        sm.load_shape(CUBE, **kwargs)
+    _one_line(e, needle)
+    assert sm.load_shape(CUBE, scale=2, name="c").radius == pytest.approx(20 * 3**0.5, rel=1e-6)
+
+
+def _garbage(tmp_path) -> dict:
+    """Files that are not meshes, by name."""
+    import numpy as np
+
+    files = {
+        "random.stl": np.random.default_rng(0).bytes(3000),
+        "text.stl": b"hello\nthis is not a mesh\n",
+        "empty.stl": b"",
+        "random.obj": np.random.default_rng(1).bytes(500),
+    }
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+    return files
+
+
+@pytest.mark.parametrize("name", ["random.stl", "text.stl", "empty.stl", "random.obj"])
+def test_a_file_that_is_not_a_mesh_says_so(tmp_path, capsys, name):
+    # Was "holds no triangles (a point cloud or empty scene?)", or "a truncated binary STL"
+    # for random bytes.
+    import hashlib
+
+    from sieve_mi.cli import main
+
+    data = _garbage(tmp_path)[name]
+    path = str(tmp_path / name)
+    with pytest.raises(sm.SieveError) as e:
+        sm.load_shape(path)
+    _one_line(e, f"{path}: could not be read as a mesh")
+    assert "check that it is a triangle mesh file (STL, OBJ, PLY" in str(e.value)
+    assert "point cloud" not in str(e.value) and "truncated" not in str(e.value)
+    code = main(["check", path, "--sieve", CUBE, "--out", str(tmp_path / "o")])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and lines == [f"sieve-mi: error: {e.value}"]
+    assert hashlib.sha256(open(path, "rb").read()).digest() == hashlib.sha256(data).digest()
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_point_cloud_is_named_as_one(tmp_path):
+    path = tmp_path / "points.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    with pytest.raises(sm.SieveError) as e:
+        sm.load_shape(str(path))
+    _one_line(e, "holds points (a point cloud) but no triangles; give a triangle mesh")

@@ -172,3 +172,70 @@ def test_solve_reads_a_configuration(authors_repo, tmp_path):
         settings["fabrication"]["tolerance"] == 1.0 and settings["fabrication"]["thickness"] == 45.0
     )
     assert report["winner"] == "A"  # a 20 mm cube's hole blocks a 28.8 mm ball
+
+
+# --- numbers, nesting and keys no reader should meet (issue 40, rows 11 and 18) -----------------
+
+
+def _raw(authors_repo, key: str, text: str) -> str:
+    """A configuration whose ``key`` holds the raw JSON ``text`` (written as it is)."""
+    path = authors_repo(**{key: 1})
+    with open(path, encoding="utf-8") as fh:
+        doc = fh.read()
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(doc.replace(f'"{key}": 1', f'"{key}": {text}', 1))
+    return path
+
+
+#: (key, raw JSON value, words of the message after "<path>: <key>...").
+HOSTILE = [
+    ("mesh_A_pso_iters", "9" * 5000, "mesh_A_pso_iters: an integer of 5,000 digits"),
+    ("mesh_B_opt_learning_rate", "9" * 400 + ".0", "mesh_B_opt_learning_rate: 9999999999999999999… is beyond"),
+    ("mesh_B_opt_learning_rate", "1e400", "mesh_B_opt_learning_rate: 1e400 is beyond a number's range"),
+    ("mesh_A_pso_w", "9" * 400, "mesh_A_pso_w: an integer of 400 digits is beyond a number's range"),
+    ("image_shape", f"[{'9' * 400}, {'9' * 400}]", "image_shape: must be <= 4096, got an integer of 400 digits"),
+    ("simulation_scale", "[" * 50_000 + "]" * 50_000, "simulation_scale (line "),
+    ("simulation_scale", "[" * 40 + "]" * 40, "simulation_scale[0][0][0][0][0].…: arrays or tables nested"),
+    ("mesh_B_opt_num_posns", "2.5", "mesh_B_opt_num_posns: expected a whole number, got 2.5"),
+    ("mesh_A_pso_iters", '3, "mesh_A_pso_iters": 30', "mesh_A_pso_iters: given twice in one object"),
+    ("meshes_B", '[{"filename": "sphere.stl", "filename": "cube.stl"}]', "filename: given twice"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("key, text, words", HOSTILE, ids=range(len(HOSTILE)))
+def test_hostile_numbers_nesting_and_duplicate_keys_are_one_line(
+    authors_repo, capsys, tmp_path, key, text, words
+):
+    # Were ValueError, OverflowError and RecursionError tracebacks, or (a duplicate key) the
+    # last value silently; now one line naming the file and the key, exit 2, nothing touched.
+    import hashlib
+
+    from sieve_mi.cli import main
+
+    path = _raw(authors_repo, key, text)
+    before = hashlib.sha256(open(path, "rb").read()).hexdigest()
+    code, err = main(["solve", path, "--out", str(tmp_path / "o")]), capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    assert lines[0].startswith(f"sieve-mi: error: {path}: ") and words in lines[0], lines[0]
+    assert hashlib.sha256(open(path, "rb").read()).hexdigest() == before
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("key", [*SETTINGS, *NO_EFFECT])
+def test_every_key_takes_extreme_numbers_or_refuses_them_in_one_line(authors_repo, key):
+    for text in ["9" * 5000, "9" * 400, "-" + "9" * 400 + ".5", "1e-400", "NaN", "-Infinity",
+                 "2.0", "[[[[1]]]]", "{}", '"x"', "true", "null"]:  # fmt: skip
+        path = _raw(authors_repo, key, text)
+        try:
+            load_authors_config(path)
+        except sm.SieveError as e:
+            assert "\n" not in str(e) and str(e).startswith(f"{path}: "), (key, text, str(e))
+
+
+def test_a_whole_float_is_an_integer_for_every_integer_key(authors_repo):
+    # 10.0 is 10 for the keys that become settings and for those without effect alike.
+    scene = load_authors_config(authors_repo(mesh_A_pso_iters=3.0, proj_A_pso_iters=10.0))
+    assert scene.solver.iterations == 3 and type(scene.solver.iterations) is int
+    with pytest.raises(sm.SieveError, match=r"proj_A_pso_iters: expected a whole number >= 0"):
+        load_authors_config(authors_repo(proj_A_pso_iters=10.5))

@@ -289,7 +289,7 @@ BAD_OPTIONS = [
     ("check", "--resolution", "5000", "must be <= 4096"),
     ("check", "--resolution", "1.5", "expected a whole number"),
     ("check", "--seed", "-1", "must be >= 0"),
-    ("check", "--seed", "1e3", "expected a whole number"),
+    ("check", "--seed", "1e-3", "expected a whole number, got 0.001"),
     ("check", "--starts", "0", "must be >= 1"),
     ("check", "--steps", "0", "must be >= 1"),
     ("check", "--fit-tolerance", "0", "must be >= 1e-06"),

@@ -718,3 +718,95 @@ def test_a_scene_path_that_is_not_a_file_is_refused_at_once(tmp_path, special):
     path = str(tmp_path) if special == "folder" else special
     with pytest.raises(SieveError, match="not a regular file"):
         load_scene(path)
+
+
+# --- numbers and nesting no reader can hold (issue 40, rows 11 and 18) ---------------------------
+
+
+def _refused_by_the_cli(capsys, argv: list[str], *files: str) -> str:
+    """``sieve-mi ARGV`` in process: exit 2, one stderr line (returned), ``files`` unchanged."""
+    import hashlib
+
+    from sieve_mi.cli import main
+
+    def digest(path):
+        with open(path, "rb") as fh:
+            return hashlib.sha256(fh.read()).hexdigest()
+
+    before = {f: digest(f) for f in files}
+    code = main(argv)
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("sieve-mi: error: "), err
+    assert {f: digest(f) for f in files} == before
+    return lines[0].removeprefix("sieve-mi: error: ")
+
+
+#: (text after MINIMAL's four lines, where the message says it is, what it says).
+HUGE = [
+    ("[solver]\nparticles = " + "9" * 5000, "solver.particles (line 6)",
+     "an integer of more than 4,300 digits"),
+    ("[solver]\nparticles = 0x" + "f" * 5000, "solver.particles", "an integer of 6,021 digits"),
+    ("[solver]\nlearning_rate = " + "9" * 400 + ".0", "solver.learning_rate",
+     "9" * 19 + "… is beyond a number's range (±1.8e308)"),
+    ("[solver]\nlearning_rate = 1e400", "solver.learning_rate", "1e400 is beyond a number's range"),
+    ("[solver]\ninertia = " + "9" * 400, "solver.inertia",
+     "an integer of 400 digits is beyond a number's range"),
+    ("[solver]\nseed = " + "9" * 400, "solver.seed", "must be <= 18446744073709551615, got an integer of 400 digits"),
+    ("[[pass]]\nmesh = " + "[" * 50_000 + "]" * 50_000, "pass.mesh (line 6)",
+     "arrays or tables nested more than 32 deep"),
+    ("[[pass]]\nmesh = " + "[" * 40 + "]" * 40, "pass[1].mesh[0][0][0].…",
+     "arrays or tables nested more than 32 deep"),
+    ("[solver]\n" + "a." * 1000 + "b = 1", "solver.a.a.a.a.a.…", "nested more than 32 deep"),
+    ('[[pass]]\nmesh = "a.stl"\nrotation = [' + "9" * 400 + ", 0, 0, 0]", "pass[1].rotation",
+     "has a number beyond ±1.8e308"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("text, where, words", HUGE, ids=range(len(HUGE)))
+def test_numbers_and_nesting_beyond_any_use_are_one_line_naming_file_and_key(
+    tmp_path, capsys, text, where, words
+):
+    # Python's own limits (4,300 digits, 1.8e308, its recursion) surfaced as ValueError,
+    # OverflowError and RecursionError tracebacks; now the one line every bad key gets.
+    path = _write(tmp_path, MINIMAL + text + "\n")
+    out = tmp_path / "out"
+    line = _refused_by_the_cli(capsys, ["solve", path, "--out", str(out)], path)
+    assert line.startswith(f"{path}: {where}: ") and words in line, line
+    assert not out.exists()
+    assert _error(tmp_path, MINIMAL + text + "\n") == line[len(path) + 2 :]  # the API's, too
+
+
+def test_a_mixture_is_read_by_the_same_guarded_reader(tmp_path, capsys):
+    path = _write(tmp_path, '[[shape]]\nmesh = "a.stl"\n[[shape]]\nmesh = "b.stl"\n[solver]\n'
+                  f"steps = {'9' * 5000}\n", "mix.toml")  # fmt: skip
+    line = _refused_by_the_cli(capsys, ["sort", path, "--out", str(tmp_path / "o")], path)
+    assert line.startswith(f"{path}: solver.steps (line 6): an integer of more than 4,300 digits")
+
+
+@pytest.mark.parametrize(
+    "value, expected", [("2.0", 2), ("2", 2), ("1e2", 100), ("2.5", None), ("2.000001", None)]
+)
+def test_a_float_for_an_integer_key_is_whole_or_refused(tmp_path, capsys, value, expected):
+    # One rule for files, code and options: a whole number (2 or 2.0) is the integer; any other
+    # float is refused naming the key.
+    text = MINIMAL + f"[solver]\nstarts = {value}\n"
+    argv = ["check", "a.stl", "--sieve", "p.stl", "--starts", value]
+    if expected is None:
+        assert (
+            _error(tmp_path, text) == f"solver.starts: expected a whole number, got {float(value)}"
+        )
+        with pytest.raises(SieveError, match=r"^check: starts: expected a whole number, got 2\."):
+            scene.Check(starts=float(value))
+        assert _refused_by_the_cli(capsys, argv) == (
+            f"check: --starts: expected a whole number, got {float(value)}"
+        )
+        return
+    starts = load_scene(_write(tmp_path, text)).solver.starts
+    assert starts == expected and type(starts) is int
+    assert type(scene.Check(starts=float(value)).starts) is int
+    from sieve_mi.cli import _check_settings, _parser
+
+    args = _parser().parse_args(argv)
+    _check_settings(args)
+    assert args.starts == expected and type(args.starts) is int

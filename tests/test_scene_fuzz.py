@@ -16,10 +16,13 @@ from sieve_mi.scene import Scene, key_of, spec_of, table_fields, value_types
 VALUES = ["0", "-1", "1", "3", "1e300", "-1e300", "nan", "inf", "-inf", "1e-300", "true", "false",
           '""', '"x"', '"\\u00e9\\u4e2d"', '"' + "a" * 5000 + '"', "[]", "[1, 2]", "{}", "{a = 1}",
           "2.5", "64.0", "9" * 30, '"\\n"', '"   "', '"../x"', '"<!--<script>"',
-          "18446744073709551616", "1979-05-27", '"\\u0000"', '"clearance"', '"pso"']  # fmt: skip
+          "18446744073709551616", "1979-05-27", '"\\u0000"', '"clearance"', '"pso"',
+          "9" * 5000, "0x" + "f" * 5000, "9" * 400, "9" * 400 + ".5", "-1e400", "1e-400",
+          "[" * 40 + "]" * 40, "[" * 2000 + "]" * 2000, '"\\u0000"', "{a.b.c = 1}"]  # fmt: skip
 PY_VALUES = [0, -1, 1, 3, 1e300, -1e300, float("nan"), float("inf"), 1e-300, True, False, "",
              "x", "é中", "a" * 5000, [], [1, 2], {}, 2.5, 64.0, 10**30, None, b"x", object(),
-             "clearance", "pso", "merged", 2**64]  # fmt: skip
+             "clearance", "pso", "merged", 2**64, 10**400, -(10**4000), 2.0, [[[[1.0]]]],
+             float("-inf")]  # fmt: skip
 TABLES = {key_of(f): value_types(Scene)[f.name] for f in table_fields()}
 
 
@@ -76,7 +79,16 @@ def test_random_assignments_set_or_fail_in_one_line(seed):
         settings = getattr(scene, table)
         key = rng.choice(_keys(TABLES[table]))
         name = next(f.name for f in dataclasses.fields(settings) if key_of(f) == key)
-        try:
-            setattr(settings, name, rng.choice(PY_VALUES))
-        except sm.SieveError as e:
-            assert "\n" not in str(e) and str(e).startswith(f"{table}: "), str(e)
+        if rng.random() < 0.1:  # a typo: refused, never kept
+            name = name[:-1]
+        value = rng.choice(PY_VALUES)
+        _set_or_one_line(table, setattr, settings, name, value)  # a value set in code
+        _set_or_one_line(table, TABLES[table], **{name: value})  # a table made in code
+
+
+def _set_or_one_line(table: str, act, *args, **kwargs) -> None:
+    """``act(*args, **kwargs)`` works or raises one line of SieveError naming ``table``."""
+    try:
+        act(*args, **kwargs)
+    except sm.SieveError as e:
+        assert "\n" not in str(e) and str(e).startswith(f"{table}: "), str(e)

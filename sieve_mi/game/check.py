@@ -36,7 +36,7 @@ from sieve_mi.geometry.meshes import Shape, load_trimesh
 from sieve_mi.geometry.outline import filled, placed_vertices, projection, union
 from sieve_mi.geometry.pixels import image_pixel_size
 from sieve_mi.geometry.raster import Frame
-from sieve_mi.scene import AXIS_NAMES, Check
+from sieve_mi.scene import AXIS_NAMES, Check, CheckInputs, read_value, shown
 
 __all__ = [
     "AXES",
@@ -402,8 +402,9 @@ def check(
     -------
     CheckReport
     """
-    if sieve is None and image is None:
-        raise SieveError("check: give sieve=PLATE (a plate mesh) or image=HOLE with pixel_size=MM")
+    sieve, image, axis, pixel_size, units, settings = _arguments(
+        sieve, image, axis, pixel_size, units, settings, progress
+    )
     if image is not None and pixel_size is None:
         pixel_size = image_pixel_size(image, units)  # a PNG's pHYs, as hole.png has
     if image is not None and pixel_size is None:
@@ -411,7 +412,6 @@ def check(
             "check: image= needs pixel_size= (scene units per pixel); the image records none"
         )
     shape = as_shape(shape)
-    settings = settings or CheckSettings()
     t0 = time.perf_counter()
     if sieve is not None:
         holes, outlines, centre, info, frame = _plate_holes(sieve, axis, settings.resolution)
@@ -447,6 +447,41 @@ def check(
     rep.evaluations = evaluations
     rep.seconds = time.perf_counter() - t0
     return rep
+
+
+def _arguments(sieve, image, axis, pixel_size, units, settings, progress) -> tuple:
+    """:func:`check`'s arguments checked as ``sieve-mi check`` checks its options, in the API's
+    words (``axis``, not ``--axis``): one-line SieveError before any work.
+
+    Returns
+    -------
+    tuple
+        ``(sieve, image, axis, pixel_size, units, settings)``: paths as str, ``pixel_size`` a
+        float or None, ``settings`` a :class:`CheckSettings` (the default one for None).
+    """
+    if sieve is None and image is None:
+        raise SieveError("check: give sieve=PLATE (a plate mesh) or image=HOLE with pixel_size=MM")
+    if sieve is not None and image is not None:
+        raise SieveError("check: give sieve=PLATE (a plate mesh) or image=HOLE (a hole image), not both")  # fmt: skip
+    what = "sieve" if sieve is not None else "image"
+    path = sieve if sieve is not None else image
+    if isinstance(path, os.PathLike):
+        path = os.fspath(path)
+    if not isinstance(path, str) or not path.strip():
+        raise SieveError(f"check: {what}: expected a file path (str), got {shown(path)}")
+    axis = read_value(CheckInputs, "axis", axis, "check")
+    units = read_value(CheckInputs, "units", units, "check")
+    if pixel_size is not None:
+        pixel_size = read_value(CheckInputs, "pixel_size", pixel_size, "check")
+    if settings is None:
+        settings = CheckSettings()
+    if not isinstance(settings, CheckSettings):
+        raise SieveError(f"check: settings: expected a CheckSettings (sieve_mi.game.check."
+                         f"CheckSettings(starts=...)), got {shown(settings)}")  # fmt: skip
+    if progress is not None and not callable(progress):
+        raise SieveError(f"check: progress: expected a function or None, got {shown(progress)}")
+    sieve, image = (path, None) if what == "sieve" else (None, path)
+    return sieve, image, axis, pixel_size, units, settings
 
 
 def plate_thickness(path: str, axis: str = "z") -> float:

@@ -72,21 +72,27 @@ def _fail(path: str, what: str) -> SieveError:
 
 def _check_binary_stl(path: str) -> None:
     """Raise if ``path`` is a binary STL shorter than its header's triangle count says (cut off
-    while copying or downloading); other files pass."""
+    while copying or downloading), or a file named .stl that is not one; other files pass."""
     if not path.lower().endswith(".stl"):
         return
     size = os.path.getsize(path)
     with open(path, "rb") as fh:
         head = fh.read(84)
-    if len(head) < 84 or head[:5].lower() == b"solid":  # ASCII STL (or too short to tell)
-        return
-    count = int.from_bytes(head[80:84], "little")
-    if size < 84 + 50 * count:
-        raise _fail(
-            path,
-            f"is a truncated binary STL: its header says {count:,} triangles "
-            f"({84 + 50 * count:,} bytes), the file has {size:,} bytes; copy or export it again",
-        )
+        if len(head) < 84 or head[:5].lower() == b"solid":  # ASCII STL (or too short to tell)
+            return
+        count = int.from_bytes(head[80:84], "little")
+        if size >= 84 + 50 * count:
+            return
+        records = fh.read(50 * min(count, (size - 84) // 50, 1000))
+    says = f"its header says {count:,} triangles ({84 + 50 * count:,} bytes), the file has {size:,}"
+    if not records:
+        raise _fail(path, f"is a truncated binary STL, or not an STL file: {says} bytes; copy or "
+                    "export it again")  # fmt: skip
+    corners = np.frombuffer(records, np.uint8).reshape(-1, 50)[:, :48].copy().view("<f4")
+    if not np.all(np.isfinite(corners)) or np.abs(corners).max() > 1e12:  # not coordinates
+        raise _fail(path, f"could not be read as a mesh: not an STL file (its bytes are not "
+                    f"triangles, and as a binary STL {says} bytes); {_WHAT_TO_DO}")  # fmt: skip
+    raise _fail(path, f"is a truncated binary STL: {says} bytes; copy or export it again")
 
 
 def load_trimesh(path: str):
@@ -109,24 +115,40 @@ def load_trimesh(path: str):
     try:
         loaded = trimesh.load(path, process=False)
     except Exception as exc:  # trimesh raises many exception types for bad files
+        detail = (str(exc).splitlines() or ["no detail"])[0][:120]
         raise _fail(
-            path,
-            f"could not be read as a mesh ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'no detail'})",
+            path, f"could not be read as a mesh ({type(exc).__name__}: {detail}); {_WHAT_TO_DO}"
         ) from None
     if isinstance(loaded, trimesh.Scene):
-        geoms = (
-            [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
-        )
+        parts = loaded.dump() if loaded.geometry else []
+        geoms = [g for g in parts if isinstance(g, trimesh.Trimesh)]
+        if not parts:  # trimesh found nothing it knows in the file
+            raise _fail(path, f"could not be read as a mesh: no triangles found in it; {_WHAT_TO_DO}")  # fmt: skip
         if not geoms:
-            raise _fail(
-                path, "holds no triangles (a point cloud or empty scene?); give a triangle mesh"
-            )
+            raise _fail(path, f"holds {_kind(parts[0])} but no triangles; give a triangle mesh")
         loaded = trimesh.util.concatenate(geoms)
     if not isinstance(loaded, trimesh.Trimesh):
-        raise _fail(
-            path, "holds no triangles (a point cloud or line drawing?); give a triangle mesh"
-        )
+        raise _fail(path, f"holds {_kind(loaded)} but no triangles; give a triangle mesh")
     return loaded
+
+
+#: What to do with a file that is not a readable mesh (the end of its one-line error).
+_WHAT_TO_DO = (
+    "check that it is a triangle mesh file (STL, OBJ, PLY, OFF, GLB, 3MF) and not empty, "
+    "or export the part again"
+)
+
+
+def _kind(geometry) -> str:
+    """What a non-triangle geometry that trimesh read is, in words (``"points (a point
+    cloud)"``, ``"lines (a drawing)"``)."""
+    import trimesh
+
+    if isinstance(geometry, trimesh.PointCloud):
+        return "points (a point cloud)"
+    if isinstance(geometry, trimesh.path.Path):
+        return "lines (a drawing)"
+    return f"a {type(geometry).__name__}"
 
 
 def shape_from_arrays(
