@@ -391,3 +391,24 @@ def test_a_point_cloud_is_named_as_one(tmp_path):
     with pytest.raises(sm.SieveError) as e:
         sm.load_shape(str(path))
     _one_line(e, "holds points (a point cloud) but no triangles; give a triangle mesh")
+
+
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"budget_s": 0}, "certify settings: budget_s: expected a number > 0, got 0"),
+        ({"min_angle": float("nan")}, "certify settings: min_angle: expected a number > 0, got nan"),
+        ({"max_points": 2.5}, "certify settings: max_points: expected a whole number >= 1, got 2.5"),
+        ({"kappa": 10**400}, "certify settings: kappa: expected a number >= 0, got an integer of 401 digits"),
+    ],
+)  # fmt: skip
+def test_certify_settings_are_checked_and_typos_refused(kwargs, needle):
+    from sieve_mi.certify.search import Settings
+
+    with pytest.raises(sm.SieveError) as e:
+        Settings(**kwargs)
+    _one_line(e, needle)
+    settings = Settings(edge_spacing=0, bound="isotropic")
+    with pytest.raises(AttributeError) as e:
+        settings.kapa = 0.1
+    _one_line(e, "certify settings: kapa: unknown setting; known: bound, budget_s")

@@ -13,6 +13,7 @@ is a passage and ends the search.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -20,9 +21,11 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.certify import bounds, cells, symmetry
+from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import placed_vertices, projection
 from sieve_mi.geometry.rotations import from_matrix
+from sieve_mi.scene import refuse_unknown, shown
 
 __all__ = [
     "BATCH_MIN",
@@ -90,6 +93,44 @@ class Settings:
     edge_spacing: float = 0.01
     max_candidates: int = 60_000
     bound: str = "first-order"
+
+    def __post_init__(self):
+        """Refuse a value the search cannot use, in one line naming the setting."""
+        for name, (low, inclusive, whole) in _LOWEST.items():
+            value = getattr(self, name)
+            if not _at_least(value, low, inclusive, whole):
+                kind = "a whole number" if whole else "a number"
+                raise SieveError(f"certify settings: {name}: expected {kind} "
+                                 f"{'>=' if inclusive else '>'} {low}, got {shown(value)}")  # fmt: skip
+
+    def __setattr__(self, name, value):
+        refuse_unknown(Settings, name, "certify settings")  # a typo is not kept silently
+        object.__setattr__(self, name, value)
+
+
+#: Each numeric :class:`Settings` field: its lowest value, whether that is allowed, whether the
+#: value is a whole number.
+_LOWEST = {
+    "budget_s": (0, False, False),
+    "min_angle": (0, False, False),
+    "initial_points": (1, True, True),
+    "max_points": (1, True, True),
+    "directions": (1, True, True),
+    "kappa": (0, True, False),
+    "edge_spacing": (0, True, False),
+    "max_candidates": (1, True, True),
+}
+
+
+def _at_least(value, low: float, inclusive: bool, whole: bool) -> bool:
+    """Whether ``value`` is a finite number (whole where ``whole``) above ``low`` (or at it)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or abs(value) > 1e300:
+        return False
+    if isinstance(value, float) and not (
+        math.isfinite(value) and (value.is_integer() or not whole)
+    ):
+        return False
+    return value >= low if inclusive else value > low
 
 
 @dataclass
