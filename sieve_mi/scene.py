@@ -1088,8 +1088,10 @@ def _too_deep_at(text: str) -> int:
 
 def _too_long_at(text: str) -> int:
     """Where a TOML text gives an integer of more than :data:`DIGITS_MAX` digits; 0 if nowhere."""
-    m = re.search(r"[0-9](?:_?[0-9]){" + str(DIGITS_MAX) + ",}", text)
-    return m.start() if m else 0
+    for m in re.finditer(r"[0-9][0-9_]*", text):  # each run once: linear in the text
+        if m.end() - m.start() > DIGITS_MAX and len(m.group().replace("_", "")) > DIGITS_MAX:
+            return m.start()
+    return 0
 
 
 def parse_toml(text: str, path: str) -> dict:
