@@ -93,30 +93,30 @@ def settings_from_args(args) -> ShakeSettings:
     return ShakeSettings(**values)
 
 
-def _clip_path(folder: str) -> str:
-    """A temporary GIF path in ``folder`` (the clip is moved in as ``shake.gif`` at the end)."""
-    return os.path.join(folder, f".shake.tmp-{os.getpid()}.gif")
-
-
 def shake_folder(
     folder: str, settings: ShakeSettings, progress=True, clip=True, only: list[str] | None = None
 ) -> dict:
     """Shake a solve's output folder; add ``shake.json``, ``shake.png``, ``shake.gif`` to it.
 
     ``only``: the names of the shapes to shake (default every one); ``shake.json`` then lists
-    those alone."""
+    those alone. Every input and the folder itself are checked before the trials
+    (:func:`~sieve_mi.shake.outputs.check_folder`: a folder without sieve-mi's marker, or with a
+    file in it that the marker does not list, is refused); a folder without a ``report.html``
+    gets the files and a one-line warning that no page got the card."""
+    import tempfile
+
     from sieve_mi.shake.inputs import from_folder, select
-    from sieve_mi.shake.outputs import add_to_folder
+    from sieve_mi.shake.outputs import add_to_folder, check_folder
     from sieve_mi.shake.run import shake
 
     inp = select(from_folder(folder), only)
-    tmp = _clip_path(folder) if clip else None
-    try:
-        report = shake(inp, settings, progress=progress, clip=tmp)
-        add_to_folder(report, folder, tmp)
-    finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.remove(tmp)
+    check_folder(folder)
+    with tempfile.TemporaryDirectory(prefix="sieve-mi-shake-") as tmp:
+        gif = os.path.join(tmp, "shake.gif") if clip else None
+        report = shake(inp, settings, progress=progress, clip=gif)
+        note = add_to_folder(report, folder, gif)
+    if note is not None:
+        print(f"sieve-mi: warning: {note}", file=sys.stderr)
     return report
 
 

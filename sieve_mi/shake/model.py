@@ -20,7 +20,9 @@ from sieve_mi.shake.settings import CONTACT, ShakeSettings
 __all__ = [
     "PLATE_MASS_RATIO",
     "WALL_THICKNESS_MM",
+    "WARNINGS",
     "build_model",
+    "engine_warnings",
     "plate_motion",
     "wall_thickness",
 ]
@@ -30,6 +32,35 @@ PLATE_MASS_RATIO = 1e6
 #: Least thickness of the frame wall, millimetres; it is at least the part's diameter too, so no
 #: fast part can tunnel through it in one step.
 WALL_THICKNESS_MM = 2.0
+
+
+#: MuJoCo's warnings by index in ``MjData.warning``: (name, what it means).
+WARNINGS = {
+    int(mujoco.mjtWarning.mjWARN_INERTIA): ("mjWARN_INERTIA", "a body's inertia is too small"),
+    int(mujoco.mjtWarning.mjWARN_CONTACTFULL): ("mjWARN_CONTACTFULL", "too many contacts"),
+    int(mujoco.mjtWarning.mjWARN_CNSTRFULL): ("mjWARN_CNSTRFULL", "too many constraints"),
+    int(mujoco.mjtWarning.mjWARN_BADQPOS): ("mjWARN_BADQPOS", "unstable simulation (position)"),
+    int(mujoco.mjtWarning.mjWARN_BADQVEL): ("mjWARN_BADQVEL", "unstable simulation (velocity)"),
+    int(mujoco.mjtWarning.mjWARN_BADQACC): (
+        "mjWARN_BADQACC",
+        "unstable simulation (NaN, Inf or huge acceleration; MuJoCo reset it)",
+    ),
+    int(mujoco.mjtWarning.mjWARN_BADCTRL): ("mjWARN_BADCTRL", "bad control value"),
+}
+
+
+def _drop_message(text: str) -> None:
+    """MuJoCo's warning handler here: its own (a line on stderr, and MUJOCO_LOG.TXT written into
+    the working folder) is replaced; the counts in ``MjData.warning`` are what is reported."""
+
+
+def engine_warnings(data) -> tuple:
+    """The names of the warnings MuJoCo raised in ``data`` since its last reset (``WARNINGS``)."""
+    return tuple(
+        WARNINGS.get(i, (f"mjWARN_{i}", ""))[0]
+        for i in range(len(data.warning))
+        if data.warning[i].number
+    )
 
 
 def wall_thickness(part: Part, unit_m: float) -> float:
@@ -80,6 +111,8 @@ def build_model(plate: Plate, part: Part, settings: ShakeSettings, unit_m: float
     mujoco.MjModel
         Joints: 0 the plate's slide, 1 its twist, 2 the part's free joint (qpos[2:9]).
     """
+    if mujoco.get_mju_user_warning() is not _drop_message:
+        mujoco.set_mju_user_warning(_drop_message)  # no text on stderr, no file in the cwd
     spec = mujoco.MjSpec()
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     opt = spec.option

@@ -1,26 +1,31 @@
 """Shake outputs: ``shake.json``, ``shake.png`` (fraction passed against time) and a summary table.
 
-Into a solve's folder the two files are written atomically (a temporary file, then a rename)
-and added to the folder's ``.sieve-mi`` marker, so a later ``solve --out`` may still replace it.
+Into a solve's folder the files go through :func:`sieve_mi.outputs.outdir.add_files`, the one
+marker-checked way into an existing folder: the folder must carry sieve-mi's ``.sieve-mi`` marker
+and hold nothing it does not list (checked before the trials, :func:`check_folder`, and again
+before writing), each file is written atomically (a temporary file, then a rename) and listed in
+the marker, so a later ``solve --out`` may still replace the folder. The "Shake trials" card goes
+into ``report.html`` when there is one to put it in; else the run says so in one line.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import os
 
 import numpy as np
 
-from sieve_mi.errors import SieveError
-from sieve_mi.outputs.outdir import MARKER, read_marker, writing
+from sieve_mi.outputs.outdir import add_files, check_addition, writing
 from sieve_mi.shake.stats import pass_curve
 
 __all__ = [
     "FILES",
     "ROLE_COLOURS",
-    "add_html_section",
     "add_to_folder",
+    "check_folder",
     "html_section",
+    "page_with_card",
     "plot",
     "summary",
     "to_json",
@@ -45,7 +50,7 @@ def plot(report: dict, path: str) -> None:
     ----------
     report : dict
         :func:`~sieve_mi.shake.run.shake`'s result.
-    path : str
+    path : str or file
         The PNG to write.
     """
     import matplotlib
@@ -77,7 +82,7 @@ def plot(report: dict, path: str) -> None:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
-    fig.savefig(path)
+    fig.savefig(path, format="png")
     plt.close(fig)
 
 
@@ -96,68 +101,82 @@ def summary(report: dict) -> str:
             f"{s['geometry']['hausdorff']:>9.3f} {s['fidelity']['sink_mm']:>8.4f}"
         )
     bound = report["engine"]["sink_bound_mm"]
-    ok = "all within" if report["fidelity_ok"] else "NOT all within"
-    rows.append(f"fidelity: resting sink {ok} the bound {bound} mm; hausdorff in {report['units']}")
+    ok = "all held" if report["fidelity_ok"] else "NOT all held"
+    rows.append(
+        f"fidelity: resting sink under {bound} mm, penetration while shaken within its bound, "
+        f"no engine warning: {ok}; hausdorff in {report['units']}"
+    )
+    rows += [f"warning: {w}" for w in report.get("warnings", [])]
     return "\n".join(rows)
 
 
-def _write_atomic(folder: str, name: str, write) -> None:
-    """Call ``write(path)`` on a temporary file beside ``name`` (same extension), then rename."""
-    stem, ext = os.path.splitext(name)
-    tmp = os.path.join(folder, f".{stem}.tmp-{os.getpid()}{ext}")
-    try:
-        write(tmp)
-        os.replace(tmp, os.path.join(folder, name))
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+#: What to do instead when ``shake DIR`` is given a folder sieve-mi did not write.
+_HINT = "use shake --sieve PLATE PART... --out DIR instead"
 
 
-def _write_files(report: dict, folder: str, clip: str | None = None) -> list[str]:
-    def write_json(path):
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write(to_json(report))
-
-    _write_atomic(folder, "shake.json", write_json)
-    _write_atomic(folder, "shake.png", lambda path: plot(report, path))
-    names = ["shake.json", "shake.png"]
+def _contents(report: dict, clip: str | None = None) -> dict[str, bytes]:
+    """``shake.json``, ``shake.png`` and (from the rendered ``clip``) ``shake.gif`` as bytes."""
+    png = io.BytesIO()
+    plot(report, png)
+    contents = {"shake.json": to_json(report).encode("utf-8"), "shake.png": png.getvalue()}
     if clip is not None:
-        os.replace(clip, os.path.join(folder, "shake.gif"))
-        names.append("shake.gif")
-    return names
+        with open(clip, "rb") as fh:
+            contents["shake.gif"] = fh.read()
+    return contents
 
 
-def add_to_folder(report: dict, folder: str, clip: str | None = None) -> list[str]:
-    """Write ``shake.json`` and ``shake.png`` (and move the rendered ``clip`` in as ``shake.gif``)
-    into a solve's output folder and list them in its marker; a folder sieve-mi did not write is
-    refused (one line)."""
-    marker = read_marker(folder)
-    if marker is None:
-        raise SieveError(
-            f"{folder}: has no {MARKER} marker, so sieve-mi did not write it; "
-            "use shake --sieve PLATE PART... --out DIR instead"
-        )
-    names = _write_files(report, folder, clip)
-    if "report.html" in marker["files"]:
-        add_html_section(report, folder)
-    marker["files"] = sorted(set(marker["files"]) | set(names))
+def check_folder(folder: str) -> str | None:
+    """Check, before any trial, that shake may write into the solve folder ``folder``; touch
+    nothing.
 
-    def write_marker(path):
-        with open(path, "w", encoding="utf-8") as fh:
-            json.dump(marker, fh, indent=1)
+    Returns
+    -------
+    str or None
+        A one-line note when ``report.html`` will not get the card (missing, unreadable, no
+        place for it); None when it will.
 
-    _write_atomic(folder, MARKER, write_marker)
-    return names
+    Raises
+    ------
+    SieveError
+        The folder is refused (:func:`~sieve_mi.outputs.outdir.check_addition`: no marker, a file
+        the marker does not list, not writable).
+    """
+    check_addition(folder, (*FILES, "report.html"), hint=_HINT)
+    return page_with_card(folder, "")[1]
+
+
+def add_to_folder(report: dict, folder: str, clip: str | None = None) -> str | None:
+    """Write ``shake.json`` and ``shake.png`` (and the rendered ``clip`` as ``shake.gif``) into a
+    solve's output folder, put the card into its ``report.html``, and list them in its marker.
+
+    Returns
+    -------
+    str or None
+        :func:`check_folder`'s note when the page was not updated.
+
+    Raises
+    ------
+    SieveError
+        The folder is refused (one line; nothing written).
+    """
+    contents = _contents(report, clip)
+    page, note = page_with_card(folder, html_section(report, contents["shake.png"]))
+    if page is not None:
+        contents["report.html"] = page
+    add_files(folder, contents, hint=_HINT)
+    return note
 
 
 def write_new_folder(report: dict, out_dir: str, inputs: list[str], clip: str | None = None):
     """``--out DIR`` of ``shake --sieve``: a fresh sieve-mi output folder (same rules as
     ``solve --out``) holding ``shake.json``, ``shake.png``, ``shake.gif`` (when ``clip`` is
     given) and ``report.json`` (= shake.json)."""
+    contents = _contents(report, clip)
+    contents["report.json"] = contents["shake.json"]
     with writing(out_dir, command="shake", inputs=inputs) as tmp:
-        _write_files(report, tmp, clip)
-        with open(os.path.join(tmp, "report.json"), "w", encoding="utf-8") as fh:
-            fh.write(to_json(report))
+        for name, data in contents.items():
+            with open(os.path.join(tmp, name), "wb") as fh:
+                fh.write(data)
 
 
 _BEGIN, _END = "<!--shake-->", "<!--/shake-->"
@@ -179,6 +198,8 @@ def html_section(report: dict, png: bytes) -> str:
         )
     st = report["settings"]
     img = base64.b64encode(png).decode("ascii")
+    items = "".join(f"<li>{escape(w)}</li>" for w in report.get("warnings", []))
+    warnings = f"<ul>{items}</ul>" if items else ""
     return (
         f'{_BEGIN}<section class="card wide" id="shake"><h2>Shake trials</h2>'
         f'<img alt="fraction passed against time" style="max-width:100%" '
@@ -189,9 +210,10 @@ def html_section(report: dict, png: bytes) -> str:
         f"<tbody>{rows}</tbody></table>"
         f"<p>{st['trials']} trials per shape, {st['duration']:g} s each; plate shaken "
         f"{st['amplitude']:g} mm at {st['frequency']:g} Hz{_twist_words(st['twist'])}; "
-        f"seed {st['seed']}. Resting sink bound {report['engine']['sink_bound_mm']} mm: "
-        f"{'kept' if report['fidelity_ok'] else 'NOT kept'}. Details: shake.json.</p>"
-        f"</section>{_END}"
+        f"seed {st['seed']}. Fidelity (resting sink under "
+        f"{report['engine']['sink_bound_mm']} mm, penetration while shaken within its bound, "
+        f"no engine warning): {'held' if report['fidelity_ok'] else 'NOT held'}. "
+        f"Details: shake.json.</p>{warnings}</section>{_END}"
     )
 
 
@@ -200,26 +222,32 @@ def _twist_words(twist: float) -> str:
     return f" with a {twist:g} degree twist" if twist else ""
 
 
-def add_html_section(report: dict, folder: str) -> None:
-    """Put the shake card into ``folder``'s report.html (replacing an earlier one)."""
+def _with_card(page: str, card: str) -> str | None:
+    """``page`` with ``card`` in place of its earlier card (between the markers), else before its
+    details section, else before ``</body>``; None when there is no such place (or an earlier
+    card is cut short: its end marker missing)."""
+    start = page.find(_BEGIN)
+    if start >= 0:
+        end = page.find(_END, start + len(_BEGIN))
+        return None if end < 0 else page[:start] + card + page[end + len(_END) :]
+    anchor = page.find('<section class="card" id="details">')
+    if anchor < 0:
+        anchor = page.rfind("</body>")
+    return None if anchor < 0 else page[:anchor] + card + "\n  " + page[anchor:]
+
+
+def page_with_card(folder: str, card: str) -> tuple[bytes | None, str | None]:
+    """``folder``'s report.html with the shake ``card`` put in (:func:`_with_card`), as bytes;
+    or None and a one-line note saying why the page is left as it is."""
     path = os.path.join(folder, "report.html")
-    with open(path, encoding="utf-8") as fh:
-        page = fh.read()
-    with open(os.path.join(folder, "shake.png"), "rb") as fh:
-        card = html_section(report, fh.read())
-    start, end = page.find(_BEGIN), page.find(_END)
-    if start >= 0 and end > start:
-        page = page[:start] + card + page[end + len(_END) :]
-    else:
-        anchor = page.find('<section class="card" id="details">')
-        if anchor < 0:
-            anchor = page.rfind("</body>")
-        if anchor < 0:
-            return
-        page = page[:anchor] + card + "\n  " + page[anchor:]
-
-    def write(tmp):
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(page)
-
-    _write_atomic(folder, "report.html", write)
+    if not os.path.lexists(path):
+        return None, f"{folder} has no report.html, so no page got shake's card"
+    try:
+        with open(path, encoding="utf-8") as fh:
+            page = fh.read()
+    except (OSError, UnicodeError) as exc:
+        return None, f"{path}: cannot be read ({exc}); it was left as it was"
+    new = _with_card(page, card)
+    if new is None:
+        return None, f"{path}: has no place for shake's card (no details section, no </body>)"
+    return new.encode("utf-8"), None

@@ -5,15 +5,38 @@ from __future__ import annotations
 import sys
 import time
 
-from sieve_mi.shake.fidelity import measure_sink
-from sieve_mi.shake.geometry import part_from_mesh, plate_from_mesh
+import numpy as np
+
+from sieve_mi.errors import SieveError
+from sieve_mi.shake.fidelity import judge, measure_sink
+from sieve_mi.shake.geometry import Plate, part_from_mesh, plate_from_mesh
 from sieve_mi.shake.inputs import ShakeInput
-from sieve_mi.shake.model import PLATE_MASS_RATIO, plate_motion
-from sieve_mi.shake.settings import CONTACT, SINK_BOUND_MM, ShakeSettings, metres_per_unit
+from sieve_mi.shake.model import PLATE_MASS_RATIO, build_model, plate_motion
+from sieve_mi.shake.settings import (
+    CONTACT,
+    MAX_ACCELERATION_G,
+    PART_SIZE_MM,
+    PLATE_SIZE_MM,
+    SHAKEN_BOUND_MM,
+    SHAKEN_FRACTION,
+    SINK_BOUND_MM,
+    ShakeSettings,
+    metres_per_unit,
+)
 from sieve_mi.shake.stats import summarize
 from sieve_mi.shake.trials import run_trials
 
-__all__ = ["FORMAT", "Progress", "engine_doc", "motion_doc", "shake", "shape_entry"]
+__all__ = [
+    "FORMAT",
+    "Progress",
+    "check_plate",
+    "check_sizes",
+    "engine_doc",
+    "motion_doc",
+    "preflight",
+    "shake",
+    "shape_entry",
+]
 
 #: Version of the ``shake.json`` layout.
 FORMAT = 1
@@ -58,7 +81,8 @@ class Progress:
 
 def engine_doc() -> dict:
     """The engine as ``shake.json`` records it: MuJoCo's version, integrator, contact
-    parameters, the plate's mass ratio and the sink bound (mm)."""
+    parameters, the plate's mass ratio and the fidelity bounds (mm; the shaken one is the
+    least of ``shaken_bound_mm`` and ``shaken_fraction`` of the plate's thickness)."""
     import mujoco
 
     return {
@@ -67,6 +91,8 @@ def engine_doc() -> dict:
         "contact": {k: list(v) if isinstance(v, tuple) else v for k, v in CONTACT.items()},
         "plate_mass_ratio": PLATE_MASS_RATIO,
         "sink_bound_mm": SINK_BOUND_MM,
+        "shaken_bound_mm": SHAKEN_BOUND_MM,
+        "shaken_fraction": SHAKEN_FRACTION,
     }
 
 
@@ -92,16 +118,18 @@ def shape_entry(name, role, path, part, plate, settings, unit_m, progress, trial
         ``shake.json``'s entry of the shape, and the seconds it took.
     """
     t0 = time.perf_counter()
+    check_plate(plate, settings, unit_m)
     fidelity = measure_sink(plate, part, settings, unit_m)
     progress.shape(name)
     outcomes = run_trials(plate, part, settings, unit_m, progress.trial, indices=trials)
     summary = summarize(outcomes)
     seconds = time.perf_counter() - t0
     progress.done(name, summary, seconds)
+    fidelity, lines = judge(name, fidelity, outcomes)
     entry = {"name": name, "role": role, "file": path, "geometry": part.to_dict()}
     entry.update(summary)
     entry["fidelity"] = fidelity
-    entry["warnings"] = list(part.warnings)
+    entry["warnings"] = list(part.warnings) + lines
     return entry, seconds
 
 
@@ -124,16 +152,27 @@ def shake(
     dict
         ``shake.json``'s content: ``format``, ``units``, ``settings`` (with ``units`` of each),
         ``engine``, ``plate``, ``shapes`` (one dict per part: counts, ``fraction``, ``ci95``,
-        ``median_time_s``, ``pass_times_s``, ``geometry`` (incl. ``hausdorff``), ``fidelity``),
-        ``fidelity_ok``, ``timings`` (seconds; the only part that changes between equal runs).
+        ``median_time_s``, ``pass_times_s``, ``geometry`` (incl. ``hausdorff``), ``fidelity``,
+        ``warnings``), ``fidelity_ok`` (every shape's fidelity held), ``warnings`` (every
+        shape's), ``timings`` (seconds; the only part that changes between equal runs).
+
+    Raises
+    ------
+    SieveError
+        Before any trial: a part or plate of a size the engine is not used for
+        (:func:`check_sizes`, :func:`check_plate`), a motion too harsh for the plate
+        (:func:`check_plate`), or a model MuJoCo refuses (:func:`preflight`).
     """
     unit_m = metres_per_unit(inp.units)
     t0 = time.perf_counter()
+    check_sizes(inp, unit_m)
     plate = plate_from_mesh(inp.plate, inp.plate_path)
+    check_plate(plate, settings, unit_m, inp.plate_path)
     parts = [
         (name, role, path, part_from_mesh(mesh, name, role, settings.coacd_threshold))
         for name, role, path, mesh in inp.parts
     ]
+    preflight(plate, parts, inp.plate_path, settings, unit_m)
     timings = {"geometry_s": time.perf_counter() - t0}
     bar = Progress(progress, settings.trials * len(parts))
     shapes = []
@@ -159,6 +198,7 @@ def shake(
         "engine": engine_doc(),
         "shapes": shapes,
         "fidelity_ok": all(s["fidelity"]["within_bound"] for s in shapes),
+        "warnings": [w for s in shapes for w in s["warnings"]],
         **extra,
         "timings": timings,
     }
@@ -194,3 +234,100 @@ def motion_doc(settings: ShakeSettings) -> dict:
         "peak_acceleration_g": float(settings.amplitude * 1e-3 * w * w / 9.81),
         "peak_twist_rate_rad_s": float(dphi),
     }
+
+
+def _across_mm(mesh, unit_m: float) -> float:
+    """The largest side of a mesh's bounding box, mm."""
+    return float(max(mesh.extents)) * unit_m * 1e3
+
+
+def check_sizes(inp: ShakeInput, unit_m: float) -> None:
+    """Refuse, before any work, a part or plate the engine is not used for.
+
+    A part is from :data:`~sieve_mi.shake.settings.PART_SIZE_MM` [0] to [1] across (the largest
+    side of its bounding box); a plate at most :data:`~sieve_mi.shake.settings.PLATE_SIZE_MM`
+    [1]. A smaller part is also one MuJoCo cannot compile (a 0.1 um one: "mesh surface area is
+    too small"); a size far off mostly means the wrong units.
+
+    Raises
+    ------
+    SieveError
+        One line naming the file, its size and what to check.
+    """
+    lo, hi = PART_SIZE_MM
+    for _, _, path, mesh in inp.parts:
+        mm = _across_mm(mesh, unit_m)
+        if not lo <= mm <= hi:
+            raise SieveError(
+                f"{path}: the part is {_size(mm, inp.units, unit_m)} across; shake simulates "
+                f"parts {lo:g} to {hi:g} mm across: check the mesh's scale and units"
+            )
+    mm = _across_mm(inp.plate, unit_m)
+    if mm > PLATE_SIZE_MM[1]:
+        raise SieveError(
+            f"{inp.plate_path}: the plate is {_size(mm, inp.units, unit_m)} across; shake "
+            f"simulates plates up to {PLATE_SIZE_MM[1]:g} mm across: check the mesh's scale "
+            "and units"
+        )
+
+
+def _size(mm: float, units: str, unit_m: float) -> str:
+    """A length in words: ``"0.0002 mm"``, ``"20,000 mm (20 m)"`` (the scene's units too)."""
+
+    def fmt(x: float) -> str:
+        return f"{x:,.0f}" if x >= 1000 else f"{x:.3g}"
+
+    text = f"{fmt(mm)} mm"
+    return text if units == "mm" else f"{text} ({fmt(mm * 1e-3 / unit_m)} {units})"
+
+
+def check_plate(plate: Plate, settings: ShakeSettings, unit_m: float, path: str = "") -> None:
+    """Refuse a plate thinner than the contacts' soft layer, and a twist that shakes the plate's
+    corners harder than :data:`~sieve_mi.shake.settings.MAX_ACCELERATION_G`.
+
+    Raises
+    ------
+    SieveError
+        One line naming the plate (``path``, when given), the value and what to do.
+    """
+    where = f"{path}: " if path else "shake: "
+    mm = plate.thickness * unit_m * 1e3
+    if mm < PLATE_SIZE_MM[0]:
+        raise SieveError(
+            f"{where}the plate is {mm:.3g} mm thick; shake simulates plates of at least "
+            f"{PLATE_SIZE_MM[0]:g} mm (its contacts' soft layer): check the units and scale"
+        )
+    corner = float(np.hypot(*plate.half_size)) * unit_m * 1e3
+    g = settings.peak_acceleration_g(corner)
+    if g > MAX_ACCELERATION_G:
+        raise SieveError(
+            f"{where}a twist of {settings.twist:g} degrees at {settings.frequency:g} Hz shakes "
+            f"the plate's corners ({corner:.3g} mm from its centre) at {g:,.0f} g; sieve "
+            f"shakers give at most {MAX_ACCELERATION_G:g} g: lower the twist, the amplitude or "
+            "the frequency"
+        )
+
+
+def preflight(plate: Plate, parts: list, plate_path: str, settings, unit_m: float) -> None:
+    """Compile each part's model once before any trial: what MuJoCo refuses (a part too light
+    for its inertia, a degenerate piece) is one line naming the file, not a traceback later.
+
+    Parameters
+    ----------
+    plate : Plate
+    parts : list of (name, role, path, Part)
+    plate_path : str
+    settings : ShakeSettings
+    unit_m : float
+    """
+    for _, _, path, part in parts:
+        try:
+            build_model(plate, part, settings, unit_m)
+        except ValueError as exc:
+            what = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            blame = plate_path if "'plate" in str(exc) else path or part.name
+            raise SieveError(
+                f"{blame}: MuJoCo cannot simulate it ({what}); the part is "
+                f"{2 * part.radius * unit_m * 1e3:.3g} mm across at {settings.density:g} kg/m^3: "
+                "check the mesh's units and scale, or the density"
+            ) from None

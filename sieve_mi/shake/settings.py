@@ -14,6 +14,7 @@ converted with :data:`UNIT_TO_M`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, fields
 
 from sieve_mi.errors import SieveError
@@ -21,7 +22,13 @@ from sieve_mi.scene import documented, read_value, setting, spec_of
 
 __all__ = [
     "CONTACT",
+    "MAX_ACCELERATION_G",
+    "PART_SIZE_MM",
+    "PLATE_SIZE_MM",
+    "SHAKEN_BOUND_MM",
+    "SHAKEN_FRACTION",
     "SINK_BOUND_MM",
+    "STEPS_PER_PERIOD",
     "TIMESTEP_MAX_MS",
     "UNIT_TO_M",
     "ShakeSettings",
@@ -31,9 +38,33 @@ __all__ = [
 #: Metres per scene unit, for the units a scene may name.
 UNIT_TO_M = {"mm": 1e-3, "cm": 1e-2, "m": 1.0, "in": 0.0254, "um": 1e-6}
 
+#: Standard gravity, m/s^2 (the g of accelerations).
+G = 9.81
+
 #: The stated fidelity bound: a part resting on the still plate sinks into it by less than this
 #: (millimetres). Measured for every shape of every run (see :mod:`sieve_mi.shake.fidelity`).
 SINK_BOUND_MM = 0.02
+
+#: The bound on the penetration while shaken, millimetres: a part pressed this deep into the plate
+#: (or a hole's edge) is half the default 1 mm fabrication tolerance away from where a real one
+#: would be. A thin plate's bound is :data:`SHAKEN_FRACTION` of its thickness when that is less.
+SHAKEN_BOUND_MM = 0.5
+#: The largest penetration while shaken as a fraction of the plate's thickness.
+SHAKEN_FRACTION = 0.25
+
+#: Largest peak acceleration of the shaker, in g (9.81 m/s^2): lab sieve shakers throw at up to
+#: a few tens of g (Retsch AS 200: 3 mm at 60 Hz is 43 g; the default 1 mm at 50 Hz is 10 g).
+#: Settings beyond it are refused, as is a twist that throws the plate's corners harder.
+MAX_ACCELERATION_G = 50.0
+#: Least integration steps per shaker period (a coarser step does not follow the motion).
+STEPS_PER_PERIOD = 20
+
+#: Sizes of part the engine is used for: the largest side of its bounding box, millimetres. The
+#: least is ten times the width of the contacts' soft layer (``solimp``'s 0.05 mm); a part of
+#: more than a metre is no sieve's.
+PART_SIZE_MM = (0.5, 1000.0)
+#: A plate's least thickness (the contacts' soft layer) and largest side, millimetres.
+PLATE_SIZE_MM = (0.05, 10_000.0)
 
 #: MuJoCo contact parameters (fixed; recorded in every output). ``solref`` = (time constant s,
 #: damping ratio): a stiff, critically damped contact; ``solimp`` = (d0, dwidth, width m, mid,
@@ -130,6 +161,33 @@ class ShakeSettings:
         for f in fields(self):  # as a scene key is checked; an int for a float becomes a float
             value = read_value(ShakeSettings, f.name, getattr(self, f.name), "shake")
             object.__setattr__(self, f.name, value)
+        self._check_motion()
+
+    def peak_acceleration_g(self, radius_mm: float = 0.0) -> float:
+        """The plate's peak acceleration, g, at ``radius_mm`` from its centre: the lift's and
+        the twist's (in phase, so they peak together): (2 pi f)^2 sqrt(A^2 + (r phi0)^2)."""
+        w = 2 * math.pi * self.frequency
+        reach = radius_mm * math.radians(self.twist)
+        return w * w * math.hypot(self.amplitude, reach) * 1e-3 / G
+
+    def _check_motion(self) -> None:
+        """Refuse a shaker no lab has (:data:`MAX_ACCELERATION_G`) and a step too coarse for
+        its period (:data:`STEPS_PER_PERIOD`): one line each, naming the values."""
+        g = self.peak_acceleration_g()
+        if g > MAX_ACCELERATION_G:
+            raise SieveError(
+                f"shake: amplitude {self.amplitude:g} mm at frequency {self.frequency:g} Hz is a "
+                f"peak acceleration of {g:,.0f} g; sieve shakers give at most "
+                f"{MAX_ACCELERATION_G:g} g (3 mm at 60 Hz is 43 g): lower the amplitude or the "
+                "frequency"
+            )
+        if self.frequency > 0 and self.timestep * 1e-3 * self.frequency > 1 / STEPS_PER_PERIOD:
+            most = 1e3 / (self.frequency * STEPS_PER_PERIOD)
+            raise SieveError(
+                f"shake: timestep {self.timestep:g} ms is more than 1/{STEPS_PER_PERIOD} of the "
+                f"shaker's period at {self.frequency:g} Hz; use a timestep of at most "
+                f"{most:.3g} ms or a lower frequency"
+            )
 
     def to_dict(self) -> dict:
         """The settings as JSON-ready values (units in :meth:`units`)."""

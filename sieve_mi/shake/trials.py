@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from sieve_mi.shake.geometry import Part, Plate
-from sieve_mi.shake.model import build_model, plate_motion, wall_thickness
+from sieve_mi.shake.model import build_model, engine_warnings, plate_motion, wall_thickness
 from sieve_mi.shake.settings import ShakeSettings
 
 __all__ = [
@@ -43,11 +43,19 @@ class Outcome:
         When it did, seconds after release (nan if it did not).
     escaped : bool
         It left the frame over the wall (counted as not passed).
+    penetration : float
+        The deepest contact penetration of the trial, m (the part into the plate, a hole's edge
+        or the wall).
+    warnings : tuple of str
+        The engine's warnings (``mjWARN_BADQACC``: the simulation went unstable and MuJoCo
+        reset it); the trial ends at the first, as not passed.
     """
 
     passed: bool
     time: float
     escaped: bool = False
+    penetration: float = 0.0
+    warnings: tuple = ()
 
 
 def drop_state(trial: int, plate: Plate, part: Part, settings: ShakeSettings, unit_m: float):
@@ -76,6 +84,10 @@ def run_trial(
     ``observe``, if given, is called as ``observe(k, data, lift)`` after every step ``k`` (the
     plate's lift then, m), for diagnostics such as ``benchmarks.shake.seating``.
 
+    Every step the deepest contact penetration is kept; every :data:`CHECK_EVERY` steps the
+    engine's warnings are read, and a warned trial ends there (MuJoCo resets an unstable
+    simulation to its start, so what follows is no trial).
+
     Returns
     -------
     Outcome
@@ -89,18 +101,25 @@ def run_trial(
     below = -plate.thickness * unit_m - settings.amplitude * 1e-3 - part.radius * unit_m
     frame = np.asarray(plate.half_size) * unit_m + wall_thickness(part, unit_m)
     qpos, qvel = data.qpos, data.qvel
+    deepest = 0.0
     for k in range(steps):
         qpos[0], qpos[1], qvel[0], qvel[1] = z[k], phi[k], dz[k], dphi[k]
         mujoco.mj_step(model, data)
+        if data.ncon:
+            deepest = max(deepest, -float(data.contact.dist.min()))
         if observe is not None:
             observe(k, data, z[k])
         if k % CHECK_EVERY == 0:
+            warned = engine_warnings(data)
+            if warned:
+                return Outcome(False, math.nan, penetration=deepest, warnings=warned)
             outside = bool(np.any(np.abs(qpos[2:4]) > frame))
             if outside:  # over the wall (whatever its height now)
-                return Outcome(False, math.nan, escaped=True)
+                return Outcome(False, math.nan, escaped=True, penetration=deepest)
             if qpos[4] < below:
-                return Outcome(True, float(data.time))
-    return Outcome(False, math.nan)
+                return Outcome(True, float(data.time), penetration=deepest)
+    warned = engine_warnings(data)
+    return Outcome(False, math.nan, penetration=deepest, warnings=warned)
 
 
 def _cpus() -> int:

@@ -8,7 +8,7 @@ import pytest
 import trimesh
 from shake_helpers import ball, quick
 
-from sieve_mi.shake.fidelity import measure_sink
+from sieve_mi.shake.fidelity import judge, measure_sink
 from sieve_mi.shake.settings import SINK_BOUND_MM
 from sieve_mi.shake.stats import pass_curve, summarize, wilson
 from sieve_mi.shake.trials import Outcome, run_trials
@@ -20,11 +20,12 @@ from sieve_mi.shake.trials import Outcome, run_trials
 def test_a_resting_part_sinks_less_than_the_stated_bound(ball_plate, part_of, mesh):
     """The contact parameters (time constant 1 ms, impedance 0.95-0.99) and the 0.25 ms step are
     chosen so that a part at rest on the plate sits less than SINK_BOUND_MM (0.02 mm) inside it,
-    far below a print's accuracy; a shaken part's impacts go deeper but stay under 0.3 mm."""
-    f = measure_sink(ball_plate, part_of(mesh), quick(), 1e-3)
-    assert 0.0 <= f["sink_mm"] < SINK_BOUND_MM and f["within_bound"]
-    assert f["bound_mm"] == SINK_BOUND_MM
-    assert f["shaken_penetration_mm"] < 0.3
+    far below a print's accuracy; a shaken part's impacts go deeper but stay under 0.3 mm, within
+    the shaken bound (0.5 mm on this 2 mm plate), and the engine does not warn."""
+    f, lines = judge("part", measure_sink(ball_plate, part_of(mesh), quick(), 1e-3), [])
+    assert 0.0 <= f["sink_mm"] < SINK_BOUND_MM and f["within_bound"] and lines == []
+    assert f["bound_mm"] == SINK_BOUND_MM and f["shaken_bound_mm"] == 0.5
+    assert f["shaken_penetration_mm"] < 0.3 and f["engine_warnings"] == {}
 
 
 def test_wilson_interval_matches_known_values():
