@@ -158,12 +158,17 @@ class GameCache:
         return None
 
     def load(self, key: str) -> dict | None:
-        """A finished game's ``game.json`` (spec label and summary), or None."""
+        """A finished game's ``game.json`` (spec label and summary), or None (none there, or
+        one that cannot be read: the game is played again)."""
         path = self.find(key)
         if path is None:
             return None
-        with open(os.path.join(path, GAME_FILE)) as fh:
-            return json.load(fh)
+        try:
+            with open(os.path.join(path, GAME_FILE)) as fh:
+                record = json.load(fh)
+        except (OSError, ValueError, RecursionError):
+            return None
+        return record if isinstance(record, dict) and "summary" in record else None
 
     def store(self, spec: GameSpec, outcome: dict) -> dict:
         """Write a finished game (atomically, see :func:`sieve_mi.outputs.outdir.writing`)."""

@@ -173,7 +173,7 @@ def read_marker(folder: str) -> dict | None:
     try:
         with open(os.path.join(folder, MARKER)) as fh:
             marker = json.load(fh)
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # a damaged or hostile marker: none
         return None
     ok = isinstance(marker, dict) and all(
         isinstance(marker.get(k), list) and all(isinstance(x, str) for x in marker[k])

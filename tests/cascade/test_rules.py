@@ -353,3 +353,20 @@ def test_three_coins_sort_by_diameter_with_two_games(tmp_path):
     assert report["screening"] is None  # tiny full games: screening would not pay
     assert all(s["winner"] == "A" and s["margins"]["protrusion"] > 1.5 for s in report["sieves"])
     assert all(r["convex"] for r in report["shapes"])
+
+
+@pytest.mark.parametrize(
+    "text", ["{not json", "[" * 50_000 + "]" * 50_000, "[1, 2]", '{"label": "no summary"}']
+)
+def test_a_damaged_game_record_is_played_again_not_a_traceback(tmp_path, text):
+    from sieve_mi.cascade.games import GAME_FILE, GameCache
+    from sieve_mi.outputs import outdir
+
+    game = tmp_path / "k1"
+    game.mkdir()
+    (game / "report.json").write_text("{}")
+    (game / GAME_FILE).write_text(text)
+    outdir.write_marker(str(game), "game")
+    cache = GameCache(str(tmp_path))
+    assert cache.find("k1") == str(game)  # a finished game's folder ...
+    assert cache.load("k1") is None  # ... whose record cannot be read: the game is played again
