@@ -52,6 +52,7 @@ __all__ = [
     "is_replaceable",
     "read_marker",
     "remove_stale",
+    "stale_additions",
     "swap_in",
     "validate",
     "write_marker",
@@ -228,6 +229,7 @@ def check_addition(folder: str, names: Iterable[str], *, hint: str = "") -> dict
             f"{hint or 'choose a sieve-mi output folder'}"
         )
     files, folders = _entries(folder)
+    files -= set(stale_additions(folder, files))  # sieve-mi's own, of a run killed outright
     unlisted = sorted(
         (files - {MARKER} - set(marker["files"])) | (folders - set(marker["folders"]))
     )
@@ -244,6 +246,33 @@ def check_addition(folder: str, names: Iterable[str], *, hint: str = "") -> dict
     if not os.access(folder, os.W_OK | os.X_OK) or not _can_create(folder):
         raise SieveError(f"{folder}: cannot write into it; check its permissions")
     return marker
+
+
+def stale_additions(folder: str, files: Iterable[str]) -> list[str]:
+    """The temporary files of :func:`add_files` in ``folder`` left by runs killed outright.
+
+    :func:`add_files` writes ``.<name>.sieve-mi-tmp-<pid>`` beside each file; one whose process
+    is gone (SIGKILL, a power cut) is sieve-mi's own leftover, not a user's file.
+
+    Parameters
+    ----------
+    folder : str
+    files : iterable of str
+        Names in ``folder`` (relative, as :func:`_entries` gives them).
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    for name in files:
+        head, sep, pid = name.rpartition(".sieve-mi-tmp-")
+        if not (sep and "/" not in name and head.startswith(".") and pid.isdigit()):
+            continue
+        if int(pid) != os.getpid() and not _pid_alive(int(pid)):
+            if not os.path.islink(os.path.join(folder, name)):
+                out.append(name)
+    return out
 
 
 def add_files(folder: str, contents: dict[str, bytes], *, hint: str = "") -> None:
@@ -271,6 +300,9 @@ def add_files(folder: str, contents: dict[str, bytes], *, hint: str = "") -> Non
     marker["files"] = sorted(set(marker["files"]) | set(contents))
     text = json.dumps(marker, indent=1).encode()
     with deferred_signals():
+        for name in stale_additions(folder, os.listdir(folder)):
+            with contextlib.suppress(OSError):
+                os.remove(os.path.join(folder, name))
         for name, data in ((MARKER, text), *contents.items()):
             tmp = os.path.join(folder, f".{name}.sieve-mi-tmp-{os.getpid()}")
             try:

@@ -513,3 +513,25 @@ def test_deferred_signals_arrive_even_when_the_thread_blocks_them():
         assert signal.SIGINT not in signal.sigpending()
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def test_a_leftover_of_a_killed_addition_is_removed_but_a_live_one_or_a_users_file_is_not(
+    tmp_path,
+):
+    folder = tmp_path / "out"
+    folder.mkdir()
+    (folder / "report.json").write_text("{}")
+    outdir.write_marker(str(folder), "solve")
+    proc = subprocess.Popen(["true"])  # a process that has ended: its pid is free
+    proc.wait()
+    dead = proc.pid
+    (folder / f".shake.json.sieve-mi-tmp-{dead}").write_text("half")
+    outdir.add_files(str(folder), {"shake.json": b"{}"})
+    assert sorted(os.listdir(folder)) == [outdir.MARKER, "report.json", "shake.json"]
+    (folder / f".shake.json.sieve-mi-tmp-{os.getppid()}").write_text("a live run's")
+    with pytest.raises(SieveError, match="marker does not list"):
+        outdir.check_addition(str(folder), ["shake.json"])
+    os.remove(folder / f".shake.json.sieve-mi-tmp-{os.getppid()}")
+    (folder / f"shake.json.sieve-mi-tmp-{dead}").write_text("mine: no leading dot")
+    with pytest.raises(SieveError, match="marker does not list"):
+        outdir.check_addition(str(folder), ["shake.json"])
