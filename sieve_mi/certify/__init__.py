@@ -46,8 +46,13 @@ def union_of_holes(holes: list[manifold3d.CrossSection]) -> manifold3d.CrossSect
     return hole
 
 
-def _check_arguments(shape, holes, budget_s) -> None:
+def _check_arguments(shape, holes, budget_s, settings=None) -> None:
     """One-line SieveErrors for arguments of the wrong kind (as the CLI refuses them)."""
+    if settings is not None and not isinstance(settings, Settings):
+        raise SieveError(
+            "certify: settings must be a sieve_mi.certify.search.Settings (or None), "
+            f"not {type(settings).__name__}"
+        )
     if not isinstance(shape, Shape):
         raise SieveError(
             f"certify: shape must be a Shape (sieve_mi.load_shape), not {type(shape).__name__}"
@@ -93,7 +98,7 @@ def certify(
         ``status`` "proved", "passage" or "undecided", with timings, cell counts, the excluded
         fraction, the passage pose if any, and the certificate (``write_certificate``).
     """
-    _check_arguments(shape, holes, budget_s)
+    _check_arguments(shape, holes, budget_s, settings)
     t0 = time.perf_counter()
     settings = Settings(**{**(settings or Settings()).__dict__, "budget_s": budget_s})
     if settings.bound not in ("first-order", "isotropic"):

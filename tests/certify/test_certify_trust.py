@@ -369,13 +369,15 @@ def test_replay_api_refuses_what_is_not_a_certificate(tmp_path, source, message)
         (("BALL", None), "holes must be a list"),
         (("BALL", [SQUARE], "5"), "budget '5'"),
         (("BALL", [SQUARE], float("nan")), "budget nan"),
+        (("BALL", [SQUARE], 5.0, {"bound": "isotropic"}), "settings must be a"),
     ],
 )
 def test_certify_api_refuses_arguments_of_the_wrong_kind(args, message):
     ball = shape_from_trimesh(shapes.sphere(12.0), name="ball")
-    shape, holes, *budget = (ball if a == "BALL" else a for a in args)
+    shape, holes, *rest = (ball if a == "BALL" else a for a in args)
+    kwargs = dict(zip(("budget_s", "settings"), rest))
     with pytest.raises(SieveError, match=message):
-        certify(shape, holes, **({"budget_s": budget[0]} if budget else {}))
+        certify(shape, holes, **kwargs)
 
 
 @pytest.mark.parametrize(
