@@ -75,6 +75,7 @@ __all__ = [
     "read_shape",
     "read_tables",
     "read_value",
+    "known_names",
     "refuse_unknown",
     "setting",
     "shown",
@@ -280,6 +281,29 @@ def refuse_unknown(cls: type, name: str, where: str) -> None:
         raise UnknownSettingError(
             f"{where}: {key_text(name)}: unknown setting; known: {', '.join(sorted(known))}"
         )
+
+
+def known_names(where: str):
+    """Class decorator: a dataclass whose constructor refuses a keyword that is not a field
+    (:func:`refuse_unknown`: one line listing the known names) instead of Python's TypeError.
+
+    For settings tables checked by their own ``__post_init__`` (``ShakeSettings``); the scene's
+    tables get this and more from their checking decorator.
+    """
+
+    def decorate(cls: type) -> type:
+        init = cls.__init__
+
+        @functools.wraps(init)
+        def __init__(self, *args, **kwargs):
+            for name in kwargs:
+                refuse_unknown(cls, name, where)
+            init(self, *args, **kwargs)
+
+        cls.__init__ = __init__
+        return cls
+
+    return decorate
 
 
 def _checked(where: str):

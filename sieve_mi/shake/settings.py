@@ -18,7 +18,7 @@ import math
 from dataclasses import asdict, dataclass, fields
 
 from sieve_mi.errors import SieveError
-from sieve_mi.scene import documented, read_value, setting, spec_of
+from sieve_mi.scene import documented, known_names, read_value, setting, spec_of
 
 __all__ = [
     "CONTACT",
@@ -81,6 +81,7 @@ CONTACT = {
 TIMESTEP_MAX_MS = CONTACT["solref"][0] / 2 * 1e3
 
 
+@known_names("shake")
 @documented
 @dataclass(frozen=True)
 class ShakeSettings:

@@ -337,3 +337,14 @@ def test_a_part_mujoco_refuses_is_one_line_naming_it(tmp_path, capsys, no_trials
     assert line.startswith(f"sieve-mi: error: {part}: MuJoCo cannot simulate it (Error: ")
     assert line.endswith("the part is 0.6 mm across at 1 kg/m^3: check the mesh's units and "
                          "scale, or the density")  # fmt: skip
+
+
+def test_a_misspelt_shake_setting_is_refused_naming_the_known_ones():
+    from sieve_mi.scene import UnknownSettingError
+    from sieve_mi.shake.settings import ShakeSettings
+
+    with pytest.raises(
+        UnknownSettingError, match=r"shake: trails: unknown setting; known: .*trials"
+    ):
+        ShakeSettings(trails=3)
+    assert ShakeSettings(trials=3).trials == 3
