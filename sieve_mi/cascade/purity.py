@@ -202,6 +202,14 @@ def shake_cascade(
         "shapes": shapes,
         "trays": trays,
         "fidelity_ok": all(r["fidelity"]["within_bound"] for s in sieves for r in s["shapes"]),
+        "warnings": list(
+            dict.fromkeys(
+                f"sieve {s['index'] + 1}: {w}"
+                for s in sieves
+                for r in s["shapes"]
+                for w in r.get("warnings", [])
+            )
+        ),
         "timings": timings,
     }
 
@@ -276,9 +284,13 @@ def purity_table(shake: dict) -> str:
                 f"{sieve['index'] + 1:<6}{r['name'][:16]:<16}{designed:<11}"
                 f"{r['passed']:>4}/{r['trials']:<4}  {r['fraction']:>8.3f}  [{lo:.3f}, {hi:.3f}]"
             )
-    ok = "all within" if shake["fidelity_ok"] else "NOT all within"
+    ok = "all held" if shake["fidelity_ok"] else "NOT all held"
     lines.append(
         "purity: the share of a tray's parts that belong there (equal numbers of each shape)"
     )
-    lines.append(f"fidelity: resting sink {ok} the bound {shake['engine']['sink_bound_mm']} mm")
+    lines.append(
+        f"fidelity: resting sink under {shake['engine']['sink_bound_mm']} mm, penetration while "
+        f"shaken within its bound, no engine warning: {ok}"
+    )
+    lines += [f"warning: {w}" for w in shake.get("warnings", [])]
     return "\n".join(line.rstrip() for line in lines)

@@ -75,6 +75,7 @@ def test_three_balls_end_in_their_trays(capsys):
     assert next(r for r in second["shapes"] if r["name"] == "ball20")["passed"] == 0
     assert (top["seed"], second["seed"]) == (sieve_seed(0, 0), sieve_seed(0, 1))
     assert report["trays"][0]["purity"] == 1.0 and report["fidelity_ok"]
+    assert report["warnings"] == []  # every per-sieve warning comes up here
     assert "independent shapes, no interaction between parts" in report["model"]
     text = purity_table(report)
     assert "* 1.000 [0.722, 1.000]" in text and "to hold" in text and "purity" in text
