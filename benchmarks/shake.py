@@ -99,9 +99,7 @@ def window(
     from sieve_mi.shake.geometry import section_holes
 
     lo, hi = plate_mesh.bounds
-    holes = shapely.union_all(
-        [shapely.Polygon(h) for h in section_holes(plate_mesh, 0.5 * (lo[2] + hi[2]), "plate")]
-    )
+    holes = shapely.union_all([shapely.Polygon(h) for h in section_holes(plate_mesh, "plate")])
     sil = _silhouette(part_mesh)
     c = sil.centroid
     offsets = np.arange(-1.5, 1.5 + 1e-9, step_mm)

@@ -32,10 +32,11 @@ from sieve_mi.errors import SieveError
 from sieve_mi.game.exact import CANDIDATES, exact_rescore
 from sieve_mi.game.verdict import REACH
 from sieve_mi.geometry.hole import Hole, split_pieces
-from sieve_mi.geometry.meshes import Shape, load_trimesh
-from sieve_mi.geometry.outline import filled, placed_vertices, projection, union
+from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.outline import placed_vertices, projection, union
 from sieve_mi.geometry.pixels import image_pixel_size
 from sieve_mi.geometry.raster import Frame
+from sieve_mi.geometry.sieve import PlateReading, plate_holes, read_plate
 from sieve_mi.scene import AXIS_NAMES, Check, CheckInputs, read_value, shown
 
 __all__ = [
@@ -116,33 +117,15 @@ class CheckReport:
 
 
 def holes_from_mesh(path: str, axis: str = "z") -> list[manifold3d.CrossSection]:
-    """The through-holes of a plate mesh along ``axis``, each as an exact outline (scene units).
+    """The through-holes of a plate mesh along ``axis``, each as an exact outline (scene units):
+    :func:`sieve_mi.geometry.sieve.plate_holes` (any mesh; no thickness is measured).
 
     Raises
     ------
     SieveError
         If the mesh cannot be read or has no through-hole along the axis.
     """
-    mesh = load_trimesh(path)
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    if not np.all(np.isfinite(v)) or len(mesh.faces) == 0:
-        raise SieveError(
-            f"{path}: the sieve mesh has no usable triangles (or non-finite coordinates)"
-        )
-    a = AXES[axis]
-    order = [i for i in range(3) if i != a] + [a]
-    v = v[:, order]
-    if a == 1:  # keep a right-handed frame: (z, x, y)
-        v = v[:, [1, 0, 2]]
-    solid = projection(v, mesh.faces)
-    free = filled(solid) - solid
-    holes = [h for h in free.decompose() if h.area() > 1e-9 * max(solid.area(), 1e-300)]
-    if not holes:
-        raise SieveError(
-            f"{path}: no through-hole along {axis} (every line along {axis} inside the plate hits it); "
-            "check --axis or the file"
-        )
-    return sorted(holes, key=lambda h: -h.area())
+    return plate_holes(path, axis)
 
 
 def mask_from_image(path: str) -> np.ndarray:
@@ -414,7 +397,7 @@ def check(
     shape = as_shape(shape)
     t0 = time.perf_counter()
     if sieve is not None:
-        holes, outlines, centre, info, frame = _plate_holes(sieve, axis, settings.resolution)
+        holes, outlines, centre, info, frame, plate = _plate_holes(sieve, axis, settings.resolution)
         source = sieve
     else:
         holes, frame = _image_holes(image, pixel_size)
@@ -441,7 +424,7 @@ def check(
         result=first,
     )
     if sieve is not None:
-        rep.thin_plate = _thin_plate(shape, sieve, axis, outlines, centre, first, settings)
+        rep.thin_plate = _thin_plate(shape, plate, outlines, centre, first, settings, units)
     if settings.fit:
         rep.fit_scale, rep.fit_bracket = fit_scale(evaluate, first, settings.fit_tolerance)
     rep.evaluations = evaluations
@@ -485,22 +468,41 @@ def _arguments(sieve, image, axis, pixel_size, units, settings, progress) -> tup
 
 
 def plate_thickness(path: str, axis: str = "z") -> float:
-    """A plate mesh's thickness: its extent along ``axis``, scene units (sieve-mi's plates are
-    uniform slabs)."""
-    v = np.asarray(load_trimesh(path).vertices, dtype=np.float64)[:, AXES[axis]]
-    return float(v.max() - v.min())
+    """A plate mesh's thickness where its holes are, scene units: the slab over which every
+    section along ``axis`` is the whole plate around the holes (a lower bound of the material
+    there; a post or a raised rim adds nothing), :func:`sieve_mi.geometry.sieve.read_plate`.
+
+    Raises
+    ------
+    SieveError
+        A flat or open plate, a tilted one, or one with no such slab.
+    """
+    return read_plate(path, axis).thickness
 
 
-def _thin_plate(shape: Shape, sieve: str, axis: str, outlines, centre, first, settings) -> dict:
+def _thin_plate(
+    shape: Shape, plate: PlateReading, outlines, centre, first, settings, units
+) -> dict:
     """The part against the plate at its measured thickness (:func:`sieve_mi.motion.thin_plate`),
-    seeded with the check's best pose; poses in the sieve's own coordinates."""
+    seeded with the check's best pose; poses in the sieve's own coordinates.
+
+    The slab's thickness is a lower bound, so a "safe" answer holds on the real plate. On a plate
+    that is not a uniform slab a motion found through the slab is re-checked against the plate's
+    own mesh (its posts and rims), and the answer says what the plate is.
+    """
     from sieve_mi.motion import thin_plate
 
     seeds = [(np.asarray(first.rotation, float), np.asarray(first.translation, float) - centre)]
-    found = thin_plate(shape, union(outlines), plate_thickness(sieve, axis),
-                       budget_s=settings.thin_budget, seeds=seeds, seed=settings.seed)  # fmt: skip
+    top = np.array([centre[0], centre[1], plate.slab[1]])
+    real = None if plate.uniform else (plate.vertices - top, plate.faces)
+    found = thin_plate(shape, union(outlines), plate.thickness, budget_s=settings.thin_budget,
+                       seeds=seeds, seed=settings.seed, plate=real)  # fmt: skip
     found.poses[:, 4:6] += centre
-    return found.to_dict()
+    out = found.to_dict()
+    out["plate"] = plate.to_dict()
+    if not plate.uniform:
+        out["plate"]["note"] = f"{plate.describe(units)}; proofs use {plate.thickness:.4g} {units}"
+    return out
 
 
 def as_shape(part) -> Shape:
@@ -531,8 +533,17 @@ def _plate_holes(sieve: str, axis: str, resolution: int):
     info : list of dict
         Per hole its area and centre (plate coordinates), for the report.
     frame : Frame
+    plate : PlateReading
+        The plate's slab (its thickness where the holes are) and mesh.
+
+    Raises
+    ------
+    SieveError
+        A plate with no through-hole, or whose thickness cannot be measured
+        (:func:`sieve_mi.geometry.sieve.read_plate`).
     """
-    outlines = holes_from_mesh(sieve, axis)
+    plate = read_plate(sieve, axis)  # the plate's holes and thickness, read once
+    outlines = plate.holes
     frame, centre = frame_for_polygons(outlines, resolution)
     info = []
     for o in outlines:
@@ -540,7 +551,7 @@ def _plate_holes(sieve: str, axis: str, resolution: int):
         info.append({"area": float(o.area()), "centre": [float(c) for c in (lo + hi) / 2]})
     outlines = [o.translate([-centre[0], -centre[1]]) for o in outlines]
     holes = [Hole.from_outline(o, frame) for o in outlines]
-    return holes, outlines, centre, info, frame
+    return holes, outlines, centre, info, frame, plate
 
 
 def _image_holes(image: str, pixel_size: float | None):
@@ -555,7 +566,10 @@ def _image_holes(image: str, pixel_size: float | None):
 
 def _thin_line(t: dict, u: str) -> str:
     """The summary's line on the thin-plate answer."""
-    head = f"plate {t['thickness']:.4g} {u} thick, part diameter {t['diameter']:.4g} {u}: "
+    note = t.get("plate", {}).get("note")
+    head = (note + "\n" if note else "") + (
+        f"plate {t['thickness']:.4g} {u} thick, part diameter {t['diameter']:.4g} {u}: "
+    )
     if t["status"] == "safe":
         return head + f"safe (the verdict above holds on this plate; by its {t['by']})"
     if t["status"] == "passage":

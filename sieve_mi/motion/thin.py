@@ -6,7 +6,9 @@ bindings stay out of the calling process, and a worker ends without the interpre
 
 from __future__ import annotations
 
+import math
 import multiprocessing
+import numbers
 import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -15,6 +17,7 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.certify.bounds import contour_segments, inscribed_ball, no_disk_fits
+from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.plate import LENGTH_SLACK, diameter
 
@@ -70,6 +73,13 @@ class ThinPlate:
     seconds, budget_s : float
     checks, plans, crossings : int
         Collision/distance queries, planner runs and crossing poses sampled.
+    argument : str
+        Why a "safe" answer holds.
+    verified_on : str
+        ``"plate mesh"`` when the motion was re-checked against the plate's own mesh (a plate
+        that is not a uniform slab); empty when the slab is the plate.
+    note : str
+        Why a motion found through the slab was dropped (it met the plate's other material).
     """
 
     name: str
@@ -86,6 +96,8 @@ class ThinPlate:
     plans: int = 0
     crossings: int = 0
     argument: str = SAFE_ARGUMENT
+    verified_on: str = ""
+    note: str = ""
 
     def to_dict(self) -> dict:
         """The ``thin_plate`` entry of report.json and of ``check --json``."""
@@ -103,9 +115,13 @@ class ThinPlate:
         if self.status == "passage":
             out.update(method=self.method, min_clearance=self.min_clearance)
             out.update(verified_poses=self.verified_poses, interpolation=INTERPOLATION)
+            if self.verified_on:
+                out["verified_on"] = self.verified_on
             out["poses"] = [[float(v) for v in row] for row in self.poses]
         else:
             out["note"] = "a heuristic search within the budget, not a proof that no motion exists"
+            if self.note:
+                out["note"] += f"; {self.note}"
         return out
 
 
@@ -120,7 +136,8 @@ def _polygons(outline: manifold3d.CrossSection) -> list:
     return [np.asarray(c, dtype=np.float64) for c in outline.to_polygons()]
 
 
-def _search(shape: Shape, polygons: list, thickness: float, budget_s: float, seeds, seed: int):
+def _search(shape: Shape, polygons: list, thickness: float, budget_s: float, seeds, seed: int,
+            plate=None):  # fmt: skip
     """Worker: the motion search for one shape (see :func:`thin_plate`)."""
     from sieve_mi.motion.collide import PlateWorld
     from sieve_mi.motion.planner import search_passage
@@ -132,12 +149,118 @@ def _search(shape: Shape, polygons: list, thickness: float, budget_s: float, see
     out = ThinPlate(shape.name, float(thickness), d, "no passage found", seconds=found.seconds,
                     budget_s=float(budget_s), checks=found.checks, plans=found.plans,
                     crossings=found.crossings)  # fmt: skip
-    if found.passage is not None:
+    passage, poses = found.passage, found.poses
+    if passage is not None and plate is not None:
+        passage, poses = _on_mesh(shape, plate, poses)
+        out.verified_on = "plate mesh"
+        if not passage.ok:
+            out.note = (
+                f"a motion through the slab ({thickness:.4g} thick) met the plate's other "
+                "material (a rim, post or boss) and was dropped"
+            )
+    if passage is not None and passage.ok:
         out.status, out.method = "passage", found.method
-        out.poses = np.array([np.concatenate([q, t]) for q, t in found.poses])
-        out.min_clearance = found.passage.min_clearance
-        out.verified_poses = len(found.passage.poses)
+        out.poses = np.array([np.concatenate([q, t]) for q, t in poses])
+        out.min_clearance = passage.min_clearance
+        out.verified_poses = len(passage.poses)
     return out
+
+
+class _MeshPlate:
+    """A shape against a plate's own triangle mesh (coal BVHs), as :func:`~sieve_mi.motion.path.
+    verify` queries it: ``radius`` and ``distance(quat, trans)`` (0 where they meet).
+
+    Surfaces that never meet along a continuous motion that starts apart keep the solids apart,
+    so the surface distance decides for a closed shape and a closed plate.
+    """
+
+    def __init__(self, shape: Shape, vertices: np.ndarray, faces: np.ndarray):
+        import coal
+
+        self.coal = coal
+        self.radius = float(shape.radius)
+        self.plate = coal.CollisionObject(_bvh(coal, vertices, faces), coal.Transform3s())
+        self.body = coal.CollisionObject(_bvh(coal, shape.vertices, shape.faces),
+                                         coal.Transform3s())  # fmt: skip
+
+    def distance(self, quat, trans) -> float:
+        """Distance between the shape at this pose and the plate, scene units (0: they meet)."""
+        c = self.coal
+        w, x, y, z = (float(v) for v in quat)
+        n = math.sqrt(w * w + x * x + y * y + z * z)
+        rot = c.Quaternion(w / n, x / n, y / n, z / n)
+        self.body.setTransform(c.Transform3s(rot, np.asarray(trans, dtype=np.float64)))
+        if c.collide(self.body, self.plate, c.CollisionRequest(), c.CollisionResult()):
+            return 0.0
+        result = c.DistanceResult()
+        c.distance(self.body, self.plate, c.DistanceRequest(), result)
+        return float(result.min_distance)
+
+
+def _bvh(coal, vertices: np.ndarray, faces: np.ndarray):
+    model = coal.BVHModelOBBRSS()
+    model.beginModel(len(faces), len(vertices))
+    model.addVertices(np.ascontiguousarray(vertices, dtype=np.float64))
+    model.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
+    model.endModel()
+    return model
+
+
+def _on_mesh(shape: Shape, plate, poses: list):
+    """Re-check a motion found through the slab model against the plate's own mesh.
+
+    The motion is first lengthened straight up from its start and straight down from its end
+    until the shape clears the whole plate (posts and rims included), then re-checked
+    continuously (:func:`sieve_mi.motion.path.verify`).
+
+    Parameters
+    ----------
+    shape : Shape
+    plate : (vertices (V, 3) float, faces (F, 3) int)
+        The plate's mesh in the slab's frame (the slab's top at z = 0), scene units.
+    poses : list of (quat, trans)
+
+    Returns
+    -------
+    (Verified, list of (quat, trans))
+    """
+    from sieve_mi.motion.path import verify
+
+    vertices, faces = plate
+    world = _MeshPlate(shape, vertices, faces)
+    gap = max(0.05 * world.radius, 1e-3)
+    (q0, t0), (q1, t1) = poses[0], poses[-1]
+    top = float(np.max(vertices[:, 2])) + world.radius + gap
+    bottom = float(np.min(vertices[:, 2])) - world.radius - gap
+    path = list(poses)
+    if t0[2] < top:
+        path.insert(0, (q0, np.array([t0[0], t0[1], top])))
+    if t1[2] > bottom:
+        path.append((q1, np.array([t1[0], t1[1], bottom])))
+    return verify(world, path), path
+
+
+def _checked(outline: manifold3d.CrossSection, thickness, budget_s) -> None:
+    """Refuse what would crash a worker: a thickness or budget that is not a positive finite
+    number (a flat plate), an empty hole.
+
+    Raises
+    ------
+    SieveError
+    """
+    t = float(thickness) if isinstance(thickness, numbers.Real) else math.nan
+    x0, y0, x1, y1 = outline.bounds() if not outline.is_empty() else (0.0, 0.0, 0.0, 0.0)
+    size = max(1.0, x1 - x0, y1 - y0)
+    if not (math.isfinite(t) and t > 1e-6 * size):
+        raise SieveError(
+            f"thin plate: thickness {thickness!s:.40}: must be a positive number of scene units "
+            "(a flat plate has none); give a plate with thickness"
+        )
+    b = float(budget_s) if isinstance(budget_s, numbers.Real) else math.nan
+    if not (math.isfinite(b) and b >= 0):
+        raise SieveError(f"thin plate: budget {budget_s!s:.40}: must be seconds, 0 or more")
+    if outline.is_empty() or not outline.area() > 0:
+        raise SieveError("thin plate: the hole outline is empty; give the plate's hole")
 
 
 def thin_plate(
@@ -148,6 +271,7 @@ def thin_plate(
     budget_s: float = 10.0,
     seeds=(),
     seed: int = 0,
+    plate=None,
 ) -> ThinPlate:
     """Can ``shape`` pass a plate of this thickness with the hole ``outline`` by any rigid motion?
 
@@ -164,10 +288,21 @@ def thin_plate(
         Poses to try first: rotations (w, x, y, z) and positions in the hole's plane.
     seed : int
         Seeds the search's random numbers.
+    plate : (vertices (V, 3) float, faces (F, 3) int), optional
+        The plate's own mesh, in the slab's frame (its top at z = 0), when the plate is more
+        than the slab of ``thickness`` (a post, a raised rim): a motion found through the slab
+        counts only once re-checked against it (``verified_on``), lengthened until the shape
+        clears the whole mesh. ``thickness`` must then be a lower bound of the plate's material
+        around the hole (:func:`sieve_mi.geometry.sieve.read_plate`), so "safe" holds.
 
     Returns
     -------
     ThinPlate
+
+    Raises
+    ------
+    SieveError
+        A thickness that is not a positive finite number, or an empty hole (before any worker).
 
     Examples
     --------
@@ -180,7 +315,8 @@ def thin_plate(
     >>> thin_plate(cube, hole, 2.0, budget_s=5).status
     'passage'
     """
-    return thin_plates([shape], outline, thickness, budget_s=budget_s, seeds=[seeds], seed=seed)[0]
+    return thin_plates([shape], outline, thickness, budget_s=budget_s, seeds=[seeds], seed=seed,
+                       plate=plate)[0]  # fmt: skip
 
 
 def thin_plates(
@@ -192,6 +328,7 @@ def thin_plates(
     seeds: list | None = None,
     seed: int = 0,
     workers: int | None = None,
+    plate=None,
 ) -> list[ThinPlate]:
     """:func:`thin_plate` for several shapes, searched in parallel worker processes.
 
@@ -202,7 +339,7 @@ def thin_plates(
     Parameters
     ----------
     shapes : list of Shape
-    outline, thickness, budget_s, seed
+    outline, thickness, budget_s, seed, plate
         As :func:`thin_plate` (shape j's search is seeded with ``seed + j``).
     seeds : list of sequences of (quat, xy), optional
         Per shape, poses to try first.
@@ -212,7 +349,13 @@ def thin_plates(
     Returns
     -------
     list of ThinPlate
+
+    Raises
+    ------
+    SieveError
+        As :func:`thin_plate`.
     """
+    _checked(outline, thickness, budget_s)
     seeds = seeds or [()] * len(shapes)
     out: list = [None] * len(shapes)
     todo = []
@@ -239,6 +382,7 @@ def thin_plates(
                 budget_s,
                 [(np.asarray(q, float), np.asarray(t, float)) for q, t in seeds[j]],
                 seed + j,
+                plate,
             )  # fmt: skip
             for j in todo
         }

@@ -9,13 +9,14 @@ Everything here is in scene units; :mod:`sieve_mi.shake.model` converts to metre
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import manifold3d
 import numpy as np
 
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.plate import convex_pieces, plate_region
+from sieve_mi.geometry.sieve import plate_holes, read_plate
 
 __all__ = [
     "Part",
@@ -56,7 +57,9 @@ class Plate:
         Where the plate's top-face centre was in the mesh file (to move it back), scene units.
     volume_error : float
         Relative difference between the mesh's volume and the extruded pieces' (0 for a plate
-        built from an outline; large when the holes are not straight through).
+        built from an outline; large when the plate is more than its slab: a post, a rim).
+    warnings : list of str
+        What the model leaves out of the plate's mesh (a plate that is not a uniform slab).
     """
 
     pieces: list
@@ -65,6 +68,7 @@ class Plate:
     hole_area: float
     offset: np.ndarray
     volume_error: float = 0.0
+    warnings: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """JSON-ready summary (scene units)."""
@@ -74,6 +78,7 @@ class Plate:
             "hole_area": float(self.hole_area),
             "convex_pieces": len(self.pieces),
             "volume_error": float(self.volume_error),
+            "warnings": list(self.warnings),
         }
 
 
@@ -98,12 +103,14 @@ def plate_from_outline(outline: manifold3d.CrossSection, margin: float, thicknes
     return Plate(pieces, float(thickness), half, float(outline.area()), offset)
 
 
-def plate_from_mesh(mesh, path: str = "plate") -> Plate:
-    """Recover a plate from its mesh: the holes from a section at mid-thickness, z for thickness.
+def plate_from_mesh(mesh, path: str = "plate", units: str = "scene units") -> Plate:
+    """Recover a plate from its mesh as ``check`` reads it (:func:`sieve_mi.geometry.sieve.
+    read_plate`): the holes straight through along z, the slab around them for thickness.
 
-    The plate's normal is z: its thickness is the mesh's z extent and its top face is taken as
-    the rectangle of its xy bounding box minus the holes (the bounded faces of the section that
-    lie inside another face). ``volume_error`` compares the mesh's volume with the extrusion.
+    The top face is the slab's section (the plate's outline minus the holes), split into convex
+    pieces. A plate that is not a uniform slab (a post, a raised rim) is shaken as its slab, and
+    ``warnings`` says so; ``volume_error`` compares the mesh's volume with the slab's, so it
+    counts what the slab leaves out.
 
     Parameters
     ----------
@@ -111,47 +118,46 @@ def plate_from_mesh(mesh, path: str = "plate") -> Plate:
         The plate, scene units.
     path : str
         Its file, for messages.
+    units : str
+        The scene's units, for the warning.
 
     Raises
     ------
     SieveError
-        A flat mesh, or a section with no hole.
+        One line: a flat plate, an open mesh, no through-hole, or a plate with no slab across z
+        (a tilted plate among them: it says by how much, and to export it lying flat).
     """
-    lo, hi = np.asarray(mesh.bounds, dtype=np.float64)
-    thickness = float(hi[2] - lo[2])
-    if not np.all(np.isfinite(mesh.vertices)) or thickness <= 1e-9 * max(1.0, float(np.ptp(lo))):
-        raise SieveError(f"{path}: the plate has no thickness along z; give a plate mesh")
-    holes = section_holes(mesh, 0.5 * (lo[2] + hi[2]), path)
-    centre = 0.5 * (lo[:2] + hi[:2])
-    half = 0.5 * (hi[:2] - lo[:2])
-    rect = manifold3d.CrossSection.square(list(2 * half)).translate(list(-half))
-    hole_cs = manifold3d.CrossSection([h - centre for h in holes], manifold3d.FillRule.EvenOdd)
-    region = rect - hole_cs
-    pieces = convex_pieces(region)
-    extruded = region.area() * thickness
-    volume = abs(float(mesh.volume)) if mesh.is_watertight else extruded
-    error = abs(volume - extruded) / max(extruded, 1e-300)
-    offset = np.array([centre[0], centre[1], hi[2]])
-    return Plate(pieces, thickness, half, float(hole_cs.area()), offset, float(error))
+    plate = read_plate(mesh, "z", path)
+    region = plate.region
+    x0, y0, x1, y1 = plate.footprint.bounds()
+    centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+    half = np.array([(x1 - x0) / 2, (y1 - y0) / 2])
+    pieces = [p - centre for p in convex_pieces(region)]
+    extruded = region.area() * plate.thickness
+    error = abs(plate.volume - extruded) / max(extruded, 1e-300)
+    offset = np.array([centre[0], centre[1], plate.slab[1]])
+    hole_area = float(sum(h.area() for h in plate.holes))
+    out = Plate(pieces, plate.thickness, half, hole_area, offset, float(error))
+    if not plate.uniform:
+        out.warnings.append(f"{path}: {plate.describe(units)}; shaken as its slab")
+    return out
 
 
-def section_holes(mesh, z: float, path: str = "plate") -> list[np.ndarray]:
-    """The holes of a plate mesh's section at height ``z``: (k, 2) loops inside its outer loop."""
-    import shapely
-    import trimesh
+def section_holes(mesh, path: str = "plate") -> list[np.ndarray]:
+    """The holes of a plate mesh straight through along z, as (k, 2) loops (scene units).
 
-    lines = trimesh.intersections.mesh_plane(mesh, [0, 0, 1], [0, 0, z])
-    if len(lines) == 0:
-        raise SieveError(f"{path}: the plate's mid-thickness section is empty")
-    segs = shapely.MultiLineString([seg[:, :2] for seg in np.round(lines, 9)])
-    faces = list(shapely.ops.polygonize(shapely.ops.unary_union(segs)))
-    outer = max(faces, key=lambda f: shapely.Polygon(f.exterior).area)
-    # Every other bounded face is a hole, or an island inside one: their outer loops, filled
-    # even-odd, are the holes.
-    holes = [np.asarray(f.exterior.coords)[:-1] for f in faces if f is not outer and f.area > 0]
-    if not holes:
-        raise SieveError(f"{path}: the plate has no through-hole along z")
-    return holes
+    Each hole's outer loop, as read by :func:`sieve_mi.geometry.sieve.plate_holes`.
+    """
+    out = []
+    for hole in plate_holes(mesh, "z", path):
+        loops = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
+        out.append(max(loops, key=lambda c: abs(_area(c))))
+    return out
+
+
+def _area(loop: np.ndarray) -> float:
+    x, y = loop[:, 0], loop[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
 @dataclass

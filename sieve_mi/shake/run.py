@@ -166,7 +166,7 @@ def shake(
     unit_m = metres_per_unit(inp.units)
     t0 = time.perf_counter()
     check_sizes(inp, unit_m)
-    plate = plate_from_mesh(inp.plate, inp.plate_path)
+    plate = plate_from_mesh(inp.plate, inp.plate_path, inp.units)
     check_plate(plate, settings, unit_m, inp.plate_path)
     parts = [
         (name, role, path, part_from_mesh(mesh, name, role, settings.coacd_threshold))
@@ -198,7 +198,7 @@ def shake(
         "engine": engine_doc(),
         "shapes": shapes,
         "fidelity_ok": all(s["fidelity"]["within_bound"] for s in shapes),
-        "warnings": [w for s in shapes for w in s["warnings"]],
+        "warnings": list(plate.warnings) + [w for s in shapes for w in s["warnings"]],
         **extra,
         "timings": timings,
     }
