@@ -17,6 +17,9 @@ silhouettes
     Raster silhouettes rendered with Mitsuba (ray casting, the ``silhouette`` integrator).
 hole
     Raster holes (:class:`~sieve_mi.geometry.hole.Hole`, stacks, distance fields).
+sieve
+    Reading a given plate mesh once: its through-holes along an axis and the slab around them
+    (the thickness proofs use), for ``check``, ``certify`` and ``shake``.
 """
 
-__all__ = ["canonical", "hole", "meshes", "outline", "raster", "rotations", "silhouettes"]
+__all__ = ["canonical", "hole", "meshes", "outline", "raster", "rotations", "sieve", "silhouettes"]
