@@ -7,15 +7,14 @@ bindings stay out of the calling process, and a worker ends without the interpre
 from __future__ import annotations
 
 import math
-import multiprocessing
 import numbers
 import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import manifold3d
 import numpy as np
 
+from sieve_mi.backend import worker_pool
 from sieve_mi.certify.bounds import contour_segments, inscribed_ball, no_disk_fits
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape
@@ -372,7 +371,7 @@ def thin_plates(
         return out
     polygons = _polygons(outline)
     n = max(1, min(len(todo), workers or os.cpu_count() or 1))
-    with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork")) as pool:
+    with worker_pool(n, what="thin-plate search") as pool:
         jobs = {
             j: pool.submit(
                 _search,

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from sieve_mi.backend import worker_pool
 from sieve_mi.shake.geometry import Part, Plate
 from sieve_mi.shake.model import build_model, engine_warnings, plate_motion, wall_thickness
 from sieve_mi.shake.settings import ShakeSettings
@@ -180,12 +181,13 @@ def run_trials(
             if progress:
                 progress(out[-1])
         return out
-    import multiprocessing
-
+    # MuJoCo and Dr.Jit hold threads: the workers start from a clean process, not a fork.
     method = "forkserver" if sys.platform.startswith("linux") else "spawn"
-    ctx = multiprocessing.get_context(method)
-    with ctx.Pool(workers, _init_worker, (plate, part, settings, unit_m)) as pool:
-        for outcome in pool.imap(_worker_trial, indices):
+    chunk = max(1, len(indices) // (16 * workers))  # few futures even for a million trials
+    init = (plate, part, settings, unit_m)
+    with worker_pool(workers, method=method, initializer=_init_worker, initargs=init,
+                     what="shake trial") as pool:  # fmt: skip
+        for outcome in pool.map(_worker_trial, indices, chunksize=chunk):
             out.append(outcome)
             if progress:
                 progress(outcome)
