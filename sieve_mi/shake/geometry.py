@@ -35,7 +35,8 @@ HAUSDORFF_SAMPLES = 20_000
 #: CoACD cuts each part in its principal axes' frame (its ``pca`` option). On the letters of
 #: scenes/letters.toml this brings the decomposition's Hausdorff distance under 1 mm where the
 #: default left a piece bridging a concavity (G: 3.29 to 0.78 mm, R: 1.90 to 0.84 mm; a lower
-#: threshold did not: G at 0.01 gave 87 pieces and still 3.07 mm); see docs/performance.md.
+#: threshold did not: G at 0.01 gave 87 pieces and still 3.07 mm); see
+#: benchmarks/notes/performance-history.md.
 COACD_PCA = True
 
 
