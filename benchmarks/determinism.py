@@ -103,7 +103,8 @@ def setup(path, scale, poses, rng):
     """
     import trimesh
 
-    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.game.player_a import PlayerA
+    from sieve_mi.game.player_b import PlayerB
     from sieve_mi.game.solver import hole_frame
     from sieve_mi.geometry.meshes import load_shape, shape_from_trimesh
     from sieve_mi.geometry.rotations import random_uniform
@@ -144,7 +145,7 @@ def descents(player, holes, q0, t0, steps, repeat, config: str):
     """Median seconds per descent, best losses per start, number of distinct results.
 
     ``config``: "before" (atomic loss, hand-written Adam), "fixed order + hand Adam", or
-    "after" (the package's :meth:`~sieve_mi.game.players.PlayerB.descend`).
+    "after" (the package's :meth:`~sieve_mi.game.player_b.PlayerB.descend`).
     """
     import drjit as dr
     import mitsuba as mi

@@ -59,7 +59,8 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     use_variant(args.variant)
     from sieve_mi.game.layout import hole_frame
-    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.game.player_a import PlayerA
+    from sieve_mi.game.player_b import PlayerB
     from sieve_mi.geometry.meshes import load_shape
 
     rng = np.random.default_rng(0)

@@ -17,6 +17,9 @@ import sys
 from sieve_mi.errors import SieveError
 
 __all__ = [
+    "BYTES_PER_PAIR",
+    "CPU_MEMORY_CAP_GB",
+    "MEMORY_SHARE",
     "MIN_LLVM",
     "MemoryWatch",
     "RGB_VARIANTS",
@@ -24,12 +27,14 @@ __all__ = [
     "VARIANTS",
     "VARIANT_ENV",
     "apply_threads",
+    "available_memory",
     "bitmap_threads",
     "configure_llvm",
     "default_variant",
     "find_llvm",
     "gpu_available",
     "max_threads",
+    "pair_budget",
     "process_age",
     "release_cached_memory",
     "select_rgb_variant",
@@ -519,3 +524,53 @@ class MemoryWatch:
     def peak(self) -> float:
         """The process's peak resident memory so far, GB."""
         return round(max(_peak_gb(), *self.peaks.values(), 0.0), 4)
+
+
+# Player B's memory budget: how many (pose, segment) pairs one descent may bind at once.
+
+#: Memory one (pose, segment) pair of a descent holds, bytes: 32 measured on the CPU at 5M pairs
+#: (traced or frozen, docs/performance.md), doubled for the AD graph, buffers and allocator slack.
+BYTES_PER_PAIR = 64
+#: Share of the machine's available memory player B's descents use by default (``[solver] memory
+#: = 0``) ...
+MEMORY_SHARE = 0.25
+#: ... at most this many GB on the CPU: chunks of 4M pairs keep both cores busy, and a larger
+#: budget only raises the peak (cow-bunny's verdict, one run: 0.125 / 0.25 / 0.5 GB / a quarter
+#: of 23 GB gave peaks of 0.94 / 1.05 / 1.15 / 1.73 GB in the same time, docs/performance.md).
+#: Not on a GPU, where fewer, larger launches pay.
+CPU_MEMORY_CAP_GB = 0.25
+
+
+def available_memory() -> int:
+    """Bytes of memory available to new allocations (Linux's MemAvailable; else physical memory)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 8 << 30
+
+
+def _on_gpu() -> bool:
+    """Whether the active Mitsuba variant runs on CUDA."""
+    import mitsuba as mi
+
+    return bool((mi.variant() or "").startswith("cuda"))
+
+
+def pair_budget(memory_gb: float = 0.0, *, cap: bool = True) -> int:
+    """(pose, segment) pairs one descent may bind at once, for a memory budget in GB.
+
+    ``0`` means :data:`MEMORY_SHARE` of :func:`available_memory`, as measured now, and with
+    ``cap`` at most :data:`CPU_MEMORY_CAP_GB` unless a CUDA variant is active (the cap sizes
+    chunks; the uncapped share decides whether a scene fits at all).
+    """
+    budget = memory_gb * 2**30 if memory_gb > 0 else MEMORY_SHARE * available_memory()
+    if cap and memory_gb <= 0 and not _on_gpu():
+        budget = min(budget, CPU_MEMORY_CAP_GB * 2**30)
+    return max(1, int(budget // BYTES_PER_PAIR))

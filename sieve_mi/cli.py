@@ -17,6 +17,7 @@ from sieve_mi.errors import (
     EXIT_UNDECIDED,
     SieveError,
     clear_signals,
+    interruption,
     note_signal,
     signals_received,
 )
@@ -519,26 +520,15 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)  # fmt: skip
         return 128 + int(signum)
     except Exception as exc:  # a library (Mitsuba's render) may wrap the signal's exception
-        cause = _interruption(exc)
-        received = signals_received()
-        if cause is None and not received:
+        cause = interruption(exc)  # the interrupt in its chain, or one a noted signal stands for
+        if cause is None:
             raise
+        received = signals_received()
         signum = cause.signum if isinstance(cause, Terminated) else None
         signum = signum or (received[-1] if received else signal.SIGINT)
         word = "interrupted" if signum == signal.SIGINT else "terminated"
         print(f"sieve-mi: {word}", file=sys.stderr)
         return 128 + int(signum)
-
-
-def _interruption(exc: BaseException) -> BaseException | None:
-    """The Terminated or KeyboardInterrupt that caused ``exc`` (its cause or context chain)."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, (Terminated, KeyboardInterrupt)):
-            return exc
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return None
 
 
 if __name__ == "__main__":

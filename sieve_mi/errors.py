@@ -11,6 +11,7 @@ __all__ = [
     "EXIT_UNDECIDED",
     "SieveError",
     "clear_signals",
+    "interruption",
     "note_signal",
     "signals_received",
 ]
@@ -53,3 +54,32 @@ def signals_received() -> list[int]:
 def clear_signals() -> None:
     """Forget the noted signals (at the start of a command)."""
     _SIGNALS.clear()
+
+
+def interruption(exc: BaseException) -> BaseException | None:
+    """The interrupt behind ``exc``, if any: the one rule for "was this error really a signal?".
+
+    The first exception of ``exc``'s cause/context chain that is not an :class:`Exception`
+    (a KeyboardInterrupt, which the command line's termination signals raise as well, or a
+    SystemExit); else, where the command line's handler ran (:func:`signals_received`), a new
+    KeyboardInterrupt standing for the signal; else None. Libraries re-raise what they caught
+    as their own errors: Dr.Jit a frozen function's interrupt as a RuntimeError whose cause is
+    the original or that holds it only as text, Mitsuba a render's interrupt likewise.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception caught.
+
+    Returns
+    -------
+    BaseException or None
+        The interrupt to raise instead of ``exc``; None when ``exc`` is a real error.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if not isinstance(exc, Exception):
+            return exc
+        exc = exc.__cause__ or exc.__context__
+    return KeyboardInterrupt() if signals_received() else None

@@ -113,7 +113,7 @@ class SwarmHistory:
     evaluations: int = 0
     #: Final personal bests of a swarm (positions and values), best first; empty for nlopt.
     finalists: list = field(default_factory=list)
-    #: The local polish's record (:meth:`sieve_mi.game.players.PlayerA.polish`), if one ran.
+    #: The local polish's record (:meth:`sieve_mi.game.player_a.PlayerA.polish`), if one ran.
     polish: dict | None = None
     #: The iteration a swarm's patience stopped it at (None: it ran every iteration).
     stopped: int | None = None

@@ -605,18 +605,17 @@ def test_a_signal_a_frozen_step_swallowed_as_text_still_ends_the_run(monkeypatch
     # Once the handler has run, the error stands for the signal: the players raise a
     # KeyboardInterrupt and the command line ends with the signal's code.
     from sieve_mi import cli
-    from sieve_mi.errors import clear_signals, note_signal
-    from sieve_mi.game.players import _interruption
+    from sieve_mi.errors import clear_signals, interruption, note_signal
 
     text_only = RuntimeError("drjit.freeze(): KeyboardInterrupt")
     clear_signals()
-    assert _interruption(text_only) is None  # a real failure of freezing: trace instead
+    assert interruption(text_only) is None  # a real failure of freezing: trace instead
     note_signal(signum)
-    assert isinstance(_interruption(text_only), KeyboardInterrupt)
+    assert isinstance(interruption(text_only), KeyboardInterrupt)
 
     def lost(args):
         note_signal(signum)
-        raise _interruption(text_only)
+        raise interruption(text_only)
 
     monkeypatch.setattr(cli, "cmd_solve", lost)
     assert cli.main(["solve", "scenes/default.toml"]) == code

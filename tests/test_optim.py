@@ -103,7 +103,8 @@ def test_descend_compiles_no_kernel_after_its_first_steps(mi, cube20, freeze):
     import drjit as dr
     from helpers import sphere
 
-    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.game.player_a import PlayerA
+    from sieve_mi.game.player_b import PlayerB
     from sieve_mi.geometry.raster import Frame
 
     f = Frame.covering(cube20.radius + 1.0, 64)

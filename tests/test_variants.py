@@ -11,7 +11,8 @@ from sieve_mi.errors import SieveError
 
 
 def _attack(cube20):
-    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.game.player_a import PlayerA
+    from sieve_mi.game.player_b import PlayerB
     from sieve_mi.geometry.raster import Frame
 
     f = Frame.covering(cube20.radius + 1.0, 128)

@@ -5,10 +5,14 @@ Modules
 -------
 attack
     :class:`~sieve_mi.game.attack.Attack` (player B's best poses and scores) and its memory.
-players
-    Player B (batched Adam over poses) and player A (swarm or nlopt over rotations).
+descent
+    One batched descent of player B: its state, its one Adam step (traced or frozen), its loop.
 frozen
-    Frozen (recorded once, replayed) Adam steps of player B.
+    Player B's Adam step recorded once with ``drjit.freeze`` and replayed; when that pays.
+player_b
+    Player B: random starts, batched descents in chunks that fit memory, raster scores.
+player_a
+    Player A: canonical views, then a swarm (or nlopt) over rotations, then a local polish.
 scoring
     Raster scores of poses against holes, and B's silhouettes in a mask window.
 exact
@@ -28,10 +32,12 @@ check
 __all__ = [
     "attack",
     "check",
+    "descent",
     "exact",
     "frozen",
     "layout",
-    "players",
+    "player_a",
+    "player_b",
     "result",
     "scoring",
     "solver",

@@ -244,7 +244,7 @@ def attempt(
     outlines: list[manifold3d.CrossSection] | None = None,
 ) -> ShapeCheck:
     """Player B's best attempt to pass ``shape`` scaled by ``s`` through any of ``holes``."""
-    from sieve_mi.game.players import PlayerB
+    from sieve_mi.game.player_b import PlayerB
 
     b = scaled(shape, s)
     player = PlayerB([b], holes[0].frame)

@@ -1,9 +1,9 @@
 """Player B's Adam step, recorded once with :func:`drjit.freeze` and replayed.
 
-A step of :meth:`sieve_mi.game.players.PlayerB.descend` is loss, gradient, "keep the best pose" and
-Adam's update: about fifteen kernel launches, re-traced in Python every time. Frozen, the first
-call records the launches and later calls replay them with new inputs, skipping the tracing. For
-that, a step may neither read values back nor make arrays whose size depends on data, so the
+A step of player B's descent (:func:`sieve_mi.game.descent.adam_step`, the same step a traced
+descent runs) is loss, gradient, "keep the best pose" and Adam's update: about fifteen kernel
+launches, re-traced in Python every time. Frozen, the first call records the launches and later
+calls replay them with new inputs, skipping the tracing. For that, a step may neither read values back nor make arrays whose size depends on data, so the
 objective must offer ``loss_fixed(q, t, holes, pose_hole, capacity)`` (a fixed-size version of
 ``loss`` that also returns an overflow flag, see
 :meth:`sieve_mi.objectives.clearance.ClearanceObjective.loss_fixed`) and ``capacity(q)``, and say so with
@@ -15,36 +15,36 @@ poses are Adam's parameters themselves, then Adam's state is new), and would be 
 in every descent. A recording is reused by every call with the same Python values (frame scale, buffer capacity,
 pose count): every Adam step of an attack, and the attacks of later PSO iterations of the same
 size. The results are the same as unfrozen (a test holds them together); when the buffer
-overflows, :meth:`~sieve_mi.game.players.PlayerB.descend` runs the descent again unfrozen.
+overflows, :meth:`~sieve_mi.game.player_b.PlayerB.descend` runs the descent again unfrozen.
+Freezing pays where the objective allows it and, on the CPU, up to :data:`CPU_FREEZE_PAIRS`
+(:func:`pays`).
 """
 
 from __future__ import annotations
 
-from sieve_mi.optim import POSE_KEYS, QUAT_KEYS, live_poses, renormalise_quaternions
+from sieve_mi.game.descent import adam_step, pose_loss
+from sieve_mi.optim import QUAT_KEYS, live_poses
 
-__all__ = ["frozen_step"]
+__all__ = ["CPU_FREEZE_PAIRS", "frozen_step", "pays", "replay"]
+
+#: On the CPU (LLVM variants) descents with more (pose, segment) pairs than this trace their steps
+#: even with ``freeze``: there a big step is bound by arithmetic and the frozen step's fixed-size
+#: buffer passes cost more than tracing saves (docs/performance.md: a 70k-face bunny at 100 poses,
+#: 15M pairs, steps 15 % slower frozen; spot/cow's verdict, 2.7M pairs, is 1.1x faster frozen).
+CPU_FREEZE_PAIRS = 5_000_000
 
 
 def _step(opt, best, best_loss, overflow, loss, stack, pose_hole, key, group=None):
-    """One Adam step; ``key`` = (scale, capacity, poses, pairs[, groups, fit_loss]) are Python
-    values (recording key); ``group`` (mi.UInt32, K) the poses' settling groups, if any."""
-    import drjit as dr
-
+    """One :func:`~sieve_mi.game.descent.adam_step` with the objective's fixed-size loss; ``key`` =
+    (scale, capacity, poses, pairs[, groups, fit_loss]) are Python values (recording key);
+    ``group`` (mi.UInt32, K) the poses' settling groups, if any."""
     scale, capacity = key[0], key[1]
-    q = tuple(opt[k] for k in QUAT_KEYS)
-    t = (opt["tx"] * scale, opt["ty"] * scale)
     live = None if group is None else live_poses(best_loss, group, key[4], key[5])
-    total, per_pose, over = loss.loss_fixed(q, t, stack, pose_hole, capacity, live=live)
-    if live is not None:
-        per_pose = dr.select(live, per_pose, float("inf"))  # a settled pose keeps its best
-    # every pose settled between two checks: nothing depends on the poses any more
-    dr.backward(total, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
-    # Each start keeps the best pose it visited (Adam may step past a fit).
-    improved = per_pose < best_loss
-    best = [dr.select(improved, dr.detach(opt[k]), b) for k, b in zip(POSE_KEYS, best)]
-    best_loss = dr.select(improved, per_pose, best_loss)
-    opt.step(eval=False)
-    renormalise_quaternions(opt, best, best_loss)
+
+    def evaluate():
+        return pose_loss(opt, loss, stack, pose_hole, scale, live, capacity)
+
+    best, best_loss, over = adam_step(opt, best, best_loss, evaluate)
     return best, best_loss, overflow | over
 
 
@@ -70,10 +70,62 @@ def frozen_step():
         (scale, capacity, K, pairs): the frame's half extent, ``loss.capacity(q)``, and sizes;
         with settling, then the number of groups and the objective's ``fit_loss``.
     group : mi.UInt32, optional
-        Each pose's settling group (:meth:`sieve_mi.game.players.PlayerB.attack`'s ``settle``).
+        Each pose's settling group (:meth:`sieve_mi.game.player_b.PlayerB.attack`'s ``settle``).
     """
     import drjit as dr
 
     # Each descent records its first frozen step once (docs/method.md), so a long solve (many A,
     # restarts) passes Dr.Jit's default warning threshold without anything being wrong.
     return dr.freeze(_step, limit=8, warn_after=100_000)
+
+
+def pays(loss) -> bool:
+    """Whether freezing the steps of a descent bound to ``loss`` is possible and pays: the
+    objective is ``freezable``, and on the CPU it binds at most :data:`CPU_FREEZE_PAIRS` pairs."""
+    import mitsuba as mi
+
+    if not getattr(loss, "freezable", False):
+        return False
+    return not (loss.pair_count > CPU_FREEZE_PAIRS and mi.variant().startswith("llvm"))
+
+
+def replay(step, descent):
+    """The frozen steps of one descent, replaying ``step`` (from :func:`frozen_step`).
+
+    Parameters
+    ----------
+    step : callable
+        A :func:`frozen_step`, shared by a player's descents (each recording is reused).
+    descent : sieve_mi.game.descent.Descent
+        Its optimiser, objective, holes, scale and settling groups, as they are now.
+
+    Returns
+    -------
+    callable
+        ``steps(best, best_loss) -> (best, best_loss)``, which updates the descent's optimiser;
+        ``steps.overflowed()`` tells whether any step's buffer overflowed (its results are then
+        wrong).
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    opt, loss, settle = descent.opt, descent.loss, descent.settle
+    stack, hole_idx = descent.stack, descent.hole_idx
+    capacity = loss.capacity(tuple(opt[name] for name in QUAT_KEYS))
+    record = (descent.scale, capacity, loss.pose_count, loss.pair_count)
+    if settle is not None:
+        record += (settle.groups, settle.fit_loss)
+    state = {"overflow": dr.opaque(mi.Bool, False)}
+    group = None if settle is None else settle.group
+
+    def steps(best, best_loss):
+        # Literals (Adam's step counter after the traced steps) become evaluated arrays, so
+        # the first frozen step has the layout of the later ones (else it is recorded twice).
+        dr.make_opaque(opt.state, best, best_loss)
+        best, best_loss, state["overflow"] = step(
+            opt, best, best_loss, state["overflow"], loss, stack, hole_idx, record, group
+        )
+        return best, best_loss
+
+    steps.overflowed = lambda: bool(state["overflow"][0])
+    return steps

@@ -34,7 +34,8 @@ import numpy as np
 from scipy import ndimage
 
 from sieve_mi.game.attack import AttackMemory
-from sieve_mi.game.players import PlayerA, PlayerB
+from sieve_mi.game.player_a import PlayerA
+from sieve_mi.game.player_b import PlayerB
 from sieve_mi.geometry.hole import Hole, build_hole, dilate, fill_gaps, pieces
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.raster import Frame

@@ -16,7 +16,8 @@ import numpy as np
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import AttackMemory
 from sieve_mi.game.layout import alternative_rotations, hole_frame, merge, union_frame
-from sieve_mi.game.players import PlayerA, PlayerB
+from sieve_mi.game.player_a import PlayerA
+from sieve_mi.game.player_b import PlayerB
 from sieve_mi.game.result import Result
 from sieve_mi.game.scoring import mask_window
 from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved

@@ -3,7 +3,7 @@
 A coin blocks a thicker coin only within a fraction of a degree of edge-on, a box gives its smallest
 hole only face-on. A swarm of ten random particles lands near such orientations but rarely on
 them, so player A's search also evaluates a few *canonical* views of each shape (as an extra first
-generation, :meth:`sieve_mi.game.players.PlayerA.search`):
+generation, :meth:`sieve_mi.game.player_a.PlayerA.search`):
 
 * the three principal axes of the convex hull (its inertia frame; the 24 axis-aligned frames
   :func:`principal_frames` give every signed permutation of them);

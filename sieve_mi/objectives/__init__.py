@@ -2,7 +2,7 @@
 Rule: an objective scores poses against holes; it knows the geometry, not the game.
 
 An *objective* scores many poses of B's shapes against a stack of holes in one call. Player B
-(:class:`sieve_mi.game.players.PlayerB`) binds it once to the list of poses (which shape each pose is),
+(:class:`sieve_mi.game.player_b.PlayerB`) binds it once to the list of poses (which shape each pose is),
 then calls :meth:`Objective.loss` once per Adam step with all poses' quaternions and translations
 as Dr.Jit arrays, and differentiates the returned total.
 

@@ -44,7 +44,7 @@ class ClearanceObjective(EdgeSampledObjective):
     #: A pose whose loss is at most this (pixels squared) fits: every sample on its silhouette
     #: edges lies inside H, where one sample a thousandth of a pixel outside already adds 1e-6.
     #: Player B stops descending the other starts of a hole that a pose fits
-    #: (:meth:`sieve_mi.game.players.PlayerB.attack`'s ``settle``); ``live`` below masks them.
+    #: (:meth:`sieve_mi.game.player_b.PlayerB.attack`'s ``settle``); ``live`` below masks them.
     fit_loss = 1e-6
     #: :meth:`hole_distance` reads its holes' four corners at once: stacks for this loss are
     #: built with :attr:`~sieve_mi.geometry.hole.HoleStack.corners`.

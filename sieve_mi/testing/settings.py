@@ -89,7 +89,7 @@ TINY = settings_toml(solver=TINY_SOLVER, verdict=TINY_VERDICT)
 
 def tiny_solver(**changes) -> Solver:
     """A ``[solver]`` table with the tiny search (:data:`TINY_SOLVER`), no canonical views and
-    no polish, for calls of :meth:`sieve_mi.game.players.PlayerA.search` and ``polish``.
+    no polish, for calls of :meth:`sieve_mi.game.player_a.PlayerA.search` and ``polish``.
 
     Parameters
     ----------

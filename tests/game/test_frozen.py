@@ -9,7 +9,7 @@ import pytest
 import trimesh
 from helpers import REPO, rng, sphere
 
-from sieve_mi.game.players import PlayerB
+from sieve_mi.game.player_b import PlayerB
 from sieve_mi.geometry.hole import Hole
 from sieve_mi.geometry.meshes import shape_from_trimesh
 from sieve_mi.geometry.raster import Frame
@@ -90,10 +90,10 @@ def test_a_failing_frozen_step_warns_and_traces(mi, shapes, monkeypatch):
 
 def test_large_cpu_steps_are_traced(mi, shapes, monkeypatch):
     """On the CPU a descent with more pairs than CPU_FREEZE_PAIRS is traced: same poses."""
-    import sieve_mi.game.players
+    import sieve_mi.game.frozen
 
     traced = _descend(PlayerB(shapes, FRAME, freeze=False))
-    monkeypatch.setattr(sieve_mi.game.players, "CPU_FREEZE_PAIRS", 10)
+    monkeypatch.setattr(sieve_mi.game.frozen, "CPU_FREEZE_PAIRS", 10)
     player = PlayerB(shapes, FRAME, freeze=True)
     out = _descend(player)
     assert player._frozen is None and player.freeze  # not recorded, still on for smaller ones
@@ -211,8 +211,8 @@ def test_a_descent_in_chunks_gives_the_same_poses(mi, shapes, freeze):
 
 
 def test_a_pose_larger_than_the_budget_is_refused_in_one_line(mi, shapes):
+    from sieve_mi.backend import BYTES_PER_PAIR, pair_budget
     from sieve_mi.errors import SieveError
-    from sieve_mi.game.players import BYTES_PER_PAIR, pair_budget
 
     player = PlayerB(shapes, FRAME)
     player.memory = (
@@ -238,13 +238,13 @@ def test_the_default_cap_only_sizes_chunks(mi, shapes):
 
 
 def test_the_default_budget_is_a_share_of_available_memory_capped_on_the_cpu():
-    from sieve_mi.backend import use_variant
-    from sieve_mi.game.players import (
+    from sieve_mi.backend import (
         BYTES_PER_PAIR,
         CPU_MEMORY_CAP_GB,
         MEMORY_SHARE,
         available_memory,
         pair_budget,
+        use_variant,
     )
 
     use_variant("llvm_ad_mono")

@@ -8,7 +8,7 @@ import trimesh
 from scipy import ndimage
 
 from sieve_mi.game.layout import _shifted, _stratified, candidate_placements, pieces
-from sieve_mi.game.players import PlayerA
+from sieve_mi.game.player_a import PlayerA
 from sieve_mi.geometry.meshes import shape_from_trimesh
 from sieve_mi.geometry.raster import Frame
 

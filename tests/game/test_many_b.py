@@ -70,7 +70,8 @@ import pytest
 import trimesh
 
 from sieve_mi.api import solve
-from sieve_mi.game.players import PlayerA, PlayerB
+from sieve_mi.game.player_a import PlayerA
+from sieve_mi.game.player_b import PlayerB
 from sieve_mi.geometry.meshes import shape_from_trimesh
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import from_axis_angle, to_matrix

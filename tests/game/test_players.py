@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from helpers import rng, sphere
 
-from sieve_mi.game.players import PlayerA, PlayerB
+from sieve_mi.game.player_a import PlayerA
+from sieve_mi.game.player_b import PlayerB
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.optim import nlopt_maximise, particle_swarm
 from sieve_mi.testing.settings import tiny_solver

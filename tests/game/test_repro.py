@@ -14,7 +14,7 @@ import pytest
 import trimesh
 from helpers import REPO, sphere
 
-from sieve_mi.game.players import PlayerA
+from sieve_mi.game.player_a import PlayerA
 from sieve_mi.geometry.hole import HoleStack
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import random_uniform

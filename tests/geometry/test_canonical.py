@@ -115,7 +115,8 @@ def test_polish_turns_a_tilted_cube_face_on():
     # A 20 mm cube's hole blocks a 22 mm ball; tilting the cube widens the hole and lets more of
     # the ball in, so the polish must turn a 2.5° tilt back towards face-on.
     from sieve_mi.game.layout import hole_frame
-    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.game.player_a import PlayerA
+    from sieve_mi.game.player_b import PlayerB
 
     cube = shape_from_trimesh(box(20, 20, 20), name="cube")
     ball = shape_from_trimesh(trimesh.creation.icosphere(3, radius=11.0), name="ball")
@@ -134,7 +135,8 @@ def test_polish_turns_a_tilted_cube_face_on():
 
 def test_search_announces_its_stages_and_counts_canonical_evaluations():
     from sieve_mi.game.layout import hole_frame
-    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.game.player_a import PlayerA
+    from sieve_mi.game.player_b import PlayerB
 
     cube = shape_from_trimesh(box(20, 20, 20), name="cube")
     ball = shape_from_trimesh(trimesh.creation.icosphere(2, radius=12.0), name="ball")
@@ -175,7 +177,8 @@ def test_the_search_turns_a_box_exactly_face_on():
     # disk; a 23 mm ball is blocked best there. The canonical views contain it exactly and the
     # polish must not wander off it on raster noise.
     from sieve_mi.game.layout import hole_frame
-    from sieve_mi.game.players import PlayerA, PlayerB
+    from sieve_mi.game.player_a import PlayerA
+    from sieve_mi.game.player_b import PlayerB
 
     cube = shape_from_trimesh(box(20, 20, 20), name="cube")
     ball = shape_from_trimesh(trimesh.creation.icosphere(3, radius=11.5), name="ball")

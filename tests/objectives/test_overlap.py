@@ -210,7 +210,7 @@ def test_gradient_agrees_with_mitsubas_projective_sampling(mi):
 
 def test_all_objectives_agree_on_who_passes(mi):
     """A box passes a slot face-on and is blocked by a smaller one, whichever loss guides Adam."""
-    from sieve_mi.game.players import PlayerB
+    from sieve_mi.game.player_b import PlayerB
 
     frame = Frame(64, 1.0)
     xc, yc = frame.centres()

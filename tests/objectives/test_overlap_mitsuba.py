@@ -266,7 +266,7 @@ def test_margin_sees_the_part_outside_the_frame(mi):
 
 def test_player_b_fits_a_box_with_the_overlap_objective(mi):
     """Adam on the overlap loss moves a box that sticks out into an off-centre hole."""
-    from sieve_mi.game.players import PlayerB
+    from sieve_mi.game.player_b import PlayerB
 
     hole = _rect_hole(0.0, 0.8, -0.5, 0.5)  # the box (half diagonal 0.2) starts near x = 0
     player = PlayerB([_box(0.3, 0.2, 0.2)], FRAME, objective="overlap-mitsuba")

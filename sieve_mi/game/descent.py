@@ -1,0 +1,360 @@
+"""One batched descent of player B: its state, its one Adam step and its loop (paper Sec. 6.1).
+
+Every start of every shape against every candidate hole is one pose of a batch; a step is loss,
+gradient, "each start keeps the best pose it visited" and Adam's update, for the whole batch in a
+few Dr.Jit kernels. :func:`adam_step` is that step, written once: :class:`Descent` runs it traced,
+and :mod:`sieve_mi.game.frozen` records it once with :func:`drjit.freeze` and replays it, so the
+two give the same poses to the bit. Starts may settle in groups (:class:`Settle`): once one pose
+of a group fits, the group stops where its best poses are, and the settled poses leave the batch.
+Player B (:mod:`sieve_mi.game.player_b`) chooses the starts, sizes the batches and scores the
+results.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from sieve_mi.errors import interruption
+from sieve_mi.geometry.rotations import normalize
+from sieve_mi.optim import POSE_KEYS, QUAT_KEYS, live_poses, pose_adam, renormalise_quaternions
+
+__all__ = [
+    "SETTLE_CHECK",
+    "BufferOverflow",
+    "Descent",
+    "FrozenStepFailed",
+    "Settle",
+    "adam_step",
+    "pose_loss",
+    "settle_groups",
+]
+
+#: A descent whose poses settle (:meth:`~sieve_mi.game.player_b.PlayerB.attack`'s ``settle``)
+#: checks every this many steps whether all of its groups have: one read-back of a flag.
+SETTLE_CHECK = 5
+
+
+class BufferOverflow(Exception):
+    """A frozen descent's active-pair buffer overflowed: its results are wrong."""
+
+
+class FrozenStepFailed(Exception):
+    """Dr.Jit failed to record or replay a frozen step (the cause is chained)."""
+
+
+def pose_loss(opt, loss, stack, pose_hole, scale: float, live=None, capacity: int | None = None):
+    """The loss at the poses of a :func:`~sieve_mi.optim.pose_adam` optimiser.
+
+    Parameters
+    ----------
+    opt : drjit.opt.Adam
+        Translations in units of ``scale``.
+    loss : Objective
+        Bound to the K poses.
+    stack : HoleStack
+    pose_hole : mi.UInt32
+        Each pose's hole (K,).
+    scale : float
+        The frame's half extent, scene units.
+    live : mi.Bool, optional
+        (K,): the other poses have settled; they sum nothing and get an infinite loss (a settled
+        pose keeps its best).
+    capacity : int, optional
+        Use the objective's fixed-size ``loss_fixed`` with this buffer (inside
+        :func:`drjit.freeze`) instead of ``loss``.
+
+    Returns
+    -------
+    total : mi.Float
+    per_pose : mi.Float
+        (K,).
+    overflow : mi.Bool or None
+        Whether ``loss_fixed``'s buffer overflowed; None without ``capacity``.
+    """
+    import drjit as dr
+
+    q = tuple(opt[key] for key in QUAT_KEYS)
+    t = (opt["tx"] * scale, opt["ty"] * scale)
+    if capacity is not None:
+        total, per_pose, overflow = loss.loss_fixed(q, t, stack, pose_hole, capacity, live=live)
+    elif live is None:
+        (total, per_pose), overflow = loss.loss(q, t, stack, pose_hole), None
+    else:
+        (total, per_pose), overflow = loss.loss(q, t, stack, pose_hole, live=live), None
+    if live is not None:
+        per_pose = dr.select(live, per_pose, np.inf)  # a settled pose keeps its best
+    return total, per_pose, overflow
+
+
+def _keep_best(opt, best, best_loss, per_pose):
+    """Each start keeps the best pose it visited (Adam may step past a fit): the new
+    ``(best, best_loss)``."""
+    import drjit as dr
+
+    improved = per_pose < best_loss
+    best = [dr.select(improved, dr.detach(opt[key]), b) for key, b in zip(POSE_KEYS, best)]
+    return best, dr.select(improved, per_pose, best_loss)
+
+
+def adam_step(opt, best, best_loss, evaluate: Callable[[], tuple]):
+    """One Adam step of a descent, traced or inside :func:`drjit.freeze` alike.
+
+    Loss and gradient at the optimiser's poses, each start's best pose, Adam's update and the
+    quaternions projected back onto the unit sphere (one evaluation).
+
+    Parameters
+    ----------
+    opt : drjit.opt.Adam
+        From :func:`~sieve_mi.optim.pose_adam`; updated in place.
+    best : list of 6 mi.Float
+        Each start's best pose so far (:data:`~sieve_mi.optim.POSE_KEYS` order).
+    best_loss : mi.Float
+        Its loss (K,).
+    evaluate : callable
+        ``evaluate()`` returns :func:`pose_loss`'s ``(total, per_pose, overflow)`` at the
+        optimiser's poses.
+
+    Returns
+    -------
+    best, best_loss
+        Updated.
+    overflow : mi.Bool or None
+        ``evaluate``'s overflow flag.
+    """
+    import drjit as dr
+
+    total, per_pose, overflow = evaluate()
+    # every pose settled between two checks: nothing depends on the poses any more
+    dr.backward(total, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+    best, best_loss = _keep_best(opt, best, best_loss, per_pose)
+    opt.step(eval=False)
+    renormalise_quaternions(opt, best, best_loss)
+    return best, best_loss, overflow
+
+
+class Settle:
+    """The groups of one descent that stop when one of their poses fits.
+
+    Parameters
+    ----------
+    group : mi.UInt32
+        Each pose's group (K,), numbered from 0.
+    groups : int
+    fit_loss : float
+        The objective's loss of a fitting pose.
+    """
+
+    def __init__(self, group, groups: int, fit_loss: float):
+        self.group, self.groups, self.fit_loss = group, int(groups), float(fit_loss)
+
+    @classmethod
+    def make(cls, group, loss) -> Settle | None:
+        """Settling for poses in groups ``group`` ((K,) ints, or None: no settling) under the
+        objective ``loss`` (None where it has no ``fit_loss``)."""
+        import mitsuba as mi
+
+        fit_loss = getattr(loss, "fit_loss", None)
+        if group is None or fit_loss is None or len(group) == 0:
+            return None
+        _, dense = np.unique(np.asarray(group), return_inverse=True)
+        return cls(mi.UInt32(dense.astype(np.uint32)), int(dense.max()) + 1, fit_loss)
+
+    def live(self, best_loss):
+        """(K,) mi.Bool: the poses whose group has not settled."""
+        return live_poses(best_loss, self.group, self.groups, self.fit_loss)
+
+    @staticmethod
+    def due(step: int) -> bool:
+        """Whether to check after step ``step`` (0-based)."""
+        return (step + 1) % SETTLE_CHECK == 0
+
+    def subset(self, keep) -> Settle:
+        """The same groups for the poses ``keep`` (mi.UInt32) only."""
+        import drjit as dr
+        import mitsuba as mi
+
+        return Settle(dr.gather(mi.UInt32, self.group, keep), self.groups, self.fit_loss)
+
+
+def settle_groups(settle, pose_hole, pose_shape, n_b: int):
+    """Each pose's settling group for :meth:`~sieve_mi.game.player_b.PlayerB.attack`'s
+    ``settle`` (None: no settling)."""
+    if settle is None:
+        return None
+    return {
+        "start": np.arange(len(pose_hole)),
+        "shape": pose_hole * n_b + pose_shape,
+        "hole": pose_hole,
+    }[settle]
+
+
+def _rows(best) -> np.ndarray:
+    """A descent's best poses (list of 6 mi.Float, :data:`~sieve_mi.optim.POSE_KEYS` order) as
+    a (K, 6) float64 array."""
+    return np.stack([np.asarray(b, dtype=np.float64) for b in best], axis=1)
+
+
+def _keep_poses(opt, keep, best, best_loss, settle):
+    """Keep only the poses ``keep`` (mi.UInt32) of a descent: of its
+    :func:`~sieve_mi.optim.pose_adam` optimiser (with their Adam moments and the shared step
+    count, Dr.Jit's ``(t, m, v, v_max)`` state), of ``best``, ``best_loss`` and ``settle``;
+    returns the last three."""
+    import drjit as dr
+    import mitsuba as mi
+
+    for key in POSE_KEYS:
+        value, promoted, lr, (t, m, v, v_max) = opt.state[key]
+        value = dr.gather(mi.Float, dr.detach(value), keep)
+        dr.enable_grad(value)
+        moments = (dr.gather(mi.Float, m, keep), dr.gather(mi.Float, v, keep))
+        opt.state[key] = (value, promoted, lr, (t, *moments, v_max))
+        dr.make_opaque(value, *moments)
+    best = [dr.gather(mi.Float, b, keep) for b in best]
+    best_loss = dr.gather(mi.Float, best_loss, keep)
+    dr.make_opaque(best, best_loss)
+    return best, best_loss, settle.subset(keep)
+
+
+class Descent:
+    """One batched descent of :meth:`~sieve_mi.game.player_b.PlayerB.descend`: Adam over the
+    poses still descending, each start's best pose and loss, and the final poses of those that
+    left.
+
+    Parameters
+    ----------
+    player : PlayerB
+        Its ``objective`` and its frame's half extent (translations are optimised in its units).
+    holes : list of Hole
+    pose_hole, pose_shape : (K,) ndarrays of int
+    q0 : (K, 4) ndarray
+    t0 : (K, 2) ndarray
+        Scene units.
+    learning_rate : float
+    group : (K,) ndarray of int, optional
+        Settling groups (:class:`Settle`).
+    """
+
+    def __init__(self, player, holes, pose_hole, pose_shape, q0, t0, learning_rate, group):
+        import drjit as dr
+        import mitsuba as mi
+
+        from sieve_mi.geometry.hole import HoleStack
+
+        self.loss = player.objective
+        self.stack = HoleStack(holes, corners=getattr(self.loss, "hole_corners", False))
+        self.pose_hole, self.pose_shape = np.asarray(pose_hole), np.asarray(pose_shape)
+        self.scale = player.frame.half_extent
+        self.opt = pose_adam(q0, np.asarray(t0) / self.scale, learning_rate)
+        self.best = [dr.detach(self.opt[key]) for key in POSE_KEYS]
+        self.best_loss = dr.opaque(mi.Float, np.inf, len(q0))
+        self.settle = Settle.make(group, self.loss)
+        self.final = np.empty((len(q0), len(POSE_KEYS)))
+        self.where = np.arange(len(q0))  # the original index of each pose still descending
+        self._bind()
+
+    def _bind(self) -> None:
+        import mitsuba as mi
+
+        self.loss.bind(self.pose_shape[self.where])
+        self.hole_idx = mi.UInt32(self.pose_hole[self.where].astype(np.uint32))
+
+    def evaluate(self, live=None):
+        """:func:`pose_loss` at the optimiser's poses (``live``: mi.Bool, the poses not settled)."""
+        return pose_loss(self.opt, self.loss, self.stack, self.hole_idx, self.scale, live)
+
+    def step(self) -> None:
+        """One :func:`adam_step`, traced."""
+        live = None if self.settle is None else self.settle.live(self.best_loss)
+        self.best, self.best_loss, _ = adam_step(
+            self.opt, self.best, self.best_loss, lambda: self.evaluate(live)
+        )
+
+    def shrink(self, live: np.ndarray) -> bool:
+        """Keep descending only the ``live`` poses ((K,) bool); the others' best poses are
+        final. Returns whether any pose is left."""
+        import mitsuba as mi
+
+        self.final[self.where[~live]] = _rows(self.best)[~live]
+        self.where = self.where[live]
+        if not len(self.where):
+            return False
+        keep = mi.UInt32(np.flatnonzero(live).astype(np.uint32))
+        self.best, self.best_loss, self.settle = _keep_poses(
+            self.opt, keep, self.best, self.best_loss, self.settle
+        )
+        self._bind()
+        return True
+
+    def result(self, stepped: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Every start's best pose: quaternions (K, 4) and translations (K, 2), scene units;
+        ``stepped``: the last step's pose is scored too."""
+        import drjit as dr
+
+        if len(self.where):
+            if stepped:
+                with dr.suspend_grad():
+                    per_pose = self.evaluate()[1]
+                    self.best, self.best_loss = _keep_best(
+                        self.opt, self.best, self.best_loss, per_pose
+                    )
+            self.final[self.where] = _rows(self.best)
+        return normalize(self.final[:, :4]), self.final[:, 4:] * self.scale
+
+    def run(self, steps: int, progress=None, freeze=None) -> tuple[np.ndarray, np.ndarray]:
+        """Descend ``steps`` Adam steps; returns :meth:`result`.
+
+        Parameters
+        ----------
+        steps : int
+        progress : callable, optional
+            Called with the number of steps done after each step.
+        freeze : callable, optional
+            ``freeze(descent)`` returns this descent's frozen steps
+            (:func:`sieve_mi.game.frozen.replay`) or None (traced). Called again whenever the
+            batch shrinks. The first two steps, and the first after a shrink, are traced.
+
+        Raises
+        ------
+        BufferOverflow, FrozenStepFailed
+            When a frozen descent must run again traced.
+
+        Notes
+        -----
+        With settling groups, every :data:`SETTLE_CHECK` steps the poses of settled groups leave
+        the descent (their best poses are final) once they are at least half of it: the rest
+        goes on as a smaller batch, with its Adam state, so that settled poses cost nothing.
+        """
+        frozen = None if freeze is None else freeze(self)
+        first_frozen = 2  # steps 1, 2 differ in layout: traced
+        try:
+            for step in range(steps):
+                if frozen is not None and step >= first_frozen:
+                    self.best, self.best_loss = frozen(self.best, self.best_loss)
+                else:
+                    self.step()
+                if progress:
+                    progress(step + 1)
+                if self.settle is None or not self.settle.due(step):
+                    continue
+                live = np.asarray(self.settle.live(self.best_loss), dtype=bool)
+                if 2 * live.sum() > len(live):  # too few settled to pay for a smaller batch
+                    continue
+                if frozen is not None and frozen.overflowed():
+                    raise BufferOverflow
+                if not self.shrink(live):  # every group settled: the descent is over
+                    if progress:
+                        progress(steps)
+                    break
+                frozen, first_frozen = (None if freeze is None else freeze(self)), step + 1
+        except Exception as exc:  # drjit.freeze is experimental: trace instead of failing
+            if frozen is None or isinstance(exc, BufferOverflow):
+                raise
+            interrupt = interruption(exc)
+            if interrupt is not None:  # Ctrl-C or SIGTERM while Dr.Jit recorded: never eaten
+                raise interrupt from None
+            raise FrozenStepFailed from exc
+        if frozen is not None and frozen.overflowed():
+            raise BufferOverflow
+        return self.result(steps > 0)
