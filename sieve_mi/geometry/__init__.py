@@ -20,6 +20,18 @@ hole
 sieve
     Reading a given plate mesh once: its through-holes along an axis and the slab around them
     (the thickness proofs use), for ``check``, ``certify`` and ``shake``.
+hole_image
+    Reading a given hole image: its hole pixels, and its holes on a frame (``check --hole``).
 """
 
-__all__ = ["canonical", "hole", "meshes", "outline", "raster", "rotations", "sieve", "silhouettes"]
+__all__ = [
+    "canonical",
+    "hole",
+    "hole_image",
+    "meshes",
+    "outline",
+    "raster",
+    "rotations",
+    "sieve",
+    "silhouettes",
+]

@@ -24,6 +24,10 @@ polygon assembly, exact for a closed mesh, vectorised over all heights.
 A plate whose slab is its whole extent along the axis is a *uniform slab*; any other is named as
 such (:meth:`PlateReading.describe`), and one with no slab is refused. A tilted plate has none:
 its holes' walls lean, so every section's holes are wider than the holes straight through.
+
+**On a raster.** :func:`read_plate_holes` puts a plate's holes on one frame centred on them
+(:class:`SieveHoles`), as ``check`` plays against them and its page draws them; a hole image's
+holes come the same way from :func:`sieve_mi.geometry.hole_image.read_image_holes`.
 """
 
 from __future__ import annotations
@@ -35,17 +39,22 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.errors import SieveError
+from sieve_mi.geometry.hole import Hole
 from sieve_mi.geometry.meshes import load_trimesh
 from sieve_mi.geometry.outline import filled, projection
+from sieve_mi.geometry.raster import Frame
 
 __all__ = [
     "AREA_TOLERANCE",
     "AXIS_INDEX",
     "PlateReading",
+    "SieveHoles",
     "axis_frame",
+    "frame_for_polygons",
     "full_slab",
     "plate_holes",
     "read_plate",
+    "read_plate_holes",
     "section_areas",
     "tilt",
 ]
@@ -428,3 +437,86 @@ def _volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
     tri = tri - tri.reshape(-1, 3).mean(0)
     return float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0)
+
+
+@dataclass
+class SieveHoles:
+    """A given sieve's holes, read once, on one raster frame centred on them.
+
+    Attributes
+    ----------
+    source : str
+        The plate mesh's or the hole image's file.
+    holes : list of Hole
+        The holes on :attr:`frame`, whose centre is :attr:`centre` in the sieve's coordinates.
+    frame : Frame
+    centre : (2,) ndarray
+        The sieve's coordinates of the frame's centre (a pose found on the frame is moved by it).
+    info : list of dict
+        Per hole its area (and, for a plate, its centre in the plate's coordinates).
+    outlines : list of manifold3d.CrossSection or None
+        A plate's exact holes, shifted by ``-centre``; None for an image (its pixels are the truth).
+    plate : PlateReading or None
+        The plate's slab and mesh; None for an image.
+    mask : (N, N) bool ndarray or None
+        An image's hole pixels on :attr:`frame`; None for a plate.
+    """
+
+    source: str
+    holes: list
+    frame: Frame
+    centre: np.ndarray
+    info: list
+    outlines: list | None = None
+    plate: PlateReading | None = None
+    mask: np.ndarray | None = None
+
+
+def frame_for_polygons(
+    holes: list[manifold3d.CrossSection], resolution: int
+) -> tuple[Frame, np.ndarray]:
+    """A frame centred on the holes' bounding box, covering them with a margin.
+
+    Returns
+    -------
+    frame : Frame
+    centre : (2,) ndarray
+        The bounding-box centre in the sieve's coordinates (subtracted from the outlines).
+    """
+    lo = np.min([h.bounds()[:2] for h in holes], axis=0)
+    hi = np.max([h.bounds()[2:] for h in holes], axis=0)
+    centre = 0.5 * (np.asarray(lo) + np.asarray(hi))
+    radius = 0.5 * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+    return Frame.covering(radius * 1.02, resolution, margin_px=4.0), centre
+
+
+def read_plate_holes(path: str, axis: str, resolution: int) -> SieveHoles:
+    """A plate mesh's through-holes along ``axis`` on a common frame (:func:`read_plate`, once).
+
+    Parameters
+    ----------
+    path : str
+        The plate mesh's file, scene units.
+    axis : {"x", "y", "z"}
+    resolution : int
+        Pixels per side of the frame (:func:`frame_for_polygons`).
+
+    Returns
+    -------
+    SieveHoles
+        With the exact outlines (shifted by ``-centre``) and the plate's reading.
+
+    Raises
+    ------
+    SieveError
+        A plate with no through-hole, or whose thickness cannot be measured (:func:`read_plate`).
+    """
+    plate = read_plate(path, axis)  # the plate's holes and thickness, read once
+    frame, centre = frame_for_polygons(plate.holes, resolution)
+    info = []
+    for o in plate.holes:
+        lo, hi = np.asarray(o.bounds()[:2]), np.asarray(o.bounds()[2:])
+        info.append({"area": float(o.area()), "centre": [float(c) for c in (lo + hi) / 2]})
+    outlines = [o.translate([-centre[0], -centre[1]]) for o in plate.holes]
+    holes = [Hole.from_outline(o, frame) for o in outlines]
+    return SieveHoles(path, holes, frame, centre, info, outlines=outlines, plate=plate)

@@ -22,8 +22,9 @@ import trimesh
 from PIL import Image
 
 from sieve_mi.errors import SieveError
-from sieve_mi.game.check import CheckSettings, ShapeCheck, check, fit_scale, holes_from_mesh
+from sieve_mi.game.check import CheckSettings, ShapeCheck, check, fit_scale
 from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.sieve import plate_holes
 from sieve_mi.outputs.fabrication import to_trimesh
 
 FAST = CheckSettings(starts=24, steps=150, resolution=192, fit_tolerance=0.01)
@@ -50,7 +51,7 @@ def cube(a: float):
 
 def test_holes_of_a_plate_are_found_exactly(tmp_path):
     path = square_plate(str(tmp_path / "p.stl"), 12.0)
-    holes = holes_from_mesh(path)
+    holes = plate_holes(path)
     assert len(holes) == 1
     assert holes[0].area() == pytest.approx(144.0, rel=1e-9)
     b = holes[0].bounds()
@@ -62,7 +63,7 @@ def test_holes_of_a_plate_are_found_exactly(tmp_path):
         - manifold3d.Manifold.cylinder(20, 6.0, 6.0, 64).translate([40, 15, -5])
     )
     to_trimesh(plate).export(str(tmp_path / "two.stl"))
-    two = holes_from_mesh(str(tmp_path / "two.stl"))
+    two = plate_holes(str(tmp_path / "two.stl"))
     assert [h.area() for h in two] == pytest.approx(
         [manifold3d.CrossSection.circle(6.0, 64).area(), 100.0], rel=1e-6
     )
@@ -72,14 +73,14 @@ def test_a_plate_without_a_through_hole_is_a_clear_error(tmp_path):
     path = str(tmp_path / "solid.stl")
     trimesh.creation.box((20, 20, 5)).export(path)
     with pytest.raises(SieveError, match="no through-hole"):
-        holes_from_mesh(path)
+        plate_holes(path)
     # a blind hole (a pocket) is no through-hole either
     pocket = manifold3d.Manifold.cube([20, 20, 5]) - manifold3d.Manifold.cube([5, 5, 10]).translate(
         [7, 7, 2]
     )
     to_trimesh(pocket).export(path)
     with pytest.raises(SieveError, match="no through-hole"):
-        holes_from_mesh(path)
+        plate_holes(path)
 
 
 @pytest.mark.slow

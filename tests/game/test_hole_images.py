@@ -7,7 +7,7 @@ import pytest
 from PIL import Image
 
 from sieve_mi.errors import SieveError
-from sieve_mi.game.check import mask_from_image
+from sieve_mi.geometry.hole_image import mask_from_image
 
 N = 64
 

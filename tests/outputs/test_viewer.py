@@ -456,7 +456,7 @@ def test_no_animation_skips_only_the_gif(merged, tmp_path):
 
 
 def test_check_out_writes_a_page_of_the_plate_hole(merged, tmp_path):
-    from sieve_mi.game.check import holes_from_mesh
+    from sieve_mi.geometry.sieve import plate_holes
 
     result, report, out = merged
     dest = tmp_path / "check"
@@ -467,7 +467,7 @@ def test_check_out_writes_a_page_of_the_plate_hole(merged, tmp_path):
     rep = json.loads((dest / "report.json").read_text())
     assert p.returncode == (0 if rep["result"]["passes"] else 3), p.stderr
     paths = svg_paths(dest)
-    _same_contours(paths["hole"], holes_from_mesh(str(out / "sieve.stl"))[0].to_polygons(), 1e-4)
+    _same_contours(paths["hole"], plate_holes(str(out / "sieve.stl"))[0].to_polygons(), 1e-4)
     assert len(paths["b0"]) >= 1
     page = (dest / "report.html").read_text()
     assert ("is blocked" if not rep["result"]["passes"] else "passes") in page
