@@ -19,7 +19,8 @@ Three objectives exist:
     one render per pose (the reference for ``"overlap"``; orders of magnitude slower).
 
 The first two share their edge segments, (pose, segment) pairs, silhouette-edge test and fixed-order
-per-pose sums (:class:`sieve_mi.objectives.edges.EdgeSampledObjective`). :meth:`Objective.bind` and
+per-pose sums (:class:`sieve_mi.objectives.edges.EdgeSampledObjective`, built on the device's pair
+machinery of :mod:`sieve_mi.objectives.pairs`). :meth:`Objective.bind` and
 :meth:`Objective.loss` are documented here once; each implementation adds only what is its own.
 
 Neither decides a winner: the verdict scores poses on the hole itself (:mod:`sieve_mi.game.scoring`).

@@ -20,7 +20,8 @@ import numpy as np
 
 from sieve_mi.geometry.hole import HoleStack
 from sieve_mi.geometry.rotations import quat_rows
-from sieve_mi.objectives.edges import CHUNK, EdgeSampledObjective, pose_sums
+from sieve_mi.objectives.edges import EdgeSampledObjective
+from sieve_mi.objectives.pairs import CHUNK, pose_sums
 
 __all__ = ["ClearanceObjective"]
 

@@ -9,10 +9,10 @@ each sampled ``samples_per_segment`` times at the centres of equal parts.
 All poses of all shapes (particles x shapes x starts) are evaluated in one kernel per step: per step
 the silhouette test runs over every (pose, edge) pair (it depends on the edge only),
 :func:`drjit.compress` keeps the active ones, they are expanded into their segments' (pose,
-segment) pairs (:func:`expand_ranges`), and the loss is evaluated on their samples only. Where
-edges are about one segment long, the test runs per (pose, segment) directly. The per-pose sums
-over the active pairs are added in an order fixed by the inputs (:func:`pose_sums`), so the
-objectives built on them are reproducible bit for bit.
+segment) pairs, and the loss is evaluated on their samples only. Where edges are about one
+segment long, the test runs per (pose, segment) directly. The per-pose sums over the active pairs
+are added in an order fixed by the inputs, so the objectives built on them are reproducible bit
+for bit. How pairs are built, read and summed on the device is :mod:`sieve_mi.objectives.pairs`.
 """
 
 from __future__ import annotations
@@ -22,21 +22,11 @@ import numpy as np
 from sieve_mi.geometry.meshes import Shape, segments
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import quat_rows
+from sieve_mi.objectives.pairs import expand_ranges, packet_table, packet_type, pose_ranges
 
-__all__ = [
-    "CHUNK",
-    "EdgeSampledObjective",
-    "PER_EDGE_RATIO",
-    "auto_samples",
-    "expand_ranges",
-    "pose_ranges",
-    "pose_sums",
-]
+__all__ = ["EdgeSampledObjective", "PER_EDGE_RATIO", "auto_samples"]
 
 
-#: Active (pose, segment) pairs that one thread sums in the first level of the per-pose reduction
-#: (:func:`pose_sums`). Fixed, so results do not depend on the machine.
-CHUNK = 16
 #: Segments per edge from which the silhouette test runs per (pose, edge), not per segment.
 PER_EDGE_RATIO = 1.5
 #: What a silhouette test reads of its segment or edge (:func:`_test_table`).
@@ -87,100 +77,7 @@ def _test_table(m1: np.ndarray, m2: np.ndarray, always: np.ndarray):
     """
     table = np.zeros((len(m1), 8), dtype=np.float32)
     table[:, 0:3], table[:, 3:6], table[:, 6] = m1, m2, always
-    return _packet_table(table)
-
-
-def _packet_table(rows: np.ndarray):
-    """``rows`` ((N, 8) float) as a flat mi.Float (8N) in Dr.Jit's own memory, which is aligned.
-
-    Dr.Jit reads a row of it as one packet only from aligned memory. An array made from a
-    NumPy array on the CPU uses NumPy's memory, aligned or not by chance (and then every read
-    falls back to 8 gathers; copies and identity gathers keep the same memory): a scatter into
-    a new array is what makes it Dr.Jit's.
-    """
-    import drjit as dr
-    import mitsuba as mi
-
-    host = mi.Float(np.ascontiguousarray(rows, dtype=np.float32).ravel())
-    table = dr.zeros(mi.Float, dr.width(host))
-    dr.scatter(table, host, dr.arange(mi.UInt32, dr.width(host)))
-    dr.eval(table)
-    return table
-
-
-def _packet_type():
-    """Dr.Jit's ArrayXf of the active Mitsuba variant's backend: the type of packet gathers of
-    8 consecutive floats (``dr.gather(_packet_type(), flat, index, shape=(8, n))``)."""
-    import drjit as dr
-    import mitsuba as mi
-
-    return (dr.cuda.ad if mi.variant().startswith("cuda") else dr.llvm.ad).ArrayXf
-
-
-def expand_ranges(start, length):
-    """The integers ``start[j], ..., start[j] + length[j] - 1`` for every j, in order (mi.UInt32).
-
-    ``length`` must be positive. Reads back the total length (one synchronisation).
-
-    Examples
-    --------
-    start (3, 10), length (2, 3) -> (3, 4, 10, 11, 12).
-    """
-    import drjit as dr
-    import mitsuba as mi
-
-    if dr.width(start) == 0:
-        return dr.zeros(mi.UInt32, 0)
-    return _ranges(start, length, int(dr.sum(length)[0]))[1]
-
-
-def _ranges(start, length, total: int):
-    """:func:`expand_ranges` with its ``total`` given: (range index j, integer) of every entry."""
-    import drjit as dr
-    import mitsuba as mi
-
-    offset = dr.prefix_sum(length)  # exclusive
-    marks = dr.zeros(mi.UInt32, total)
-    dr.scatter(marks, mi.UInt32(1), offset, offset > 0)
-    entry = dr.cumsum(marks)  # inclusive
-    i = dr.arange(mi.UInt32, total)
-    return entry, dr.gather(mi.UInt32, start, entry) + (i - dr.gather(mi.UInt32, offset, entry))
-
-
-def pose_ranges(start: np.ndarray, length: np.ndarray):
-    """Pose-major pairs: pose j gets the items ``start[j], ..., start[j] + length[j] - 1``.
-
-    Built on the device (:func:`expand_ranges`' scan); poses with no items get none.
-
-    Parameters
-    ----------
-    start, length : (K,) ndarrays of int
-        Each pose's first item and item count (``length`` >= 0).
-
-    Returns
-    -------
-    pose, item : mi.UInt32
-        ``sum(length)`` entries each, pose-major.
-
-    Examples
-    --------
-    start (3, 10, 7), length (2, 0, 3) -> pose (0, 0, 2, 2, 2), item (3, 4, 7, 8, 9).
-    """
-    import drjit as dr
-    import mitsuba as mi
-
-    start, length = np.asarray(start, dtype=np.int64), np.asarray(length, dtype=np.int64)
-    some = np.flatnonzero(length > 0)
-    if len(some) == 0:
-        return dr.zeros(mi.UInt32, 0), dr.zeros(mi.UInt32, 0)
-    entry, item = _ranges(
-        mi.UInt32(start[some].astype(np.uint32)),
-        mi.UInt32(length[some].astype(np.uint32)),
-        int(length[some].sum()),
-    )
-    pose = dr.gather(mi.UInt32, mi.UInt32(some.astype(np.uint32)), entry)
-    dr.eval(pose, item)
-    return pose, item
+    return packet_table(table)
 
 
 def auto_samples(shapes: list[Shape], spacing: float, most: int = 4) -> int:
@@ -201,7 +98,8 @@ class EdgeSampledObjective:
     The base of the edge-sampled objectives (:class:`~sieve_mi.objectives.clearance.ClearanceObjective`,
     :class:`~sieve_mi.objectives.overlap.EdgeOverlapObjective`): it implements
     :meth:`~sieve_mi.objectives.Objective.bind`, and subclasses add
-    :meth:`~sieve_mi.objectives.Objective.loss`, built on :meth:`_active_pairs` and :func:`pose_sums`.
+    :meth:`~sieve_mi.objectives.Objective.loss`, built on :meth:`_active_pairs` and
+    :func:`~sieve_mi.objectives.pairs.pose_sums`.
 
     Parameters
     ----------
@@ -259,7 +157,7 @@ class EdgeSampledObjective:
         ends = np.zeros((self.segment_count, 8), dtype=np.float32)
         ends[:, :3] = np.concatenate([s.a for s in segs])
         ends[:, 3:6] = np.concatenate([s.b - s.a for s in segs])
-        self.ends = _packet_table(ends)
+        self.ends = packet_table(ends)
         self.a, self.d = (mi.Vector3f(*ends[:, k : k + 3].T) for k in (0, 3))
         self.m1, self.m2 = cat("m1"), cat("m2")  # the overlap loss' test per segment
         self.always = mi.Bool(np.concatenate([s.always for s in segs]))
@@ -330,9 +228,9 @@ class EdgeSampledObjective:
         """See :meth:`sieve_mi.objectives.Objective.bind`.
 
         Builds the (pose, segment) pairs (:attr:`pairs`) and the (pose, edge) pairs
-        (:attr:`edge_pairs`) on the device (:func:`pose_ranges`): only per-pose numbers go through
-        NumPy, so binding 100 poses of a 70k-face mesh takes milliseconds and no host copies of
-        the K x S pairs.
+        (:attr:`edge_pairs`) on the device (:func:`~sieve_mi.objectives.pairs.pose_ranges`): only
+        per-pose numbers go through NumPy, so binding 100 poses of a 70k-face mesh takes
+        milliseconds and no host copies of the K x S pairs.
         """
         mi = self.mi
         pose_shape = np.asarray(pose_shape, dtype=np.int64)
@@ -385,8 +283,8 @@ class EdgeSampledObjective:
             at = dr.arange(mi.UInt32, k) * 4
             for j in range(3):
                 dr.scatter(packed, dr.detach(rows[6 + j]), at + j)
-            r = dr.gather(_packet_type(), packed, pose, shape=(4, n))
-            e = dr.gather(_packet_type(), tests, item, shape=(8, n))
+            r = dr.gather(packet_type(), packed, pose, shape=(4, n))
+            e = dr.gather(packet_type(), tests, item, shape=(8, n))
             r3 = mi.Vector3f(r[0], r[1], r[2])
             s1 = dr.dot(r3, mi.Vector3f(e[0], e[1], e[2]))
             s2 = dr.dot(r3, mi.Vector3f(e[3], e[4], e[5]))
@@ -554,7 +452,7 @@ class EdgeSampledObjective:
         """Segment index, first end and direction (mesh frame) of (pose, segment) pairs ``pair``."""
         dr, mi = self.dr, self.mi
         seg = dr.gather(mi.UInt32, self._pairs[1], pair)
-        e = dr.gather(_packet_type(), self.ends, seg, shape=(8, dr.width(pair)))
+        e = dr.gather(packet_type(), self.ends, seg, shape=(8, dr.width(pair)))
         return seg, mi.Vector3f(e[0], e[1], e[2]), mi.Vector3f(e[3], e[4], e[5])
 
     def _fractions(self) -> list:
@@ -562,7 +460,8 @@ class EdgeSampledObjective:
         return [(j + 0.5) / self.samples for j in range(self.samples)]
 
     def _context(self, rows, t, pose_hole, pose_shape=None):
-        """``prepare`` for :func:`pose_sums`: each pose's ``rows`` and ``t`` entries and its hole.
+        """``prepare`` for :func:`~sieve_mi.objectives.pairs.pose_sums`: each pose's ``rows`` and
+        ``t`` entries and its hole.
 
         With ``pose_shape`` (mi.UInt32, K) the context also holds the pose's shape index.
         """
@@ -593,90 +492,3 @@ class EdgeSampledObjective:
             link = dr.sum(link)
             total = total + (link - dr.detach(link))
         return total
-
-
-def pose_sums(
-    active, pair_pose, pose_count: int, sums: int, prepare, accumulate, label: str, layout=None
-):
-    """Per-pose sums over (pose, item) pairs, added in an order fixed by the inputs.
-
-    Two levels, both sequential loops over contiguous ranges: each thread sums the terms of at
-    most :data:`CHUNK` consecutive active pairs of one pose (``active`` is ascending and the pairs
-    are pose-major, so a pose's pairs are contiguous), then one thread per pose sums its chunks in
-    order. The result depends on neither the thread count nor the scheduling (atomic
-    scatter-adds do).
-
-    Parameters
-    ----------
-    active : mi.UInt32
-        Indices of the pairs to sum, ascending.
-    pair_pose : mi.UInt32
-        Pose of every pair, non-decreasing.
-    pose_count : int
-        K, the number of poses.
-    sums : int
-        Number of sums per pose.
-    prepare : callable
-        ``prepare(pose) -> ctx``: per-thread data gathered once per chunk (pose is mi.UInt32).
-    accumulate : callable
-        ``accumulate(pair, ctx, acc) -> acc``: adds pair ``pair``'s terms to the ``sums``
-        running sums ``acc`` (a list of mi.Float); called inside a symbolic loop.
-    label : str
-        Name of the loop (in Dr.Jit's kernel history).
-    layout : tuple (count, threads), optional
-        Fixed-size mode, which reads nothing back (for :func:`drjit.freeze`): ``count`` (mi.UInt32,
-        K) holds the active pairs of each pose (``active`` may have unused entries after them) and
-        ``threads`` (int) is at least the number of chunks; the extra threads sum nothing. The
-        sums are the same as without it.
-
-    Returns
-    -------
-    list of ``sums`` mi.Float, each (K,)
-    """
-    import drjit as dr
-    import mitsuba as mi
-
-    k = pose_count
-    if layout is None:
-        if dr.width(active) == 0:
-            return [dr.zeros(mi.Float, k) for _ in range(sums)]
-        count = dr.zeros(mi.UInt32, k)  # integer sums are exact: order does not matter
-        dr.scatter_reduce(dr.ReduceOp.Add, count, 1, dr.gather(mi.UInt32, pair_pose, active))
-    else:
-        count, n_chunks = layout
-    chunks = (count + (CHUNK - 1)) // CHUNK
-    first_pair, first_chunk = dr.prefix_sum(count), dr.prefix_sum(chunks)
-    if layout is None:
-        dr.eval(count, chunks, first_pair, first_chunk)
-        n_chunks = int(dr.sum(chunks)[0])
-    c = dr.arange(mi.UInt32, n_chunks)
-    # The pose of chunk c: the last pose whose first chunk is <= c.
-    r = dr.binary_search(0, k - 1, lambda i: dr.gather(mi.UInt32, first_chunk, i) <= c)
-    pose = dr.select(dr.gather(mi.UInt32, first_chunk, r) <= c, r, r - 1)
-    begin = dr.gather(mi.UInt32, first_pair, pose)
-    lo = begin + (c - dr.gather(mi.UInt32, first_chunk, pose)) * CHUNK
-    hi = dr.minimum(lo + CHUNK, begin + dr.gather(mi.UInt32, count, pose))
-    ctx = prepare(pose)
-
-    def body(i, *acc):
-        return (i + 1, *accumulate(dr.gather(mi.UInt32, active, i), ctx, list(acc)))
-
-    zero = [dr.zeros(mi.Float, n_chunks) for _ in range(sums)]
-    partial = dr.while_loop((lo, *zero), lambda i, *_: i < hi, body, label=label)[1:]
-    return _sum_chunks(list(partial), chunks, first_chunk, k)
-
-
-def _sum_chunks(partial, chunks, first_chunk, k: int) -> list:
-    """Second level of :func:`pose_sums`: each pose sums its chunks in order, (K,) each."""
-    import drjit as dr
-    import mitsuba as mi
-
-    dr.eval(partial)
-    end = first_chunk + chunks
-
-    def body(j, *acc):
-        return (j + 1, *[s + dr.gather(mi.Float, p, j) for s, p in zip(acc, partial)])
-
-    zero = [dr.zeros(mi.Float, k) for _ in range(len(partial))]
-    out = dr.while_loop((mi.UInt32(first_chunk), *zero), lambda j, *_: j < end, body)
-    return list(out[1:])

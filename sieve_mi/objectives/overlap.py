@@ -29,7 +29,7 @@ its segment's projected length).
   dβ/dθ = (d area(S \\ H) - β d area(S)) / area(S). The outline point is
   x = R_{0,:} p + t_x, y = R_{1,:} p + t_y for its mesh-frame point p, so v·n is linear in the
   first two rows of R and in t; the 16 per-pose sums of n_x, n_y, n_x p and n_y p (with and
-  without 1_out) are added in a fixed order (:func:`sieve_mi.objectives.edges.pose_sums`) and chained to
+  without 1_out) are added in a fixed order (:func:`sieve_mi.objectives.pairs.pose_sums`) and chained to
   the quaternion by per-pose arithmetic, as for the clearance loss: the results are reproducible
   bit for bit.
 
@@ -49,7 +49,8 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import quat_rows
 from sieve_mi.geometry.silhouettes import mesh_scene
-from sieve_mi.objectives.edges import EdgeSampledObjective, pose_sums
+from sieve_mi.objectives.edges import EdgeSampledObjective
+from sieve_mi.objectives.pairs import pose_sums
 
 __all__ = ["EdgeOverlapObjective", "OUTLINE_SUMS", "SIDE_OFFSET"]
 

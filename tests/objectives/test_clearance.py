@@ -103,7 +103,7 @@ def test_clearance_uses_exactly_the_silhouette_edges(mi, seed):
 
 
 def test_expand_ranges_lists_every_range_in_order(mi):
-    from sieve_mi.objectives.edges import expand_ranges
+    from sieve_mi.objectives.pairs import expand_ranges
 
     out = expand_ranges(mi.UInt32([3, 10, 20]), mi.UInt32([2, 3, 1]))
     assert np.array(out).tolist() == [3, 4, 10, 11, 12, 20]
@@ -111,7 +111,7 @@ def test_expand_ranges_lists_every_range_in_order(mi):
 
 
 def test_pose_ranges_lists_each_poses_items_in_order(mi):
-    from sieve_mi.objectives.edges import pose_ranges
+    from sieve_mi.objectives.pairs import pose_ranges
 
     pose, item = pose_ranges(np.array([3, 10, 7, 0]), np.array([2, 0, 3, 1]))
     assert np.array(pose).tolist() == [0, 0, 2, 2, 2, 3]
