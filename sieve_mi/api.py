@@ -19,7 +19,8 @@ from sieve_mi.game import solver as _solver
 from sieve_mi.game.check import check
 from sieve_mi.geometry import meshes as _meshes
 from sieve_mi.outputs.report import write_outputs
-from sieve_mi.scene import SEED_MAX, Scene
+from sieve_mi.scene import Scene
+from sieve_mi.settings import SEED_MAX, read_value, shown
 
 __all__ = [
     "Result",
@@ -43,7 +44,7 @@ def _path(value, what: str) -> str:
 
 
 def check_seed(seed, what: str = "seed") -> int | None:
-    """``seed`` if it is None or an integer in [0, :data:`sieve_mi.scene.SEED_MAX`]; else a one-line SieveError."""
+    """``seed`` if it is None or an integer in [0, :data:`sieve_mi.settings.SEED_MAX`]; else a one-line SieveError."""
     if seed is None:
         return None
     if isinstance(seed, bool) or not isinstance(seed, int):
@@ -100,10 +101,10 @@ def load_shape(path, *, scale: float = 1.0, name: str | None = None) -> _meshes.
         One line: a bad argument, a missing or unreadable file, a file with no triangles.
     """
     path = _path(path, "load_shape")
-    scale = _scene.read_value(_scene.ShapeEntry, "scale", scale, "load_shape")
+    scale = read_value(_scene.ShapeEntry, "scale", scale, "load_shape")
     if name is not None:
         if not isinstance(name, str):
-            raise SieveError(f"load_shape: name: expected a string, got {_scene.shown(name)}")
+            raise SieveError(f"load_shape: name: expected a string, got {shown(name)}")
         _scene.check_name("load_shape", "name", name)
     return _meshes.load_shape(path, scale=scale, name=name)
 

@@ -14,6 +14,7 @@ import math
 import os
 
 from sieve_mi.errors import SieveError
+from sieve_mi.parsing import parse_json
 from sieve_mi.scene import (
     SCENE_FILE_MAX,
     Fabrication,
@@ -23,11 +24,8 @@ from sieve_mi.scene import (
     Solver,
     Verdict,
     check_folder_name,
-    key_text,
-    parse_json,
-    read_value,
-    shown,
 )
+from sieve_mi.settings import key_text, read_value, shown
 
 __all__ = [
     "MESH_KEYS",

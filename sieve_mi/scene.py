@@ -1,87 +1,67 @@
 """Scene files (TOML): what must pass, what must be blocked, and how to search.
 
-Every key of a scene file is declared once, as a field of one of the dataclasses below: the field
-carries its default, and its :class:`Spec` (made by :func:`setting`) carries its bounds or accepted
-values, its unit and its one-line meaning. The reader (:func:`load_scene`) takes defaults and
-validation from there, the class docstrings list them, and ``tests/test_scene.py`` checks that
-``docs/scene-format.md`` says the same. Adding a key is one line in its class (and a row in the
-docs, which the test asks for), e.g.::
+Every key of a scene file is declared once, as a field of one of the dataclasses below (the
+scene's tables: :class:`ShapeEntry`, :class:`Fabrication`, :class:`Solver`, :class:`Verdict`,
+:class:`Layout`, and :class:`Scene` itself), made by :func:`sieve_mi.settings.setting`: the field
+carries its default, and its :class:`~sieve_mi.settings.Spec` its bounds or accepted values, its
+unit and its one-line meaning. The reader (:func:`load_scene`) takes defaults and validation from
+there (:mod:`sieve_mi.settings`), the class docstrings list them, and ``tests/test_scene.py``
+checks that ``docs/scene-format.md`` says the same. Adding a key is one line in its class (and a
+row in the docs, which the test asks for), e.g.::
 
     certify: bool = setting(False, "prove the winner exactly")
 
 Paths are relative to the scene file. Every problem is reported as one
-:class:`~sieve_mi.errors.SieveError` line naming the file and the key.
-
-Settings given on the command line are declared the same way, in classes that are not tables of
-a scene file (:class:`Check`, :class:`CheckInputs`; ``certify --budget`` is
-:attr:`Verdict.certify_budget`): ``sieve_mi.cli`` builds each option (default, help, type) from
-its field and checks the value with :func:`read_value`, so a bad option gets the one-line error a
-bad key gets.
+:class:`~sieve_mi.errors.SieveError` line naming the file and the key; a name that is not a
+setting, set in code, is an :class:`UnknownSettingError` (defined in :mod:`sieve_mi.settings`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
-import json
-import math
 import os
-import re
-import tomllib
-import types
-import typing
-from dataclasses import MISSING, asdict, dataclass, field, fields
-
-import numpy as np
+from dataclasses import asdict, dataclass, field, fields
 
 from sieve_mi.errors import SieveError
 from sieve_mi.objectives import OBJECTIVES
 from sieve_mi.optim import NLOPT_METHODS, PSO_COEFFICIENT
+from sieve_mi.parsing import parse_toml
+from sieve_mi.settings import (
+    LENGTH_MAX,
+    SEED_MAX,
+    Reader,
+    UnknownSettingError,
+    checked,
+    documented,
+    key_of,
+    read_value,
+    refuse_unknown,
+    setting,
+    shown,
+    spec_of,
+    value_types,
+)
 
 __all__ = [
-    "DIGITS_MAX",
-    "LENGTH_MAX",
-    "NESTING_MAX",
-    "SEED_MAX",
-    "AXIS_NAMES",
-    "Check",
-    "CheckInputs",
-    "Fabrication",
     "LAYOUT_MODES",
-    "Layout",
+    "NAME_MAX",
     "OUTERS",
-    "Reader",
+    "SCENE_FILE_MAX",
+    "UNITS",
+    "Fabrication",
+    "Layout",
     "Scene",
     "ShapeEntry",
     "Solver",
-    "Spec",
-    "UNITS",
     "UnknownSettingError",
     "Verdict",
-    "NAME_MAX",
-    "SCENE_FILE_MAX",
     "check_folder_name",
     "check_name",
-    "describe",
-    "documented",
-    "field_of",
-    "key_of",
-    "key_text",
     "load_scene",
-    "option_help",
-    "parse_json",
-    "parse_toml",
     "read_file",
     "read_shape",
     "read_tables",
-    "read_value",
-    "known_names",
-    "refuse_unknown",
-    "setting",
-    "shown",
-    "spec_of",
     "table_fields",
-    "value_types",
 ]
 
 #: Accepted ``units`` (a label for reports; meshes are not converted).
@@ -90,265 +70,9 @@ UNITS = ("mm", "cm", "m", "in", "um")
 OUTERS = ("pso", *NLOPT_METHODS)
 #: Accepted ``[layout] mode`` values.
 LAYOUT_MODES = ("merged", "separate")
-#: Largest length a scene accepts (scales, tolerances, margins, plate sizes): a kilometre in mm.
-#: Beyond it the polygon offsets and rasters overflow; nothing real is that large.
-LENGTH_MAX = 1_000_000
-#: Largest seed (nlopt's generator takes an unsigned 64-bit seed).
-SEED_MAX = 2**64 - 1
-#: Accepted ``check --axis`` and ``certify --axis`` values: the plate's axis a shape moves along.
-AXIS_NAMES = ("x", "y", "z")
 
 
-@dataclass(frozen=True)
-class Spec:
-    """How one scene key is checked and documented (the metadata of its dataclass field).
-
-    Attributes
-    ----------
-    doc : str
-        One-line meaning.
-    unit : str or None
-        Unit of a number (``"scene units"``, ``"s"``), None where it has none.
-    minimum, maximum : int or float or None
-        Inclusive bounds of a number (exclusive where ``exclusive_min``, ``exclusive_max``).
-    exclusive_min : bool
-        Whether the value must be strictly greater than ``minimum``.
-    exclusive_max : bool
-        Whether the value must be strictly less than ``maximum``.
-    choices : tuple of str or None
-        The accepted values of a string.
-    default_doc : str or None
-        The default in words, where it is not a fixed value (e.g. "the file's stem").
-    key : str or None
-        The TOML key, where it differs from the field name.
-    """
-
-    doc: str
-    unit: str | None = None
-    minimum: float | None = None
-    maximum: float | None = None
-    exclusive_min: bool = False
-    exclusive_max: bool = False
-    choices: tuple[str, ...] | None = None
-    default_doc: str | None = None
-    key: str | None = None
-
-
-def setting(default=MISSING, doc: str = "", **spec):
-    """A dataclass field for a scene key: its default and its :class:`Spec`.
-
-    Parameters
-    ----------
-    default : bool, int, float, str or None
-        The value used when the key is absent; leave it out for a required key.
-    doc : str
-        One-line meaning.
-    **spec
-        The other fields of :class:`Spec` (``unit``, ``minimum``, ``maximum``, ``exclusive_min``,
-        ``exclusive_max``, ``choices``, ``default_doc``, ``key``).
-
-    Returns
-    -------
-    dataclasses.Field
-    """
-    return field(default=default, metadata={"spec": Spec(doc, **spec)})
-
-
-def spec_of(f: dataclasses.Field) -> Spec | None:
-    """The :class:`Spec` of a dataclass field, or None for a field that is not a scene key."""
-    return f.metadata.get("spec")
-
-
-def field_of(cls: type, name: str) -> dataclasses.Field:
-    """The field ``name`` of dataclass ``cls``."""
-    return next(f for f in fields(cls) if f.name == name)
-
-
-def _like(cls: type, name: str, **changes):
-    """A field declared as ``cls``'s field ``name`` (its default and :class:`Spec`), with
-    ``changes`` to the Spec: one setting's default and meaning, used by a second class."""
-    f = field_of(cls, name)
-    return field(default=f.default, metadata={"spec": dataclasses.replace(spec_of(f), **changes)})
-
-
-def key_of(f: dataclasses.Field) -> str:
-    """The TOML key of a dataclass field."""
-    spec = spec_of(f)
-    return spec.key if spec is not None and spec.key else f.name
-
-
-@functools.cache
-def value_types(cls: type) -> dict[str, type]:
-    """The value type of each field of a dataclass, without ``| None``.
-
-    Parameters
-    ----------
-    cls : type
-        A dataclass of this module.
-
-    Returns
-    -------
-    dict of str to type
-        ``bool``, ``int``, ``float``, ``str``, ``list[float]`` (a quaternion),
-        ``list[ShapeEntry]`` or a dataclass (a table); ``float | None`` gives ``float``.
-    """
-    out = {}
-    for name, hint in typing.get_type_hints(cls).items():
-        if isinstance(hint, types.UnionType):
-            hint = next(a for a in typing.get_args(hint) if a is not type(None))
-        out[name] = hint
-    return out
-
-
-def describe(cls: type, f: dataclasses.Field) -> str:
-    """A field's type and bounds in words, e.g. ``"int 16–4096"`` or ``"number > 0"``.
-
-    The form docs/scene-format.md uses in its type column.
-    """
-    spec, kind = spec_of(f), value_types(cls)[f.name]
-    words = {bool: "bool", int: "int", float: "number", str: "string", list[float]: "[w, x, y, z]"}
-    word = words.get(kind, "tables")
-    exclusive = spec.exclusive_min or spec.exclusive_max
-    if spec.minimum is not None and spec.maximum is not None and not exclusive:
-        return f"{word} {spec.minimum}–{spec.maximum}"
-    bounds = []
-    if spec.minimum is not None:
-        bounds.append(f"{'>' if spec.exclusive_min else '≥'} {spec.minimum}")
-    if spec.maximum is not None:
-        bounds.append(f"{'<' if spec.exclusive_max else '≤'} {spec.maximum}")
-    text = " ".join([word, ", ".join(bounds)]) if bounds else word
-    if spec.choices and kind is float:  # a number, or one of a few words
-        text += " or " + " or ".join(f'"{c}"' for c in spec.choices)
-    return text
-
-
-def option_help(cls: type, f, default) -> str:
-    """A command-line option's help from its field: meaning; accepted values (range, unit,
-    default), with ``%`` escaped for argparse."""
-    spec = spec_of(f)
-    text = spec.doc + (f"; one of {', '.join(spec.choices)}" if spec.choices else "")
-    shown = spec.default_doc if spec.default_doc is not None else default
-    notes = [describe(cls, f)] if spec.minimum is not None or spec.maximum is not None else []
-    notes += ([spec.unit] if spec.unit else []) + [f"default {shown}"]
-    return f"{text} ({', '.join(notes)})".replace("%", "%%")
-
-
-def documented(cls: type) -> type:
-    """Class decorator: append a numpydoc ``Attributes`` section built from the fields'
-    :class:`Spec` (type and bounds, default, meaning, unit) to the docstring."""
-    lines = ["", "    Attributes", "    ----------"]
-    for f in fields(cls):
-        spec = spec_of(f)
-        if spec is None:
-            continue
-        if spec.default_doc is not None:
-            default = spec.default_doc
-        elif f.default is MISSING:
-            default = "required"
-        else:
-            default = repr(f.default)
-        unit = f" ({spec.unit})" if spec.unit else ""
-        lines += [
-            f"    {f.name} : {describe(cls, f)}, default {default}",
-            f"        {spec.doc[:1].upper()}{spec.doc[1:]}{unit}.",
-        ]
-        if spec.choices and value_types(cls)[f.name] is not float:
-            lines.append(f"        One of: {', '.join(spec.choices)}.")
-    cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n" + "\n".join(lines) + "\n"
-    return cls
-
-
-class UnknownSettingError(SieveError, AttributeError):
-    """A setting's name that its settings class does not have (a typo): a one-line
-    :class:`~sieve_mi.errors.SieveError` that is also the AttributeError Python raises for an
-    attribute that cannot be set."""
-
-
-def refuse_unknown(cls: type, name: str, where: str) -> None:
-    """Raise :class:`UnknownSettingError` unless ``name`` is a field of dataclass ``cls``.
-
-    Parameters
-    ----------
-    cls : type
-        A settings dataclass.
-    name : str
-        The name given (an attribute set, a keyword argument).
-    where : str
-        What it is a setting of, for the message (``"solver"``, ``"check"``).
-    """
-    known = [f.name for f in fields(cls)]
-    if name not in known:
-        raise UnknownSettingError(
-            f"{where}: {key_text(name)}: unknown setting; known: {', '.join(sorted(known))}"
-        )
-
-
-def known_names(where: str):
-    """Class decorator: a dataclass whose constructor refuses a keyword that is not a field
-    (:func:`refuse_unknown`: one line listing the known names) instead of Python's TypeError.
-
-    For settings tables checked by their own ``__post_init__`` (``ShakeSettings``); the scene's
-    tables get this and more from their checking decorator.
-    """
-
-    def decorate(cls: type) -> type:
-        init = cls.__init__
-
-        @functools.wraps(init)
-        def __init__(self, *args, **kwargs):
-            for name in kwargs:
-                refuse_unknown(cls, name, where)
-            init(self, *args, **kwargs)
-
-        cls.__init__ = __init__
-        return cls
-
-    return decorate
-
-
-def _checked(where: str):
-    """Class decorator: a settings dataclass whose values are checked like a scene file's keys
-    (:func:`read_value`), in code as in a file.
-
-    Making an instance checks every value it is given (``Solver(particles=-5)``); assigning a
-    field of a made instance checks the new value (``scene.solver.particles = -5``): either is
-    the one-line :class:`~sieve_mi.errors.SieveError` that ``particles = -5`` in a scene file is,
-    at once. A name that is not a field (``scene.solver.particle = 5``, ``Solver(particle=5)``)
-    is refused (:class:`UnknownSettingError`), never silently kept.
-    """
-
-    def decorate(cls: type) -> type:
-        checked = {f.name for f in fields(cls) if spec_of(f) is not None}
-        optional = {f.name for f in fields(cls) if f.default is None}  # None: back to the default
-        init = cls.__init__
-
-        @functools.wraps(init)
-        def __init__(self, *args, **kwargs):
-            for name in kwargs:
-                refuse_unknown(cls, name, where)
-            init(self, *args, **kwargs)
-            for f in fields(cls):  # in their order: the first bad one is named
-                value = getattr(self, f.name)
-                if f.name in checked and not (value is None and f.name in optional):
-                    object.__setattr__(self, f.name, read_value(cls, f.name, value, where))
-
-        def __setattr__(self, name, value):
-            refuse_unknown(cls, name, where)
-            if (
-                name in checked
-                and name in self.__dict__
-                and not (value is None and name in optional)
-            ):
-                value = read_value(cls, name, value, where)
-            object.__setattr__(self, name, value)
-
-        cls.__init__, cls.__setattr__ = __init__, __setattr__
-        return cls
-
-    return decorate
-
-
-@_checked("shape")
+@checked("shape")
 @documented
 @dataclass
 class ShapeEntry:
@@ -378,7 +102,7 @@ class ShapeEntry:
     data: object = field(default=None, repr=False, compare=False)
 
 
-@_checked("fabrication")
+@checked("fabrication")
 @documented
 @dataclass
 class Fabrication:
@@ -420,7 +144,7 @@ class Fabrication:
     )
 
 
-@_checked("solver")
+@checked("solver")
 @documented
 @dataclass
 class Solver:
@@ -491,7 +215,7 @@ class Solver:
     )
 
 
-@_checked("verdict")
+@checked("verdict")
 @documented
 @dataclass
 class Verdict:
@@ -523,7 +247,7 @@ class Verdict:
     )
 
 
-@_checked("layout")
+@checked("layout")
 @documented
 @dataclass
 class Layout:
@@ -552,60 +276,6 @@ class Layout:
         minimum=0,
         maximum=100,
     )
-
-
-@_checked("check")
-@documented
-@dataclass
-class Check:
-    """``sieve-mi check``'s search: player B's budget (the verdict's defaults) and the fit scale.
-
-    Not a table of a scene file: the options ``--starts``, ``--steps``, ``--learning-rate``,
-    ``--resolution``, ``--seed``, ``--no-fit`` and ``--fit-tolerance`` of ``sieve-mi check``, and
-    :class:`sieve_mi.game.check.CheckSettings` (this class) in code, checked as the options are.
-    """
-
-    starts: int = _like(Verdict, "starts", doc="random starts of the fitting search")
-    steps: int = _like(Verdict, "steps", minimum=1)
-    learning_rate: float = _like(Solver, "learning_rate", maximum=1.0)
-    resolution: int = _like(Verdict, "resolution", doc="raster side in pixels for --sieve")
-    seed: int = _like(Solver, "seed", doc="random seed")
-    thin_budget: float = _like(
-        Verdict,
-        "thin_budget",
-        doc="seconds of motion search through a plate (--sieve) thinner than the part",
-    )
-    fit: bool = setting(True, "the fit-scale search (the largest scale that passes)")
-    fit_tolerance: float = setting(
-        0.01,
-        "relative precision of the fit scale",
-        minimum=1e-6,
-        maximum=1,
-        exclusive_max=True,
-    )
-
-
-@_checked("check")
-@documented
-@dataclass
-class CheckInputs:
-    """How ``sieve-mi check`` reads its part and its sieve (``certify``: ``scale`` and ``axis``).
-
-    Not a table of a scene file: command-line options only.
-    """
-
-    scale: float = _like(ShapeEntry, "scale", maximum=1_000_000)
-    axis: str = setting("z", "direction the shape moves through the plate", choices=AXIS_NAMES)
-    pixel_size: float | None = setting(
-        None,
-        "size of one pixel of --hole",
-        unit="scene units",
-        minimum=0,
-        exclusive_min=True,
-        maximum=1_000_000,
-        default_doc="the image's PNG pHYs; required with --hole where it has none",
-    )
-    units: str = setting("mm", "unit name for the report")
 
 
 @documented
@@ -755,149 +425,6 @@ def _entry(item, where: str, role: str) -> ShapeEntry:
                       **{k: v for k, v in values.items() if k != "name"})  # fmt: skip
 
 
-class Reader:
-    """Type-checked access to one table of the scene file, with errors that name file and key."""
-
-    def __init__(self, path: str, table: dict, where: str):
-        self.path, self.table, self.where = path, table, where
-
-    def error(self, key: str, what: str) -> SieveError:
-        return SieveError(f"{self.path}: {self.where}{key_text(key)}: {what}")
-
-    def check_keys(self, allowed) -> None:
-        for key in self.table:
-            if key not in allowed:
-                raise self.error(key, f"unknown key; known keys here: {', '.join(sorted(allowed))}")
-
-    def read(self, cls: type) -> dict:
-        """The keys of ``cls`` present in this table, checked against their :class:`Spec`."""
-        kinds = value_types(cls)
-        values = {}
-        for f in fields(cls):
-            spec = spec_of(f)
-            if spec is not None and key_of(f) in self.table and kinds[f.name] in _READERS:
-                values[f.name] = _READERS[kinds[f.name]](self, key_of(f), spec)
-        return values
-
-    def value(self, cls: type, name: str, key: str):
-        """The value under ``key`` of this table, checked as field ``name`` of ``cls``."""
-        return _READERS[value_types(cls)[name]](self, key, spec_of(field_of(cls, name)))
-
-    def number(self, key: str, spec: Spec, integer: bool = False):
-        value = self.table[key]
-        if isinstance(value, str) and spec.choices and not integer:
-            if value in spec.choices:
-                return value
-            words = " or ".join(repr(c) for c in spec.choices)
-            raise self.error(key, f"expected a number or {words}, got {shown(value)}")
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(
-                key, f"expected a {'whole number' if integer else 'number'}, got {shown(value)}"
-            )
-        if not (isinstance(value, int) or math.isfinite(value)):  # an int of any size is finite
-            raise self.error(key, f"expected a finite number, got {shown(value)}")
-        if integer and isinstance(value, float) and not value.is_integer():
-            raise self.error(key, f"expected a whole number, got {shown(value)}")
-        low, high = spec.minimum, spec.maximum
-        if low is not None and (value <= low if spec.exclusive_min else value < low):
-            raise self.error(
-                key, f"must be {'>' if spec.exclusive_min else '>='} {low}, got {shown(value)}"
-            )
-        if high is not None and (value >= high if spec.exclusive_max else value > high):
-            raise self.error(
-                key, f"must be {'<' if spec.exclusive_max else '<='} {high}, got {shown(value)}"
-            )
-        if integer or abs(value) <= _FLOAT_MAX:
-            return int(value) if integer else float(value)
-        raise self.error(key, f"{shown(value)} is beyond a number's range (±1.8e308)")
-
-    def integer(self, key: str, spec: Spec) -> int:
-        return self.number(key, spec, integer=True)
-
-    def boolean(self, key: str, spec: Spec) -> bool:
-        value = self.table[key]
-        if not isinstance(value, bool):
-            raise self.error(key, f"expected true or false, got {shown(value)}")
-        return value
-
-    def string(self, key: str, spec: Spec) -> str:
-        value = self.table[key]
-        if not isinstance(value, str) or not value:
-            raise self.error(key, f"expected a non-empty string, got {shown(value)}")
-        if spec.choices is not None and value not in spec.choices:
-            raise self.error(key, f"{shown(value)} is not one of: {', '.join(spec.choices)}")
-        return value
-
-    def quaternion(self, key: str, spec: Spec) -> list[float]:
-        """A rotation (w, x, y, z) of norm 1 (to 1e-3), returned normalised."""
-        q = self.table[key]
-        if not (
-            isinstance(q, list)
-            and len(q) == 4
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in q)
-        ):
-            raise self.error(key, f"expected a quaternion [w, x, y, z], got {shown(q)}")
-        if any(abs(v) > _FLOAT_MAX for v in q if isinstance(v, int)):
-            raise self.error(key, f"quaternion {shown(q)} has a number beyond ±1.8e308")
-        qn = np.asarray(q, float)
-        norm = float(np.linalg.norm(qn))
-        if not np.all(np.isfinite(qn)) or norm < 1e-9:
-            raise self.error(key, f"quaternion {shown(q)} has no direction")
-        if abs(norm - 1.0) > 1e-3:
-            raise self.error(
-                key,
-                f"quaternion {shown(q)} is not a unit quaternion (norm {norm:.4g}); divide it "
-                "by its norm",
-            )
-        return [float(v) for v in qn / norm]
-
-
-_READERS = {
-    bool: Reader.boolean,
-    int: Reader.integer,
-    float: Reader.number,
-    str: Reader.string,
-    list[float]: Reader.quaternion,
-}
-
-
-def read_value(cls: type, name: str, value, where: str, key: str | None = None):
-    """A value of field ``name`` of ``cls`` given outside a scene file, checked as a key of one.
-
-    Parameters
-    ----------
-    cls : type
-        A dataclass of this module (:class:`Check`, :class:`Verdict`, ...).
-    name : str
-        The field.
-    value : bool, int, float, str or list
-        The value as given; text that should have been a number is reported as such.
-    where : str
-        What gave it, for the message (e.g. ``"check"``, the command).
-    key : str, optional
-        The name it was given under (e.g. ``"--learning-rate"``); default its TOML key.
-
-    Returns
-    -------
-    bool, int, float, str or list
-        The value (a whole float for an int field as int, an int for a float field as float).
-
-    Raises
-    ------
-    SieveError
-        ``"{where}: {key}: {what}"``, the line a bad key of a scene file gets.
-
-    Examples
-    --------
-    >>> read_value(Check, "learning_rate", 0.0, "check", "--learning-rate")
-    Traceback (most recent call last):
-    ...
-    sieve_mi.errors.SieveError: check: --learning-rate: must be > 0, got 0.0
-    """
-    key = key or key_of(field_of(cls, name))
-    return Reader(where, {key: value}, "").value(cls, name, key)
-
-
 def read_shape(path: str, table, where: str) -> ShapeEntry:
     if not isinstance(table, dict):
         raise SieveError(f"{path}: {where}: expected a table like [[pass]] with a 'mesh' key")
@@ -948,269 +475,6 @@ def check_folder_name(path: str, name: str, key: str = "name") -> None:
         raise SieveError(
             f"{path}: {key}: {name!r} is used as a folder name; use letters, digits, '-' and '_'"
         )
-
-
-#: Deepest nesting of arrays and tables a scene file or a configuration may have (a scene needs
-#: three: a ``[[pass]]`` list, its table, a rotation); deeper is refused before Python's recursion
-#: limit is reached.
-NESTING_MAX = 32
-#: Most digits of an integer a file may give (Python's own limit of text-to-int conversion; no
-#: setting takes more than 20 digits, so only the message is at stake).
-DIGITS_MAX = 4300
-#: Bits of the largest integer of :data:`DIGITS_MAX` digits.
-_BITS_MAX = int(DIGITS_MAX * math.log2(10))
-#: The largest finite float (an int beyond it cannot be a float setting).
-_FLOAT_MAX = 1.7976931348623157e308
-#: Keys shown as they are in messages; any other key is quoted (``repr``).
-_PLAIN_KEY = re.compile(r"[A-Za-z0-9_\-.]{1,40}")
-
-
-def shown(value, limit: int = 60) -> str:
-    """A value as a message shows it: its ``repr`` on one line, at most ``limit`` characters.
-
-    Never fails: an integer too long to print is described by its number of digits, a value
-    nested too deeply to ``repr`` by its type.
-
-    Examples
-    --------
-    >>> shown("a" * 100, 10)
-    "'aaaaaaaa…"
-    >>> shown(10**5000)
-    'an integer of 5,001 digits'
-    """
-    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 256:
-        return f"an integer of {_digits(value):,} digits"
-    try:
-        text = repr(value).replace("\n", " ")
-    except (ValueError, RecursionError):
-        text = f"<{type(value).__name__}>"
-    return _cut(text, limit)
-
-
-def _cut(text: str, limit: int = 20) -> str:
-    """``text`` cut to ``limit`` characters (an ellipsis marks a cut)."""
-    return text if len(text) <= limit else text[: limit - 1] + "…"
-
-
-def _digits(value: int) -> int:
-    """Decimal digits of ``abs(value)``, without converting it to text (Python refuses that for
-    more than :data:`DIGITS_MAX` digits)."""
-    n = int(abs(value).bit_length() * math.log10(2)) + 1
-    return n - 1 if n > 1 and abs(value) < 10 ** (n - 1) else n
-
-
-def key_text(key) -> str:
-    """A key as a message names it: as it is when plain (``solver``, ``mesh_A_pso_iters``), else
-    quoted and cut short (:func:`shown`), so a key with a newline stays on one line."""
-    return key if isinstance(key, str) and _PLAIN_KEY.fullmatch(key) else shown(key, 40)
-
-
-def _trail_text(trail: tuple) -> str:
-    """A value's place in a parsed document, e.g. ``pass[0].rotation`` (at most 6 steps)."""
-    text = ""
-    for i, step in enumerate(trail):
-        if i == 6:
-            return text + ".…"
-        text += f"[{step}]" if isinstance(step, int) else ("." if text else "") + key_text(step)
-    return text or "(top level)"
-
-
-class _Unreadable:
-    """A number a file gives that Python cannot hold (an integer of more than
-    :data:`DIGITS_MAX` digits, a float beyond ±1.8e308): a marker in the parsed document, so that
-    :func:`_check_document` refuses it naming its key."""
-
-    def __init__(self, what: str):
-        self.what = what
-
-
-def _parse_float(text: str):
-    """A float literal of a TOML or JSON file: the float, or :class:`_Unreadable` where it is
-    out of a float's range (Python would make it ``inf`` without a word)."""
-    value = float(text)
-    if math.isinf(value) and text.lstrip("+-")[:3].lower() != "inf":
-        return _Unreadable(f"{_cut(text)} is beyond a number's range (±1.8e308)")
-    return value
-
-
-def _parse_int(text: str):
-    """An integer literal of a JSON file: the int, or :class:`_Unreadable` beyond
-    :data:`DIGITS_MAX` digits."""
-    if len(text.lstrip("-")) > DIGITS_MAX:
-        return _Unreadable(f"an integer of {len(text.lstrip('-')):,} digits")
-    return int(text)
-
-
-def _check_document(data, path: str, max_depth: int | None) -> None:
-    """Refuse, naming the key, what a parsed document holds that no reader should meet: a number
-    Python cannot hold (:class:`_Unreadable`, an integer of over :data:`DIGITS_MAX` digits) or,
-    with ``max_depth``, arrays and tables nested deeper than that (walked without recursion)."""
-    stack = [(data, (), 0)]
-    while stack:
-        value, trail, depth = stack.pop()
-        if isinstance(value, _Unreadable):
-            raise SieveError(f"{path}: {_trail_text(trail)}: {value.what}; give a smaller number")
-        if (
-            isinstance(value, int)
-            and not isinstance(value, bool)
-            and value.bit_length() > _BITS_MAX
-        ):
-            raise SieveError(f"{path}: {_trail_text(trail)}: {shown(value)}; give a smaller number")
-        if isinstance(value, dict):
-            children = value.items()
-        elif isinstance(value, list):
-            children = enumerate(value)
-        else:
-            continue
-        if max_depth is not None and depth > max_depth:
-            raise SieveError(
-                f"{path}: {_trail_text(trail)}: arrays or tables nested more than {max_depth} "
-                "deep; give numbers, strings and short lists"
-            )
-        stack.extend((v, (*trail, k), depth + 1) for k, v in children)
-
-
-#: What a key, a table header, a string or a bracket of a TOML or JSON text looks like (for
-#: :func:`_where_in_text`, which names the place of an error that the parser did not).
-_TOKENS = re.compile(
-    r'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"(?:\\.|[^"\\\n])*"|\'[^\'\n]*\'|#[^\n]*|[\[\]{}]'
-)
-_TOML_KEY = re.compile(r"(?m)^[ \t]*([^\s=#\[][^=\n]*?)[ \t]*=")
-_TOML_TABLE = re.compile(r"(?m)^[ \t]*\[\[?[ \t]*([^\]\n]+?)[ \t]*\]")
-_JSON_KEY = re.compile(r'"((?:\\.|[^"\\\n]){0,40})"\s*:')
-
-
-def _where_in_text(text: str, pos: int, toml: bool) -> str:
-    """The key and line at character ``pos`` of a TOML or JSON text, e.g. ``solver.particles
-    (line 7)``: the last key given before it, under its table (a heuristic, for messages)."""
-    head, line = text[:pos], text.count("\n", 0, pos) + 1
-    if toml:
-        keys, tables = list(_TOML_KEY.finditer(head)), list(_TOML_TABLE.finditer(head))
-        key = keys[-1].group(1).strip() if keys else ""
-        if tables and (not keys or tables[-1].start() < keys[-1].start()):
-            key = f"{tables[-1].group(1).strip()}.{key}" if key else tables[-1].group(1).strip()
-    else:
-        keys = list(_JSON_KEY.finditer(head))
-        key = keys[-1].group(1) if keys else ""
-    return f"{key_text(key) if key else '(top level)'} (line {line})"
-
-
-def _too_deep_at(text: str) -> int:
-    """Where a TOML or JSON text first opens an array or table deeper than :data:`NESTING_MAX`
-    (strings and comments skipped); 0 if nowhere."""
-    depth = 0
-    for m in _TOKENS.finditer(text):
-        token = m.group()
-        if token in "[{":
-            depth += 1
-            if depth > NESTING_MAX:
-                return m.start()
-        elif token in "]}":
-            depth = max(depth - 1, 0)
-    return 0
-
-
-def _too_long_at(text: str) -> int:
-    """Where a TOML text gives an integer of more than :data:`DIGITS_MAX` digits; 0 if nowhere."""
-    for m in re.finditer(r"[0-9][0-9_]*", text):  # each run once: linear in the text
-        if m.end() - m.start() > DIGITS_MAX and len(m.group().replace("_", "")) > DIGITS_MAX:
-            return m.start()
-    return 0
-
-
-def parse_toml(text: str, path: str) -> dict:
-    """A TOML document, every number and nesting checked: one line naming the file and key.
-
-    Parameters
-    ----------
-    text : str
-        The file's text (a leading byte-order mark is dropped).
-    path : str
-        The file, for messages.
-
-    Returns
-    -------
-    dict
-
-    Raises
-    ------
-    SieveError
-        Invalid TOML; an integer of more than :data:`DIGITS_MAX` digits or a float beyond
-        ±1.8e308; arrays or tables nested deeper than :data:`NESTING_MAX`.
-    """
-    text = text.removeprefix("\ufeff")  # a byte-order mark is not TOML's
-    try:
-        data = tomllib.loads(text, parse_float=_parse_float)
-    except tomllib.TOMLDecodeError as exc:
-        raise SieveError(f"{path}: not valid TOML ({exc})") from None
-    except RecursionError:
-        where = _where_in_text(text, _too_deep_at(text), toml=True)
-        raise SieveError(f"{path}: {where}: arrays or tables nested more than {NESTING_MAX} "
-                         "deep; give numbers, strings and short lists") from None  # fmt: skip
-    except ValueError:  # int() of tomllib: more digits than Python converts
-        where = _where_in_text(text, _too_long_at(text), toml=True)
-        raise SieveError(f"{path}: {where}: an integer of more than {DIGITS_MAX:,} digits; "
-                         "give a smaller number") from None  # fmt: skip
-    _check_document(data, path, NESTING_MAX)
-    return data
-
-
-def parse_json(text: str, path: str, max_depth: int | None = NESTING_MAX):
-    """A JSON document, every number, key and nesting checked: one line naming the file and key.
-
-    The reader every JSON input of sieve-mi should use instead of ``json.load``: Python's reader
-    lets a later duplicate key replace the earlier one silently, turns a float beyond ±1.8e308
-    into ``inf``, and raises ValueError or RecursionError on a long integer or deep nesting.
-
-    Parameters
-    ----------
-    text : str
-        The file's text.
-    path : str
-        The file, for messages.
-    max_depth : int or None
-        Deepest nesting of arrays and objects accepted (None: any that Python parses, as a
-        certificate's tree needs).
-
-    Returns
-    -------
-    object
-        The document (dict, list, str, int, float, bool or None).
-
-    Raises
-    ------
-    SieveError
-        Invalid JSON; a key given twice in one object; an integer of more than
-        :data:`DIGITS_MAX` digits or a float beyond ±1.8e308; nesting deeper than ``max_depth``
-        (or than Python can parse).
-
-    Examples
-    --------
-    >>> parse_json('{"a": 1, "a": 2}', "c.json")
-    Traceback (most recent call last):
-    ...
-    sieve_mi.errors.SieveError: c.json: a: given twice in one object; keep one
-    """
-
-    def unique(pairs):
-        out = {}
-        for key, value in pairs:
-            if key in out:
-                raise SieveError(f"{path}: {key_text(key)}: given twice in one object; keep one")
-            out[key] = value
-        return out
-
-    try:
-        data = json.loads(text, object_pairs_hook=unique, parse_int=_parse_int,
-                          parse_float=_parse_float)  # fmt: skip
-    except json.JSONDecodeError as exc:
-        raise SieveError(f"{path}: not valid JSON ({exc})") from None
-    except RecursionError:
-        where = _where_in_text(text, _too_deep_at(text), toml=False)
-        raise SieveError(f"{path}: {where}: arrays or objects nested too deeply; give numbers, "
-                         "strings and short lists") from None  # fmt: skip
-    _check_document(data, path, max_depth)
-    return data
 
 
 def read_file(path: str) -> dict:

@@ -65,10 +65,12 @@ def test_check_takes_a_mesh_or_a_path(tmp_path):
     assert not sm.check(big, sieve=plate_path, settings=fast).passes
 
 
-def test_scene_docstring_examples_run():
-    import sieve_mi.scene
+@pytest.mark.parametrize("name", ["sieve_mi.scene", "sieve_mi.settings", "sieve_mi.parsing"])
+def test_scene_docstring_examples_run(name):
+    import importlib
 
-    failed, attempted = doctest.testmod(sieve_mi.scene, raise_on_error=False, verbose=False)
+    module = importlib.import_module(name)
+    failed, attempted = doctest.testmod(module, raise_on_error=False, verbose=False)
     assert attempted >= 2 and failed == 0
 
 

@@ -270,7 +270,7 @@ def test_awkward_but_valid_meshes_are_accepted(name):
     assert s.face_count > 0 and s.radius > 0
 
 
-# --- check's and certify's settings options: built from sieve_mi.scene, checked like its keys ---
+# --- check's and certify's settings options: built by sieve_mi.settings, checked like scene keys ---
 
 #: (command, option, bad value, words of the message after "sieve-mi: error: COMMAND: OPTION: ").
 BAD_OPTIONS = [
@@ -362,7 +362,8 @@ def test_check_refuses_a_bad_learning_rate_in_one_line(tmp_path, value):
 
 
 def test_a_bad_option_gets_the_message_of_a_bad_scene_key(tmp_path):
-    from sieve_mi.scene import Check, read_value
+    from sieve_mi.game.check_settings import CheckSettings
+    from sieve_mi.settings import read_value
 
     scene = tmp_path / "s.toml"
     scene.write_text('[[pass]]\nmesh = "a.stl"\n[[block]]\nmesh = "a.stl"\n[solver]\nsteps = -2\n')
@@ -371,7 +372,7 @@ def test_a_bad_option_gets_the_message_of_a_bad_scene_key(tmp_path):
     argv, _ = _command_line(tmp_path, "check", "--steps", "-2")
     _assert_clean_error(run_cli(*argv), "check: --steps: must be >= 1, got -2")
     with pytest.raises(SieveError, match=r"^check: --steps: must be >= 1, got -2$"):
-        read_value(Check, "steps", -2, "check", "--steps")
+        read_value(CheckSettings, "steps", -2, "check", "--steps")
 
 
 def test_check_and_certify_options_keep_their_defaults(capsys):
@@ -379,14 +380,14 @@ def test_check_and_certify_options_keep_their_defaults(capsys):
 
     from sieve_mi.cli import main
     from sieve_mi.game.check import CheckSettings
-    from sieve_mi.scene import Check, Verdict
+    from sieve_mi.scene import Verdict
 
     # The options' defaults are the declarations' (and what they were before).
-    assert asdict(Check()) == {
+    assert asdict(CheckSettings()) == {
         "starts": 100, "steps": 500, "learning_rate": 0.05, "resolution": 256, "seed": 0,
         "thin_budget": 10.0, "fit": True, "fit_tolerance": 0.01,
     }  # fmt: skip
-    assert CheckSettings is Check and Verdict().certify_budget == 30.0
+    assert Verdict().certify_budget == 30.0
     helps = {
         "check": [
             "random starts of the fitting search (int 1–100000, default 100)",
@@ -414,20 +415,21 @@ def test_check_and_certify_options_keep_their_defaults(capsys):
 def test_check_options_make_the_check_settings():
     from dataclasses import asdict
 
-    from sieve_mi.cli import _check_settings, _parser
-    from sieve_mi.scene import Check
+    from sieve_mi.cli import _parser
+    from sieve_mi.game.check_settings import CheckSettings
+    from sieve_mi.settings import check_options
 
     args = _parser().parse_args(["check", "a.stl", "--sieve", "p.stl"])
-    _check_settings(args)
-    assert {k: getattr(args, k) for k in asdict(Check())} == asdict(Check())
+    check_options(args)
+    assert {k: getattr(args, k) for k in asdict(CheckSettings())} == asdict(CheckSettings())
     assert (args.scale, args.axis, args.pixel_size, args.units) == (1.0, "z", None, "mm")
     argv = ["check", "a.stl", "--sieve", "p.stl", "--no-fit", "--learning-rate", "0.1"]
     args = _parser().parse_args([*argv, "--starts", "7", "--axis", "x"])
-    _check_settings(args)
+    check_options(args)
     assert (args.fit, args.learning_rate, args.starts, args.axis) == (False, 0.1, 7, "x")
     assert type(args.learning_rate) is float and type(args.starts) is int
     args = _parser().parse_args(["certify", "a.stl", "--hole", "h.svg", "--budget", "5"])
-    _check_settings(args)
+    check_options(args)
     assert args.certify_budget == 5.0
 
 
@@ -563,7 +565,7 @@ def test_threads_one_runs_the_solve_and_writes_every_exr(tmp_path):
 def test_check_exit_code_says_passes_or_blocked(tmp_path):
     # A 10 mm cube and a 16 mm square hole (1 mm pixels, recorded in the PNG as solve writes
     # it): 0 when it passes, 3 when blocked; --pixel-size overrides what the PNG records.
-    from sieve_mi.outputs.report import write_png
+    from sieve_mi.outputs.images import write_png
 
     trimesh.creation.box((10.0, 10.0, 10.0)).export(str(tmp_path / "cube.stl"))
     img = np.zeros((24, 24), bool)

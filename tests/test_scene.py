@@ -19,7 +19,17 @@ from helpers import REPO
 
 from sieve_mi import scene
 from sieve_mi.errors import SieveError
-from sieve_mi.scene import Scene, ShapeEntry, key_of, load_scene, spec_of, value_types
+from sieve_mi.game.check_settings import CheckInputs, CheckSettings
+from sieve_mi.scene import Scene, ShapeEntry, load_scene
+from sieve_mi.settings import (
+    check_options,
+    describe,
+    field_of,
+    key_of,
+    read_value,
+    spec_of,
+    value_types,
+)
 
 DOCS = os.path.join(REPO, "docs", "scene-format.md")
 MINIMAL = '[[pass]]\nmesh = "a.stl"\n[[block]]\nmesh = "b.stl"\n'
@@ -583,30 +593,30 @@ def test_read_value_gives_the_message_of_a_scene_key(tmp_path, table, key, value
     cls = value_types(Scene)[table]
     given = tomllib.loads(f"v = {value}")["v"]
     with pytest.raises(SieveError) as exc:
-        scene.read_value(cls, key, given, "cmd", f"--{key}")
+        read_value(cls, key, given, "cmd", f"--{key}")
     assert str(exc.value) == "cmd: " + message.replace(f"{table}.{key}:", f"--{key}:")
 
 
 def test_read_value_converts_like_the_reader():
-    assert scene.read_value(scene.Check, "starts", 3.0, "check") == 3
-    assert type(scene.read_value(scene.Check, "learning_rate", 1, "check")) is float
+    assert read_value(CheckSettings, "starts", 3.0, "check") == 3
+    assert type(read_value(CheckSettings, "learning_rate", 1, "check")) is float
     with pytest.raises(SieveError, match=r"^check: starts: expected a whole number, got '3x'$"):
-        scene.read_value(scene.Check, "starts", "3x", "check")
+        read_value(CheckSettings, "starts", "3x", "check")
 
 
 def test_an_exclusive_maximum_is_checked_and_described():
-    f = scene.field_of(scene.Check, "fit_tolerance")
-    assert spec_of(f).exclusive_max and scene.describe(scene.Check, f) == "number ≥ 1e-06, < 1"
-    assert scene.read_value(scene.Check, "fit_tolerance", 0.999, "x") == 0.999
+    f = field_of(CheckSettings, "fit_tolerance")
+    assert spec_of(f).exclusive_max and describe(CheckSettings, f) == "number ≥ 1e-06, < 1"
+    assert read_value(CheckSettings, "fit_tolerance", 0.999, "x") == 0.999
     with pytest.raises(SieveError, match=r"^x: fit_tolerance: must be < 1, got 1.0$"):
-        scene.read_value(scene.Check, "fit_tolerance", 1.0, "x")
-    lr = scene.field_of(scene.Check, "learning_rate")
-    assert scene.describe(scene.Check, lr) == "number > 0, ≤ 1.0"
+        read_value(CheckSettings, "fit_tolerance", 1.0, "x")
+    lr = field_of(CheckSettings, "learning_rate")
+    assert describe(CheckSettings, lr) == "number > 0, ≤ 1.0"
 
 
 def test_check_settings_are_declared_once(tmp_path):
     # check's budget is the verdict's, its learning rate and seed the solver's: one default each.
-    check, verdict, solver = scene.Check(), scene.Verdict(), scene.Solver()
+    check, verdict, solver = CheckSettings(), scene.Verdict(), scene.Solver()
     assert (check.starts, check.steps, check.resolution) == (
         verdict.starts,
         verdict.steps,
@@ -615,12 +625,12 @@ def test_check_settings_are_declared_once(tmp_path):
     assert (check.learning_rate, check.seed) == (solver.learning_rate, solver.seed)
     same = {"starts": scene.Verdict, "resolution": scene.Verdict, "learning_rate": scene.Solver}
     for name, cls in same.items():
-        assert spec_of(scene.field_of(scene.Check, name)).minimum == (
-            spec_of(scene.field_of(cls, name)).minimum
+        assert spec_of(field_of(CheckSettings, name)).minimum == (
+            spec_of(field_of(cls, name)).minimum
         )
-    assert scene.CheckInputs().scale == ShapeEntry.__dataclass_fields__["scale"].default
+    assert CheckInputs().scale == ShapeEntry.__dataclass_fields__["scale"].default
     # Neither is a table of a scene file.
-    assert {scene.Check, scene.CheckInputs}.isdisjoint(
+    assert {CheckSettings, CheckInputs}.isdisjoint(
         value_types(Scene)[f.name] for f in scene.table_fields()
     )
     assert _error(tmp_path, MINIMAL + "[check]\nstarts = 3\n").startswith("check: unknown key")
@@ -797,16 +807,16 @@ def test_a_float_for_an_integer_key_is_whole_or_refused(tmp_path, capsys, value,
             _error(tmp_path, text) == f"solver.starts: expected a whole number, got {float(value)}"
         )
         with pytest.raises(SieveError, match=r"^check: starts: expected a whole number, got 2\."):
-            scene.Check(starts=float(value))
+            CheckSettings(starts=float(value))
         assert _refused_by_the_cli(capsys, argv) == (
             f"check: --starts: expected a whole number, got {float(value)}"
         )
         return
     starts = load_scene(_write(tmp_path, text)).solver.starts
     assert starts == expected and type(starts) is int
-    assert type(scene.Check(starts=float(value)).starts) is int
-    from sieve_mi.cli import _check_settings, _parser
+    assert type(CheckSettings(starts=float(value)).starts) is int
+    from sieve_mi.cli import _parser
 
     args = _parser().parse_args(argv)
-    _check_settings(args)
+    check_options(args)
     assert args.starts == expected and type(args.starts) is int

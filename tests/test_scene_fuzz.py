@@ -11,7 +11,8 @@ import pytest
 import trimesh
 
 import sieve_mi as sm
-from sieve_mi.scene import Scene, key_of, spec_of, table_fields, value_types
+from sieve_mi.scene import Scene, table_fields
+from sieve_mi.settings import key_of, spec_of, value_types
 
 VALUES = ["0", "-1", "1", "3", "1e300", "-1e300", "nan", "inf", "-inf", "1e-300", "true", "false",
           '""', '"x"', '"\\u00e9\\u4e2d"', '"' + "a" * 5000 + '"', "[]", "[1, 2]", "{}", "{a = 1}",

@@ -82,7 +82,7 @@ def parse_seeds(text: str) -> list[int]:
 
     At most :data:`MAX_SEEDS` seeds, each from 0 to 2**64 - 1 (counted before any list is built).
     """
-    from sieve_mi.scene import SEED_MAX
+    from sieve_mi.settings import SEED_MAX
 
     ranges = []
     try:
@@ -110,7 +110,8 @@ def parse_tolerances(text: str | None) -> list[float] | None:
     """``"0.5,1.0"`` -> [0.5, 1.0]; None stays None (the scene's own tolerance)."""
     if text is None:
         return None
-    from sieve_mi.scene import Fabrication, read_value
+    from sieve_mi.scene import Fabrication
+    from sieve_mi.settings import read_value
 
     parts = text.split(",")
     if len(parts) > MAX_TOLERANCES:

@@ -16,7 +16,6 @@ from dataclasses import dataclass, field, fields
 
 from sieve_mi.errors import SieveError
 from sieve_mi.scene import (
-    Reader,
     Scene,
     ShapeEntry,
     check_folder_name,
@@ -25,6 +24,7 @@ from sieve_mi.scene import (
     read_tables,
     table_fields,
 )
+from sieve_mi.settings import Reader
 from sieve_mi.shake.settings import ShakeSettings
 
 __all__ = ["Mixture", "load_mixture"]

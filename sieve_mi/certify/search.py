@@ -25,7 +25,7 @@ from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import placed_vertices, projection
 from sieve_mi.geometry.rotations import from_matrix
-from sieve_mi.scene import refuse_unknown, shown
+from sieve_mi.settings import refuse_unknown, shown
 
 __all__ = [
     "BATCH_MIN",

@@ -11,7 +11,6 @@ from sieve_mi.shake.settings import ShakeSettings
 
 __all__ = [
     "add_parser",
-    "add_settings",
     "cmd_shake",
     "settings_from_args",
     "shake_after_solve",
@@ -21,20 +20,10 @@ __all__ = [
 ]
 
 
-def add_settings(parser) -> None:
-    """Add an option per :class:`ShakeSettings` field to ``parser`` (``--coacd-threshold`` for
-    ``coacd_threshold``); its value lands in ``args.<field>`` as given (None when absent) and is
-    checked by :func:`settings_from_args`."""
-    from sieve_mi.scene import option_help
-
-    for f in fields(ShakeSettings):
-        flag = "--" + f.name.replace("_", "-")
-        help_ = option_help(ShakeSettings, f, f.default)
-        parser.add_argument(flag, dest=f.name, default=None, metavar=f.name.upper(), help=help_)
-
-
 def add_parser(sub) -> None:
     """Add ``shake`` to the subcommand parsers ``sub``."""
+    from sieve_mi.settings import add_options
+
     p = sub.add_parser(
         "shake",
         help="shake each shape on its sieve many times (MuJoCo) and count how often it falls through",
@@ -54,23 +43,12 @@ def add_parser(sub) -> None:
         help="shake only these shapes: their names separated by commas (as report.json names "
         "them; with --sieve, the part files' stems), e.g. --only S,G",
     )
-    add_settings(p)
+    add_options(p, ShakeSettings)
     p.add_argument(
         "--no-clip", action="store_true", help="skip shake.gif (one rendered trial per shape)"
     )
     p.add_argument("--json", action="store_true", help="print shake.json on stdout")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
-
-
-def _number(text: str):
-    """Command-line text as an int or a float where it is one, else the text itself (which
-    :func:`~sieve_mi.scene.read_value` then refuses as "expected a number, got 'text'")."""
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return text
 
 
 def settings_from_args(args) -> ShakeSettings:
@@ -80,16 +58,16 @@ def settings_from_args(args) -> ShakeSettings:
     Parameters
     ----------
     args : argparse.Namespace
-        With an attribute per field (None: not given), as :func:`add_settings` makes them.
+        With an attribute per field (text or a value; None or absent: the default), as
+        :func:`sieve_mi.settings.add_options` makes them.
     """
-    from sieve_mi.scene import read_value
+    from sieve_mi.settings import read_option
 
     values = {}
     for f in fields(ShakeSettings):
-        text = getattr(args, f.name, None)
-        if text is not None:
-            flag = "--" + f.name.replace("_", "-")
-            values[f.name] = read_value(ShakeSettings, f.name, _number(text), "shake", flag)
+        value = getattr(args, f.name, None)
+        if value is not None:
+            values[f.name] = read_option(ShakeSettings, f.name, value, "shake")
     return ShakeSettings(**values)
 
 
@@ -182,9 +160,9 @@ def trials_option(
     """
     if text is None:
         return None
-    from sieve_mi.scene import read_value
+    from sieve_mi.settings import read_option
 
-    trials = read_value(ShakeSettings, "trials", _number(text), command, flag)
+    trials = read_option(ShakeSettings, "trials", text, command, flag)
     return replace(base or ShakeSettings(), trials=trials)
 
 

@@ -1,9 +1,9 @@
 """The settings of a shake run: shaker motion, physics, trials; and the engine's fixed constants.
 
 Every setting is declared once, as a field of :class:`ShakeSettings` made by
-:func:`sieve_mi.scene.setting` (its default, meaning, unit and bounds), the way the scene's tables
+:func:`sieve_mi.settings.setting` (its default, meaning, unit and bounds), the way the scene's tables
 and ``check``'s options are: the ``sieve-mi shake`` options, the ``[shake]`` table of a mixture
-file and values given in code are all checked by :func:`sieve_mi.scene.read_value` against that
+file and values given in code are all checked by :func:`sieve_mi.settings.read_value` against that
 declaration, with the one-line error a bad scene key gets (``shake: --trials: must be >= 1,
 got 0``).
 
@@ -18,7 +18,7 @@ import math
 from dataclasses import asdict, dataclass, fields
 
 from sieve_mi.errors import SieveError
-from sieve_mi.scene import documented, known_names, read_value, setting, spec_of
+from sieve_mi.settings import documented, known_names, read_value, setting, spec_of
 
 __all__ = [
     "CONTACT",

@@ -247,8 +247,7 @@ def test_the_reported_margin_is_the_smallest_protrusion(tmp_path):
     centred it sticks out by (1.93 - 1.87) / 2 = 0.03 mm on each side, and any tilt widens its
     projection (1.93 cos θ + 19.75 sin θ). A sum-of-squares polish stopped at 0.046 mm, off-centre
     and tilted; the minimax polish reaches the true margin."""
-    from sieve_mi.game.check import check
-    from sieve_mi.scene import Check
+    from sieve_mi.game.check import CheckSettings, check
     from sieve_mi.testing import shapes
 
     plate = manifold3d.Manifold.cube([60, 60, 30]).translate([-30, -30, -30])
@@ -257,6 +256,6 @@ def test_the_reported_margin_is_the_smallest_protrusion(tmp_path):
     path = str(tmp_path / "slot.stl")
     trimesh.Trimesh(m.vert_properties[:, :3], m.tri_verts).export(path)
     coin = shapes.coin(19.75, 1.93)
-    rep = check(coin, sieve=path, settings=Check(fit=False, thin_budget=1.0))
+    rep = check(coin, sieve=path, settings=CheckSettings(fit=False, thin_budget=1.0))
     assert not rep.result.passes
     assert rep.result.protrusion == pytest.approx(0.03, abs=1e-3)

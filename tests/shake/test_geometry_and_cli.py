@@ -163,13 +163,13 @@ def test_solve_shake_bad_value_stops_before_the_solve(tmp_path):
 
 def test_shake_settings_are_checked_as_scene_keys_are():
     """The options, the values given in code and a mixture's [shake] table are checked by one
-    declaration (sieve_mi.scene.read_value), with the one-line error a bad scene key gets: it
+    declaration (sieve_mi.settings.read_value), with the one-line error a bad scene key gets: it
     names the setting (as given), the bound to keep and the value."""
     import argparse
     from dataclasses import replace
 
-    from sieve_mi.scene import read_value
-    from sieve_mi.shake.commands import add_settings, settings_from_args, trials_option
+    from sieve_mi.settings import add_options, read_value
+    from sieve_mi.shake.commands import settings_from_args, trials_option
     from sieve_mi.shake.settings import ShakeSettings
 
     with pytest.raises(SieveError, match=r"^shake: trials: must be >= 1, got 0$"):
@@ -191,7 +191,7 @@ def test_shake_settings_are_checked_as_scene_keys_are():
     assert type(given.duration) is float and type(given.trials) is int
     assert trials_option("3", "sort", base=given) == replace(given, trials=3)
     parser = argparse.ArgumentParser()
-    add_settings(parser)
+    add_options(parser, ShakeSettings)
     text = " ".join(parser.format_help().split())
     assert "integration step (at most half the contact time constant) (number 0.01–0.5, ms" in text
     assert "--coacd-threshold COACD_THRESHOLD" in text and "(int 1–1000000, default 200)" in text
