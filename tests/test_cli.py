@@ -541,7 +541,7 @@ def test_threads_below_one_is_one_line(count, tmp_path):
                   "--out", str(tmp_path / "o"))  # fmt: skip
     lines = run.stderr.strip().splitlines()
     assert run.returncode == 2 and len(lines) == 1, run.stderr
-    assert f"--threads {count}: must be a whole number of at least 1" in lines[0]
+    assert f"--threads {count}: must be a whole number from 1 to " in lines[0]
     assert not (tmp_path / "o").exists()
 
 
