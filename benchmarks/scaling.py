@@ -40,7 +40,7 @@ def main(argv=None) -> int:
     )
     args = p.parse_args(argv)
     use_variant(args.variant)
-    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.frames import hole_frame
     from sieve_mi.game.player_a import PlayerA
     from sieve_mi.game.player_b import PlayerB
     from sieve_mi.geometry.meshes import load_shape

@@ -80,7 +80,7 @@ def step_times(variant: str, poses=(10, 100, 1000), steps: int = 100) -> None:
     left out.
     """
     from benchmarks.objectives import step_time
-    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.frames import hole_frame
     from sieve_mi.game.player_a import PlayerA
     from sieve_mi.game.player_b import PlayerB
     from sieve_mi.geometry.meshes import load_shape

@@ -15,7 +15,8 @@ import numpy as np
 
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import AttackMemory
-from sieve_mi.game.layout import alternative_rotations, hole_frame, merge, union_frame
+from sieve_mi.game.frames import hole_frame, union_frame
+from sieve_mi.game.layout import alternative_rotations, merge
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.game.result import Result

@@ -18,7 +18,7 @@ import numpy as np
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import Attack, AttackMemory
 from sieve_mi.game.exact import CANDIDATES, exact_rescore
-from sieve_mi.game.layout import frame_for, separate_layout
+from sieve_mi.game.frames import frame_for, separate_layout
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.game.scoring import mask_window

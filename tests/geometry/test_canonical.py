@@ -114,7 +114,7 @@ def test_the_search_finds_the_coin_slot(write_scene):
 def test_polish_turns_a_tilted_cube_face_on():
     # A 20 mm cube's hole blocks a 22 mm ball; tilting the cube widens the hole and lets more of
     # the ball in, so the polish must turn a 2.5° tilt back towards face-on.
-    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.frames import hole_frame
     from sieve_mi.game.player_a import PlayerA
     from sieve_mi.game.player_b import PlayerB
 
@@ -134,7 +134,7 @@ def test_polish_turns_a_tilted_cube_face_on():
 
 
 def test_search_announces_its_stages_and_counts_canonical_evaluations():
-    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.frames import hole_frame
     from sieve_mi.game.player_a import PlayerA
     from sieve_mi.game.player_b import PlayerB
 
@@ -176,7 +176,7 @@ def test_the_search_turns_a_box_exactly_face_on():
     # Face-on, a 20 mm cube's hole (tolerance 1) is the 22 mm square with the smallest inscribed
     # disk; a 23 mm ball is blocked best there. The canonical views contain it exactly and the
     # polish must not wander off it on raster noise.
-    from sieve_mi.game.layout import hole_frame
+    from sieve_mi.game.frames import hole_frame
     from sieve_mi.game.player_a import PlayerA
     from sieve_mi.game.player_b import PlayerB
 

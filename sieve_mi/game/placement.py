@@ -1,0 +1,222 @@
+"""One more A placed into a hole: eq. 14, screened candidates, a particle swarm, a long re-ranking.
+
+Each placement (:func:`place`) maximises eq. 14 of paper Sec. 5.3,
+
+    tau/2 * tanh(rho * (beta_H - eta)) - alpha * area(H),
+
+where beta_H is player B's best beta against the new hole and area(H) is the hole's area as a
+fraction of the frame; a placement that splits the hole into several pieces is penalised by tau,
+so the final hole stays one simply connected region (:func:`eq14`). Over the candidates of
+:func:`sieve_mi.game.candidates.candidate_pool`:
+
+1. *Screening*: ``SCREEN x particles`` distinct candidates get one short attack of B each; the best
+   ``particles`` start a particle swarm (accelerations ``c_personal``, ``c_global``).
+2. *Re-ranking*: the swarm's :data:`FINALISTS` best placements are attacked as long as the verdict
+   will attack, and the best survivor is kept.
+3. *Rounds*: while every finalist still lets some B through, the round is repeated (at most
+   ``[layout] rounds``); B's attacks remember the passing poses found so far.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from sieve_mi.game.attack import AttackMemory
+from sieve_mi.game.candidates import candidate_pool
+from sieve_mi.game.player_a import PlayerA
+from sieve_mi.game.player_b import PlayerB
+from sieve_mi.geometry.hole import pieces
+from sieve_mi.geometry.rotations import normalize
+from sieve_mi.optim import SwarmHistory, particle_swarm
+from sieve_mi.scene import Layout, Solver
+
+__all__ = ["FINALISTS", "SCREEN", "Placement", "eq14", "place"]
+
+#: ``SCREEN * particles`` distinct candidates are screened with a short attack.
+SCREEN = 5
+#: The swarm's best placements re-ranked by the long attack.
+FINALISTS = 5
+
+
+class Placement(NamedTuple):
+    """One shape's place in a merged hole, as :func:`place` found it."""
+
+    #: (4,) rotation (w, x, y, z).
+    quat: np.ndarray
+    #: (2,) translation, scene units.
+    trans: np.ndarray
+    #: Best eq. 14 energy.
+    value: float
+    #: The weakest B's loss against this placement in the long re-ranking attack (> 0: every B
+    #: was blocked there).
+    beta: float
+    history: SwarmHistory
+
+    @property
+    def blocks(self) -> bool:
+        """Whether every B was blocked by the hole with this placement."""
+        return self.beta > 0
+
+
+def eq14(beta: np.ndarray, area_fraction: np.ndarray, pieces: np.ndarray, s: Layout) -> np.ndarray:
+    """The energy of eq. 14, minus tau for every hole that falls apart into several pieces."""
+    return (
+        s.tau / 2 * np.tanh(s.rho * (beta - s.eta)) - s.alpha * area_fraction - s.tau * (pieces > 1)
+    )
+
+
+def place(
+    player: PlayerA,
+    player_b: PlayerB,
+    base: np.ndarray,
+    quat: np.ndarray,
+    *,
+    solver: Solver,
+    layout: Layout,
+    rng: np.random.Generator,
+    progress: Callable[[int, float], None] | None = None,
+    recheck: tuple[int, int] | None = None,
+    finalists: int = FINALISTS,
+    screen: int = SCREEN,
+    memory: AttackMemory | None = None,
+    rounds: int | None = None,
+):
+    """Place one more A shape into a hole (one step of the sequential scheme).
+
+    Parameters
+    ----------
+    player : PlayerA
+        The shape to add, on the union frame.
+    player_b : PlayerB
+        The shapes to block, on the union frame.
+    base : (N, N) bool ndarray
+        The current hole (dilated, filled).
+    quat : (4,) ndarray
+        The shape's best rotation when it was solved alone.
+    solver : sieve_mi.scene.Solver
+        Its ``particles``, ``iterations`` and ``patience`` are the placement swarm's; its ``starts``,
+        ``steps`` and ``learning_rate`` player B's attack on every candidate hole.
+    layout : sieve_mi.scene.Layout
+        Eq. 14's tau, rho, eta, alpha, the swarm's accelerations and ``rounds``.
+    rng, progress :
+        Random generator; per-iteration callback of the swarm.
+    recheck : (int, int), optional
+        Starts and Adam steps of the attack that re-ranks the swarm's ``finalists`` best placements
+        (the solver passes the verdict's settings, so the placement kept is the one that survives
+        the attack the winner is decided by); default three times ``starts`` and ``steps``.
+    finalists : int
+    screen : int
+        ``screen * particles`` distinct candidate placements (half the most compact, half spread
+        over the others, see :func:`~sieve_mi.game.candidates.candidate_pool`) are scored with
+        one short attack each; the best ``particles`` of them start the swarm.
+    memory : AttackMemory, optional
+        B's best poses so far (shared across placements); every attack starts from them too.
+    rounds : int, optional
+        Screening + swarm + re-ranking is repeated (at most this many times, default
+        ``layout.rounds``) while every re-ranked placement still lets some B through; each
+        round's attacks start from the passing poses the previous rounds found.
+
+    Returns
+    -------
+    Placement
+    """
+    reach = player.frame.half_extent / 2.0  # centres stay within the largest radius of the origin
+    starts, steps, particles = solver.starts, solver.steps, solver.particles
+    if memory is None:
+        memory = AttackMemory.for_starts(len(player_b.shapes), starts)
+    game = _PlacementGame(player, player_b, base, reach, memory, layout, solver.learning_rate, rng)
+    pool = candidate_pool(player, base, quat, reach, screen * particles)
+    recheck = recheck if recheck is not None else (3 * starts, 3 * steps)
+    rounds = layout.rounds if rounds is None else rounds
+    return game.play(
+        pool, particles, solver.iterations, (starts, steps), recheck, finalists, rounds, progress,
+        patience=solver.patience,
+    )  # fmt: skip
+
+
+@dataclass
+class _PlacementGame:
+    """Eq. 14 for placements of one A into a base hole, each scored by one batched attack of B."""
+
+    player: PlayerA
+    player_b: PlayerB
+    base: np.ndarray
+    reach: float
+    memory: AttackMemory
+    settings: Layout
+    learning_rate: float
+    rng: np.random.Generator
+
+    def energy(self, x: np.ndarray, starts: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """Eq. 14 energy and the weakest B's β of placements ``x`` (P, 6): (P,) and (P,)."""
+        holes = self.player.holes(x[:, :4], x[:, 4:] * self.reach, base=self.base)
+        attack = self.player_b.attack(
+            holes, starts, steps, self.learning_rate, self.rng, memory=self.memory,
+            settle=self.player.settle,
+        )  # fmt: skip
+        area = np.array([hh.mask.mean() for hh in holes])
+        n = np.array([pieces(hh.mask) for hh in holes])
+        return eq14(attack.value(), area, n, self.settings), attack.value()
+
+    def play(self, pool, particles, iterations, attack, recheck, finalists, rounds, progress,
+             patience: int = 0):  # fmt: skip
+        """Rounds of screening, swarm and re-ranking over the candidate ``pool`` (see :func:`place`).
+
+        ``attack`` and ``recheck`` are (starts, steps) of the swarm's and the re-ranking's attacks;
+        ``patience`` is the swarm's (``[solver] patience``).
+        """
+        reach, rng, settings = self.reach, self.rng, self.settings
+
+        def evaluate(x):
+            return self.energy(x, *attack)[0]
+
+        history = SwarmHistory()
+        best, value, best_beta = pool[0], -np.inf, -np.inf
+        for _ in range(rounds):
+            x0 = _swarm_starts(pool, evaluate, particles, self.player.frame.pixel_size / reach)
+            x, _, h = particle_swarm(
+                evaluate, _project(x0), iterations, rng, c_personal=settings.c_personal,
+                c_global=settings.c_global, project=_project, progress=progress,
+                patience=patience,
+            )  # fmt: skip
+            history.extend(h)
+            history.finalists = h.finalists
+            # The swarm ranks placements with a short attack, which can miss a narrow passage.
+            # Re-rank its best few placements with a long attack and keep the best of those.
+            xs = np.stack([f for f, _ in h.finalists[:finalists]]) if h.finalists else x[None]
+            values, betas = self.energy(xs, *recheck)
+            i = int(np.argmax(values))
+            if values[i] > value:
+                best, value, best_beta = xs[i], float(values[i]), float(betas[i])
+            if best_beta > 0:
+                break
+            # Every finalist lets some B through. The memory now holds the passing poses, so
+            # another round of screening and swarming sees through the placements that looked
+            # safe before.
+        return Placement(normalize(best[:4]), best[4:] * reach, value, best_beta, history)
+
+
+def _project(x: np.ndarray) -> np.ndarray:
+    """Placements (P, 6) with unit quaternions and translations inside the unit disc."""
+    x = x.copy()
+    x[:, :4] = normalize(x[:, :4])
+    norm = np.linalg.norm(x[:, 4:], axis=1, keepdims=True)
+    x[:, 4:] = x[:, 4:] / np.maximum(norm, 1.0)
+    return x
+
+
+def _swarm_starts(pool: np.ndarray, evaluate, particles: int, nudge: float) -> np.ndarray:
+    """The swarm's first ``particles`` placements (P, 6): the pool's best by ``evaluate``.
+
+    With no more candidates than particles, the pool is repeated, the copies moved by ``nudge``
+    along x (in units of the reach: a pixel).
+    """
+    if len(pool) > particles:
+        return pool[np.argsort(evaluate(pool), kind="stable")[::-1][:particles]]
+    extra = particles - len(pool)
+    shift = np.array([0, 0, 0, 0, nudge, 0])
+    return np.concatenate([pool, pool[np.arange(extra) % len(pool)] + shift])
