@@ -3,14 +3,21 @@
 Modules
 -------
 report
-    ``report.json``, the rasters and EXR masks, overlay and convergence plots, the console table;
-    :func:`~sieve_mi.outputs.report.write_outputs` writes a solve's folder.
+    ``report.json``; :func:`~sieve_mi.outputs.report.write_outputs` writes a solve's folder.
+images
+    The rasters on the hole's lattice: ``hole.png``, ``hole.exr``, the EXR masks.
+plots
+    The matplotlib pictures (``overlay.png``, ``convergence.png``) and their layout: text off the
+    shapes, axes and scale bars in 2D views.
+console
+    What is printed on the terminal: the result tables and summary lines of solve and check.
 viewer
-    ``report.html`` (and the ``check`` page): one offline page with a 3D view (``assets/``).
+    ``report.html`` (and the ``check`` page): one offline page with a 3D view (``assets/``); it
+    places other commands' cards in the page (:func:`~sieve_mi.outputs.viewer.insert_card`).
+svg
+    The pages' inline SVG pictures: the 2D hole view and the convergence plot.
 figure
     ``figure.png``: a Mitsuba rendering of the sieve.
-plots
-    The layout of the matplotlib pictures: text off the shapes, axes and scale bars in 2D views.
 animation
     ``passage.gif``: the shapes moving through (or stopping at) the plate.
 passage
@@ -25,12 +32,15 @@ provenance
 
 __all__ = [
     "animation",
+    "console",
     "fabrication",
     "figure",
+    "images",
     "outdir",
     "passage",
     "plots",
     "provenance",
     "report",
+    "svg",
     "viewer",
 ]

@@ -1,5 +1,7 @@
-"""The layout shared by sieve-mi's matplotlib pictures: overlay.png, convergence.png, cascade.png.
+"""sieve-mi's matplotlib pictures: a solve's overlay.png and convergence.png, and their layout.
 
+One idea: the 2D pictures drawn with matplotlib and the layout they share (:func:`overlay_figure`,
+:func:`convergence_figure`; cascade.png, drawn by :mod:`sieve_mi.cascade.outputs`, keeps it too).
 Every picture keeps three rules (``tests/outputs/test_picture_layout.py`` and
 ``tests/cascade/test_cascade_figure.py`` check them with :mod:`sieve_mi.testing.pictures`):
 
@@ -14,25 +16,37 @@ Every picture keeps three rules (``tests/outputs/test_picture_layout.py`` and
 from __future__ import annotations
 
 import math
+import os
 import textwrap
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sieve_mi.outputs.palette import hex_colour
+from sieve_mi.outputs.palette import block_colour, hex_colour
+
+if TYPE_CHECKING:
+    from sieve_mi.game.result import Result
 
 __all__ = [
     "CHAR_WIDTH",
+    "GAME_VALUE",
     "LINE_HEIGHT",
+    "MERGED_VALUE",
+    "OVERLAY_COLUMNS",
+    "OVERLAY_PANEL",
     "SCALE_BAR_GID",
     "SCALE_STRIP",
+    "convergence_figure",
     "draw_contours",
     "grid_figure",
     "new_figure",
     "nice_length",
+    "overlay_figure",
     "panel_grid",
     "plan_view",
     "save",
     "wrap",
+    "write_plots",
 ]
 
 #: Height of the strip under a 2D view that holds the scale bar, as a fraction of the view's width.
@@ -232,3 +246,147 @@ def plan_view(
             gid=SCALE_BAR_GID)  # fmt: skip
     ax.text(x0 + length + 0.03 * span, y, f"{length:g} {units}", ha="left", va="center",
             fontsize=fontsize, gid=SCALE_BAR_GID)  # fmt: skip
+
+
+# ------------------------------------------------------------------------------------------------
+# A solve's pictures: convergence.png and overlay.png
+# ------------------------------------------------------------------------------------------------
+
+
+#: overlay.png: the width of a panel (inches) and the most panels in a row.
+OVERLAY_PANEL = 3.6
+OVERLAY_COLUMNS = 4
+
+
+#: convergence.png's y label: the game value (one A, or separate holes) ...
+GAME_VALUE = "best game value (min beta)"
+#: ... or, for several A merged into one hole, each A's search, then the placement's energy.
+MERGED_VALUE = "best min beta, then eq. 14 energy"
+
+
+def convergence_figure(history: list[float], final: float | None = None, ylabel: str = GAME_VALUE):
+    """convergence.png's figure: player A's best game value per search iteration.
+
+    ``ylabel`` names the value: :data:`GAME_VALUE`, or :data:`MERGED_VALUE` for a merged hole of
+    several A (its curve runs through each A's search, min beta, then the placement swarm,
+    whose value is eq. 14's energy, not a beta).
+
+    ``final`` (report.json's ``search_value``: the game value of the search's last stage, polish
+    or placement) is drawn as a dashed line; what the dashed line is, and a note when the curve
+    is flat, go into a caption under the plot, never onto the curve.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig = new_figure(5.0, 3.4, 120)
+    ax = fig.subplots()
+    notes = []
+    if history:
+        ax.plot(range(len(history)), history, marker="o", color=hex_colour("curve"))
+        if final is not None and np.isfinite(final) and final != history[-1]:
+            ax.axhline(final, linestyle="--", color=hex_colour("curve"), alpha=0.6)
+            notes.append(f"dashed: the value after the last stage (search_value), {final:.5g}")
+        if len(history) > 1 and max(history) - min(history) <= 1e-12 * max(1.0, abs(history[0])):
+            notes.append("flat: the canonical views already held the best rotation")
+    else:
+        ax.text(0.5, 0.5, "A's rotation was fixed: no search", ha="center", va="center",
+                transform=ax.transAxes)  # fmt: skip
+    ax.set_xlabel("search iteration")
+    ax.set_ylabel(ylabel)
+    ax.set_title("Convergence of player A's search")
+    ax.grid(alpha=0.3)
+    if notes:
+        fig.supxlabel(wrap("\n".join(notes), 4.8, 8), fontsize=8)
+    return fig
+
+
+def _draw_section(ax, section, **style) -> None:
+    """Draw a manifold3d CrossSection (all its contours as one compound path) on an axis."""
+    draw_contours(ax, section.to_polygons(), **style)
+
+
+def overlay_figure(result: Result):
+    """overlay.png's figure: the exact hole H, A's projection (dashed) and B's best attempts.
+
+    One panel per B (at most :data:`OVERLAY_COLUMNS` in a row, a shorter last row centred), all
+    to one scale, each with axes and a scale bar in scene units (:func:`plan_view`); each panel's
+    title (the B, blocked or not, β and protrusion) is wrapped to the panel's width.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    hole, a_sections, b_sections = result.overlay_sections()
+    lim = 1.04 * max(
+        [result.hole.frame.half_extent]
+        + [
+            float(np.abs(s.bounds()).max())
+            for s in [hole, *a_sections, *b_sections]
+            if not s.is_empty()
+        ]
+    )
+    titles = [_overlay_title(result, j) for j in range(len(b_sections))] or [""]
+    titles = [wrap(t, OVERLAY_PANEL, 9) for t in titles]
+    counts = _rows(len(titles), OVERLAY_COLUMNS)
+    title = f"{result.scene.name}: winner {result.winner} (exact hole white, A dashed)"
+    title = wrap(title, OVERLAY_PANEL * max(counts) + 0.3, 10)  # the figure's width
+    starts = np.cumsum([0, *counts])
+    lines = [max(t.count("\n") + 1 for t in titles[a:b]) for a, b in zip(starts, starts[1:])]
+    fig, rows = grid_figure(
+        counts, OVERLAY_PANEL, 120, title_lines=lines, suptitle_lines=title.count("\n") + 1
+    )
+    panels = [(c, ax) for row in rows for c, ax in enumerate(row)]
+    for j, (c, ax) in enumerate(panels):
+        plan_view(ax, lim, result.scene.units, plate=True, ylabel=c == 0)
+        _draw_section(
+            ax, hole, facecolor=hex_colour("hole"), edgecolor=hex_colour("edge"), linewidth=0.6
+        )
+        for sec in a_sections:
+            _draw_section(
+                ax, sec, fill=False, edgecolor=hex_colour("pass"), linewidth=1.0, linestyle="--"
+            )
+        if j < len(b_sections):
+            colour = hex_colour(block_colour(bool(result.blocks[j].blocked)))
+            _draw_section(ax, b_sections[j], facecolor=colour, alpha=0.55, linewidth=0)
+        ax.set_title(titles[j], fontsize=9)
+    fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def _rows(n: int, columns: int) -> list[int]:
+    """Panels per row for ``n`` panels, at most ``columns`` in a row, rows as even as can be."""
+    rows = -(-n // columns)
+    base, extra = divmod(n, rows)
+    return [base + 1] * extra + [base] * (rows - extra)
+
+
+def _overlay_title(result: Result, j: int) -> str:
+    """A B's panel title: its name, blocked or not (and how a blocked-straight B passes), β and
+    protrusion."""
+    blocked = result.blocks[j].blocked  # a thin-plate or certified passage passes
+    status = "blocked" if blocked else "PASSES"
+    if result.attack.blocked()[0][j] and not blocked:
+        status += _motion_note(result, j)
+    return (
+        f"{result.block_shapes[j].name}: {status}\nbeta={result.attack.beta[0, j]:.4f}, "
+        f"protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}"
+    )
+
+
+def _motion_note(result: Result, j: int) -> str:
+    """Why a B blocked straight down passes after all: a thin plate's motion or certify's pose."""
+    sheet = getattr(result, "sheet", None)
+    thin = sheet.per_block[j] if sheet is not None else None
+    if thin is not None and thin.status == "passage":
+        return f" by tilting through the {thin.thickness:g} {result.scene.units} plate"
+    return " (a pose certify found)"
+
+
+def write_plots(result: Result, folder: str) -> None:
+    """A solve's ``convergence.png`` and ``overlay.png`` into ``folder``."""
+    history, final = result.history.best, result.search_value
+    merged = len(result.pass_shapes) > 1 and result.scene.layout.mode == "merged"
+    label = MERGED_VALUE if merged else GAME_VALUE
+    save(convergence_figure(history, final, label), os.path.join(folder, "convergence.png"))
+    save(overlay_figure(result), os.path.join(folder, "overlay.png"))

@@ -5,7 +5,8 @@ marker-checked way into an existing folder: the folder must carry sieve-mi's ``.
 and hold nothing it does not list (checked before the trials, :func:`check_folder`, and again
 before writing), each file is written atomically (a temporary file, then a rename) and listed in
 the marker, so a later ``solve --out`` may still replace the folder. The "Shake trials" card goes
-into ``report.html`` when there is one to put it in; else the run says so in one line.
+into ``report.html`` when there is one to put it in (the viewer places it,
+:func:`sieve_mi.outputs.viewer.insert_card`); else the run says so in one line.
 """
 
 from __future__ import annotations
@@ -17,15 +18,16 @@ import os
 import numpy as np
 
 from sieve_mi.outputs.outdir import add_files, check_addition, writing
+from sieve_mi.outputs.viewer import insert_card
 from sieve_mi.shake.stats import pass_curve
 
 __all__ = [
+    "CARD",
     "FILES",
     "ROLE_COLOURS",
     "add_to_folder",
     "check_folder",
     "html_section",
-    "page_with_card",
     "plot",
     "summary",
     "to_json",
@@ -142,7 +144,7 @@ def check_folder(folder: str) -> str | None:
         the marker does not list, not writable).
     """
     check_addition(folder, (*FILES, "report.html"), hint=_HINT)
-    return page_with_card(folder, "")[1]
+    return insert_card(folder, CARD, "")[1]
 
 
 def add_to_folder(report: dict, folder: str, clip: str | None = None) -> str | None:
@@ -160,9 +162,9 @@ def add_to_folder(report: dict, folder: str, clip: str | None = None) -> str | N
         The folder is refused (one line; nothing written).
     """
     contents = _contents(report, clip)
-    page, note = page_with_card(folder, html_section(report, contents["shake.png"]))
+    page, note = insert_card(folder, CARD, html_section(report, contents["shake.png"]))
     if page is not None:
-        contents["report.html"] = page
+        contents["report.html"] = page.encode("utf-8")
     add_files(folder, contents, hint=_HINT)
     return note
 
@@ -179,11 +181,13 @@ def write_new_folder(report: dict, out_dir: str, inputs: list[str], clip: str | 
                 fh.write(data)
 
 
-_BEGIN, _END = "<!--shake-->", "<!--/shake-->"
+#: The name of shake's card in report.html (:func:`sieve_mi.outputs.viewer.insert_card`).
+CARD = "shake"
 
 
 def html_section(report: dict, png: bytes) -> str:
-    """report.html's "Shake trials" card: the curves (inlined PNG), one row per shape, fidelity."""
+    """report.html's "Shake trials" card (:data:`CARD`): the curves (inlined PNG), one row per
+    shape, fidelity."""
     import base64
     from html import escape
 
@@ -201,7 +205,7 @@ def html_section(report: dict, png: bytes) -> str:
     items = "".join(f"<li>{escape(w)}</li>" for w in report.get("warnings", []))
     warnings = f"<ul>{items}</ul>" if items else ""
     return (
-        f'{_BEGIN}<section class="card wide" id="shake"><h2>Shake trials</h2>'
+        '<section class="card wide" id="shake"><h2>Shake trials</h2>'
         f'<img alt="fraction passed against time" style="max-width:100%" '
         f'src="data:image/png;base64,{img}">'
         "<table><thead><tr><th>shape</th><th>set</th><th>passed</th><th>fraction</th>"
@@ -213,41 +217,10 @@ def html_section(report: dict, png: bytes) -> str:
         f"seed {st['seed']}. Fidelity (resting sink under "
         f"{report['engine']['sink_bound_mm']} mm, penetration while shaken within its bound, "
         f"no engine warning): {'held' if report['fidelity_ok'] else 'NOT held'}. "
-        f"Details: shake.json.</p>{warnings}</section>{_END}"
+        f"Details: shake.json.</p>{warnings}</section>"
     )
 
 
 def _twist_words(twist: float) -> str:
     """The twist in the card's sentence: nothing when the plate does not twist."""
     return f" with a {twist:g} degree twist" if twist else ""
-
-
-def _with_card(page: str, card: str) -> str | None:
-    """``page`` with ``card`` in place of its earlier card (between the markers), else before its
-    details section, else before ``</body>``; None when there is no such place (or an earlier
-    card is cut short: its end marker missing)."""
-    start = page.find(_BEGIN)
-    if start >= 0:
-        end = page.find(_END, start + len(_BEGIN))
-        return None if end < 0 else page[:start] + card + page[end + len(_END) :]
-    anchor = page.find('<section class="card" id="details">')
-    if anchor < 0:
-        anchor = page.rfind("</body>")
-    return None if anchor < 0 else page[:anchor] + card + "\n  " + page[anchor:]
-
-
-def page_with_card(folder: str, card: str) -> tuple[bytes | None, str | None]:
-    """``folder``'s report.html with the shake ``card`` put in (:func:`_with_card`), as bytes;
-    or None and a one-line note saying why the page is left as it is."""
-    path = os.path.join(folder, "report.html")
-    if not os.path.lexists(path):
-        return None, f"{folder} has no report.html, so no page got shake's card"
-    try:
-        with open(path, encoding="utf-8") as fh:
-            page = fh.read()
-    except (OSError, UnicodeError) as exc:
-        return None, f"{path}: cannot be read ({exc}); it was left as it was"
-    new = _with_card(page, card)
-    if new is None:
-        return None, f"{path}: has no place for shake's card (no details section, no </body>)"
-    return new.encode("utf-8"), None

@@ -373,7 +373,7 @@ def test_an_interrupted_solve_leaves_the_old_output(
 @pytest.mark.parametrize(
     "module, name, missing",
     [
-        ("sieve_mi.outputs.report", "overlay_figure", ["hole.png", "masks", "overlay.png"]),
+        ("sieve_mi.outputs.plots", "overlay_figure", ["hole.png", "masks", "overlay.png"]),
         ("sieve_mi.outputs.viewer", "write_page", ["report.html"]),
     ],
 )

@@ -1,7 +1,7 @@
 """The pictures' layout: no text on a shape, no two texts overlapping, axes and a scale bar.
 
 overlay.png and convergence.png are built by the functions the writer saves
-(:func:`~sieve_mi.outputs.report.overlay_figure`, :func:`~sieve_mi.outputs.report.convergence_figure`)
+(:func:`~sieve_mi.outputs.plots.overlay_figure`, :func:`~sieve_mi.outputs.plots.convergence_figure`)
 and checked with :func:`sieve_mi.testing.pictures.layout_problems` (text boxes against the shapes'
 drawn paths, in display pixels). figure.png's title is checked in test_figure.py, cascade.png in
 tests/cascade/test_cascade_figure.py.
@@ -18,15 +18,17 @@ import pytest
 from helpers import REPO
 
 from sieve_mi.outputs.plots import (
+    MERGED_VALUE,
+    convergence_figure,
     draw_contours,
     new_figure,
     nice_length,
+    overlay_figure,
     panel_grid,
     plan_view,
     save,
     wrap,
 )
-from sieve_mi.outputs.report import MERGED_VALUE, convergence_figure, overlay_figure
 from sieve_mi.testing.pictures import layout_problems, plan_view_problems
 from sieve_mi.testing.settings import TINY_LAYOUT, TINY_SOLVER, TINY_VERDICT, settings_toml
 from sieve_mi.testing.shapes import cross_section, glyph_contours

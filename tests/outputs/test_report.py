@@ -11,7 +11,9 @@ from helpers import REPO
 
 from sieve_mi.api import solve
 from sieve_mi.geometry.outline import rasterize
-from sieve_mi.outputs.report import paste_window, report_dict, summary_table, write_outputs
+from sieve_mi.outputs.console import summary_table
+from sieve_mi.outputs.images import paste_window
+from sieve_mi.outputs.report import report_dict, write_outputs
 from sieve_mi.scene import load_scene
 from sieve_mi.testing.settings import TINY_SOLVER, TINY_VERDICT, settings_toml
 

@@ -21,6 +21,7 @@ from sieve_mi.geometry.outline import is_closed, placed_vertices, rasterize, sil
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.outputs import animation, viewer
 from sieve_mi.outputs.passage import Passage, build
+from sieve_mi.outputs.svg import scale_bar
 from sieve_mi.scene import load_scene
 from sieve_mi.testing.settings import TINY
 
@@ -552,7 +553,7 @@ def test_a_thin_plate_motion_is_followed_pose_by_pose():
 def test_the_hole_view_has_a_round_scale_bar(lim):
     """1, 2 or 5 × 10^k scene units, between a tenth and two fifths of the view's half-width
     (the next round length up would be more than 0.4 lim), drawn to scale and labelled."""
-    svg = viewer.scale_bar(lim, "mm")
+    svg = scale_bar(lim, "mm")
     length = float(re.search(r'data-length="([^"]+)"', svg).group(1))
     mantissa = length / 10 ** math.floor(math.log10(length))
     assert round(mantissa, 9) in (1.0, 2.0, 5.0)

@@ -19,10 +19,11 @@ import trimesh
 from shake_helpers import ball, plate_mesh, quick, round_hole, square_hole
 
 from sieve_mi.cli import main
+from sieve_mi.outputs.viewer import with_card
 from sieve_mi.shake.fidelity import judge
 from sieve_mi.shake.geometry import part_from_mesh, plate_from_outline
 from sieve_mi.shake.model import build_model
-from sieve_mi.shake.outputs import _BEGIN, _END, _with_card
+from sieve_mi.shake.outputs import CARD
 from sieve_mi.shake.settings import ShakeSettings
 from sieve_mi.shake.trials import Outcome, run_trial
 
@@ -153,17 +154,18 @@ def test_a_missing_report_html_writes_the_files_and_says_the_page_got_no_card(tm
 
 
 def test_the_card_replaces_an_earlier_one_and_a_cut_card_is_left_alone():
-    """report.html is edited by string search: a new card goes before the details section (or
-    </body>), replaces an earlier card (between its markers), and a page whose card lost its end
-    marker, or that has no place for one, is not edited (None)."""
+    """The viewer places shake's card in report.html: a new card goes before the details section
+    (or </body>), replaces an earlier card (between its markers), and a page whose card lost its
+    end marker, or that has no place for one, is not edited (None)."""
+    begin, end = f"<!--{CARD}-->", f"<!--/{CARD}-->"
     page = '<body>\n  <section class="card" id="details">d</section>\n</body>'
-    once = _with_card(page, f"{_BEGIN}one{_END}")
-    twice = _with_card(once, f"{_BEGIN}two{_END}")
-    assert twice.count(_BEGIN) == 1 and "two" in twice and "one" not in twice
+    once = with_card(page, CARD, "one")
+    twice = with_card(once, CARD, "two")
+    assert twice.count(begin) == 1 and "two" in twice and "one" not in twice
     assert twice.index("two") < twice.index('id="details"')
-    assert _with_card(f"{_END} x {_BEGIN} cut", "c") is None
-    assert _with_card("<p>no body</p>", "c") is None
-    assert _with_card(f"<body>{_END}</body>", f"{_BEGIN}c{_END}").count(_BEGIN) == 1
+    assert with_card(f"{end} x {begin} cut", CARD, "c") is None
+    assert with_card("<p>no body</p>", CARD, "c") is None
+    assert with_card(f"<body>{end}</body>", CARD, "c").count(begin) == 1
 
 
 # ------------------------------------------------------------------------------------------------

@@ -1,0 +1,202 @@
+"""What sieve-mi prints on the terminal: the result tables and summary lines of solve and check.
+
+One idea: plain text for a person reading a terminal, built from what the run wrote (report.json's
+dict for ``solve``, :class:`~sieve_mi.game.check.CheckReport` for ``check``), never computed anew.
+``solve`` prints :func:`summary_table` (one row per shape, then the winner, the time per stage
+(:func:`stage_line`), the memory (:func:`memory_line`), a thin plate's caveat
+(:func:`sheet_line`) and advice for merged holes (:func:`merge_hint`)); ``check`` prints
+:func:`check_summary`. ``shake`` prints its own table (:func:`sieve_mi.shake.outputs.summary`):
+its report's fields are defined above this package, in :mod:`sieve_mi.shake`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from sieve_mi.game.check import CheckReport
+
+__all__ = [
+    "STAGES",
+    "check_summary",
+    "memory_line",
+    "merge_hint",
+    "sheet_line",
+    "stage_line",
+    "summary_table",
+]
+
+
+def summary_table(report: dict) -> str:
+    """A short plain-text table of the result, one row per shape."""
+    units = report["units"]
+    proofs = any("certified" in b for b in report["block"])
+    rows = [("role", "shape", "beta", f"protrusion ({units})", "result")]
+    rows[0] += ("certified",) if proofs else ()
+    thin = any(b.get("thin_plate", {}).get("status", "safe") != "safe" for b in report["block"])
+    rows[0] += ("thin plate",) if thin else ()
+    for p in report["pass"]:
+        rows.append(("pass", p["name"], "-", "-", "passes (part of the hole)"))
+        rows[-1] += ("-",) if proofs else ()
+        rows[-1] += ("-",) if thin else ()
+    for b in report["block"]:
+        rows.append(
+            (
+                "block",
+                b["name"],
+                f"{b.get('beta', b.get('loss')):.4f}",  # reports before 'beta' say 'loss'
+                f"{b['protrusion']:.3f}",
+                "blocked" if b["blocked"] else "PASSES",
+            )
+        )
+        if proofs:
+            rows[-1] += (_certified_cell(b),)
+        if thin:
+            rows[-1] += (_thin_cell(b),)
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    t = report["timings"]
+    lines.append("")
+    lines.append(
+        f"winner: {report['winner']}   search {t.get('search_s', 0):.1f} s, verdict {t.get('verdict_s', 0):.1f} s, "
+        f"pixel size {report['pixel_size']:.4g} {units}"
+    )
+    if "total_s" in t:
+        lines.append(stage_line(t))
+    memory = memory_line(report)
+    if memory:
+        lines.append(memory)
+    plate = sheet_line(report)
+    if plate:
+        lines.append(plate)
+    hint = merge_hint(report)
+    if hint:
+        lines.append(hint)
+    return "\n".join(lines)
+
+
+#: report.json's stage timings, in the order they run, with the console's labels.
+STAGES = (
+    ("startup_s", "startup"), ("init_s", "init"), ("load_s", "load"), ("screen_s", "screen"),
+    ("search_s", "search"),
+    ("verdict_s", "verdict"), ("certify_s", "certify"), ("thin_s", "thin plate"),
+    ("images_s", "images"),
+    ("fabrication_s", "plate"), ("figure_s", "figure"), ("passage_s", "passage"),
+    ("animation_s", "gif"), ("page_s", "page"),
+)  # fmt: skip
+
+
+def memory_line(report: dict) -> str | None:
+    """``memory: peak 0.72 GB (search 0.72, verdict 0.57, ...)`` from report.json, or None."""
+    mem = report.get("memory")
+    if not mem:
+        return None
+    stages = ", ".join(f"{k} {v:.2f}" for k, v in mem["stages_gb"].items() if v >= 0.005)
+    return f"memory: peak {mem['peak_gb']:.2f} GB ({stages})"
+
+
+def stage_line(timings: dict) -> str:
+    """``time: 12.3 s = search 4.1 + verdict 3.2 + ...`` from report.json's timings."""
+    parts = [f"{label} {timings[key]:.1f}" for key, label in STAGES if timings.get(key, 0) >= 0.05]
+    return f"time: {timings['total_s']:.1f} s = " + " + ".join(parts) + " s"
+
+
+def sheet_line(report: dict) -> str | None:
+    """``plate: 2 mm thick, not proved (safe: 28.4 mm) ...`` when the plate is thinner than the
+    safe thickness (:mod:`sieve_mi.game.sheet`); None on a proved plate."""
+    sheet = report.get("fabrication", {}).get("sheet")
+    if sheet is None or sheet["proved"]:
+        return None
+    u = report["units"]
+    head = f"plate: {sheet['thickness']:g} {u} thick"
+    if sheet["mode"] == "thinnest":
+        head += f", the thinnest of {len(sheet['bisection'])} tried where no B was found to pass"
+    return (
+        head
+        + f"; not proved (a motion search), the proved plate is {sheet['safe_thickness']:g} {u}"
+    )
+
+
+def _thin_cell(block: dict) -> str:
+    """The console's 'thin plate' cell of one B: safe by diameter, passage or none found."""
+    t = block.get("thin_plate")
+    if t is None:
+        return "-"
+    if t["status"] == "safe":
+        return f"safe ({t.get('by', 'diameter')})"
+    return f"{t['status']} ({t['seconds']:.1f} s)"
+
+
+def _certified_cell(block: dict) -> str:
+    """The console's 'certified' cell of one B: the status and what it rests on."""
+    c = block.get("certification")
+    if c is None:
+        return "-"
+    if c["status"] == "undecided":
+        return f"undecided ({100 * c['excluded_fraction']:.1f} % excluded, {c['seconds']:.0f} s)"
+    return f"{c['status']} ({c['seconds']:.1f} s)"
+
+
+def merge_hint(report: dict) -> str | None:
+    """Advice when a merged hole of several pass shapes lets some B through but each shape alone did not."""
+    passes = report["pass"]
+    mode = report.get("settings", {}).get("layout", {}).get("mode", "merged")
+    if report["winner"] != "B" or len(passes) < 2 or mode != "merged":
+        return None
+    alone = [p.get("alone_loss") for p in passes]
+    if any(a is None or not a > 0 for a in alone):
+        return None
+    through = ", ".join(b["name"] for b in report["block"] if not b["blocked"])
+    each = ", ".join(f"{p['name']} {a:.3f}" for p, a in zip(passes, alone))
+    return (
+        f"hint: the merged hole lets {through} through, but each pass shape alone blocked every block shape "
+        f'(weakest loss: {each}); set [layout] mode = "separate" for a valid sieve, or try another --seed'
+    )
+
+
+def _check_thin_line(t: dict, u: str) -> str:
+    """:func:`check_summary`'s line on the thin-plate answer."""
+    note = t.get("plate", {}).get("note")
+    head = (note + "\n" if note else "") + (
+        f"plate {t['thickness']:.4g} {u} thick, part diameter {t['diameter']:.4g} {u}: "
+    )
+    if t["status"] == "safe":
+        return head + f"safe (the verdict above holds on this plate; by its {t['by']})"
+    if t["status"] == "passage":
+        return head + (
+            f"PASSES by tilting and turning ({t['method']}, verified, "
+            f"min clearance {t['min_clearance']:.3g} {u}; motion in --json)"
+        )
+    return head + f"no passage found by a motion search of {t['seconds']:.1f} s (not a proof)"
+
+
+def check_summary(rep: CheckReport) -> str:
+    """Plain-text result of a check."""
+    r, u = rep.result, rep.units
+    holes = ", ".join(f"{h['area']:.4g} {u}²" for h in rep.holes)
+    lines = [
+        f"shape {rep.shape} against {rep.sieve}: {len(rep.holes)} hole(s) of area {holes}, pixel {rep.pixel_size:.4g} {u}",
+        f"result: {'PASSES' if r.passes else 'blocked'}   beta {r.beta:.4f}   protrusion {r.protrusion:.3f} {u}   "
+        f"({r.fitting_starts} start(s) fit)",
+    ]
+    if r.exact_outside_area is not None:
+        lines.append(
+            f"best pose, exact polygons: {r.exact_outside_area:.4g} {u}² of the shape's outline outside the hole"
+        )
+    if rep.fit_scale is not None:
+        lo, hi = rep.fit_bracket
+        if rep.fit_scale == 0:
+            lines.append(f"fit scale: below {hi:.4g} (blocked at every scale tried)")
+        elif math.isinf(hi):
+            lines.append(f"fit scale: at least {lo:.4g} (passed at every scale tried)")
+        else:
+            lines.append(
+                f"fit scale: {rep.fit_scale:.4g}  (passes at {lo:.4g}, blocked at {hi:.4g})"
+            )
+    t = rep.thin_plate
+    if t is not None:
+        lines.append(_check_thin_line(t, u))
+    lines.append(f"{len(rep.evaluations)} evaluation(s) in {rep.seconds:.1f} s")
+    return "\n".join(lines)
