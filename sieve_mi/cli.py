@@ -26,7 +26,8 @@ __all__ = ["Terminated", "cmd_certify", "cmd_check", "cmd_solve", "cmd_view", "m
 
 
 def _parser() -> argparse.ArgumentParser:
-    from sieve_mi.scene import Check, CheckInputs
+    from sieve_mi.game.check_settings import CheckInputs, CheckSettings
+    from sieve_mi.settings import add_options
 
     p = argparse.ArgumentParser(
         prog="sieve-mi", description="Design shape-aware sieves (Mitsuba 3 + Dr.Jit)."
@@ -74,9 +75,9 @@ def _parser() -> argparse.ArgumentParser:
         help="hole image (white = hole, black = material); its pixel size comes from the PNG's "
         "pHYs (solve's hole.png has it) unless --pixel-size is given",
     )
-    _settings(c, CheckInputs, "pixel_size", "axis", "scale")
-    _settings(c, Check)
-    _settings(c, CheckInputs, "units")
+    add_options(c, CheckInputs, "pixel_size", "axis", "scale")
+    add_options(c, CheckSettings)
+    add_options(c, CheckInputs, "units")
     c.add_argument(
         "--variant",
         help="Mitsuba variant: llvm_ad_mono (CPU) or cuda_ad_mono (GPU); default $SIEVE_MI_VARIANT or llvm_ad_mono",
@@ -113,92 +114,6 @@ def _threads_option(parser) -> None:
         )
 
 
-def _settings(parser, cls: type, *names: str, flags: dict | None = None) -> None:
-    """Add the options of fields ``names`` (default: every field) of a settings class.
-
-    Parameters
-    ----------
-    parser : argparse.ArgumentParser
-        A command's parser.
-    cls : type
-        A dataclass of :mod:`sieve_mi.scene` (:class:`~sieve_mi.scene.Check`, ...).
-    names : str
-        Its fields to add, in this order.
-    flags : dict of str to str, optional
-        An option's name where it is not ``--`` and the field's name with dashes.
-
-    Notes
-    -----
-    Everything comes from the field: the option's default, its help (the Spec's meaning, unit,
-    accepted values and default) and its type; a bool field that defaults to true is turned off
-    by ``--no-NAME``. The value lands in ``args.<field name>`` and is checked after parsing
-    (:func:`_check_settings`) exactly as a scene file's key is.
-    """
-    from dataclasses import MISSING, fields
-
-    from sieve_mi.scene import field_of, option_help, spec_of, value_types
-
-    for name in names or [f.name for f in fields(cls)]:
-        f, kind = field_of(cls, name), value_types(cls)[name]
-        spec, default = spec_of(f), (None if f.default is MISSING else f.default)
-        flag = (flags or {}).get(name, "--" + name.replace("_", "-"))
-        if kind is bool:
-            off = default is True
-            parser.add_argument(
-                f"--no-{flag[2:]}" if off else flag,
-                dest=name,
-                action="store_false" if off else "store_true",
-                help=f"turn {'off' if off else 'on'} {spec.doc}".replace("%", "%%"),
-            )
-        else:
-            choices = "{" + ",".join(spec.choices) + "}" if spec.choices else None
-            parser.add_argument(
-                flag,
-                dest=name,
-                type=_given_as(kind),
-                default=default,
-                metavar=choices or flag[2:].upper().replace("-", "_"),
-                help=option_help(cls, f, default),
-            )
-        options = parser.get_default("setting_options") or ()
-        parser.set_defaults(setting_options=(*options, (flag, cls, name)))
-
-
-def _given_as(kind: type):
-    """argparse's ``type`` for a setting of ``kind``: the text as an int or float where it is
-    one (``2.0`` for an int as a float, which is 2, as in a scene file), else the text itself,
-    which :func:`_check_settings` then refuses in one line."""
-    if kind not in (int, float):
-        return None
-
-    def convert(text: str):
-        for read in (kind, float):
-            try:
-                return read(text)
-            except ValueError:
-                pass
-        return text
-
-    convert.__name__ = kind.__name__
-    return convert
-
-
-def _check_settings(args) -> None:
-    """Check every option that :func:`_settings` added, as a scene file's keys are checked.
-
-    Raises
-    ------
-    SieveError
-        The first bad value, in one line naming the command and the option.
-    """
-    from sieve_mi.scene import read_value
-
-    for flag, cls, name in getattr(args, "setting_options", ()):
-        value = getattr(args, name)
-        if value is not None:
-            setattr(args, name, read_value(cls, name, value, args.command, flag))
-
-
 def _skip_flags(s) -> None:
     """``solve``'s flags that skip an optional output."""
     s.add_argument("--no-figure", action="store_true", help="skip the Mitsuba rendering figure.png")
@@ -215,7 +130,9 @@ def _view_parser(sub) -> None:
 
 def _certify_parser(sub) -> None:
     """``sieve-mi certify SHAPE (--sieve PLATE | --hole SVG)`` and ``sieve-mi certify --replay CERT``."""
-    from sieve_mi.scene import CheckInputs, Verdict
+    from sieve_mi.game.check_settings import CheckInputs
+    from sieve_mi.scene import Verdict
+    from sieve_mi.settings import add_options
 
     k = sub.add_parser(
         "certify",
@@ -226,8 +143,8 @@ def _certify_parser(sub) -> None:
     src.add_argument("--sieve", help="sieve plate mesh; its through-holes along --axis are used")
     src.add_argument("--hole", help="hole outline as SVG (the hole.svg that solve writes)")
     src.add_argument("--replay", help="re-check a certificate file independently")
-    _settings(k, CheckInputs, "axis", "scale")
-    _settings(k, Verdict, "certify_budget", flags={"certify_budget": "--budget"})
+    add_options(k, CheckInputs, "axis", "scale")
+    add_options(k, Verdict, "certify_budget", flags={"certify_budget": "--budget"})
     k.add_argument("--certificate", help="write the certificate (JSON) to this file")
     k.add_argument("--json", action="store_true", help="print the result as JSON")
     k.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -236,8 +153,9 @@ def _certify_parser(sub) -> None:
 def cmd_solve(args) -> int:
     from sieve_mi import api as sm
     from sieve_mi.backend import process_age
+    from sieve_mi.outputs.console import summary_table
     from sieve_mi.outputs.outdir import validate
-    from sieve_mi.outputs.report import input_paths, summary_table
+    from sieve_mi.outputs.report import input_paths
 
     scene = sm.load_scene(args.scene)
     out_dir = args.out or os.path.join("out", scene.name)
@@ -293,9 +211,10 @@ def cmd_check(args) -> int:
     from dataclasses import fields
 
     from sieve_mi.backend import use_variant
-    from sieve_mi.game.check import CheckSettings, check, summary
+    from sieve_mi.game.check import CheckSettings, check
     from sieve_mi.geometry.meshes import load_shape
     from sieve_mi.outputs import outdir
+    from sieve_mi.outputs.console import check_summary
 
     if args.hole is not None and args.pixel_size is None:
         args.pixel_size = _recorded_pixel_size(args.hole, args.units)
@@ -322,10 +241,10 @@ def cmd_check(args) -> int:
         with outdir.writing(args.out, command="check", inputs=inputs) as tmp:
             with open(os.path.join(tmp, "report.json"), "w") as fh:
                 fh.write(text + "\n")
-            holes = check_holes(args.sieve, args.axis, args.hole, args.pixel_size)
+            holes = check_holes(rep.sieve_holes)
             with open(os.path.join(tmp, "report.html"), "w", encoding="utf-8") as fh:
                 fh.write(render_check_page(json.loads(text), shape, holes))
-    print(text if args.json else summary(rep))
+    print(text if args.json else check_summary(rep))
     if args.out is not None:
         print(f"outputs: {args.out}/", file=sys.stderr if args.json else sys.stdout)
     return EXIT_OK if rep.passes else EXIT_NO
@@ -429,11 +348,11 @@ def cmd_certify(args) -> int:
     inputs = (args.shape, args.sieve, args.hole)
     if args.certificate is not None:
         writable_certificate(args.certificate, inputs)  # before any work, and again when written
-    from sieve_mi.game.check import holes_from_mesh
     from sieve_mi.geometry.meshes import load_shape
+    from sieve_mi.geometry.sieve import plate_holes
 
     shape = load_shape(args.shape, scale=args.scale)
-    holes = holes_from_mesh(args.sieve, args.axis) if args.sieve else [read_svg_hole(args.hole)]
+    holes = plate_holes(args.sieve, args.axis) if args.sieve else [read_svg_hole(args.hole)]
     result = certify(shape, holes, budget_s=args.certify_budget, scale=args.scale)
     if args.certificate is not None:
         result.write_certificate(args.certificate, inputs)
@@ -459,8 +378,9 @@ def _certify_summary(name: str, r) -> str:
 def _dispatch(args) -> int:
     """Apply the shared options, then run ``args.command``; its exit code."""
     from sieve_mi.backend import apply_threads, set_threads
+    from sieve_mi.settings import check_options
 
-    _check_settings(args)
+    check_options(args)
     if args.threads is not None:
         set_threads(args.threads)
     else:

@@ -17,8 +17,14 @@ scoring
     Raster scores of poses against holes, and B's silhouettes in a mask window.
 exact
     Exact scores and polish of B's poses against the printed polygon H.
+frames
+    The raster frames of the holes, and the separate layout (A's holes side by side).
+candidates
+    Where one more A could sit in a hole: candidate placements found by FFT.
+placement
+    One more A placed into a hole: eq. 14, screening, a swarm, a long re-ranking.
 layout
-    Frames, and several A in one hole (merged) or side by side (separate).
+    Several A merged into one hole: the sequential scheme and its retries.
 verdict
     The long re-run of player B against the exact polygon that declares the winner.
 solver
@@ -27,15 +33,21 @@ result
     :class:`~sieve_mi.game.result.Result`: what a solve produced.
 check
     ``sieve-mi check``: do given parts pass a given plate or hole image?
+check_settings
+    The settings of ``sieve-mi check`` (its search, how it reads its inputs), declared once.
 """
 
 __all__ = [
     "attack",
+    "candidates",
     "check",
+    "check_settings",
     "descent",
     "exact",
+    "frames",
     "frozen",
     "layout",
+    "placement",
     "player_a",
     "player_b",
     "result",

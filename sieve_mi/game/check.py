@@ -7,8 +7,9 @@ Works on any sieve, not only those sieve-mi made:
   is the plate's filled outline minus the union of its projected triangles (manifold3d). Each
   connected free region is one hole; this is exact for any plate, also for holes that narrow
   inside the plate (a shape moving straight along the axis must clear the narrowest part).
+  :func:`sieve_mi.geometry.sieve.read_plate_holes` reads them, once.
 * ``--hole hole.png [--pixel-size MM]``: a binary image (white or opaque = hole), square pixels of the
-  given size in scene units, +y up.
+  given size in scene units, +y up (:func:`sieve_mi.geometry.hole_image.read_image_holes`).
 
 Player B then tries to fit the shape through each hole from many random starts (the same batched
 Adam as the verdict of ``solve``); the answer is *passes* when some pose has beta = 0 (binary
@@ -23,46 +24,37 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import manifold3d
 import numpy as np
 
 from sieve_mi.errors import SieveError
+from sieve_mi.game.check_settings import AXIS_NAMES, CheckInputs, CheckSettings
 from sieve_mi.game.exact import CANDIDATES, exact_rescore
 from sieve_mi.game.verdict import REACH
-from sieve_mi.geometry.hole import Hole, split_pieces
+from sieve_mi.geometry.hole import Hole
+from sieve_mi.geometry.hole_image import read_image_holes
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import placed_vertices, projection, union
 from sieve_mi.geometry.pixels import image_pixel_size
-from sieve_mi.geometry.raster import Frame
-from sieve_mi.geometry.sieve import PlateReading, plate_holes, read_plate
-from sieve_mi.scene import AXIS_NAMES, Check, CheckInputs, read_value, shown
+from sieve_mi.geometry.sieve import PlateReading, SieveHoles, read_plate_holes
+from sieve_mi.settings import read_value, shown
 
 __all__ = [
     "AXES",
     "CheckReport",
-    "CheckSettings",
+    "CheckSettings",  # sieve_mi.game.check_settings's, imported from here (docs/api.md)
     "ShapeCheck",
     "as_shape",
     "attempt",
     "check",
     "fit_scale",
-    "frame_for_image",
-    "frame_for_polygons",
-    "holes_from_mesh",
-    "mask_from_image",
     "scaled",
-    "summary",
 ]
 
 #: The index of each plate axis (``--axis``) among x, y, z.
 AXES = {name: i for i, name in enumerate(AXIS_NAMES)}
-
-#: Player B's budget for one check (the verdict's defaults) and the fit-scale search: the
-#: settings of ``sieve-mi check``, declared once (defaults, ranges, meanings) as
-#: :class:`sieve_mi.scene.Check`, whose ``--options`` the command line is built from.
-CheckSettings = Check
 
 
 @dataclass
@@ -97,6 +89,8 @@ class CheckReport:
     #: With a plate mesh: the thin-plate answer at the plate's measured thickness
     #: (:meth:`sieve_mi.motion.ThinPlate.to_dict`).
     thin_plate: dict | None = None
+    #: The sieve's holes as the check read them (for its page); not part of :meth:`to_dict`.
+    sieve_holes: SieveHoles | None = field(default=None, repr=False, compare=False)
 
     @property
     def passes(self) -> bool:
@@ -106,116 +100,10 @@ class CheckReport:
         return self.result.passes or thin
 
     def to_dict(self) -> dict:
-        d = asdict(self)
+        d = asdict(replace(self, sieve_holes=None))
+        del d["sieve_holes"]
         d["passes"] = self.passes
         return d
-
-
-# ------------------------------------------------------------------------------------------------
-# Holes
-# ------------------------------------------------------------------------------------------------
-
-
-def holes_from_mesh(path: str, axis: str = "z") -> list[manifold3d.CrossSection]:
-    """The through-holes of a plate mesh along ``axis``, each as an exact outline (scene units):
-    :func:`sieve_mi.geometry.sieve.plate_holes` (any mesh; no thickness is measured).
-
-    Raises
-    ------
-    SieveError
-        If the mesh cannot be read or has no through-hole along the axis.
-    """
-    return plate_holes(path, axis)
-
-
-def mask_from_image(path: str) -> np.ndarray:
-    """A binary hole mask from an image: white (or opaque, for images with alpha) pixels are the hole."""
-    import os
-
-    from PIL import Image, UnidentifiedImageError
-
-    if not os.path.isfile(path):
-        raise SieveError(f"{path}: hole image not found")
-    try:
-        if path.lower().endswith(".exr"):
-            import mitsuba as mi
-
-            from sieve_mi.backend import bitmap_threads
-
-            with bitmap_threads():
-                img = np.asarray(mi.Bitmap(path), dtype=np.float64)
-            img = img[..., 0] if img.ndim == 3 else img
-            mask = img > 0.5
-        else:
-            with Image.open(path) as im:
-                mask = _image_mask(im)
-    except (UnidentifiedImageError, OSError, RuntimeError) as exc:
-        raise SieveError(
-            f"{path}: could not be read as an image ({exc.__class__.__name__})"
-        ) from None
-    if not mask.any():
-        raise SieveError(f"{path}: no hole pixels (the hole must be white on black)")
-    if mask.all():
-        raise SieveError(
-            f"{path}: every pixel is hole; the hole must be white on a black background"
-        )
-    return mask
-
-
-def _image_mask(im) -> np.ndarray:
-    """The hole pixels of a PIL image, at the image's own bit depth.
-
-    Greyscale of any depth (8 or 16 bits, integer or float): pixels above half the range
-    (255, 65535 or 1.0) are hole. With transparency that is used: the opaque pixels are the hole,
-    or, where the opaque pixels hold both dark and light ones, the opaque light pixels.
-    """
-    if im.mode in ("RGBA", "LA", "PA") or "transparency" in im.info:
-        rgba = np.asarray(im.convert("RGBA"))
-        opaque = rgba[..., 3] > 127
-        if (rgba[..., 3] < 255).any():
-            light = np.asarray(im.convert("L")) > 127
-            both = (light & opaque).any() and (~light & opaque).any()
-            return opaque & light if both else opaque
-    if im.mode.startswith("I;16") or im.mode in ("I", "F"):
-        grey = np.asarray(im, dtype=np.float64)
-        top = 1.0 if im.mode == "F" else (255.0 if grey.max() <= 255 else 65535.0)
-        return grey > top / 2
-    return np.asarray(im.convert("L")) > 127
-
-
-def frame_for_polygons(
-    holes: list[manifold3d.CrossSection], resolution: int
-) -> tuple[Frame, np.ndarray]:
-    """A frame centred on the holes' bounding box, covering them with a margin.
-
-    Returns
-    -------
-    frame : Frame
-    centre : (2,) ndarray
-        The bounding-box centre in the sieve's coordinates (subtracted from the outlines).
-    """
-    lo = np.min([h.bounds()[:2] for h in holes], axis=0)
-    hi = np.max([h.bounds()[2:] for h in holes], axis=0)
-    centre = 0.5 * (np.asarray(lo) + np.asarray(hi))
-    radius = 0.5 * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
-    return Frame.covering(radius * 1.02, resolution, margin_px=4.0), centre
-
-
-def frame_for_image(mask: np.ndarray, pixel_size: float) -> tuple[Frame, np.ndarray]:
-    """Pad an image mask to a square frame with pixel size ``pixel_size``, hole centred.
-
-    Returns
-    -------
-    frame : Frame
-    mask : (N, N) bool ndarray
-    """
-    rows, cols = np.nonzero(mask)
-    crop = mask[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
-    n = max(crop.shape) + 8
-    out = np.zeros((n, n), dtype=bool)
-    r0, c0 = (n - crop.shape[0]) // 2, (n - crop.shape[1]) // 2
-    out[r0 : r0 + crop.shape[0], c0 : c0 + crop.shape[1]] = crop
-    return Frame(n, 0.5 * n * pixel_size), out
 
 
 # ------------------------------------------------------------------------------------------------
@@ -397,12 +285,10 @@ def check(
     shape = as_shape(shape)
     t0 = time.perf_counter()
     if sieve is not None:
-        holes, outlines, centre, info, frame, plate = _plate_holes(sieve, axis, settings.resolution)
-        source = sieve
+        given = read_plate_holes(sieve, axis, settings.resolution)
     else:
-        holes, frame = _image_holes(image, pixel_size)
-        outlines, centre, source = None, np.zeros(2), image
-        info = [{"area": h.area} for h in holes]
+        given = read_image_holes(image, pixel_size)
+    holes, outlines, centre = given.holes, given.outlines, given.centre
     # Poses are reported in the sieve's own coordinates.
     evaluations: list[ShapeCheck] = []
 
@@ -417,14 +303,15 @@ def check(
     first = evaluate(1.0)
     rep = CheckReport(
         shape=shape.path or shape.name,
-        sieve=source,
+        sieve=given.source,
         units=units,
-        holes=info,
-        pixel_size=frame.pixel_size,
+        holes=given.info,
+        pixel_size=given.frame.pixel_size,
         result=first,
+        sieve_holes=given,
     )
-    if sieve is not None:
-        rep.thin_plate = _thin_plate(shape, plate, outlines, centre, first, settings, units)
+    if given.plate is not None:
+        rep.thin_plate = _thin_plate(shape, given.plate, outlines, centre, first, settings, units)
     if settings.fit:
         rep.fit_scale, rep.fit_bracket = fit_scale(evaluate, first, settings.fit_tolerance)
     rep.evaluations = evaluations
@@ -467,19 +354,6 @@ def _arguments(sieve, image, axis, pixel_size, units, settings, progress) -> tup
     return sieve, image, axis, pixel_size, units, settings
 
 
-def plate_thickness(path: str, axis: str = "z") -> float:
-    """A plate mesh's thickness where its holes are, scene units: the slab over which every
-    section along ``axis`` is the whole plate around the holes (a lower bound of the material
-    there; a post or a raised rim adds nothing), :func:`sieve_mi.geometry.sieve.read_plate`.
-
-    Raises
-    ------
-    SieveError
-        A flat or open plate, a tilted one, or one with no such slab.
-    """
-    return read_plate(path, axis).thickness
-
-
 def _thin_plate(
     shape: Shape, plate: PlateReading, outlines, centre, first, settings, units
 ) -> dict:
@@ -518,93 +392,3 @@ def as_shape(part) -> Shape:
             f"check: expected a mesh file path, a trimesh mesh or a Shape, got {part!r:.60}"
         )
     return shape_from_trimesh(part, name=getattr(part, "metadata", {}).get("name", "part"))
-
-
-def _plate_holes(sieve: str, axis: str, resolution: int):
-    """The through-holes of plate mesh ``sieve`` along ``axis``, centred on a common frame.
-
-    Returns
-    -------
-    holes : list of Hole
-    outlines : list of CrossSection
-        Exact hole outlines, shifted by ``-centre``.
-    centre : (2,) ndarray
-        The plate coordinates of the frame's centre.
-    info : list of dict
-        Per hole its area and centre (plate coordinates), for the report.
-    frame : Frame
-    plate : PlateReading
-        The plate's slab (its thickness where the holes are) and mesh.
-
-    Raises
-    ------
-    SieveError
-        A plate with no through-hole, or whose thickness cannot be measured
-        (:func:`sieve_mi.geometry.sieve.read_plate`).
-    """
-    plate = read_plate(sieve, axis)  # the plate's holes and thickness, read once
-    outlines = plate.holes
-    frame, centre = frame_for_polygons(outlines, resolution)
-    info = []
-    for o in outlines:
-        lo, hi = np.asarray(o.bounds()[:2]), np.asarray(o.bounds()[2:])
-        info.append({"area": float(o.area()), "centre": [float(c) for c in (lo + hi) / 2]})
-    outlines = [o.translate([-centre[0], -centre[1]]) for o in outlines]
-    holes = [Hole.from_outline(o, frame) for o in outlines]
-    return holes, outlines, centre, info, frame, plate
-
-
-def _image_holes(image: str, pixel_size: float | None):
-    """The holes (8-connected white pieces) of a hole image with ``pixel_size``, and the frame."""
-    if pixel_size is None or not (pixel_size > 0 and math.isfinite(pixel_size)):
-        raise SieveError(
-            f"--pixel-size {pixel_size}: give the hole image's pixel size, a positive number in scene units"
-        )
-    frame, mask = frame_for_image(mask_from_image(image), pixel_size)
-    return [Hole.from_mask(m, frame) for m in split_pieces(mask)], frame
-
-
-def _thin_line(t: dict, u: str) -> str:
-    """The summary's line on the thin-plate answer."""
-    note = t.get("plate", {}).get("note")
-    head = (note + "\n" if note else "") + (
-        f"plate {t['thickness']:.4g} {u} thick, part diameter {t['diameter']:.4g} {u}: "
-    )
-    if t["status"] == "safe":
-        return head + f"safe (the verdict above holds on this plate; by its {t['by']})"
-    if t["status"] == "passage":
-        return head + (
-            f"PASSES by tilting and turning ({t['method']}, verified, "
-            f"min clearance {t['min_clearance']:.3g} {u}; motion in --json)"
-        )
-    return head + f"no passage found by a motion search of {t['seconds']:.1f} s (not a proof)"
-
-
-def summary(rep: CheckReport) -> str:
-    """Plain-text result of a check."""
-    r, u = rep.result, rep.units
-    holes = ", ".join(f"{h['area']:.4g} {u}²" for h in rep.holes)
-    lines = [
-        f"shape {rep.shape} against {rep.sieve}: {len(rep.holes)} hole(s) of area {holes}, pixel {rep.pixel_size:.4g} {u}",
-        f"result: {'PASSES' if r.passes else 'blocked'}   beta {r.beta:.4f}   protrusion {r.protrusion:.3f} {u}   "
-        f"({r.fitting_starts} start(s) fit)",
-    ]
-    if r.exact_outside_area is not None:
-        lines.append(
-            f"best pose, exact polygons: {r.exact_outside_area:.4g} {u}² of the shape's outline outside the hole"
-        )
-    if rep.fit_scale is not None:
-        lo, hi = rep.fit_bracket
-        if rep.fit_scale == 0:
-            lines.append(f"fit scale: below {hi:.4g} (blocked at every scale tried)")
-        elif math.isinf(hi):
-            lines.append(f"fit scale: at least {lo:.4g} (passed at every scale tried)")
-        else:
-            lines.append(
-                f"fit scale: {rep.fit_scale:.4g}  (passes at {lo:.4g}, blocked at {hi:.4g})"
-            )
-    t = rep.thin_plate
-    if t is not None:
-        lines.append(_thin_line(t, u))
-    lines.append(f"{len(rep.evaluations)} evaluation(s) in {rep.seconds:.1f} s")
-    return "\n".join(lines)

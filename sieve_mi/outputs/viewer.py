@@ -4,9 +4,11 @@ The page holds everything it needs: its style sheet and script (the package's ``
 a small hand-written WebGL viewer, no third-party code), the passage scene of
 :mod:`sieve_mi.outputs.passage` as JSON (mesh positions as base64 little-endian float32, faces as uint32;
 meshes over :data:`DISPLAY_FACES` triangles simplified for display, :func:`display_mesh`),
-and the 2D hole view and the convergence plot as inline SVG. It makes no network request while it
-is viewed: its Content-Security-Policy allows only its own inline script and style and images from
-its folder (``passage.gif``); links to the other output files are relative.
+and the 2D hole view and the convergence plot as inline SVG (:mod:`sieve_mi.outputs.svg`). It
+makes no network request while it is viewed: its Content-Security-Policy allows only its own
+inline script and style and images from its folder (``passage.gif``); links to the other output
+files are relative. The viewer owns the page: a later command adds its own card to a written page
+with :func:`insert_card` (``shake`` its "Shake trials" card), never by editing the HTML itself.
 
 What it shows: a 3D view (orbit, zoom, touch) of the plate with every A sliding down through the
 hole and every B's best attempt coming to rest on the plate, with per-shape toggles; the exact
@@ -25,34 +27,32 @@ from __future__ import annotations
 import base64
 import html
 import json
-import math
 import os
 import re
 from importlib import resources
 
 import numpy as np
 
-from sieve_mi.outputs.palette import PALETTE, block_colour, css_variables, hex_colour
+from sieve_mi.outputs.palette import PALETTE, css_variables
+from sieve_mi.outputs.svg import convergence_svg, hole_svg, outline_svg
 
 __all__ = [
-    "scale_bar",
     "script_json",
     "COLOURS",
     "DISPLAY_FACES",
     "check_holes",
     "check_table",
-    "convergence_svg",
     "decode",
     "display_mesh",
-    "hole_svg",
     "image_outline",
-    "outline_svg",
+    "insert_card",
     "page_files",
     "render_check_page",
     "render_page",
     "result_table",
     "scene_data",
     "timings_table",
+    "with_card",
     "write_page",
 ]
 
@@ -214,128 +214,6 @@ def scene_data(passage, report: dict) -> dict:
     }
 
 
-def _path_d(section) -> str:
-    """SVG path data of a CrossSection's contours, y flipped (SVG's y points down)."""
-    d = []
-    for c in section.to_polygons():
-        pts = " L ".join(f"{x:.6g} {-y:.6g}" for x, y in np.asarray(c, dtype=np.float64))
-        if pts:
-            d.append(f"M {pts} Z")
-    return " ".join(d)
-
-
-def hole_svg(result, blocked: list[bool]) -> str:
-    """The 2D view: the exact hole (white, even-odd), every A's outline and every B's best attempt.
-
-    Coordinates are scene units with y flipped; elements carry ``data-id`` (``hole``, ``a<i>``,
-    ``b<j>``) so the page's toggles can hide them.
-    """
-    hole, a_sections, b_sections = result.overlay_sections()
-    half = result.hole.frame.half_extent
-    return outline_svg([hole], a_sections, b_sections, blocked, half, result.scene.units)
-
-
-def outline_svg(
-    holes: list,
-    a_sections: list,
-    b_sections: list,
-    blocked: list[bool],
-    half: float,
-    units: str = "mm",
-) -> str:
-    """An inline SVG of hole outlines, dashed A outlines and filled B attempts (CrossSections).
-
-    Parameters
-    ----------
-    holes, a_sections, b_sections : list of manifold3d.CrossSection
-        Scene units, xy; the first hole gets ``data-id="hole"``, the others ``hole<k>``.
-    blocked : list of bool
-        Per B: red (blocked) or orange (gets through).
-    half : float
-        Least half-width of the view, scene units (grown to hold every hole and B).
-    units : str
-        The scale bar's label.
-    """
-    boxes = [np.asarray(s.bounds(), dtype=float) for s in [*holes, *b_sections] if not s.is_empty()]
-    lim = max([half] + [float(np.abs(b).max()) for b in boxes]) * 1.05
-    stroke = lim / 250
-    parts = [
-        f'<svg xmlns="http://www.w3.org/2000/svg" id="hole2d" viewBox="{-lim:.6g} {-lim:.6g} '
-        f'{2 * lim:.6g} {2 * lim:.6g}" data-lim="{lim:.6g}">',
-        f'<rect x="{-lim:.6g}" y="{-lim:.6g}" width="{2 * lim:.6g}" height="{2 * lim:.6g}" fill="{hex_colour("material")}"/>',
-    ]
-    for k, hole in enumerate(holes):
-        parts.append(
-            f'<path data-id="hole{k or ""}" fill="{hex_colour("hole")}" fill-rule="evenodd" '
-            f'stroke="{hex_colour("edge")}" '
-            f'stroke-width="{stroke:.3g}" d="{_path_d(hole)}"/>'
-        )
-    for j, sec in enumerate(b_sections):
-        colour = hex_colour(block_colour(blocked[j]))
-        parts.append(
-            f'<path data-id="b{j}" fill="{colour}" fill-opacity="0.5" fill-rule="nonzero" '
-            f'stroke="{colour}" stroke-width="{stroke:.3g}" d="{_path_d(sec)}"/>'
-        )
-    for i, sec in enumerate(a_sections):
-        parts.append(
-            f'<path data-id="a{i}" fill="none" stroke="{hex_colour("pass")}" '
-            f'stroke-width="{2 * stroke:.3g}" stroke-dasharray="{6 * stroke:.3g} {3 * stroke:.3g}" '
-            f'd="{_path_d(sec)}"/>'
-        )
-    parts.append(scale_bar(lim, units))
-    parts.append("</svg>")
-    return "\n".join(parts)
-
-
-def scale_bar(lim: float, units: str) -> str:
-    """A scale bar in the bottom left of a view ``[-lim, lim]²`` (SVG units = scene units): a
-    round length (1, 2 or 5 × 10^k) about a fifth of the view, labelled, with ``data-length``."""
-    target = 0.4 * lim
-    k = 10.0 ** math.floor(math.log10(target))
-    length = max(m * k for m in (1, 2, 5) if m * k <= target)
-    x0, y = -0.92 * lim, 0.9 * lim
-    w, size = lim / 120, lim / 14
-    return (
-        f'<g id="scalebar" data-length="{length:g}"><line x1="{x0:.6g}" y1="{y:.6g}" '
-        f'x2="{x0 + length:.6g}" y2="{y:.6g}" stroke="black" stroke-width="{w:.3g}"/>'
-        f'<text x="{x0:.6g}" y="{y - size * 0.4:.6g}" font-size="{size:.3g}" '
-        f'font-family="sans-serif">{length:g} {html.escape(units)}</text></g>'
-    )
-
-
-def convergence_svg(history: list[float]) -> str:
-    """The best game value per search iteration as an inline SVG line plot (or a note)."""
-    if not history:
-        return "<p>A's rotation was fixed: no search.</p>"
-    w, h, left, pad = 480, 260, 64, 24
-    y = np.asarray(history, dtype=np.float64)
-    lo, hi = float(y.min()), float(y.max())
-    span = hi - lo or max(abs(hi), 1.0)
-    xs = left + (w - left - pad) * np.arange(len(y)) / max(len(y) - 1, 1)
-    ys = h - 2 * pad - (h - 3 * pad) * (y - lo) / span
-    pts = " ".join(f"{a:.1f},{b:.1f}" for a, b in zip(xs, ys))
-    dots = "".join(
-        f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.5" fill="{hex_colour("curve")}"/>'
-        for a, b in zip(xs, ys)
-    )
-    levels = [(lo, h - 2 * pad)] + ([(hi, pad)] if hi > lo else [])
-    ticks = "".join(
-        f'<text x="{left - 6}" y="{yy + 4:.1f}" text-anchor="end" font-size="11">{v:.4g}</text>'
-        for v, yy in levels
-    )
-    return (
-        f'<svg xmlns="http://www.w3.org/2000/svg" class="plot" viewBox="0 0 {w} {h}" role="img" '
-        f'aria-label="convergence of A\'s search">'
-        f'<line x1="{left}" y1="{h - 2 * pad}" x2="{w - pad}" y2="{h - 2 * pad}" stroke="#444"/>'
-        f'<line x1="{left}" y1="{h - 2 * pad}" x2="{left}" y2="{pad / 2}" stroke="#444"/>'
-        f'<polyline fill="none" stroke="{hex_colour("curve")}" stroke-width="2" points="{pts}"/>{dots}{ticks}'
-        f'<text x="{(w + left) / 2}" y="{h - 8}" text-anchor="middle" font-size="12">search '
-        f"iteration (0..{len(y) - 1})</text>"
-        f'<text x="12" y="{h / 2}" font-size="12" transform="rotate(-90 12 {h / 2})" '
-        f'text-anchor="middle">best game value (min β)</text></svg>'
-    )
-
-
 def _table(rows: list[list[str]], head: list[str]) -> str:
     th = "".join(f"<th>{html.escape(c)}</th>" for c in head)
     body = "".join(
@@ -481,6 +359,40 @@ def page_files(folder: str) -> list[str]:
     return sorted(out)
 
 
+def with_card(page: str, card_id: str, card: str) -> str | None:
+    """``page`` with ``card`` (HTML) as its card ``card_id``, between the markers
+    ``<!--card_id-->`` and ``<!--/card_id-->``: in place of an earlier one, else before the
+    details section, else before ``</body>``; None when there is no such place (or an earlier
+    card is cut short: its end marker missing)."""
+    begin, end = f"<!--{card_id}-->", f"<!--/{card_id}-->"
+    start = page.find(begin)
+    if start >= 0:
+        stop = page.find(end, start + len(begin))
+        return None if stop < 0 else page[:start] + begin + card + end + page[stop + len(end) :]
+    anchor = page.find('<section class="card" id="details">')
+    if anchor < 0:
+        anchor = page.rfind("</body>")
+    return None if anchor < 0 else page[:anchor] + begin + card + end + "\n  " + page[anchor:]
+
+
+def insert_card(folder: str, card_id: str, card: str) -> tuple[str | None, str | None]:
+    """``folder``'s report.html with the card ``card_id`` put in (:func:`with_card`); or None and
+    a one-line note saying why the page is left as it is. Nothing is written: the caller writes
+    the page (:func:`sieve_mi.outputs.outdir.add_files` lists it in the folder's marker)."""
+    path = os.path.join(folder, "report.html")
+    if not os.path.lexists(path):
+        return None, f"{folder} has no report.html, so no page got {card_id}'s card"
+    try:
+        with open(path, encoding="utf-8") as fh:
+            page = fh.read()
+    except (OSError, UnicodeError) as exc:
+        return None, f"{path}: cannot be read ({exc}); it was left as it was"
+    new = with_card(page, card_id, card)
+    if new is None:
+        return None, f"{path}: has no place for {card_id}'s card (no details section, no </body>)"
+    return new, None
+
+
 # ------------------------------------------------------------------------------------------------
 # The page of ``sieve-mi check --out``
 # ------------------------------------------------------------------------------------------------
@@ -499,14 +411,18 @@ def image_outline(mask: np.ndarray, frame):
     return manifold3d.CrossSection(polys, manifold3d.FillRule.EvenOdd)
 
 
-def check_holes(sieve: str | None, axis: str, image: str | None, pixel_size: float | None) -> list:
-    """The holes a check used, as CrossSections in the coordinates its poses are reported in."""
-    from sieve_mi.game.check import frame_for_image, holes_from_mesh, mask_from_image
+def check_holes(given) -> list:
+    """The holes a check used, as CrossSections in the coordinates its poses are reported in.
 
-    if sieve is not None:
-        return holes_from_mesh(sieve, axis)
-    frame, mask = frame_for_image(mask_from_image(image), pixel_size)
-    return [image_outline(mask, frame)]
+    Parameters
+    ----------
+    given : sieve_mi.geometry.sieve.SieveHoles
+        The sieve's holes as the check read them (:attr:`sieve_mi.game.check.CheckReport.sieve_holes`):
+        a plate's exact holes, or an image's mask drawn as its outline.
+    """
+    if given.plate is not None:
+        return list(given.plate.holes)
+    return [image_outline(given.mask, given.frame)]
 
 
 def check_table(rep: dict) -> str:

@@ -346,7 +346,8 @@ def test_solve_certifies_its_blocks_and_a_passage_overrules_the_verdict(write_sc
     # (21 (|cos a| + |sin a|) <= 22). A verdict of one start and no Adam steps misses that
     # passage; certify must find it through the exact hole and hand the win to B.
     from sieve_mi.api import solve
-    from sieve_mi.outputs.report import report_dict, summary_table
+    from sieve_mi.outputs.console import summary_table
+    from sieve_mi.outputs.report import report_dict
     from sieve_mi.scene import load_scene
 
     body = """name = "t"
@@ -438,7 +439,7 @@ def test_cli_exit_codes_say_proved_passage_undecided_invalid(tmp_path):
 def test_replay_far_outside_test_agrees_with_exact_distances(nieuwland_hole):
     """The replay's k-d tree shortcut (:meth:`Hole.beyond`) decides exactly like the exact
     point-to-segment distances, also for points within a sample spacing of their bound."""
-    from sieve_mi.certify.replay import Hole
+    from sieve_mi.certify.replay_geometry import Hole
 
     hole = Hole([np.asarray(c, float) for c in nieuwland_hole.to_polygons()])
     rng = np.random.default_rng(3)
@@ -563,7 +564,7 @@ def test_first_order_radius_against_the_isotropic_one_known_answers():
 
 
 def test_replay_first_order_bound_is_its_own_and_agrees():
-    from sieve_mi.certify.replay import first_order_bounds
+    from sieve_mi.certify.replay_geometry import first_order_bounds
 
     rng = np.random.default_rng(11)
     points = rng.normal(size=(30, 3)) * 12.0

@@ -7,8 +7,9 @@ import pytest
 import trimesh
 from scipy import ndimage
 
-from sieve_mi.game.layout import _shifted, _stratified, candidate_placements, pieces
+from sieve_mi.game.candidates import _shifted, _stratified, candidate_placements
 from sieve_mi.game.player_a import PlayerA
+from sieve_mi.geometry.hole import pieces
 from sieve_mi.geometry.meshes import shape_from_trimesh
 from sieve_mi.geometry.raster import Frame
 
@@ -86,7 +87,7 @@ def test_alternative_rotations_are_distinct_and_good():
 
 
 def test_merge_hint_only_when_each_shape_alone_blocked():
-    from sieve_mi.outputs.report import merge_hint, summary_table
+    from sieve_mi.outputs.console import merge_hint, summary_table
 
     report = {
         "winner": "B",

@@ -18,9 +18,11 @@ import pytest
 import trimesh
 
 from sieve_mi.errors import SieveError
-from sieve_mi.game.check import CheckSettings, check, plate_thickness, summary
+from sieve_mi.game.check import CheckSettings, check
 from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.sieve import read_plate
 from sieve_mi.motion import thin_plate
+from sieve_mi.outputs.console import check_summary
 from sieve_mi.testing import shapes
 
 
@@ -41,9 +43,9 @@ def _check(*args):
 
 
 def test_plate_thickness_is_measured_along_the_axis_where_the_holes_are(tmp_path):
-    assert plate_thickness(_plate(tmp_path / "p.stl", 1.5)) == pytest.approx(1.5)
+    assert read_plate(_plate(tmp_path / "p.stl", 1.5)).thickness == pytest.approx(1.5)
     with pytest.raises(SieveError, match="no through-hole along x"):  # not its 60 mm width
-        plate_thickness(_plate(tmp_path / "q.stl", 1.5), "x")
+        read_plate(_plate(tmp_path / "q.stl", 1.5), "x")
 
 
 def _with_post(path) -> str:
@@ -69,7 +71,7 @@ def test_a_post_does_not_make_a_thin_sheet_safe(tmp_path):
     note = "plate is not a uniform slab: 2 mm where the holes are, 62 mm overall; proofs use 2 mm"
     assert thin["plate"]["note"] == note
     assert thin["plate"]["overall"] == pytest.approx(62.0) and not thin["plate"]["uniform"]
-    assert note in summary(rep).splitlines()
+    assert note in check_summary(rep).splitlines()
     assert rep.result.passes is False and rep.passes == (thin["status"] == "passage")
     if thin["status"] == "passage":
         assert thin["verified_on"] == "plate mesh"
