@@ -18,12 +18,49 @@ from sieve_mi.geometry.outline import is_closed, silhouette
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.scene import Scene
 
-__all__ = ["BlockAttempt", "Result"]
+__all__ = ["BlockAttempt", "Result", "is_blocked"]
+
+
+def is_blocked(attack_blocked, certification=None, thin_plate=None) -> bool:
+    """Whether a shape of B is blocked: the one rule every verdict, report and picture uses.
+
+    A B is blocked when the verdict's attack on the exact printed hole left it sticking out
+    (``attack_blocked``), certify found no pose that passes the exact hole, and the thin-plate
+    motion search found no verified passage through the plate. Each later stage can only turn
+    "blocked" into "passes", never the other way.
+
+    Parameters
+    ----------
+    attack_blocked : bool
+        The verdict's answer (:meth:`sieve_mi.game.attack.Attack.blocked`).
+    certification : Certification, optional
+        The proof attempt against the exact hole (its ``status``).
+    thin_plate : ThinPlate, optional
+        The motion search through a plate thinner than the B (its ``status``).
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as S
+    >>> is_blocked(True), is_blocked(True, S(status="proved")), is_blocked(False)
+    (True, True, False)
+    >>> is_blocked(True, S(status="passage")), is_blocked(True, None, S(status="passage"))
+    (False, False)
+    """
+    passage = any(
+        x is not None and getattr(x, "status", None) == "passage"
+        for x in (certification, thin_plate)
+    )
+    return bool(attack_blocked) and not passage
 
 
 @dataclass
 class BlockAttempt:
-    """One shape of B in the verdict: its best attempt against the exact hole.
+    """One shape of B in the verdict: its best attempt against the exact hole, its proof and
+    its thin-plate answer, and whether it is blocked after all (:func:`is_blocked`).
 
     Attributes
     ----------
@@ -37,6 +74,10 @@ class BlockAttempt:
         (w, x, y, z).
     translation : (2,) ndarray
         Scene units, in the hole's frame.
+    certification : Certification or None
+        certify's answer against the exact hole (``[verdict] certify``).
+    thin_plate : ThinPlate or None
+        The motion search through a plate thinner than the shape, where one ran.
     """
 
     name: str
@@ -45,6 +86,8 @@ class BlockAttempt:
     protrusion: float
     rotation: np.ndarray
     translation: np.ndarray
+    certification: object = None
+    thin_plate: object = None
 
 
 @dataclass
@@ -54,8 +97,6 @@ class Result:
     Attributes
     ----------
     scene : Scene
-    winner : {"A", "B"}
-        "A" iff every shape to block is blocked after the verdict.
     pass_shapes, block_shapes : list of Shape
     pass_quats : (m, 4) ndarray
         Each A's rotation (w, x, y, z).
@@ -98,7 +139,6 @@ class Result:
     """
 
     scene: Scene
-    winner: str
     pass_shapes: list[Shape]
     block_shapes: list[Shape]
     pass_quats: np.ndarray
@@ -131,26 +171,32 @@ class Result:
 
     @property
     def blocks(self) -> list[BlockAttempt]:
-        """Per shape of B, its best attempt in the verdict (exact β and protrusion)."""
+        """Per shape of B, its record: the verdict's best attempt (exact β and protrusion), its
+        certification and thin-plate answer, and whether it is blocked (:func:`is_blocked`)."""
         blocked = self.attack.blocked()[0]
         out = []
         for j, shape in enumerate(self.block_shapes):
             c = self.certified[j] if j < len(self.certified) else None
             thin = self.sheet.per_block[j] if self.sheet is not None else None
-            passage = (c is not None and c.status == "passage") or (
-                thin is not None and thin.status == "passage"
-            )
             out.append(
                 BlockAttempt(
                     name=shape.name,
-                    blocked=bool(blocked[j]) and not passage,
+                    blocked=is_blocked(blocked[j], c, thin),
                     beta=float(self.attack.beta[0, j]),
                     protrusion=float(self.attack.protrusion[0, j]),
                     rotation=self.attack.quats[0, j].copy(),
                     translation=self.attack.trans[0, j].copy(),
+                    certification=c,
+                    thin_plate=thin,
                 )
             )
         return out
+
+    @property
+    def winner(self) -> str:
+        """ "A" iff every shape of B is blocked after the verdict, certify and the thin-plate
+        searches (:func:`is_blocked`), else "B"."""
+        return "A" if all(b.blocked for b in self.blocks) else "B"
 
     def overlay_sections(self) -> tuple:
         """The exact polygons of a picture of the result, scene units.

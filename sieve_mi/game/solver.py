@@ -19,7 +19,7 @@ from sieve_mi.game.frames import hole_frame, union_frame
 from sieve_mi.game.layout import alternative_rotations, merge
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
-from sieve_mi.game.result import Result
+from sieve_mi.game.result import Result, is_blocked
 from sieve_mi.game.scoring import mask_window
 from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved
 from sieve_mi.game.sheet import plate_sheet
@@ -279,14 +279,12 @@ def solve(
     )
     timings["search_s"] = time.perf_counter() - t0
     watch.mark("search")
-    v, certified, winner = _verdict(scene, passes, blocks, sure, found, rng, progress, timings,
-                                    watch)  # fmt: skip
-    sheet, winner = _sheet(scene, passes, blocks, v, certified, winner, seed, progress, timings)
+    v, certified = _verdict(scene, passes, blocks, sure, found, rng, progress, timings, watch)
+    sheet = _sheet(scene, passes, blocks, v, certified, seed, progress, timings)
     watch.mark("thin")
     watch.stop()
     return Result(
         scene=scene,
-        winner=winner,
         pass_shapes=passes,
         block_shapes=blocks,
         pass_quats=found.quats,
@@ -315,7 +313,7 @@ def solve(
 def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progress, timings,
              watch):  # fmt: skip
     """The verdict on the B not proved before the game, completed with those that were, and the
-    optional certification: (judgement, certifications or [], winner); ``timings`` gains
+    optional certification: (judgement, certifications or []); ``timings`` gains
     ``verdict_s`` (and ``certify_s``), the :class:`~sieve_mi.backend.MemoryWatch` ``watch`` the
     stages "verdict" (and "certify")."""
     t1 = time.perf_counter()
@@ -332,25 +330,22 @@ def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progr
         sure = {j: r for j, r in sure.items() if j not in failed}  # play them after all
     timings["verdict_s"] = time.perf_counter() - t1
     watch.mark("verdict")
-    winner = v.winner
     if scene.verdict.certify:
         t2 = time.perf_counter()
         for j, c in enumerate(_certify(scene, passes, blocks, found.quats, v, progress, sure)):
             certified[j] = certified[j] if j in sure else c
         timings["certify_s"] = time.perf_counter() - t2
         watch.mark("certify")
-    if any(c is not None and c.status == "passage" for c in certified):
-        winner = "B"
-    return v, (certified if any(c is not None for c in certified) else []), winner
+    return v, (certified if any(c is not None for c in certified) else [])
 
 
-def _sheet(scene: Scene, passes, blocks, v, certified, winner, seed, progress, timings):
-    """The plate's thickness and the thin-plate motion searches (:mod:`sieve_mi.game.sheet`):
-    (sheet, winner); a verified passage makes B the winner. ``timings`` gains ``thin_s``."""
+def _sheet(scene: Scene, passes, blocks, v, certified, seed, progress, timings):
+    """The plate's thickness and the thin-plate motion searches (:mod:`sieve_mi.game.sheet`) of
+    the B still blocked after certify; a verified passage unblocks its B (:func:`is_blocked`).
+    ``timings`` gains ``thin_s``."""
     t0 = time.perf_counter()
-    blocked = v.attack.blocked()[0].copy()
-    for j, c in enumerate(certified):
-        blocked[j] &= not (c is not None and c.status == "passage")
+    proofs = certified or [None] * len(blocks)
+    blocked = np.array([is_blocked(b, c) for b, c in zip(v.attack.blocked()[0], proofs)])
     sheet = plate_sheet(scene, passes, blocks, v.outline, v.attack, blocked, seed=seed,
                         progress=progress)  # fmt: skip
     timings["thin_s"] = time.perf_counter() - t0
@@ -359,8 +354,7 @@ def _sheet(scene: Scene, passes, blocks, v, certified, winner, seed, progress, t
             f"{blocks[j].name} passes a {sheet.thickness:g} {scene.units} plate by tilting and "
             "turning on the way (thin-plate motion search, verified; motion in report.json): B wins"
         )
-        winner = "B"
-    return sheet, winner
+    return sheet
 
 
 def _unsearched(scene: Scene) -> Search:
@@ -396,7 +390,6 @@ def _with_screened(scene: Scene, blocks, rows, sure: dict, v, certified: list):
         mask_window(SilhouetteRenderer(b), v.hole, v.attack.quats[0, j], v.attack.trans[0, j])
         for j, b in enumerate(blocks)
     ]  # fmt: skip
-    v.winner = "A" if bool(np.all(v.attack.blocked()[0])) else "B"
     names = ", ".join(blocks[j].name for j in sorted(sure))
     v.warnings.append(
         f"proved blocked before the game by size (a ball inside larger than any hole A can make; "

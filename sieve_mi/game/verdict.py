@@ -36,7 +36,6 @@ class Judgement:
 
     Attributes
     ----------
-    winner : {"A", "B"}
     hole : Hole
         The raster of the final hole (all of A's holes together) at the verdict resolution, made
         from ``outline`` (:meth:`Hole.from_outline`).
@@ -53,7 +52,6 @@ class Judgement:
     warnings : list of str
     """
 
-    winner: str
     hole: Hole
     outline: object
     trans: np.ndarray
@@ -61,6 +59,12 @@ class Judgement:
     attack: Attack
     block_masks: list
     warnings: list
+
+    @property
+    def winner(self) -> str:
+        """ "A" iff the attack blocked every B (before certify and the thin-plate searches,
+        which :attr:`sieve_mi.game.result.Result.winner` also counts)."""
+        return "A" if bool(np.all(self.attack.blocked()[0])) else "B"
 
 
 #: The exact polish is tried on poses that stick out by at most this many pixels.
@@ -194,7 +198,7 @@ def judge(
     grown = [dilated(o, fab.block_margin) for o in outlines] if fab.block_margin > 0 else outlines
     if not blocks:  # every B was proved before the game (sieve_mi.game.screen)
         attack = _no_attack(fab.block_margin > 0)
-        return Judgement("A", hole, outline, trans, a_masks, attack, [], warnings)
+        return Judgement(hole, outline, trans, a_masks, attack, [], warnings)
     player_b = PlayerB.from_settings(blocks, frame, scene.solver, objective="clearance")
     # without a margin, one merged hole's raster is the one already built
     same = fab.block_margin == 0 and not separate
@@ -218,5 +222,4 @@ def judge(
         mask_window(r, hole, attack.quats[0, j], attack.trans[0, j])
         for j, r in enumerate(player_b.renderers)
     ]
-    winner = "A" if bool(np.all(attack.blocked()[0])) else "B"
-    return Judgement(winner, hole, outline, trans, a_masks, attack, block_masks, warnings)
+    return Judgement(hole, outline, trans, a_masks, attack, block_masks, warnings)

@@ -198,9 +198,7 @@ def build(result) -> Passage:
     gap = 0.15 * size
     pieces = []
     n = 1 + len(result.block_shapes)
-    blocked = [
-        b.blocked for b in result.blocks
-    ]  # the report's verdict (a certified passage passes)
+    records = result.blocks  # each B's record: blocked after all, its thin-plate answer
     for i, shape in enumerate(result.pass_shapes):
         v = placed_vertices(shape, result.pass_quats[i], result.pass_trans[i])
         pieces.append(_falling(shape, "pass", i, v, thickness, gap, result.pass_trans[i]))
@@ -210,10 +208,10 @@ def build(result) -> Passage:
         v = placed_vertices(shape, q, t)
         piece = _falling(shape, "block", j, v, thickness, gap, t)
         piece.slot = ((j + 1) / n, (j + 2) / n)
-        thin = result.sheet.per_block[j] if getattr(result, "sheet", None) is not None else None
+        thin = records[j].thin_plate
         if thin is not None and thin.status == "passage":
             piece = _moving(shape, j, thin.poses, piece.slot)
-        elif blocked[j]:
+        elif records[j].blocked:
             rest = rest_offset(v, shape.faces, result.outline, box)
             rest = (
                 -float(v[:, 2].min()) if rest is None else rest

@@ -364,20 +364,19 @@ def _rows(n: int, columns: int) -> list[int]:
 def _overlay_title(result: Result, j: int) -> str:
     """A B's panel title: its name, blocked or not (and how a blocked-straight B passes), β and
     protrusion."""
-    blocked = result.blocks[j].blocked  # a thin-plate or certified passage passes
-    status = "blocked" if blocked else "PASSES"
-    if result.attack.blocked()[0][j] and not blocked:
-        status += _motion_note(result, j)
+    record = result.blocks[j]  # a thin-plate or certified passage passes
+    status = "blocked" if record.blocked else "PASSES"
+    if result.attack.blocked()[0][j] and not record.blocked:
+        status += _motion_note(result, record)
     return (
         f"{result.block_shapes[j].name}: {status}\nbeta={result.attack.beta[0, j]:.4f}, "
         f"protrusion={result.attack.protrusion[0, j]:.3g} {result.scene.units}"
     )
 
 
-def _motion_note(result: Result, j: int) -> str:
+def _motion_note(result: Result, record) -> str:
     """Why a B blocked straight down passes after all: a thin plate's motion or certify's pose."""
-    sheet = getattr(result, "sheet", None)
-    thin = sheet.per_block[j] if sheet is not None else None
+    thin = record.thin_plate
     if thin is not None and thin.status == "passage":
         return f" by tilting through the {thin.thickness:g} {result.scene.units} plate"
     return " (a pose certify found)"

@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from sieve_mi.game.result import Result
+from sieve_mi.game.result import BlockAttempt, Result, is_blocked
 from sieve_mi.geometry.meshes import mesh_sha256
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.images import safe_name, write_images
@@ -34,16 +34,17 @@ __all__ = [
 ]
 
 
-def _block_row(result: Result, j: int) -> dict:
-    """report.json's row of B number ``j``."""
+def _block_row(result: Result, j: int, record: BlockAttempt) -> dict:
+    """report.json's row of B number ``j``, from its record (``result.blocks[j]``)."""
     entry, shape, attack = result.scene.blocks[j], result.block_shapes[j], result.attack
     beta = float(attack.beta[0, j])
+    c, thin = record.certification, record.thin_plate
     row = {
         "mesh": entry.mesh,
         "name": shape.name,
         "beta": beta,
         "loss": beta,  # the same β, under its old name (kept for compatibility)
-        "blocked": bool(attack.blocked()[0, j]),
+        "blocked": record.blocked,
         "protrusion": float(attack.protrusion[0, j]),
         "verdict": "exact-polygon",
         "rotation": [float(x) for x in attack.quats[0, j]],
@@ -52,20 +53,14 @@ def _block_row(result: Result, j: int) -> dict:
         "centre": [float(x) for x in shape.centre],
         "faces": shape.face_count,
     }
-    c = result.certified[j] if j < len(result.certified) else None
     if c is not None:
         row["certified"] = c.status
         row["certification"] = c.to_dict()
-        if c.status == "passage":  # the exact hole lets it through: not blocked after all
-            row["blocked"] = False
-    if row["blocked"]:
+    if is_blocked(attack.blocked()[0, j], c):  # blocked straight through the exact hole
         grown = result.scene.fabrication.block_margin
         row["margin"] = block_margin(shape, result.outline, row["protrusion"], c, grown)
-    thin = result.sheet.per_block[j] if getattr(result, "sheet", None) is not None else None
     if thin is not None:
         row["thin_plate"] = thin.to_dict()
-        if thin.status == "passage":  # through the thin plate by tilting and turning
-            row["blocked"] = False
     if attack.margin_beta is not None:
         row["margin_beta"] = float(attack.margin_beta[0, j])
         row["margin_loss"] = row["margin_beta"]
@@ -112,7 +107,7 @@ def report_dict(result: Result) -> dict:
         )
         if i < len(result.alone) and result.alone[i] is not None:
             passes[-1]["alone_loss"] = float(result.alone[i])
-    blocks = [_block_row(result, j) for j in range(len(scene.blocks))]
+    blocks = [_block_row(result, j, b) for j, b in enumerate(result.blocks)]
     hole = result.hole
     return {
         "name": scene.name,

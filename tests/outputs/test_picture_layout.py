@@ -59,7 +59,7 @@ def _fake_result(passes: str, blocks: list[tuple[str, str, bool]], name: str):
         overlay_sections=lambda: (hole, a, b),
         hole=SimpleNamespace(frame=SimpleNamespace(half_extent=18.0)),
         block_shapes=[SimpleNamespace(name=nm) for nm, _, _ in blocks],
-        blocks=[SimpleNamespace(blocked=bl) for _, _, bl in blocks],
+        blocks=[SimpleNamespace(blocked=bl, thin_plate=None) for _, _, bl in blocks],
         attack=SimpleNamespace(
             beta=np.linspace(0.0, 0.2, n)[None],
             protrusion=np.linspace(0.0, 4.0, n)[None],
