@@ -288,15 +288,23 @@ def _start_worker(initializer, initargs) -> None:
         initializer(*initargs)
 
 
-def stop_workers(pool) -> None:
+def stop_workers(pool, others=()) -> None:
     """Kill a :class:`~concurrent.futures.ProcessPoolExecutor`'s workers now; wait for none.
 
     ``shutdown(wait=True)`` (what leaving a ``with`` block does) waits for every submitted job,
     which after an interrupt may be many minutes of proofs or searches. The workers compute
     only (they write no file), so they are killed, pending jobs are cancelled, and the dead
     processes are reaped (at most a second each).
+
+    Parameters
+    ----------
+    pool : concurrent.futures.ProcessPoolExecutor
+    others : iterable of multiprocessing.Process
+        Processes started for the pool that it may not list yet (one interrupted while it was
+        being started: left alive, it would print a traceback once its parent is gone).
     """
     processes = list((getattr(pool, "_processes", None) or {}).values())
+    processes += [p for p in others if p not in processes]
     for proc in processes:
         with contextlib.suppress(Exception):
             proc.kill()
@@ -304,6 +312,23 @@ def stop_workers(pool) -> None:
     for proc in processes:
         with contextlib.suppress(Exception):
             proc.join(timeout=1.0)
+
+
+def _pool_class():
+    """:class:`~concurrent.futures.ProcessPoolExecutor` whose ``submit`` (where it starts its
+    worker processes) holds SIGINT, SIGTERM and SIGHUP back: a worker interrupted half-started is
+    unknown to the pool, outlives its parent and prints a traceback
+    (``SemLock._rebuild ... FileNotFoundError``) once the parent is gone."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from sieve_mi.errors import deferred_signals
+
+    class Pool(ProcessPoolExecutor):
+        def submit(self, fn, /, *args, **kwargs):
+            with deferred_signals():
+                return super().submit(fn, *args, **kwargs)
+
+    return Pool
 
 
 @contextlib.contextmanager
@@ -337,10 +362,11 @@ def worker_pool(workers: int, *, method: str = "fork", initializer=None, initarg
         A worker process died (its exit signal named).
     """
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures.process import BrokenProcessPool
 
-    pool = ProcessPoolExecutor(
+    pool_class = _pool_class()
+    before = set(multiprocessing.active_children())
+    pool = pool_class(
         max(1, int(workers)),
         mp_context=multiprocessing.get_context(method),
         initializer=_start_worker,
@@ -350,13 +376,13 @@ def worker_pool(workers: int, *, method: str = "fork", initializer=None, initarg
         yield pool
     except BrokenProcessPool:
         codes = [p.exitcode for p in (getattr(pool, "_processes", None) or {}).values()]
-        stop_workers(pool)
+        stop_workers(pool, set(multiprocessing.active_children()) - before)
         raise SieveError(
             f"a {what} worker process died ({_exit_words(codes)}); this is a bug in sieve-mi or "
             "a library it uses: please report it with the input files"
         ) from None
     except BaseException:
-        stop_workers(pool)
+        stop_workers(pool, set(multiprocessing.active_children()) - before)
         raise
     pool.shutdown(wait=True)
 

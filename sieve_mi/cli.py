@@ -181,7 +181,13 @@ def cmd_solve(args) -> int:
         print(f"sieve-mi: warning: {w}", file=sys.stderr)
     print(f"outputs: {out_dir}/", file=sys.stderr if args.json else sys.stdout)
     if shake is not None:
-        shake_after_solve(out_dir, shake, args.quiet, args.json)
+        try:
+            shake_after_solve(out_dir, shake, args.quiet, args.json)
+        except KeyboardInterrupt:
+            print(f"sieve-mi: the solve's outputs in {out_dir}/ are complete; stopped during "
+                  "the shake trials: shake.json, shake.png and shake.gif were not made",
+                  file=sys.stderr)  # fmt: skip
+            raise
     return EXIT_OK if report["winner"] == "A" else EXIT_NO
 
 
@@ -449,6 +455,8 @@ def main(argv: list[str] | None = None) -> int:
         word = "interrupted" if signum == signal.SIGINT else "terminated"
         print(f"sieve-mi: {word}", file=sys.stderr)
         return 128 + int(signum)
+    finally:
+        clear_signals()  # a caller that runs main() in-process starts its next work afresh
 
 
 if __name__ == "__main__":

@@ -1,8 +1,16 @@
-"""User-facing errors.
+"""User-facing errors, and the one home of interrupts.
 
 Every problem a user can fix (a missing file, a bad key, an unreadable mesh) is raised as
 :class:`SieveError`; the command line prints its message as one line and exits with code 2.
+Signals: the command line's handlers note each one (:func:`note_signal`), code that a library
+may have run on through a swallowed interrupt checks (:func:`raise_if_signalled`,
+:func:`interruption`), and short critical sections hold them back (:func:`deferred_signals`).
 """
+
+import contextlib
+import signal
+import threading
+from collections.abc import Iterator
 
 __all__ = [
     "EXIT_BAD_INPUT",
@@ -11,8 +19,10 @@ __all__ = [
     "EXIT_UNDECIDED",
     "SieveError",
     "clear_signals",
+    "deferred_signals",
     "interruption",
     "note_signal",
+    "raise_if_signalled",
     "signals_received",
 ]
 
@@ -52,8 +62,21 @@ def signals_received() -> list[int]:
 
 
 def clear_signals() -> None:
-    """Forget the noted signals (at the start of a command)."""
+    """Forget the noted signals (at the start and the end of a command)."""
     _SIGNALS.clear()
+
+
+def raise_if_signalled() -> None:
+    """Raise KeyboardInterrupt if a signal was noted (:func:`note_signal`) since the command
+    started: a checkpoint after work that a library may have run on through an interrupt it
+    swallowed (Mitsuba's render, trimesh's imports), and before anything is committed to disk.
+
+    Examples
+    --------
+    >>> clear_signals(); raise_if_signalled()  # nothing noted: returns
+    """
+    if _SIGNALS:
+        raise KeyboardInterrupt
 
 
 def interruption(exc: BaseException) -> BaseException | None:
@@ -83,3 +106,58 @@ def interruption(exc: BaseException) -> BaseException | None:
             return exc
         exc = exc.__cause__ or exc.__context__
     return KeyboardInterrupt() if signals_received() else None
+
+
+#: The signals :func:`deferred_signals` holds back.
+_HELD = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+
+#: Whether this platform has per-thread signal masks.
+_MASKS = hasattr(signal, "pthread_sigmask")
+
+
+@contextlib.contextmanager
+def deferred_signals() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP back until the block ends (they arrive afterwards).
+
+    In the main thread the signals' Python handlers are swapped for one that only records them,
+    and the recorded signals are raised again once the old handlers are back. (Blocking them with
+    ``pthread_sigmask`` would not do: it blocks one thread only, and the kernel hands a signal
+    sent to the process to any thread that does not block it, such as Dr.Jit's workers, after
+    which Python runs the handler in the main thread anyway.) Elsewhere, where Python allows no
+    handlers, the calling thread's signal mask is used.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        if not hasattr(signal, "pthread_sigmask"):
+            yield
+            return
+        old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        return
+    pending: list[int] = []
+
+    def hold(signum, frame):
+        pending.append(signum)
+
+    old = {}
+    for sig in _HELD:
+        if signal.getsignal(sig) is not None:  # None: a handler not installed from Python
+            old[sig] = signal.signal(sig, hold)
+    # A thread mask that blocks them (inherited, e.g. from a process launched with SIGINT
+    # blocked) would keep them pending past the block: unblock them while it lasts.
+    old_mask = signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD) if _MASKS else None
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        try:
+            for sig in dict.fromkeys(pending):
+                signal.raise_signal(sig)
+        finally:
+            if old_mask is not None:
+                signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)

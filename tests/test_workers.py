@@ -98,8 +98,9 @@ _SCRIPT = textwrap.dedent(
             jobs[0].result()
         return 0
 
-    cli._dispatch = run
-    sys.exit(cli.main(["view", "unused"]))
+    if __name__ == "__main__":  # the forkserver imports this file too
+        cli._dispatch = run
+        sys.exit(cli.main(["view", "unused"]))
     """
 )
 
@@ -126,3 +127,22 @@ def test_sigterm_ends_a_run_and_its_workers_within_seconds(method, tmp_path):
     while any(_alive(p) for p in pids) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not any(_alive(p) for p in pids)
+
+
+def test_a_signal_a_library_swallowed_still_stops_an_addition(tmp_path):
+    from sieve_mi.errors import clear_signals, note_signal
+    from sieve_mi.outputs import outdir
+
+    folder = tmp_path / "out"
+    folder.mkdir()
+    (folder / "report.json").write_text("{}")
+    (folder / "shake.json").write_text('{"seed": 0}')
+    outdir.write_marker(str(folder), "solve")
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    note_signal(signal.SIGTERM)  # the handler ran, but a library caught what it raised
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            outdir.add_files(str(folder), {"shake.json": b'{"seed": 7}'})
+    finally:
+        clear_signals()
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before

@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from sieve_mi.backend import select_rgb_variant
+from sieve_mi.errors import raise_if_signalled
 from sieve_mi.outputs.palette import linear
 from sieve_mi.outputs.passage import Passage
 
@@ -124,6 +125,7 @@ def render_frames(
     scene = _scene(mi, passage, s, spacing, colour)
     sensor = _batch_sensor(mi, box, len(s), spacing, width, height, spp, size)
     image = np.asarray(mi.render(scene, sensor=sensor, spp=spp), dtype=np.float32)
+    raise_if_signalled()  # Mitsuba may render on through an interrupt
     image = image.reshape(height, len(s) * width, -1)
     image = image[..., :3] if colour else image.mean(axis=2)
     return np.stack([image[:, k * width : (k + 1) * width] for k in range(len(s))])

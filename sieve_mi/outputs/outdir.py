@@ -34,14 +34,12 @@ import json
 import os
 import secrets
 import shutil
-import signal
 import socket
 import sys
 import tempfile
-import threading
 from collections.abc import Callable, Iterable, Iterator
 
-from sieve_mi.errors import SieveError
+from sieve_mi.errors import SieveError, deferred_signals, raise_if_signalled
 
 __all__ = [
     "MARKER",
@@ -64,10 +62,6 @@ MARKER = ".sieve-mi"
 
 TMP_PREFIX = ".sieve-mi-tmp-"
 """Prefix of the temporary folders written beside a destination."""
-
-_SIGNALS = tuple(
-    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
-)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -297,6 +291,7 @@ def add_files(folder: str, contents: dict[str, bytes], *, hint: str = "") -> Non
         The folder is refused, or a file could not be written (one line).
     """
     marker = check_addition(folder, contents, hint=hint)
+    raise_if_signalled()  # a run told to stop adds nothing
     marker["files"] = sorted(set(marker["files"]) | set(contents))
     text = json.dumps(marker, indent=1).encode()
     with deferred_signals():
@@ -319,56 +314,6 @@ def add_files(folder: str, contents: dict[str, bytes], *, hint: str = "") -> Non
 # ------------------------------------------------------------------------------------------------
 # Writing and swapping
 # ------------------------------------------------------------------------------------------------
-
-
-#: Whether this platform has per-thread signal masks.
-_MASKS = hasattr(signal, "pthread_sigmask")
-
-
-@contextlib.contextmanager
-def deferred_signals() -> Iterator[None]:
-    """Hold SIGINT, SIGTERM and SIGHUP back until the block ends (they arrive afterwards).
-
-    In the main thread the signals' Python handlers are swapped for one that only records them,
-    and the recorded signals are raised again once the old handlers are back. (Blocking them with
-    ``pthread_sigmask`` would not do: it blocks one thread only, and the kernel hands a signal
-    sent to the process to any thread that does not block it, such as Dr.Jit's workers, after
-    which Python runs the handler in the main thread anyway.) Elsewhere, where Python allows no
-    handlers, the calling thread's signal mask is used.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        if not hasattr(signal, "pthread_sigmask"):
-            yield
-            return
-        old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
-        try:
-            yield
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
-        return
-    pending: list[int] = []
-
-    def hold(signum, frame):
-        pending.append(signum)
-
-    old = {}
-    for sig in _SIGNALS:
-        if signal.getsignal(sig) is not None:  # None: a handler not installed from Python
-            old[sig] = signal.signal(sig, hold)
-    # A thread mask that blocks them (inherited, e.g. from a process launched with SIGINT
-    # blocked) would keep them pending past the block: unblock them while it lasts.
-    old_mask = signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS) if _MASKS else None
-    try:
-        yield
-    finally:
-        for sig, handler in old.items():
-            signal.signal(sig, handler)
-        try:
-            for sig in dict.fromkeys(pending):
-                signal.raise_signal(sig)
-        finally:
-            if old_mask is not None:
-                signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
 
 
 def _host() -> str:
@@ -515,6 +460,7 @@ def writing(
             remove_stale(parent)
             tmp = _make_temp(parent)
         yield tmp
+        raise_if_signalled()  # told to stop while writing: the interrupt's path below
         _finish(tmp, dest, out_dir, command, inputs, option)
     except KeyboardInterrupt:
         with deferred_signals():

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from sieve_mi.errors import raise_if_signalled
 from sieve_mi.outputs.passage import Passage
 from sieve_mi.shake.geometry import Part, Plate
 from sieve_mi.shake.model import build_model, plate_motion
@@ -213,6 +214,7 @@ def write_clip(path: str, plate_mesh, plate: Plate, shapes: list) -> dict:
         passages[key].box = box
         for j, pic in zip(idx, gif_frames(passages[key], s[idx])[0]):
             pics[j] = pic
+        raise_if_signalled()
     pics[0].save(path, save_all=True, append_images=pics[1:], duration=FRAME_MS, loop=0)
     return {
         "file": "shake.gif",
