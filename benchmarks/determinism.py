@@ -150,6 +150,7 @@ def descents(player, holes, q0, t0, steps, repeat, config: str):
     import drjit as dr
     import mitsuba as mi
 
+    from sieve_mi.game.descent import Batch
     from sieve_mi.geometry.hole import HoleStack
     from sieve_mi.objectives.clearance import ClearanceObjective
 
@@ -159,7 +160,7 @@ def descents(player, holes, q0, t0, steps, repeat, config: str):
     for _ in range(repeat):
         start = time.perf_counter()
         if config == "after":
-            qs, ts = player.descend(holes, pose_hole, zeros, q0, t0, steps, 0.05)
+            qs, ts = player.descend(Batch(holes, pose_hole, zeros, q0, t0), steps, 0.05)
             x = np.concatenate([qs, ts], axis=1)
         else:
             player.objective.bind(zeros)

@@ -29,6 +29,8 @@ def step_time(player_b, hole, poses: int, steps: int, rng, skip: int = 1) -> flo
     final scoring evaluation), which a search pays once per attack, not per step, and its first
     ``skip`` steps (``skip = 2``: a frozen descent's two traced first steps).
     """
+    from sieve_mi.game.descent import Batch
+
     k = poses
     q0 = np.tile([1.0, 0, 0, 0], (k, 1)) + rng.normal(0, 0.3, (k, 4))
     t0 = rng.uniform(-0.1, 0.1, (k, 2)) * hole.frame.half_extent
@@ -36,7 +38,7 @@ def step_time(player_b, hole, poses: int, steps: int, rng, skip: int = 1) -> flo
 
     def run(n):
         t = time.perf_counter()
-        player_b.descend([hole], zeros, zeros, q0, t0, n, 0.05)
+        player_b.descend(Batch([hole], zeros, zeros, q0, t0), n, 0.05)
         return time.perf_counter() - t
 
     run(skip + steps)  # compile (and record)

@@ -103,6 +103,7 @@ def test_descend_compiles_no_kernel_after_its_first_steps(mi, cube20, freeze):
     import drjit as dr
     from helpers import sphere
 
+    from sieve_mi.game.descent import Batch
     from sieve_mi.game.player_a import PlayerA
     from sieve_mi.game.player_b import PlayerB
     from sieve_mi.geometry.raster import Frame
@@ -119,11 +120,7 @@ def test_descend_compiles_no_kernel_after_its_first_steps(mi, cube20, freeze):
         dr.kernel_history()
         player = PlayerB([sphere(12.0, 2)], f, freeze=freeze)
         player.descend(
-            [hole],
-            np.zeros(k, int),
-            np.zeros(k, int),
-            q0,
-            t0,
+            Batch([hole], np.zeros(k, int), np.zeros(k, int), q0, t0),
             8,
             0.05,
             progress=lambda s: seen.append({e["hash"] for e in dr.kernel_history() if "hash" in e}),

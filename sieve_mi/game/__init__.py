@@ -4,9 +4,11 @@ Rule: the game writes no files (:mod:`sieve_mi.outputs` does).
 Modules
 -------
 attack
-    :class:`~sieve_mi.game.attack.Attack` (player B's best poses and scores) and its memory.
+    :class:`~sieve_mi.game.attack.Attack` (player B's best poses and scores), its memory, and
+    :class:`~sieve_mi.game.attack.Starts` (where an attack's starts begin).
 descent
-    One batched descent of player B: its state, its one Adam step (traced or frozen), its loop.
+    One batched descent of player B: its batch of poses, its state, its one Adam step (traced or
+    frozen), its loop.
 frozen
     Player B's Adam step recorded once with ``drjit.freeze`` and replayed; when that pays.
 player_b

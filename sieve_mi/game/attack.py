@@ -1,5 +1,6 @@
-"""Player B's record of attempts: :class:`Attack` (best poses and scores per hole and shape) and
-:class:`AttackMemory` (the best poses seen so far, reused as warm starts).
+"""Player B's attempts: :class:`Starts` (where an attack's starts begin), :class:`Attack` (best
+poses and scores per hole and shape) and :class:`AttackMemory` (the best poses seen so far, reused
+as warm starts).
 """
 
 from __future__ import annotations
@@ -8,7 +9,39 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Attack", "AttackMemory"]
+__all__ = ["Attack", "AttackMemory", "Starts"]
+
+
+@dataclass(frozen=True)
+class Starts:
+    """Where the starts of one attack of player B begin
+    (:meth:`~sieve_mi.game.player_b.PlayerB.attack`).
+
+    Each start is a uniform random rotation and a translation uniform in +-0.1 of the frame's
+    half extent (paper Sec. 6.1), about the origin unless ``centres`` are given; ``memory``'s
+    poses replace the first ones.
+
+    Attributes
+    ----------
+    count : int
+        Starts per hole and shape.
+    centres : (H, 2) or (H, C, 2) ndarray, optional
+        Where each hole's starts are centred, scene units; default the origin. With C centres
+        per hole, start ``s`` is centred on centre ``s % C``.
+    memory : AttackMemory, optional
+        B's remembered best poses replace the first random starts of every hole (at most
+        ``count - 1`` per shape, so at least one start stays random); the attack then updates
+        the memory with its results.
+    """
+
+    count: int
+    centres: np.ndarray | None = None
+    memory: AttackMemory | None = None
+
+    @classmethod
+    def of(cls, starts: int | Starts) -> Starts:
+        """``starts`` itself, or ``Starts(starts)`` for a count alone."""
+        return starts if isinstance(starts, Starts) else cls(int(starts))
 
 
 @dataclass

@@ -30,6 +30,7 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.errors import SieveError
+from sieve_mi.game.attack import Starts
 from sieve_mi.game.check_settings import AXIS_NAMES, CheckInputs, CheckSettings
 from sieve_mi.game.exact import CANDIDATES, exact_rescore
 from sieve_mi.game.verdict import REACH
@@ -140,11 +141,10 @@ def attempt(
     keep = CANDIDATES if outlines is not None else 0
     att = player.attack(
         holes,
-        settings.starts,
+        Starts(settings.starts, centres=_centres(holes)),
         settings.steps,
         settings.learning_rate,
         rng,
-        centres=_centres(holes),
         keep=keep,
     )
     if outlines is None:  # a hole image: its pixels are the truth

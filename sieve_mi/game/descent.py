@@ -2,7 +2,9 @@
 
 Every start of every shape against every candidate hole is one pose of a batch; a step is loss,
 gradient, "each start keeps the best pose it visited" and Adam's update, for the whole batch in a
-few Dr.Jit kernels. :func:`adam_step` is that step, written once: :class:`Descent` runs it traced,
+few Dr.Jit kernels. A :class:`Batch` holds the poses of one descent (their holes, shapes, starting
+poses and settling groups) and splits into consecutive parts, descended one after another where
+the memory budget asks for it. :func:`adam_step` is that step, written once: :class:`Descent` runs it traced,
 and :mod:`sieve_mi.game.frozen` records it once with :func:`drjit.freeze` and replays it, so the
 two give the same poses to the bit. Starts may settle in groups (:class:`Settle`): once one pose
 of a group fits, the group stops where its best poses are, and the settled poses leave the batch.
@@ -13,6 +15,7 @@ results.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -22,6 +25,7 @@ from sieve_mi.optim import POSE_KEYS, QUAT_KEYS, live_poses, pose_adam, renormal
 
 __all__ = [
     "SETTLE_CHECK",
+    "Batch",
     "BufferOverflow",
     "Descent",
     "FrozenStepFailed",
@@ -190,6 +194,65 @@ def settle_groups(settle, pose_hole, pose_shape, n_b: int):
     }[settle]
 
 
+@dataclass(frozen=True)
+class Batch:
+    """The K poses of one descent of player B: what each descends against, and where it starts.
+
+    Attributes
+    ----------
+    holes : list of Hole
+        The candidate holes, all on player B's frame.
+    pose_hole, pose_shape : (K,) ndarrays of int
+        Each pose's hole (index into ``holes``) and shape (index into player B's shapes).
+    q0 : (K, 4) ndarray
+        Starting rotations, quaternions (w, x, y, z).
+    t0 : (K, 2) ndarray
+        Starting translations, scene units.
+    group : (K,) ndarray of int, optional
+        Groups of poses that settle together (:class:`Settle`); None: no settling.
+    starts : int, optional
+        Starts per hole and shape where the poses are laid out hole by shape by start (as
+        :meth:`~sieve_mi.game.player_b.PlayerB.attack` lays them out, K = H x B x starts);
+        None for any other layout.
+    """
+
+    holes: list
+    pose_hole: np.ndarray
+    pose_shape: np.ndarray
+    q0: np.ndarray
+    t0: np.ndarray
+    group: np.ndarray | None = None
+    starts: int | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("pose_hole", "pose_shape", "q0", "t0"):
+            object.__setattr__(self, name, np.asarray(getattr(self, name)))
+        if self.group is not None:
+            object.__setattr__(self, "group", np.asarray(self.group))
+
+    def __len__(self) -> int:
+        """K, the number of poses."""
+        return len(self.q0)
+
+    def part(self, poses: slice) -> Batch:
+        """The poses ``poses`` (consecutive) alone, against the same holes."""
+        group = None if self.group is None else self.group[poses]
+        return replace(
+            self,
+            pose_hole=self.pose_hole[poses],
+            pose_shape=self.pose_shape[poses],
+            q0=self.q0[poses],
+            t0=self.t0[poses],
+            group=group,
+            starts=None,
+        )
+
+    def split(self, parts: list[slice]) -> list[Batch]:
+        """The batch cut into ``parts`` (consecutive ranges of poses, e.g. the memory chunks of
+        :meth:`~sieve_mi.game.player_b.PlayerB.chunks`): one :meth:`part` each, in order."""
+        return [self.part(p) for p in parts]
+
+
 def _rows(best) -> np.ndarray:
     """A descent's best poses (list of 6 mi.Float, :data:`~sieve_mi.optim.POSE_KEYS` order) as
     a (K, 6) float64 array."""
@@ -226,32 +289,28 @@ class Descent:
     ----------
     player : PlayerB
         Its ``objective`` and its frame's half extent (translations are optimised in its units).
-    holes : list of Hole
-    pose_hole, pose_shape : (K,) ndarrays of int
-    q0 : (K, 4) ndarray
-    t0 : (K, 2) ndarray
-        Scene units.
+    batch : Batch
+        The poses, their holes and starts, and their settling groups.
     learning_rate : float
-    group : (K,) ndarray of int, optional
-        Settling groups (:class:`Settle`).
+        Adam's, for quaternion components and normalised translations.
     """
 
-    def __init__(self, player, holes, pose_hole, pose_shape, q0, t0, learning_rate, group):
+    def __init__(self, player, batch: Batch, learning_rate: float):
         import drjit as dr
         import mitsuba as mi
 
         from sieve_mi.geometry.hole import HoleStack
 
         self.loss = player.objective
-        self.stack = HoleStack(holes, corners=getattr(self.loss, "hole_corners", False))
-        self.pose_hole, self.pose_shape = np.asarray(pose_hole), np.asarray(pose_shape)
+        self.stack = HoleStack(batch.holes, corners=getattr(self.loss, "hole_corners", False))
+        self.pose_hole, self.pose_shape = batch.pose_hole, batch.pose_shape
         self.scale = player.frame.half_extent
-        self.opt = pose_adam(q0, np.asarray(t0) / self.scale, learning_rate)
+        self.opt = pose_adam(batch.q0, batch.t0 / self.scale, learning_rate)
         self.best = [dr.detach(self.opt[key]) for key in POSE_KEYS]
-        self.best_loss = dr.opaque(mi.Float, np.inf, len(q0))
-        self.settle = Settle.make(group, self.loss)
-        self.final = np.empty((len(q0), len(POSE_KEYS)))
-        self.where = np.arange(len(q0))  # the original index of each pose still descending
+        self.best_loss = dr.opaque(mi.Float, np.inf, len(batch))
+        self.settle = Settle.make(batch.group, self.loss)
+        self.final = np.empty((len(batch), len(POSE_KEYS)))
+        self.where = np.arange(len(batch))  # the original index of each pose still descending
         self._bind()
 
     def _bind(self) -> None:

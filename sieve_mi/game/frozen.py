@@ -34,23 +34,24 @@ __all__ = ["CPU_FREEZE_PAIRS", "frozen_step", "pays", "replay"]
 CPU_FREEZE_PAIRS = 5_000_000
 
 
-def _step(opt, best, best_loss, overflow, loss, stack, pose_hole, key, group=None):
-    """One :func:`~sieve_mi.game.descent.adam_step` with the objective's fixed-size loss; ``key`` =
-    (scale, capacity, poses, pairs[, groups, fit_loss]) are Python values (recording key);
-    ``group`` (mi.UInt32, K) the poses' settling groups, if any."""
+def _step(opt, best, best_loss, overflow, loss, holes, key, settle=None):
+    """One :func:`~sieve_mi.game.descent.adam_step` with the objective's fixed-size loss;
+    ``holes`` = (stack, pose_hole) the hole stack and each pose's hole; ``key`` = (scale,
+    capacity, poses, pairs) are Python values (recording key); ``settle`` = (group, groups,
+    fit_loss), the poses' settling groups (mi.UInt32, K) and two Python values, or None."""
     scale, capacity = key[0], key[1]
-    live = None if group is None else live_poses(best_loss, group, key[4], key[5])
+    live = None if settle is None else live_poses(best_loss, *settle)
 
     def evaluate():
-        return pose_loss(opt, loss, stack, pose_hole, scale, live, capacity)
+        return pose_loss(opt, loss, *holes, scale, live, capacity)
 
     best, best_loss, over = adam_step(opt, best, best_loss, evaluate)
     return best, best_loss, overflow | over
 
 
 def frozen_step():
-    """A new frozen Adam step: ``step(opt, best, best_loss, overflow, loss, stack, pose_hole,
-    key)`` returns the new ``(best, best_loss, overflow)`` and updates ``opt`` in place.
+    """A new frozen Adam step: ``step(opt, best, best_loss, overflow, loss, holes, key,
+    settle)`` returns the new ``(best, best_loss, overflow)`` and updates ``opt`` in place.
 
     Parameters of the returned callable
     -----------------------------------
@@ -64,13 +65,16 @@ def frozen_step():
         One entry, or-ed with this step's overflow flag.
     loss : Objective with ``loss_fixed``
         Bound to the K poses.
-    stack : HoleStack
-    pose_hole : mi.UInt32
+    holes : tuple
+        (stack, pose_hole): the :class:`~sieve_mi.geometry.hole.HoleStack` and each pose's hole
+        (mi.UInt32, K).
     key : tuple
-        (scale, capacity, K, pairs): the frame's half extent, ``loss.capacity(q)``, and sizes;
-        with settling, then the number of groups and the objective's ``fit_loss``.
-    group : mi.UInt32, optional
-        Each pose's settling group (:meth:`sieve_mi.game.player_b.PlayerB.attack`'s ``settle``).
+        (scale, capacity, K, pairs): the frame's half extent (scene units), ``loss.capacity(q)``,
+        and sizes; Python values, so part of the recording's key.
+    settle : tuple, optional
+        (group, groups, fit_loss): each pose's settling group (mi.UInt32, K;
+        :meth:`sieve_mi.game.player_b.PlayerB.attack`'s ``settle``), the number of groups and
+        the objective's ``fit_loss`` (Python values, part of the key); None without settling.
     """
     import drjit as dr
 
@@ -110,20 +114,18 @@ def replay(step, descent):
     import mitsuba as mi
 
     opt, loss, settle = descent.opt, descent.loss, descent.settle
-    stack, hole_idx = descent.stack, descent.hole_idx
+    settling = None if settle is None else (settle.group, settle.groups, settle.fit_loss)
+    holes = (descent.stack, descent.hole_idx)
     capacity = loss.capacity(tuple(opt[name] for name in QUAT_KEYS))
     record = (descent.scale, capacity, loss.pose_count, loss.pair_count)
-    if settle is not None:
-        record += (settle.groups, settle.fit_loss)
     state = {"overflow": dr.opaque(mi.Bool, False)}
-    group = None if settle is None else settle.group
 
     def steps(best, best_loss):
         # Literals (Adam's step counter after the traced steps) become evaluated arrays, so
         # the first frozen step has the layout of the later ones (else it is recorded twice).
         dr.make_opaque(opt.state, best, best_loss)
         best, best_loss, state["overflow"] = step(
-            opt, best, best_loss, state["overflow"], loss, stack, hole_idx, record, group
+            opt, best, best_loss, state["overflow"], loss, holes, record, settling
         )
         return best, best_loss
 

@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sieve_mi.game.attack import AttackMemory
+from sieve_mi.game.attack import AttackMemory, Starts
 from sieve_mi.game.candidates import candidate_pool
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
@@ -155,7 +155,7 @@ class _PlacementGame:
         """Eq. 14 energy and the weakest B's β of placements ``x`` (P, 6): (P,) and (P,)."""
         holes = self.player.holes(x[:, :4], x[:, 4:] * self.reach, base=self.base)
         attack = self.player_b.attack(
-            holes, starts, steps, self.learning_rate, self.rng, memory=self.memory,
+            holes, Starts(starts, memory=self.memory), steps, self.learning_rate, self.rng,
             settle=self.player.settle,
         )  # fmt: skip
         area = np.array([hh.mask.mean() for hh in holes])

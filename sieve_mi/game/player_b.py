@@ -15,8 +15,8 @@ import numpy as np
 
 from sieve_mi.backend import BYTES_PER_PAIR, pair_budget, release_cached_memory
 from sieve_mi.errors import SieveError
-from sieve_mi.game.attack import Attack, AttackMemory
-from sieve_mi.game.descent import BufferOverflow, Descent, FrozenStepFailed, settle_groups
+from sieve_mi.game.attack import Attack, Starts
+from sieve_mi.game.descent import Batch, BufferOverflow, Descent, FrozenStepFailed, settle_groups
 from sieve_mi.game.scoring import score_poses, with_core
 from sieve_mi.geometry.hole import Hole
 from sieve_mi.geometry.meshes import Shape
@@ -101,27 +101,29 @@ class PlayerB:
     def attack(
         self,
         holes: list[Hole],
-        starts: int,
+        starts: int | Starts,
         steps: int,
         learning_rate: float,
         rng: np.random.Generator,
         progress: Callable[[int], None] | None = None,
-        centres: np.ndarray | None = None,
-        memory: AttackMemory | None = None,
+        *,
         keep: int = 0,
         settle: str | None = None,
     ) -> Attack:
         """Player B's best attempt on each hole, for each shape.
 
         Starts are uniform random rotations and translations in +-0.1 of the frame's half extent
-        (paper Sec. 6.1); translations are optimised in units of the half extent.
+        (paper Sec. 6.1), about the origin or the given centres (:class:`Starts`); translations
+        are optimised in units of the half extent.
 
         Parameters
         ----------
         holes : list of Hole
             Candidate holes, all on ``self.frame``.
-        starts : int
-            Random starts per hole and shape.
+        starts : int or Starts
+            Random starts per hole and shape; or a :class:`~sieve_mi.game.attack.Starts` that
+            also says where they are centred (scene units) and which remembered poses replace
+            the first of them (its memory is then updated with this attack's results).
         steps : int
             Adam steps.
         learning_rate : float
@@ -129,13 +131,6 @@ class PlayerB:
         rng : numpy.random.Generator
         progress : callable, optional
             Called with the number of steps done after each step.
-        centres : (H, 2) or (H, C, 2) ndarray, optional
-            Where each hole's starts are centred (scene units); default the origin. With C
-            centres per hole, start ``s`` is centred on centre ``s % C``.
-        memory : AttackMemory, optional
-            B's remembered best poses replace the first random starts of every hole (at most
-            ``starts - 1`` per shape, so at least one start stays random); the memory is then
-            updated with this attack's results.
         keep : int
             Keep the ``keep`` best poses per hole and shape in ``Attack.candidates``.
         settle : {None, "start", "shape", "hole"}
@@ -148,65 +143,77 @@ class PlayerB:
             reached, and a descent whose groups have all settled ends early. None: every start
             runs every step.
         """
-        n_h, n_b = len(holes), len(self.shapes)
-        k = n_h * n_b * starts
-        pose_hole = np.repeat(np.arange(n_h), n_b * starts)
-        pose_shape = np.tile(np.repeat(np.arange(n_b), starts), n_h)
-        q0 = random_uniform(k, rng)
-        t0 = rng.uniform(-0.1, 0.1, size=(k, 2)) * self.frame.half_extent
-        if centres is not None:
-            c = np.asarray(centres, dtype=np.float64)
-            c = c[:, None, :] if c.ndim == 2 else c
-            which = np.tile(np.arange(starts) % c.shape[1], n_h * n_b)
-            t0 += c[pose_hole, which]
-        if memory is not None:
-            q0, t0 = q0.reshape(n_h, n_b, starts, 4), t0.reshape(n_h, n_b, starts, 2)
-            for b in range(n_b):
-                mq, mt = memory.poses(b)
-                w = min(len(mq), starts - 1)
-                q0[:, b, :w], t0[:, b, :w] = mq[:w], mt[:w]
-            q0, t0 = q0.reshape(k, 4), t0.reshape(k, 2)
-        group = settle_groups(settle, pose_hole, pose_shape, n_b)
-        quats, trans = self.descend(
-            holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress, group=group
-        )
-        attack = self._score(holes, quats, trans, pose_hole, pose_shape, starts, keep)
-        if memory is not None:
-            memory.update(attack)
+        starts = Starts.of(starts)
+        batch = self.start_batch(holes, starts, rng, settle)
+        quats, trans = self.descend(batch, steps, learning_rate, progress)
+        attack = self._score(batch, quats, trans, keep)
+        if starts.memory is not None:
+            starts.memory.update(attack)
         release_cached_memory()  # else the process holds this attack's peak from now on
         return attack
 
+    def start_batch(
+        self, holes: list[Hole], starts: Starts, rng: np.random.Generator, settle: str | None
+    ) -> Batch:
+        """The starts of an :meth:`attack`, laid out hole by shape by start.
+
+        Parameters
+        ----------
+        holes : list of Hole
+            H holes, on ``self.frame``.
+        starts : Starts
+            How many starts per hole and shape, where centred (scene units), from which memory.
+        rng : numpy.random.Generator
+            Draws the rotations, then the translations.
+        settle : {None, "start", "shape", "hole"}
+            The settling groups (:meth:`attack`'s ``settle``).
+
+        Returns
+        -------
+        Batch
+            H x B x ``starts.count`` poses (B shapes), translations in scene units, with
+            ``starts`` set.
+        """
+        n_h, n_b, count = len(holes), len(self.shapes), starts.count
+        k = n_h * n_b * count
+        pose_hole = np.repeat(np.arange(n_h), n_b * count)
+        pose_shape = np.tile(np.repeat(np.arange(n_b), count), n_h)
+        q0 = random_uniform(k, rng)
+        t0 = rng.uniform(-0.1, 0.1, size=(k, 2)) * self.frame.half_extent
+        if starts.centres is not None:
+            c = np.asarray(starts.centres, dtype=np.float64)
+            c = c[:, None, :] if c.ndim == 2 else c
+            which = np.tile(np.arange(count) % c.shape[1], n_h * n_b)
+            t0 += c[pose_hole, which]
+        if starts.memory is not None:
+            q0, t0 = q0.reshape(n_h, n_b, count, 4), t0.reshape(n_h, n_b, count, 2)
+            for b in range(n_b):
+                mq, mt = starts.memory.poses(b)
+                w = min(len(mq), count - 1)
+                q0[:, b, :w], t0[:, b, :w] = mq[:w], mt[:w]
+            q0, t0 = q0.reshape(k, 4), t0.reshape(k, 2)
+        group = settle_groups(settle, pose_hole, pose_shape, n_b)
+        return Batch(holes, pose_hole, pose_shape, q0, t0, group, starts=count)
+
     def descend(
         self,
-        holes: list[Hole],
-        pose_hole: np.ndarray,
-        pose_shape: np.ndarray,
-        q0: np.ndarray,
-        t0: np.ndarray,
+        batch: Batch,
         steps: int,
         learning_rate: float,
         progress: Callable[[int], None] | None = None,
-        group: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Batched Adam from given starting poses; returns each start's best pose.
 
         Parameters
         ----------
-        holes : list of Hole
-            On ``self.frame``.
-        pose_hole, pose_shape : (K,) ndarrays of int
-            Which hole and which shape each pose belongs to.
-        q0 : (K, 4) ndarray
-            Starting rotations.
-        t0 : (K, 2) ndarray
-            Starting translations, scene units.
+        batch : Batch
+            The K poses: their holes (on ``self.frame``) and shapes, starting rotations and
+            translations (scene units), and the groups of poses that settle together (see
+            :meth:`attack`'s ``settle``: once one pose of a group fits, the others stop where
+            their best pose is; when every group has settled the descent ends).
         steps : int
         learning_rate : float
         progress : callable, optional
-        group : (K,) ndarray of int, optional
-            Groups of poses that settle together (see :meth:`attack`'s ``settle``): once one
-            pose of a group fits, the others stop where their best pose is; when every group has
-            settled the descent ends.
 
         Returns
         -------
@@ -221,23 +228,20 @@ class PlayerB:
         on. Either way the result is the traced one.
 
         Poses whose (pose, segment) pairs exceed :attr:`max_pairs` descend in chunks of
-        consecutive poses (:meth:`chunks`), one after another: every pose's descent is its own
-        (Adam is per parameter, the loss a sum of per-pose terms), so the poses are the same bit
-        for bit, and the memory no longer grows with shapes x starts x holes x segments.
+        consecutive poses (:meth:`chunks`, :meth:`~sieve_mi.game.descent.Batch.split`), one
+        after another: every pose's descent is its own (Adam is per parameter, the loss a sum of
+        per-pose terms), so the poses are the same bit for bit, and the memory no longer grows
+        with shapes x starts x holes x segments.
         """
-        parts = self.chunks(pose_shape)
+        parts = self.chunks(batch.pose_shape)
         if len(parts) == 1:
-            return self._descend_falling_back(
-                holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress, group
-            )
-        quats, trans = np.empty((len(q0), 4)), np.empty((len(q0), 2))
-        for i, part in enumerate(parts):  # the progress bar follows the last chunk
+            return self._descend_falling_back(batch, steps, learning_rate, progress)
+        quats, trans = np.empty((len(batch), 4)), np.empty((len(batch), 2))
+        for i, (part, chunk) in enumerate(zip(parts, batch.split(parts))):
+            last = i == len(parts) - 1  # the progress bar follows the last chunk
             quats[part], trans[part] = self._descend_falling_back(
-                holes, pose_hole[part], pose_shape[part], np.asarray(q0)[part],
-                np.asarray(t0)[part], steps, learning_rate,
-                progress if i == len(parts) - 1 else None,
-                None if group is None else np.asarray(group)[part],
-            )  # fmt: skip
+                chunk, steps, learning_rate, progress if last else None
+            )
         return quats, trans
 
     def chunks(self, pose_shape: np.ndarray) -> list[slice]:
@@ -282,38 +286,22 @@ class PlayerB:
             bounds.append(int(np.searchsorted(ends, base + limit, side="right")))
         return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
-    def _descend_falling_back(
-        self, holes, pose_hole, pose_shape, q0, t0, steps, learning_rate, progress=None, group=None
-    ):
-        """One descent of all given poses at once, with the frozen steps' fallbacks."""
-        args = (holes, pose_hole, pose_shape, q0, t0, steps, learning_rate)
+    def _descend_falling_back(self, batch, steps, learning_rate, progress=None):
+        """One descent of all the poses of ``batch`` at once, with the frozen steps' fallbacks."""
         try:
-            return self._descend(*args, progress, group=group)
+            return self._descend(batch, steps, learning_rate, progress)
         except FrozenStepFailed as failure:
             self._stop_freezing(failure.__cause__)
         except BufferOverflow:  # more active pairs than the buffer held: this descent traced
-            return self._descend(*args, group=group, may_freeze=False)
-        return self._descend(*args, group=group)
+            return self._descend(batch, steps, learning_rate, may_freeze=False)
+        return self._descend(batch, steps, learning_rate)
 
-    def _descend(
-        self,
-        holes,
-        pose_hole,
-        pose_shape,
-        q0,
-        t0,
-        steps,
-        learning_rate,
-        progress=None,
-        *,
-        group=None,
-        may_freeze: bool = True,
-    ):
+    def _descend(self, batch, steps, learning_rate, progress=None, *, may_freeze: bool = True):
         """:meth:`descend` without its fallbacks (:meth:`~sieve_mi.game.descent.Descent.run`);
         raises :class:`~sieve_mi.game.descent.BufferOverflow` or
         :class:`~sieve_mi.game.descent.FrozenStepFailed` when a frozen descent must run again
         traced. ``may_freeze=False`` traces every step."""
-        run = Descent(self, holes, pose_hole, pose_shape, q0, t0, learning_rate, group)
+        run = Descent(self, batch, learning_rate)
         freeze = self._frozen_steps if may_freeze and steps > 0 else None
         return run.run(steps, progress, freeze)
 
@@ -342,8 +330,11 @@ class PlayerB:
         self._frozen = self._frozen or frozen.frozen_step()
         return frozen.replay(self._frozen, run)
 
-    def _score(self, holes, quats, trans, pose_hole, pose_shape, starts, keep=0) -> Attack:
-        n_h, n_b = len(holes), len(self.shapes)
+    def _score(self, batch: Batch, quats, trans, keep: int = 0) -> Attack:
+        """The attack of ``batch`` (laid out by :meth:`start_batch`) from its best poses ``quats``
+        (K, 4) and ``trans`` (K, 2, scene units), scored on the raster."""
+        holes, pose_hole, pose_shape = batch.holes, batch.pose_hole, batch.pose_shape
+        n_h, n_b, starts = len(holes), len(self.shapes), batch.starts
         beta = np.ones(len(quats))
         prot = np.zeros(len(quats))
         for b in range(n_b):

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sieve_mi.errors import SieveError
-from sieve_mi.game.attack import Attack, AttackMemory
+from sieve_mi.game.attack import Attack, AttackMemory, Starts
 from sieve_mi.game.exact import CANDIDATES, exact_rescore
 from sieve_mi.game.frames import frame_for, separate_layout
 from sieve_mi.game.player_a import PlayerA
@@ -204,13 +204,15 @@ def judge(
     same = fab.block_margin == 0 and not separate
     attack = player_b.attack(
         [hole] if same else [Hole.from_outline(g, frame) for g in grown],
-        v.starts,
+        Starts(
+            v.starts,
+            centres=start_centres(grown, trans, groups),
+            memory=None if separate else memory,
+        ),
         v.steps,
         scene.solver.learning_rate,
         rng,
         progress=progress,
-        centres=start_centres(grown, trans, groups),
-        memory=None if separate else memory,
         keep=CANDIDATES,
         settle="start" if fab.fill_holes and scene.solver.settle else None,
     )

@@ -9,6 +9,7 @@ import pytest
 import trimesh
 from helpers import REPO, rng, sphere
 
+from sieve_mi.game.descent import Batch
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.geometry.hole import Hole
 from sieve_mi.geometry.meshes import shape_from_trimesh
@@ -34,7 +35,7 @@ def _descend(player, steps=12):
     pose_shape = np.tile(np.repeat(np.arange(shapes), 3), 2)
     q0 = random_uniform(k, rng(4))
     t0 = rng(5).uniform(-0.1, 0.1, (k, 2))
-    return player.descend(_holes(), pose_hole, pose_shape, q0, t0, steps, 0.05)
+    return player.descend(Batch(_holes(), pose_hole, pose_shape, q0, t0), steps, 0.05)
 
 
 @pytest.fixture(scope="module")

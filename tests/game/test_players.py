@@ -100,7 +100,7 @@ def test_attack_memory_replays_a_remembered_passage(cube20):
     # plane): a random pose never fits, the remembered upright pose always does.
     import trimesh
 
-    from sieve_mi.game.attack import Attack, AttackMemory
+    from sieve_mi.game.attack import Attack, AttackMemory, Starts
     from sieve_mi.geometry.meshes import shape_from_trimesh
 
     f, a, hole = _cube_hole(cube20)
@@ -133,7 +133,7 @@ def test_attack_memory_replays_a_remembered_passage(cube20):
     q, _ = memory.poses(0)
     assert q.tolist() == [[1.0, 0, 0, 0], [0.0, 1.0, 0, 0]]  # best first
 
-    warm = b.attack([hole], starts=2, steps=0, learning_rate=0.05, rng=rng(5), memory=memory)
+    warm = b.attack([hole], Starts(2, memory=memory), steps=0, learning_rate=0.05, rng=rng(5))
     assert warm.beta[0, 0] == 0.0 and warm.fits[0, 0] == 1
     assert len(memory.poses(0)[0]) == 2 and memory.poses(0)[0][0].tolist() == [1.0, 0, 0, 0]
 
