@@ -13,6 +13,7 @@ __all__ = [
     "PSO_COEFFICIENT",
     "QUAT_KEYS",
     "SwarmHistory",
+    "SwarmSettings",
     "live_poses",
     "nlopt_maximise",
     "particle_swarm",
@@ -124,6 +125,30 @@ class SwarmHistory:
         self.evaluations += other.evaluations
 
 
+@dataclass(frozen=True)
+class SwarmSettings:
+    """How a particle swarm (:func:`particle_swarm`) moves and when it stops early.
+
+    Attributes
+    ----------
+    inertia, c_personal, c_global : float
+        omega, psi_1 and psi_2 of the velocity update (default :data:`PSO_COEFFICIENT` each, the
+        paper's value).
+    patience : int
+        Stop early once the swarm's best has not improved for this many iterations in a row
+        (0: run every iteration).
+    gain, floor : float
+        An improvement must exceed ``gain`` times the best (relative) and ``floor`` (absolute).
+    """
+
+    inertia: float = PSO_COEFFICIENT
+    c_personal: float = PSO_COEFFICIENT
+    c_global: float = PSO_COEFFICIENT
+    patience: int = 0
+    gain: float = 0.01
+    floor: float = 1e-3
+
+
 class _Stall:
     """Counts a search's iterations in a row whose best beat the last marked best by less than
     ``gain`` (relative) or ``floor`` (absolute)."""
@@ -145,15 +170,11 @@ def particle_swarm(
     x0: np.ndarray,
     iterations: int,
     rng: np.random.Generator,
-    inertia: float = PSO_COEFFICIENT,
-    c_personal: float = PSO_COEFFICIENT,
-    c_global: float = PSO_COEFFICIENT,
+    settings: SwarmSettings | None = None,
+    *,
     v0: np.ndarray | None = None,
     project: Callable[[np.ndarray], np.ndarray] | None = None,
     progress: Callable[[int, float], None] | None = None,
-    patience: int = 0,
-    gain: float = 0.01,
-    floor: float = 1e-3,
 ):
     """Maximise ``evaluate`` with particle swarm optimisation (Poli 2008), all particles per call.
 
@@ -167,17 +188,15 @@ def particle_swarm(
     iterations : int
         Number of velocity updates after the initial evaluation.
     rng : numpy.random.Generator
-    inertia, c_personal, c_global : float
-        omega, psi_1 and psi_2 (default :data:`PSO_COEFFICIENT` each, the paper's value).
+    settings : SwarmSettings, optional
+        Inertia, accelerations and early stop (default: :class:`SwarmSettings`' defaults, the
+        paper's coefficients and no early stop).
     v0 : (P, D) ndarray, optional
         Initial velocities (zeros by default).
     project : callable, optional
         Maps positions back onto the feasible set after every move (e.g. normalise quaternions).
     progress : callable, optional
         Called as ``progress(iteration, best_value)``.
-    patience, gain, floor : int, float, float
-        Stop early once the swarm's best has not improved for ``patience`` iterations in a row
-        (0: run every iteration); an improvement must exceed ``gain`` times the best and ``floor``.
 
     Returns
     -------
@@ -186,6 +205,7 @@ def particle_swarm(
     history : SwarmHistory
         ``history.stopped`` is the iteration the patience ended the swarm at (None: it ran all).
     """
+    s = SwarmSettings() if settings is None else settings
     x = np.array(x0, dtype=np.float64)
     v = np.zeros_like(x) if v0 is None else np.array(v0, dtype=np.float64)
     f = np.asarray(evaluate(x), dtype=np.float64)
@@ -195,10 +215,10 @@ def particle_swarm(
     history.best.append(float(p_val[g]))
     if progress:
         progress(0, float(p_val[g]))
-    stall = _Stall(float(p_val[g]), gain, floor)
+    stall = _Stall(float(p_val[g]), s.gain, s.floor)
     for it in range(1, iterations + 1):
         r1, r2 = rng.random(x.shape), rng.random(x.shape)
-        v = inertia * v + c_personal * r1 * (p_best - x) + c_global * r2 * (p_best[g] - x)
+        v = s.inertia * v + s.c_personal * r1 * (p_best - x) + s.c_global * r2 * (p_best[g] - x)
         x = x + v
         if project is not None:
             x = project(x)
@@ -210,7 +230,7 @@ def particle_swarm(
         history.best.append(float(p_val[g]))
         if progress:
             progress(it, float(p_val[g]))
-        if stall.idle_after(float(p_val[g])) >= patience > 0 and it < iterations:
+        if stall.idle_after(float(p_val[g])) >= s.patience > 0 and it < iterations:
             history.stopped = it
             break
     order = np.argsort(p_val)[::-1]

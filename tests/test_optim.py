@@ -167,7 +167,7 @@ def test_patience_stops_a_swarm_whose_best_stalls_and_not_one_that_climbs():
     above the last best while below 100, so patience 2 never stops it in 10 iterations; the same
     swarm on values that grow by 1e-4 per iteration (under the 1e-3 floor) stops after exactly
     2 idle iterations, with 3 entries in its history (the start and 2 iterations)."""
-    from sieve_mi.optim import particle_swarm
+    from sieve_mi.optim import SwarmSettings, particle_swarm
 
     def counting(step):
         calls = [0]
@@ -180,9 +180,9 @@ def test_patience_stops_a_swarm_whose_best_stalls_and_not_one_that_climbs():
 
     rng = np.random.default_rng(0)
     x0 = rng.normal(size=(3, 2))
-    _, best, h = particle_swarm(counting(1.0), x0, 10, rng, patience=2)
+    _, best, h = particle_swarm(counting(1.0), x0, 10, rng, SwarmSettings(patience=2))
     assert h.stopped is None and len(h.best) == 11 and best == 11.0
-    _, best, h = particle_swarm(counting(1e-4), x0, 10, rng, patience=2)
+    _, best, h = particle_swarm(counting(1e-4), x0, 10, rng, SwarmSettings(patience=2))
     assert h.stopped == 2 and len(h.best) == 3 and best == pytest.approx(3e-4)
-    _, _, h = particle_swarm(counting(1e-4), x0, 10, rng, patience=0)
+    _, _, h = particle_swarm(counting(1e-4), x0, 10, rng, SwarmSettings(patience=0))
     assert h.stopped is None and len(h.best) == 11

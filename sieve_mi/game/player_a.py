@@ -27,7 +27,7 @@ from sieve_mi.geometry.rotations import (
     to_rotvec,
 )
 from sieve_mi.geometry.silhouettes import SilhouetteRenderer
-from sieve_mi.optim import nlopt_maximise, particle_swarm
+from sieve_mi.optim import SwarmSettings, nlopt_maximise, particle_swarm
 from sieve_mi.scene import Fabrication, Solver
 
 __all__ = ["PlayerA"]
@@ -211,17 +211,11 @@ class PlayerA:
         if method == "pso":
             x0 = random_uniform(particles, rng)
             x0[: len(seeds)] = seeds[:particles]
+            swarm = SwarmSettings(
+                solver.inertia, solver.c_personal, solver.c_global, patience=solver.patience
+            )
             return particle_swarm(
-                evaluate,
-                x0,
-                iterations,
-                rng,
-                solver.inertia,
-                solver.c_personal,
-                solver.c_global,
-                project=normalize,
-                progress=progress,
-                patience=solver.patience,
+                evaluate, x0, iterations, rng, swarm, project=normalize, progress=progress
             )
         lower, upper = -np.pi * np.ones(3), np.pi * np.ones(3)
         x0 = rng.uniform(-np.pi, np.pi, 3)

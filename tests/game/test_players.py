@@ -9,7 +9,7 @@ from helpers import rng, sphere
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.geometry.raster import Frame
-from sieve_mi.optim import nlopt_maximise, particle_swarm
+from sieve_mi.optim import SwarmSettings, nlopt_maximise, particle_swarm
 from sieve_mi.testing.settings import tiny_solver
 
 
@@ -59,7 +59,11 @@ def test_particle_swarm_finds_a_known_maximum():
 
     x0 = np.random.default_rng(0).uniform(-1, 1, (20, 3))
     best, value, history = particle_swarm(
-        f, x0, 60, np.random.default_rng(1), inertia=0.5, c_personal=1.0, c_global=1.0
+        f,
+        x0,
+        60,
+        np.random.default_rng(1),
+        SwarmSettings(inertia=0.5, c_personal=1.0, c_global=1.0),
     )
     assert np.allclose(best, target, atol=0.05)
     assert np.all(np.diff(history.best) >= 0) and len(history.best) == 61
