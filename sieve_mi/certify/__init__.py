@@ -10,6 +10,12 @@ passes the hole H iff some rotation R and in-plane translation t put proj(R B) +
 2. otherwise a branch and bound over rotation space (:mod:`sieve_mi.certify.search`) excludes
    cells of rotations, finds a passage, or runs out of budget.
 
+That answer is about straight passage. A ball proof and a passage hold on a plate of any
+thickness; a cell-tree proof only on a plate at least as thick as the shape's diameter (the
+thick-plate argument): given a plate's ``thickness``, a thinner one turns it into "undecided"
+(:meth:`Certification.on_plate`; the result's ``holds_for``, ``diameter`` and ``thickness`` say
+so).
+
 :func:`replay` re-checks a certificate file with an independent implementation.
 """
 
@@ -22,12 +28,13 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.certify import bounds, cells, symmetry
-from sieve_mi.certify.certificate import Certification, build
+from sieve_mi.certify.certificate import Certification, build, scope
 from sieve_mi.certify.replay import replay
 from sieve_mi.certify.search import Search, Settings
 from sieve_mi.certify.svg import read_svg_hole
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.plate import diameter as points_diameter
 
 __all__ = ["Certification", "Settings", "certify", "read_svg_hole", "replay"]
 
@@ -46,7 +53,7 @@ def union_of_holes(holes: list[manifold3d.CrossSection]) -> manifold3d.CrossSect
     return hole
 
 
-def _check_arguments(shape, holes, budget_s, settings=None) -> None:
+def _check_arguments(shape, holes, budget_s, settings=None, thickness=None) -> None:
     """One-line SieveErrors for arguments of the wrong kind (as the CLI refuses them)."""
     if settings is not None and not isinstance(settings, Settings):
         raise SieveError(
@@ -64,6 +71,9 @@ def _check_arguments(shape, holes, budget_s, settings=None) -> None:
     number = isinstance(budget_s, numbers.Real) and not isinstance(budget_s, (bool, np.bool_))
     if not (number and 0 < budget_s < float("inf")):
         raise SieveError(f"budget {budget_s!r}: must be a positive number of seconds")
+    real = isinstance(thickness, numbers.Real) and not isinstance(thickness, (bool, np.bool_))
+    if thickness is not None and not (real and 0 <= thickness < float("inf")):
+        raise SieveError(f"thickness {thickness!r}: must be None or a number >= 0 (scene units)")
 
 
 def certify(
@@ -74,6 +84,7 @@ def certify(
     settings: Settings | None = None,
     scale: float = 1.0,
     use_symmetry: bool = True,
+    thickness: float | None = None,
 ) -> Certification:
     """Prove that ``shape`` cannot pass through ``holes``, find a pose that passes, or give up.
 
@@ -91,26 +102,46 @@ def certify(
         The scale the shape was loaded with (recorded in the certificate for the replay).
     use_symmetry : bool
         Shrink the rotation domain by the shape's detected symmetry group.
+    thickness : float, optional
+        The plate's thickness where the holes are, scene units. None (the default): the holes
+        are an outline without a plate, and the answer is for straight passage (a cell-tree
+        proof then also holds for plates at least the shape's diameter thick).
 
     Returns
     -------
     Certification
-        ``status`` "proved", "passage" or "undecided", with timings, cell counts, the excluded
-        fraction, the passage pose if any, and the certificate (``write_certificate``).
+        ``status`` "proved", "passage" or "undecided" (also a straight proof that does not hold
+        on a plate of ``thickness``), ``straight`` the answer for straight passage, ``holds_for``
+        what it covers, timings, cell counts, the excluded fraction, the passage pose if any,
+        and the certificate (``write_certificate``).
     """
-    _check_arguments(shape, holes, budget_s, settings)
+    _check_arguments(shape, holes, budget_s, settings, thickness)
+    result = _certify(shape, holes, budget_s, settings, scale, use_symmetry)
+    return result if thickness is None else result.on_plate(thickness)
+
+
+def _certify(shape, holes, budget_s, settings, scale, use_symmetry) -> Certification:
+    """:func:`certify` for straight passage (the paper's model), arguments checked."""
     t0 = time.perf_counter()
     settings = Settings(**{**(settings or Settings()).__dict__, "budget_s": budget_s})
     if settings.bound not in ("first-order", "isotropic"):
         raise SieveError(f"bound {settings.bound!r}: must be 'first-order' or 'isotropic'")
     hole = union_of_holes(holes)
     contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
+    diameter = points_diameter(shape.hull)
     ball = bounds.inscribed_ball(shape)
     if ball is not None and bounds.no_disk_fits(bounds.contour_segments(contours), ball[1]):
         root = {"kind": "ball", "centre": ball[0].tolist(), "radius": ball[1]}
-        cert = build(shape, contours, "proved", "none", root, None, settings, scale)
+        cert = build(shape, contours, "proved", "none", root, None, settings, scale, diameter)
         return Certification(
-            "proved", time.perf_counter() - t0, "ball", excluded_fraction=1.0, certificate=cert
+            "proved",
+            time.perf_counter() - t0,
+            "ball",
+            excluded_fraction=1.0,
+            certificate=cert,
+            straight="proved",
+            holds_for=scope("proved", "ball"),
+            diameter=diameter,
         )
     group = symmetry.detect(shape) if use_symmetry else "none"
     faces, half = symmetry.domain(group)
@@ -120,7 +151,7 @@ def certify(
         "passage" if outcome.passage else ("proved" if outcome.open_cells == 0 else "undecided")
     )
     total = float(cells.volumes(roots).sum())
-    cert = build(shape, contours, status, group, None, outcome, settings, scale)
+    cert = build(shape, contours, status, group, None, outcome, settings, scale, diameter)
     return Certification(
         status,
         time.perf_counter() - t0,
@@ -133,4 +164,7 @@ def certify(
         symmetry=group,
         passage=outcome.passage,
         certificate=cert,
+        straight=status,
+        holds_for=scope(status, "cells"),
+        diameter=diameter,
     )

@@ -16,7 +16,14 @@ from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import dilated, hole_outline, is_closed
 from sieve_mi.scene import Scene
 
-__all__ = ["MARGIN_FACTOR", "MARGIN_MIN_S", "ball_margin", "certify_blocks", "prove_margin"]
+__all__ = [
+    "MARGIN_FACTOR",
+    "MARGIN_MIN_S",
+    "ball_margin",
+    "certify_blocks",
+    "on_sheet",
+    "prove_margin",
+]
 
 #: The margin bisection after a proof gets at most this many times the proof's time ...
 MARGIN_FACTOR = 4.0
@@ -61,6 +68,28 @@ def ball_margin(radius: float, hole, *, steps: int = 24) -> float:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if holds(mid) else (lo, mid)
     return lo
+
+
+def on_sheet(certified: list, thickness: float) -> list:
+    """Each B's certification judged on the plate as made (:meth:`Certification.on_plate`).
+
+    A cell-tree proof holds only for straight passage, or a plate at least as thick as the B's
+    diameter: on a thinner plate (``[fabrication] thickness``, or ``"thinnest"``) its status
+    becomes ``"undecided"`` (``straight`` stays ``"proved"``), so report.json never says
+    "proved" where a tilted passage is not excluded. Ball proofs and passages hold on any plate.
+
+    Parameters
+    ----------
+    certified : list of Certification or None
+        Per B (None where none ran); may be empty.
+    thickness : float
+        The plate's thickness, scene units.
+
+    Returns
+    -------
+    list of Certification or None
+    """
+    return [None if c is None else c.on_plate(thickness) for c in certified]
 
 
 def certify_blocks(

@@ -21,12 +21,23 @@ Certificate format (``"format": "sieve-mi-certificate/1"``; lengths in scene uni
   ``bound``: ``"first-order"`` (each point's displacement bound over a cell is the smaller of the
   first-order bound and 2 sin(theta) |p|; docs/certify.md) or ``"isotropic"`` (2 sin(theta) |p|
   only; certificates without ``bound`` were written before the first-order bound and mean this).
-* ``status`` and ``passage`` (quaternion, translation) as found.
+* ``status`` and ``passage`` (quaternion, translation) as found: the answer for *straight*
+  passage (the shape translated along the hole's axis), the paper's model.
+* ``plate`` (certificates written since "Thin plates, proved"; older ones have none): what that
+  answer covers. ``diameter``: the stored mesh's diameter; ``holds_for``: ``"any plate"`` (a
+  ball proof, or a straight passage, which passes a plate of any thickness),
+  ``"plates at least the diameter thick"`` (a cell-tree proof: a plate at least that thick holds
+  the whole shape inside the hole's prism at some moment, so its projection would have to fit;
+  on a thinner plate a tilted passage is not excluded) or null (undecided: nothing is claimed);
+  ``thickness``: the plate's thickness the run was asked about (scene units), or null (an outline
+  without a plate, or a plate whose thickness could not be measured). The replay recomputes the
+  diameter and rejects a ``holds_for`` that the evidence does not give.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from dataclasses import dataclass, field
@@ -35,21 +46,65 @@ import numpy as np
 
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape, mesh_sha256
+from sieve_mi.geometry.plate import LENGTH_SLACK
 
 __all__ = [
+    "ANY_PLATE",
     "Certification",
     "FORMAT",
     "MAX_CERTIFICATE_BYTES",
     "REQUIRED",
     "build",
+    "excluded_percent",
     "is_certificate",
     "mesh_hash",
     "read_certificate_file",
+    "scope",
     "tree_to_dict",
     "writable_certificate",
 ]
 
 FORMAT = "sieve-mi-certificate/1"
+
+#: ``holds_for`` of a ball proof or a straight passage: a plate of any thickness.
+ANY_PLATE = "any plate"
+#: ``holds_for`` of a cell-tree proof: the thick-plate argument (docs/certify.md, "The claim").
+THICK_PLATES = "plates at least the diameter thick"
+
+
+def excluded_percent(fraction: float, complete: bool, digits: int = 2) -> str:
+    """``fraction`` as a percentage with ``digits`` decimals, rounded down: "100" only for a
+    ``complete`` search (every cell excluded), so an undecided run never reads "100.00".
+
+    Examples
+    --------
+    >>> excluded_percent(0.9999977, False), excluded_percent(1.0, False)
+    ('99.99', '99.99')
+    >>> excluded_percent(0.9999999999, True), excluded_percent(0.123456, False, 1)
+    ('100.00', '12.3')
+    """
+    if complete:
+        return f"{100:.{digits}f}"
+    scale = 10**digits
+    steps = math.floor(round(100 * scale * max(float(fraction), 0.0), 6))  # 0.29 is 28.999...
+    shown = min(steps, 100 * scale - 1) / scale
+    return f"{shown:.{digits}f}"
+
+
+def scope(status: str, method: str) -> str | None:
+    """What a straight-passage answer covers: :data:`ANY_PLATE` for a ball proof or a passage,
+    :data:`THICK_PLATES` for a cell-tree proof, None for an undecided run (nothing is claimed).
+
+    Examples
+    --------
+    >>> scope("proved", "ball"), scope("passage", "cells")
+    ('any plate', 'any plate')
+    >>> scope("proved", "cells"), scope("undecided", "cells")
+    ('plates at least the diameter thick', None)
+    """
+    if status == "passage" or (status == "proved" and method == "ball"):
+        return ANY_PLATE
+    return THICK_PLATES if status == "proved" else None
 
 
 def mesh_hash(shape: Shape) -> str:
@@ -65,7 +120,8 @@ class Certification:
     ----------
     status : str
         ``"proved"`` (no rotation and translation lets it through), ``"passage"`` (a pose that
-        fits was found) or ``"undecided"`` (the budget or the smallest cell size was reached).
+        fits was found) or ``"undecided"`` (the budget or the smallest cell size was reached, or,
+        after :meth:`on_plate`, a straight proof that does not cover the plate's thickness).
     seconds : float
     method : str
         ``"ball"`` (root-level inscribed-ball test) or ``"cells"`` (branch and bound).
@@ -85,6 +141,18 @@ class Certification:
         not tried or not proved).
     margin_certificate : dict
         The certificate of that proof against the grown hole (empty when m = 0 or None).
+    straight : str or None
+        The answer for straight passage (the search's status, the paper's model).
+    holds_for : str or None
+        What ``straight`` covers (:func:`scope`): :data:`ANY_PLATE`, :data:`THICK_PLATES` or
+        None (undecided).
+    diameter : float or None
+        The shape's diameter, scene units.
+    thickness : float or None
+        The plate's thickness (:meth:`on_plate`), scene units; None for an outline without a
+        plate, or a plate whose thickness could not be measured (then ``plate_note`` says why).
+    plate_note : str
+        Why the plate's thickness is unknown (empty otherwise).
     """
 
     status: str
@@ -100,6 +168,91 @@ class Certification:
     certificate: dict = field(default_factory=dict, repr=False)
     margin: float | None = None
     margin_certificate: dict = field(default_factory=dict, repr=False)
+    straight: str | None = None
+    holds_for: str | None = None
+    diameter: float | None = None
+    thickness: float | None = None
+    plate_note: str = ""
+
+    @property
+    def covers_plate(self) -> bool | None:
+        """Whether ``straight`` holds on the plate: None without a plate (:meth:`on_plate` not
+        called) or when nothing is claimed (undecided); False for a cell-tree proof on a plate
+        thinner than the diameter (lengths within ``LENGTH_SLACK`` count as equal, as for the
+        thin-plate verdict) or of unknown thickness."""
+        if (self.thickness is None and not self.plate_note) or self.holds_for is None:
+            return None
+        if self.holds_for == ANY_PLATE:
+            return True
+        return (
+            self.thickness is not None
+            and self.diameter is not None
+            and self.thickness + LENGTH_SLACK >= self.diameter
+        )
+
+    def on_plate(self, thickness: float | None, note: str = "") -> Certification:
+        """This answer judged on a plate of ``thickness`` (None: not measured, ``note`` says why).
+
+        A straight proof that holds only for plates at least the shape's diameter thick
+        (:data:`THICK_PLATES`, a cell tree) becomes ``"undecided"`` on a thinner plate, or one of
+        unknown thickness: a tilted passage is not excluded. A ball proof and a passage keep
+        their status (they hold on any plate). The certificate records the thickness (its
+        ``status`` stays the straight answer, qualified by ``plate.holds_for``).
+
+        Returns
+        -------
+        Certification
+            A copy; this one is not changed.
+        """
+        import copy
+
+        out = copy.copy(self)
+        out.thickness = None if thickness is None else float(thickness)
+        out.plate_note = "" if thickness is not None else (note or "thickness not measured")
+        if out.straight is None:
+            out.straight = self.status
+        if out.straight == "proved" and not out.covers_plate:
+            out.status = "undecided"
+        if self.certificate:
+            out.certificate = {**self.certificate}
+            out.certificate["plate"] = {**self.certificate.get("plate", {}),
+                                        "thickness": out.thickness}  # fmt: skip
+        return out
+
+    def excluded_percent(self, digits: int = 2) -> str:
+        """The excluded share of rotations as a percentage, never rounded up to 100 (see
+        :func:`excluded_percent`)."""
+        complete = (self.straight or self.status) == "proved"
+        return excluded_percent(self.excluded_fraction, complete, digits)
+
+    def scope_line(self, units: str = "mm") -> str:
+        """One line on what the answer covers (empty for an undecided straight search)."""
+        d = f"{self.diameter:.4g} {units}" if self.diameter is not None else "its diameter"
+        if self.holds_for == ANY_PLATE and self.straight == "passage":
+            return "the passage is straight through: it passes a plate of any thickness"
+        if self.holds_for == ANY_PLATE:
+            return (
+                "holds on a plate of any thickness (a ball inside the part is wider than any "
+                "disk in the hole)"
+            )
+        if self.holds_for != THICK_PLATES:
+            return ""
+        if self.thickness is None and not self.plate_note:
+            return (
+                f"proved for straight passage, or plates at least the part's {d} diameter thick "
+                "(an outline has no thickness; a thinner plate may let it through tilted)"
+            )
+        if self.covers_plate:
+            return f"holds on this plate: {self.thickness:.4g} {units} thick, the part {d} across"
+        plate = (
+            f"the plate is {self.thickness:.4g} {units} thick and the part {d} across"
+            if self.thickness is not None
+            else f"{self.plate_note} (the part is {d} across)"
+        )
+        return (
+            f"proved that no pose passes straight through, but {plate}: a tilted passage is not "
+            "excluded (see `sieve-mi check --sieve` for a motion search)"
+        )
 
     def to_dict(self) -> dict:
         """The result as plain JSON-ready data (without the certificate)."""
@@ -115,6 +268,12 @@ class Certification:
             "symmetry": self.symmetry,
             "passage": self.passage,
             "margin": self.margin,
+            "straight": self.straight,
+            "holds_for": self.holds_for,
+            "diameter": self.diameter,
+            "thickness": self.thickness,
+            "covers_plate": self.covers_plate,
+            **({"plate_note": self.plate_note} if self.plate_note else {}),
         }
 
     def write_certificate(self, path: str, inputs: tuple[str, ...] = ()) -> None:
@@ -277,8 +436,10 @@ def build(
     outcome,
     settings,
     scale: float = 1.0,
+    diameter: float | None = None,
 ) -> dict:
-    """The certificate dictionary (format in the module docstring).
+    """The certificate dictionary (format in the module docstring); ``diameter`` (scene units)
+    gives its ``plate`` entry (the thickness is set by :meth:`Certification.on_plate`).
 
     Point indices in the evidence are renumbered into ``shape.points``.
     """
@@ -322,4 +483,9 @@ def build(
             "bound": settings.bound,
         },
         "passage": outcome.passage if outcome is not None else None,
+        "plate": {
+            "thickness": None,
+            "diameter": diameter,
+            "holds_for": scope(status, "ball" if root is not None else "cells"),
+        },
     }

@@ -32,7 +32,13 @@ own geometry (:mod:`sieve_mi.certify.replay_geometry`), point in polygon is matp
    proved; a passage that fits: passage; open cells and no passage: undecided) and rejects a
    claimed status that differs, or claims that contradict (a ball proof with a passage or a cell
    tree, a passage where every cell is excluded). Every rejection lists at least one error, each
-   starting with the field it concerns.
+   starting with the field it concerns;
+7. checks the scope of the claim (``plate``, when the certificate has one): its ``diameter``
+   against the mesh's, recomputed here, and its ``holds_for`` against what the evidence gives: a
+   ball proof or a passage holds on any plate, a cell-tree proof only on plates at least the
+   diameter thick (the thick-plate argument), an undecided tree on none. A certificate claiming
+   more (``"any plate"`` for a cell tree) is invalid. Certificates written before ``plate`` are
+   replayed as before, with the scope derived.
 """
 
 from __future__ import annotations
@@ -319,8 +325,11 @@ def replay(source) -> dict:
     -------
     dict
         ``valid`` (every check passed and the claimed status is the one the evidence shows),
-        ``proved`` (valid and proved), ``status`` claimed, ``leaves`` re-proved, ``open`` cells,
-        ``errors`` (the first 10 problems) and ``seconds``.
+        ``proved`` (valid and proved, for straight passage), ``status`` claimed, ``holds_for``
+        (what the claim covers: ``"any plate"``, ``"plates at least the diameter thick"`` or
+        None), ``diameter`` (recomputed), ``thickness`` (the plate's, as recorded, or None),
+        ``covers_plate`` (whether the claim holds on that plate; None without one), ``leaves``
+        re-proved, ``open`` cells, ``errors`` (the first 10 problems) and ``seconds``.
 
     Raises
     ------
@@ -340,11 +349,13 @@ def replay(source) -> dict:
     except RecursionError:
         raise SieveError(f"{where}: malformed certificate (nested too deeply)") from None
     status = cert["status"]
-    r.errors[:0] = _status_errors(cert, r)  # first, so that they are among those reported
+    plate, plate_errors = _plate_scope(cert, r)
+    r.errors[:0] = _status_errors(cert, r) + plate_errors  # first: among those reported
     return {
         "valid": not r.errors,
         "proved": not r.errors and status == "proved",
         "status": status,
+        **plate,
         "leaves": r.leaves,
         "open": r.open,
         "errors": r.errors[:MAX_ERRORS],
@@ -400,3 +411,53 @@ def _status_errors(cert: dict, r: Replay) -> list[str]:
     if claim != shown:
         errors.append(f"status: claims {claim}, but the evidence shows {shown} ({why})")
     return errors
+
+
+#: What a claim covers (``plate.holds_for``; :func:`sieve_mi.certify.certificate.scope`).
+ANY_PLATE, THICK_PLATES = "any plate", "plates at least the diameter thick"
+#: Lengths within this many scene units count as equal (``geometry.plate.LENGTH_SLACK``).
+LENGTH_SLACK = 1e-6
+
+
+def mesh_diameter(vertices: np.ndarray) -> float:
+    """Largest distance between two of the points (over their convex hull's vertices), exact."""
+    from scipy.spatial import ConvexHull
+
+    p = np.asarray(vertices, dtype=np.float64)
+    try:
+        p = p[ConvexHull(p).vertices]
+    except Exception:  # flat or collinear: every point
+        pass
+    best = 0.0
+    for i in range(0, len(p), 1024):
+        best = max(best, float(((p[i : i + 1024, None] - p[None]) ** 2).sum(-1).max()))
+    return math.sqrt(best)
+
+
+def _plate_scope(cert: dict, r: Replay) -> tuple[dict, list[str]]:
+    """What the claim covers, from the evidence, and the certificate's ``plate`` entry checked.
+
+    A ball proof and a passage hold on any plate; a cell-tree proof on plates at least the
+    diameter thick; an undecided claim on none.
+    """
+    claim = cert["status"]
+    holds = ANY_PLATE if claim == "passage" or (claim == "proved" and cert["root"]) else None
+    holds = THICK_PLATES if claim == "proved" and not cert["root"] else holds
+    diameter = mesh_diameter(r.vertices[np.unique(r.faces)])
+    plate, errors = cert.get("plate"), []
+    thickness = plate.get("thickness") if plate else None
+    if plate:
+        if plate.get("holds_for") != holds:
+            why = {ANY_PLATE: "a ball proof or a passage holds on any plate",
+                   THICK_PLATES: "a cell-tree proof holds only on plates at least the shape's "
+                                 "diameter thick (a thinner one may let it through tilted)",
+                   None: "an undecided claim holds for nothing"}[holds]  # fmt: skip
+            errors.append(f"plate.holds_for: claims {plate.get('holds_for')!r}, but {why}")
+        d = plate.get("diameter")
+        if d is None or abs(d - diameter) > 1e-9 * max(diameter, 1e-300):
+            errors.append(f"plate.diameter: claims {d!r}, the mesh's is {diameter!r}")
+    covers = None
+    if thickness is not None and holds is not None:
+        covers = holds == ANY_PLATE or thickness + LENGTH_SLACK >= diameter
+    info = {"holds_for": holds, "diameter": diameter, "thickness": thickness}
+    return {**info, "covers_plate": covers}, errors

@@ -124,6 +124,24 @@ def check_structure(cert: dict, where: str = "certificate") -> None:
     if not isinstance(settings.get("bound", "isotropic"), str):
         raise SieveError(f"{where}: settings.bound must be a string")
     _check_root_and_passage(cert, where)
+    _check_plate(cert.get("plate"), where)
+
+
+def _check_plate(plate, where: str) -> None:
+    """``plate`` (absent in older certificates): an object with a thickness (null or >= 0), a
+    positive diameter and ``holds_for`` (null or a string)."""
+    if plate is None:
+        return
+    if not isinstance(plate, dict):
+        raise SieveError(f"{where}: plate must be an object")
+    t = plate.get("thickness")
+    if t is not None and not (
+        isinstance(t, (int, float)) and not isinstance(t, bool) and 0 <= t <= MAX_COORDINATE
+    ):
+        raise SieveError(f"{where}: plate.thickness must be null or a finite number >= 0")
+    _positive(plate.get("diameter"), "plate.diameter", where)
+    if not isinstance(plate.get("holds_for"), (str, type(None))):
+        raise SieveError(f"{where}: plate.holds_for must be null or a string")
 
 
 def _check_root_and_passage(cert: dict, where: str) -> None:

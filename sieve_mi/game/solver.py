@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sieve_mi.certify.blocks import on_sheet
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import AttackMemory
 from sieve_mi.game.frames import hole_frame, union_frame
@@ -281,6 +282,7 @@ def solve(
     watch.mark("search")
     v, certified = _verdict(scene, passes, blocks, sure, found, rng, progress, timings, watch)
     sheet = _sheet(scene, passes, blocks, v, certified, seed, progress, timings)
+    certified = on_sheet(certified, sheet.thickness)  # a cell proof needs a plate >= B's diameter
     watch.mark("thin")
     watch.stop()
     return Result(

@@ -131,11 +131,16 @@ def _thin_cell(block: dict) -> str:
 
 def _certified_cell(block: dict) -> str:
     """The console's 'certified' cell of one B: the status and what it rests on."""
+    from sieve_mi.certify.certificate import excluded_percent
+
     c = block.get("certification")
     if c is None:
         return "-"
+    if c["status"] == "undecided" and c.get("straight") == "proved":  # a thinner plate
+        return f"straight only: plate thinner than B ({c['seconds']:.1f} s)"
     if c["status"] == "undecided":
-        return f"undecided ({100 * c['excluded_fraction']:.1f} % excluded, {c['seconds']:.0f} s)"
+        shown = excluded_percent(c["excluded_fraction"], False, 1)
+        return f"undecided ({shown} % excluded, {c['seconds']:.0f} s)"
     return f"{c['status']} ({c['seconds']:.1f} s)"
 
 

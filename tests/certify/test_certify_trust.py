@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import math
 import os
 import re
 
@@ -408,3 +409,356 @@ def test_a_file_larger_than_any_certificate_is_not_read_and_not_replaced(
     assert run("--certificate", str(cert)) == 2
     assert "is not a sieve-mi certificate" in _one_error_line(capsys)
     assert _tree_state(tmp_path) == before
+
+
+# ------------------------------------------------------------------------------------------------
+# Hostile pass F1: a straight proof is no proof on a plate thinner than the part
+# ------------------------------------------------------------------------------------------------
+# Known answers: the L-rod (two 20 mm arms of 2 mm section) is 28.35 mm across
+# (sqrt(20² + 20² + 2²)). Every straight pose projects one arm at least 20 sin 45° = 14.1 mm long,
+# so no pose fits a 6 mm round hole: certify proves that in ~0.2 s. On a 2 mm plate the rod
+# threads through tilted (tests/game/test_sheet.py finds and verifies the motion), so the proof
+# holds only on plates at least 28.35 mm thick (the thick-plate argument). The 24 mm ball holds a
+# ball wider than the hole: proved on any plate.
+
+ROD_DIAMETER = math.sqrt(20.0**2 + 20.0**2 + 2.0**2)
+
+
+@pytest.fixture(scope="module")
+def rod_files(tmp_path_factory) -> dict:
+    """The L-rod, a 24 mm ball, 60 x 60 mm plates with a 6 mm round hole (2 and 30 mm thick, and
+    an open mesh of the 2 mm one) and a 6 mm square hole as SVG."""
+    folder = tmp_path_factory.mktemp("rod")
+    files = {"rod": folder / "rod.stl", "ball": folder / "ball.stl", "svg": folder / "sq6.svg"}
+    shapes.l_rod().export(str(files["rod"]))
+    shapes.sphere(12.0).export(str(files["ball"]))
+    for t in (2.0, 30.0):
+        plate = manifold3d.Manifold.cube([60.0, 60.0, t], center=True)
+        plate -= manifold3d.Manifold.cylinder(t + 2.0, 3.0, 3.0, 64, center=True)
+        files[f"plate{t:g}"] = folder / f"plate{t:g}.stl"
+        shapes.from_manifold(plate).export(str(files[f"plate{t:g}"]))
+    thin = shapes.from_manifold(
+        manifold3d.Manifold.cube([60.0, 60.0, 2.0], center=True)
+        - manifold3d.Manifold.cylinder(4.0, 3.0, 3.0, 64, center=True)
+    )
+    top = thin.triangles_center[:, 2] > 0.99
+    files["open"] = folder / "open.stl"
+    thin.update_faces(~top)
+    thin.export(str(files["open"]))
+    files["svg"].write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="12mm" height="12mm" '
+        'viewBox="-6 -6 12 12"><path d="M -3 -3 H 3 V 3 H -3 Z"/></svg>'
+    )
+    return files
+
+
+def _hashes(files: dict) -> dict:
+    return {k: hashlib.sha256(p.read_bytes()).hexdigest() for k, p in files.items()}
+
+
+PLATE_ANSWERS = [
+    # shape, source, exit code, the line (undecided: all of it, {s} and {n} numbers; proved: the
+    # second line's start), holds_for, thickness
+    ("rod", "plate2", 4,
+     "rod: undecided (cells) in {s} s: proved that no pose passes straight through, but the plate "
+     "is 2 mm thick and the part 28.35 mm across: a tilted passage is not excluded (see "
+     "`sieve-mi check --sieve` for a motion search)", "plates at least the diameter thick", 2.0),
+    ("rod", "plate30", 0, "holds on this plate: 30 mm thick, the part 28.35 mm across",
+     "plates at least the diameter thick", 30.0),
+    ("rod", "open", 4,
+     "rod: undecided (cells) in {s} s: proved that no pose passes straight through, but the plate "
+     "mesh is not a closed solid ({n} edges not shared by two faces), so its thickness cannot be "
+     "measured (the part is 28.35 mm across): a tilted passage is not excluded (see "
+     "`sieve-mi check --sieve` for a motion search)", "plates at least the diameter thick", None),
+    ("rod", "svg", 0,
+     "proved for straight passage, or plates at least the part's 28.35 mm diameter thick (an "
+     "outline has no thickness", "plates at least the diameter thick", None),
+    ("ball", "plate2", 0, "holds on a plate of any thickness (a ball inside the part is wider",
+     "any plate", 2.0),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "shape, source, code, line, holds, thickness",
+    PLATE_ANSWERS,
+    ids=["rod-2mm", "rod-30mm", "rod-open-plate", "rod-svg", "ball-2mm"],
+)
+def test_certify_says_proved_only_where_the_proof_covers_the_plate(
+    tmp_path, rod_files, capsys, shape, source, code, line, holds, thickness
+):
+    before = _hashes(rod_files)
+    flag = "--hole" if source == "svg" else "--sieve"
+    cert = tmp_path / "c.json"
+    args = ["certify", str(rod_files[shape]), flag, str(rod_files[source]), "--budget", "20"]
+    assert cli.main([*args, "--certificate", str(cert)]) == code
+    out, err = capsys.readouterr()
+    assert err == ""
+    lines = out.strip().splitlines()
+    if line.startswith(shape + ": undecided"):  # the single line says why it is not proved
+        assert len(lines) == 1
+        pattern = re.escape(line).replace(r"\{s\}", r"[0-9.]+").replace(r"\{n\}", r"\d+")
+        assert re.fullmatch(pattern, lines[0]), lines[0]
+    else:
+        assert lines[0].startswith(f"{shape}: proved") and lines[1].startswith(line)
+    assert cli.main([*args, "--json"]) == code
+    data = json.loads(capsys.readouterr().out)
+    assert data["straight"] == "proved" and data["holds_for"] == holds
+    assert data["status"] == ("proved" if code == 0 else "undecided")
+    assert data["thickness"] == thickness
+    assert data["diameter"] == pytest.approx(ROD_DIAMETER if shape == "rod" else 24.0, rel=2e-3)
+    # the certificate records the scope; the replay re-derives it and says whether it covers
+    stored = json.loads(cert.read_text())
+    assert stored["status"] == "proved" and stored["plate"]["holds_for"] == holds
+    assert stored["plate"]["thickness"] == thickness
+    rep = replay(str(cert))
+    assert rep["valid"] and rep["holds_for"] == holds
+    assert rep["covers_plate"] == (None if thickness is None else code == 0)
+    assert _hashes(rod_files) == before
+
+
+def test_replay_of_a_thin_plate_certificate_says_it_does_not_cover_it(tmp_path, rod_files, capsys):
+    cert = tmp_path / "c.json"
+    args = ["certify", str(rod_files["rod"]), "--sieve", str(rod_files["plate2"])]
+    assert cli.main([*args, "--budget", "20", "--certificate", str(cert)]) == 4
+    capsys.readouterr()
+    before = cert.read_bytes()
+    assert cli.main(["certify", "--replay", str(cert)]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 1 and out[0].startswith(
+        "certificate valid: claims proved (holds for plates at least the diameter thick: "
+        "28.35 mm; the recorded plate, 2 mm, is NOT covered)"
+    )
+    assert cert.read_bytes() == before
+
+
+def test_on_sheet_keeps_solve_from_calling_a_cell_proof_on_a_thin_plate_proved(rod_files):
+    """solve: a plate thinner than B's diameter ([fabrication] thickness, "thinnest") turns a
+    cell-tree proof into "undecided" in report.json and the console; a ball proof stays."""
+    from sieve_mi.certify.blocks import on_sheet
+    from sieve_mi.geometry.meshes import load_shape
+    from sieve_mi.outputs.console import _certified_cell
+
+    hole = manifold3d.CrossSection.circle(3.0, 64)
+    rod = certify(load_shape(str(rod_files["rod"])), [hole], budget_s=20.0)
+    ball = certify(load_shape(str(rod_files["ball"])), [hole], budget_s=5.0)
+    assert (rod.status, rod.method, ball.method) == ("proved", "cells", "ball")
+    thin = on_sheet([rod, None, ball], 2.0)
+    assert thin[1] is None and rod.status == "proved"  # a copy: the straight answer is kept
+    assert (thin[0].status, thin[0].straight, thin[0].covers_plate) == (
+        "undecided",
+        "proved",
+        False,
+    )
+    assert (thin[2].status, thin[2].covers_plate) == ("proved", True)
+    row = thin[0].to_dict()
+    assert row["status"] == "undecided" and row["thickness"] == 2.0
+    assert _certified_cell({"certification": row}).startswith("straight only")
+    assert thin[0].certificate["plate"]["thickness"] == 2.0 and replay(thin[0].certificate)["valid"]
+    thick = on_sheet([rod], 28.4)[0]  # solve's default plate: the diameter, rounded up
+    assert thick.status == "proved" and thick.covers_plate
+
+
+PLATE_TAMPERING = [
+    ("tree", "holds_for", "any plate", "plate.holds_for: claims 'any plate', but a cell-tree"),
+    ("ball", "holds_for", "plates at least the diameter thick", "plate.holds_for:"),
+    ("undecided", "holds_for", "any plate", "plate.holds_for:"),
+    ("passage", "holds_for", None, "plate.holds_for:"),
+    ("tree", "diameter", 30.0, "plate.diameter: claims 30.0"),
+]
+
+
+@pytest.mark.parametrize(
+    "kind, key, value, error", PLATE_TAMPERING, ids=[f"{t[0]}-{t[1]}" for t in PLATE_TAMPERING]
+)
+def test_replay_rejects_a_scope_the_evidence_does_not_give(tmp_path, certs, capsys, kind, key,
+                                                           value, error):  # fmt: skip
+    assert replay(certs[kind])["valid"]
+    forged = copy.deepcopy(certs[kind])
+    forged["plate"][key] = value
+    path = tmp_path / "forged.json"
+    path.write_text(json.dumps(forged))
+    before = _tree_state(tmp_path)
+    assert cli.main(["certify", "--replay", str(path)]) == 3
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("certificate INVALID") and out[1].strip().startswith(error)
+    assert _tree_state(tmp_path) == before
+
+
+def test_certificates_written_before_the_plate_scope_still_replay(certs):
+    for kind, holds in [("ball", "any plate"), ("tree", "plates at least the diameter thick"),
+                        ("passage", "any plate"), ("undecided", None)]:  # fmt: skip
+        old = copy.deepcopy(certs[kind])
+        del old["plate"]
+        rep = replay(old)
+        assert rep["valid"] and rep["holds_for"] == holds and rep["thickness"] is None
+
+
+@pytest.mark.parametrize(
+    "value, message",
+    [
+        ({"thickness": float("nan"), "diameter": 40.0, "holds_for": None}, "plate.thickness"),
+        ({"thickness": -1, "diameter": 40.0, "holds_for": None}, "plate.thickness"),
+        ({"thickness": None, "diameter": 0, "holds_for": None}, "plate.diameter must be"),
+        ({"thickness": None, "diameter": 40.0, "holds_for": 3}, "plate.holds_for must be"),
+        ([], "plate must be an object"),
+    ],
+)
+def test_a_malformed_plate_entry_is_one_line(certs, value, message):
+    forged = copy.deepcopy(certs["tree"])
+    forged["plate"] = value
+    with pytest.raises(SieveError, match=re.escape(message)) as e:
+        replay(forged)
+    assert "\n" not in str(e.value)
+
+
+# ------------------------------------------------------------------------------------------------
+# Hostile pass F2: an SVG hole is read exactly, or refused in one line
+# ------------------------------------------------------------------------------------------------
+# Known answer: a 20 mm cube passes a 22 mm square face-on (exit 3), however the square is drawn.
+
+_SVG = '<svg xmlns="http://www.w3.org/2000/svg"{attrs}>{body}</svg>'
+_SQUARE_L = '<path d="M -11 -11 L 11 -11 L 11 11 L -11 11 Z"/>'
+
+SQUARES = {
+    "H-V": ("", '<path d="M -11 -11 H 11 V 11 L -11 11 Z"/>'),
+    "relative": ("", '<path d="m -11 -11 h 22 v 22 l -22 0 z"/>'),
+    "implicit-lines": ("", '<path d="M -11,-11 11,-11 11,11 -11,11z"/>'),
+    "relative-implicit": ("", '<path d="m-11-11 22 0 0 22-22 0z"/>'),
+    "rect+tiny-path": ("", '<rect x="-11" y="-11" width="22" height="22"/>'
+                           '<path d="M 0 0 L 0.1 0 L 0.1 0.1 Z"/>'),
+    "polygon": ("", '<polygon points="-11,-11 11,-11 11,11 -11,11"/>'),
+    "polyline": ("", '<g><polyline points="-11 -11 11 -11 11 11 -11 11"/></g>'),
+    "solve-mm": (' width="30mm" height="30mm" viewBox="-15 -15 30 30"', _SQUARE_L),
+    "solve-cm": (' width="30cm" height="30cm" viewBox="-15 -15 30 30"', _SQUARE_L),
+    "editor": (' xmlns:i="urn:x" width="30" height="30"',
+               '<defs><path d="M 0 0 L 99 0 L 99 99 Z"/></defs><i:namedview/><title>t</title>'
+               + _SQUARE_L),
+}  # fmt: skip
+
+REFUSED = {
+    "arc": ("", '<path d="M -20 0 A 20 20 0 1 0 20 0 A 20 20 0 1 0 -20 0 Z"/>',
+            "<path> command A (an elliptical arc) is not read"),
+    "cubic": ("", '<path d="M 0 0 C 1 1 2 2 3 0 Z"/>', "<path> command C (a cubic Bézier"),
+    "quadratic": ("", '<path d="M 0 0 q 1 1 2 0 z"/>', "<path> command q (a quadratic Bézier"),
+    "group-transform": ("", '<g transform="scale(2)"><path d="M -5.5 -5.5 L 5.5 -5.5 L 5.5 5.5 '
+                        'L -5.5 5.5 Z"/></g>', "<g> has a transform (not read"),
+    "style-transform": ("", '<path style="transform: scale(2)" d="M 0 0 L 1 0 L 1 1 Z"/>',
+                        "<path> has a transform"),
+    "root-transform": (' transform="scale(2)"', _SQUARE_L, "<svg> has a transform"),
+    "circle": ("", '<circle r="20"/>', "<circle> (a circle) is not read"),
+    "ellipse": ("", '<ellipse rx="20" ry="10"/>', "<ellipse> (an ellipse) is not read"),
+    "rounded-rect": ("", '<rect x="-11" y="-11" width="22" height="22" rx="2"/>',
+                     "<rect> with rounded corners (rx) is not read"),
+    "rect-units": ("", '<rect x="-11" y="-11" width="22mm" height="22"/>',
+                   "<rect width> '22mm' is not read"),
+    "viewbox-scales": (' width="60mm" height="60mm" viewBox="-15 -15 30 30"', _SQUARE_L,
+                       "scales the drawing by 2"),
+    "mm-without-viewbox": (' width="30mm" height="30mm"', _SQUARE_L, "without a viewBox"),
+    "points-unit": (' width="30pt" height="30pt" viewBox="-15 -15 30 30"', _SQUARE_L,
+                    "<svg width='30pt'> is not read"),
+    "use": ("", '<use href="#a"/>', "<use> (a reference to other elements) is not read"),
+    "style-sheet": ("", '<style>path {transform: scale(2)}</style>' + _SQUARE_L,
+                    "<style> (a style sheet"),
+    "clip-path": ("", '<path clip-path="url(#c)" d="M 0 0 L 1 0 L 1 1 Z"/>',
+                  "<path> has a clip-path"),
+    "stray-text": ("", '<path d="M 0 0 L 1 0 # 1 1 Z"/>', "unexpected '#' in the path"),
+    "no-moveto": ("", '<path d="L 0 0 L 1 0 L 1 1 Z"/>', "must start with M"),
+    "odd-coordinates": ("", '<path d="M 0 0 L 1 0 1 Z"/>', "command L needs x y pairs"),
+    "not-svg": (None, "<html/>", "not an SVG file"),
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def cube20(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cube") / "cube20.stl"
+    shapes.cube(20.0).export(str(path))
+    return path
+
+
+@pytest.mark.parametrize("name", sorted(SQUARES))
+def test_an_svg_square_drawn_any_readable_way_lets_the_cube_through(tmp_path, cube20, capsys, name):
+    attrs, body = SQUARES[name]
+    svg = tmp_path / "h.svg"
+    svg.write_text(_SVG.format(attrs=attrs, body=body))
+    before = _tree_state(tmp_path)
+    assert cli.main(["certify", str(cube20), "--hole", str(svg), "--budget", "5"]) == 3
+    out, err = capsys.readouterr()
+    assert out.startswith("cube20: passage") and err == ""
+    assert _tree_state(tmp_path) == before
+
+
+@pytest.mark.parametrize("name", sorted(REFUSED))
+def test_an_svg_the_reader_cannot_take_exactly_is_refused_in_one_line(
+    tmp_path, cube20, capsys, name
+):
+    attrs, body, message = REFUSED[name]
+    svg = tmp_path / "h.svg"
+    svg.write_text(body if attrs is None else _SVG.format(attrs=attrs, body=body))
+    before = _tree_state(tmp_path)
+    assert cli.main(["certify", str(cube20), "--hole", str(svg), "--budget", "5"]) == 2
+    line = _one_error_line(capsys)
+    assert line.startswith(f"sieve-mi: error: {svg}: ") and message in line, line
+    assert _tree_state(tmp_path) == before
+
+
+def test_svg_path_commands_give_the_exact_polygons():
+    from sieve_mi.certify.svg import parse_path
+
+    got = parse_path("m 1 1 l 2 0 0 2 z l 0 -1 -1 0 z M 10 10 H 12 V 12 h -2 v -1", "p.svg")
+    want = [
+        [(1, 1), (3, 1), (3, 3)],
+        [(1, 1), (1, 0), (0, 0)],  # a line after z starts at the closed subpath's start
+        [(10, 10), (12, 10), (12, 12), (10, 12), (10, 11)],  # an open subpath is filled closed
+    ]
+    assert [c.tolist() for c in got] == [[[x, -y] for x, y in w] for w in want]
+
+
+def test_svg_fill_rule_is_read_per_element():
+    """Two nested squares in one path: a ring with evenodd, a square with nonzero (SVG's
+    default); separate elements are unioned."""
+    import tempfile
+
+    from sieve_mi.certify import read_svg_hole
+
+    nested = "M 0 0 L 10 0 L 10 10 L 0 10 Z M 2 2 L 8 2 L 8 8 L 2 8 Z"
+    areas = {}
+    for rule in ("evenodd", "nonzero"):
+        with tempfile.NamedTemporaryFile("w", suffix=".svg", delete=False) as fh:
+            fh.write(_SVG.format(attrs="", body=f'<path fill-rule="{rule}" d="{nested}"/>'))
+        areas[rule] = read_svg_hole(fh.name).area()
+        os.remove(fh.name)
+    assert areas == {"evenodd": pytest.approx(64.0), "nonzero": pytest.approx(100.0)}
+
+
+# ------------------------------------------------------------------------------------------------
+# Hostile pass F3: an undecided run never reads "100.00 %"
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "fraction, complete, digits, shown",
+    [
+        (0.9999977312982082, False, 2, "99.99"),  # the hostile pass's brick: was "100.00"
+        (1.0, False, 2, "99.99"),
+        (0.99996, False, 1, "99.9"),
+        (0.29, False, 2, "29.00"),
+        (0.0, False, 2, "0.00"),
+        (0.9999999999, True, 2, "100.00"),
+    ],
+)
+def test_excluded_percent_is_never_rounded_up_to_100(fraction, complete, digits, shown):
+    from sieve_mi.certify.certificate import excluded_percent
+
+    assert excluded_percent(fraction, complete, digits) == shown
+
+
+def test_undecided_summary_and_solve_cell_do_not_say_100(capsys):
+    from sieve_mi.certify.certificate import Certification
+    from sieve_mi.outputs.console import _certified_cell
+
+    r = Certification(
+        "undecided", 3.5, "cells", 20841, 15800, 19488, 0.9999977, straight="undecided"
+    )
+    assert "excluded 99.99 %" in cli._certify_summary("brick", r)
+    cell = _certified_cell({"certification": r.to_dict()})
+    assert cell.startswith("undecided (99.9 % excluded")
