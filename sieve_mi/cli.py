@@ -343,8 +343,8 @@ def cmd_certify(args) -> int:
         else:
             verdict = "valid" if rep["valid"] else "INVALID"
             print(
-                f"certificate {verdict}: claims {rep['status']}, {rep['leaves']} leaves re-proved, "
-                f"{rep['open']} open, {rep['seconds']:.2f} s"
+                f"certificate {verdict}: claims {rep['status']}{_replay_scope(rep)}, "
+                f"{rep['leaves']} leaves re-proved, {rep['open']} open, {rep['seconds']:.2f} s"
             )
             for e in rep["errors"]:
                 print(f"  {e}")
@@ -355,25 +355,61 @@ def cmd_certify(args) -> int:
     if args.certificate is not None:
         writable_certificate(args.certificate, inputs)  # before any work, and again when written
     from sieve_mi.geometry.meshes import load_shape
-    from sieve_mi.geometry.sieve import plate_holes
 
     shape = load_shape(args.shape, scale=args.scale)
-    holes = plate_holes(args.sieve, args.axis) if args.sieve else [read_svg_hole(args.hole)]
+    if args.sieve:
+        holes, thickness, note = _certify_plate(args.sieve, args.axis)
+    else:
+        holes, thickness, note = [read_svg_hole(args.hole)], None, ""
     result = certify(shape, holes, budget_s=args.certify_budget, scale=args.scale)
+    if args.sieve:  # the answer on this plate: a thin one needs more than a straight proof
+        result = result.on_plate(thickness, note)
     if args.certificate is not None:
         result.write_certificate(args.certificate, inputs)
     if args.json:
-        print(json.dumps(result.to_dict(), indent=2))
+        scope = result.scope_line()
+        print(json.dumps({**result.to_dict(), **({"scope": scope} if scope else {})}, indent=2))
     else:
         print(_certify_summary(shape.name, result))
     return {"proved": EXIT_OK, "passage": EXIT_NO}.get(result.status, EXIT_UNDECIDED)
 
 
+def _certify_plate(path: str, axis: str) -> tuple[list, float | None, str]:
+    """A plate's holes, its thickness where they are (None when it cannot be measured: an open
+    or tilted mesh) and why not (``geometry.sieve.read_plate``)."""
+    from sieve_mi.geometry.sieve import plate_holes, read_plate
+
+    try:
+        plate = read_plate(path, axis)
+    except SieveError as exc:
+        holes = plate_holes(path, axis)  # an unreadable mesh, or no hole: its own one line
+        return holes, None, str(exc).removeprefix(f"{path}: ").split(";")[0]
+    return plate.holes, plate.thickness, ""
+
+
+def _replay_scope(rep: dict) -> str:
+    """`` (holds for ...)`` of a replayed certificate's claim, empty when it claims nothing."""
+    if not rep.get("holds_for"):
+        return ""
+    text = f" (holds for {rep['holds_for']}"
+    if rep["holds_for"] != "any plate" and rep.get("diameter") is not None:
+        text += f": {rep['diameter']:.4g} mm"
+    if rep.get("thickness") is not None:
+        covered = "covered" if rep.get("covers_plate") else "NOT covered"
+        text += f"; the recorded plate, {rep['thickness']:.4g} mm, is {covered}"
+    return text + ")"
+
+
 def _certify_summary(name: str, r) -> str:
+    scope = r.scope_line()
+    if r.straight == "proved" and r.status == "undecided":  # a straight proof, a thinner plate
+        return f"{name}: undecided ({r.method}) in {r.seconds:.2f} s: {scope}"
     line = (
         f"{name}: {r.status} ({r.method}) in {r.seconds:.2f} s; cells {r.cells_examined} examined, "
-        f"{r.cells_excluded} excluded, {r.cells_open} open; excluded {100 * r.excluded_fraction:.2f} %"
+        f"{r.cells_excluded} excluded, {r.cells_open} open; excluded {r.excluded_percent()} %"
     )
+    if scope:
+        line += "\n" + scope
     if r.passage:
         q, t = r.passage["quaternion"], r.passage["translation"]
         line += "\npassage: rotation (w,x,y,z) " + ", ".join(f"{v:.6f}" for v in q)
