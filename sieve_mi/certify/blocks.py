@@ -22,6 +22,7 @@ __all__ = [
     "ball_margin",
     "certify_blocks",
     "on_sheet",
+    "printed_hole",
     "prove_margin",
 ]
 
@@ -92,12 +93,41 @@ def on_sheet(certified: list, thickness: float) -> list:
     return [None if c is None else c.on_plate(thickness) for c in certified]
 
 
+def printed_hole(scene: Scene, pass_shapes: list[Shape], quats: np.ndarray, trans: np.ndarray):
+    """The hole a block's proof is against: the exact outline the plate is cut from, grown by the
+    block margin.
+
+    That outline is :func:`sieve_mi.geometry.outline.hole_outline` of A's placed projections
+    (dilated by ``[fabrication] tolerance``, gaps filled as ``fill_holes`` says), grown by
+    ``[fabrication] block_margin`` when there is one, so a proof covers the printed plate and the
+    margin the scene asks for.
+
+    Parameters
+    ----------
+    scene : Scene
+        Its ``[fabrication]`` table.
+    pass_shapes : list of Shape
+    quats : (m, 4) ndarray
+        A's rotations.
+    trans : (m, 2) ndarray
+        A's translations, scene units.
+
+    Returns
+    -------
+    manifold3d.CrossSection
+    """
+    fab = scene.fabrication
+    closed = [is_closed(s) for s in pass_shapes]
+    hole = hole_outline(pass_shapes, quats, trans, fab.tolerance, fab.fill_holes, closed)
+    if fab.block_margin > 0:
+        hole = dilated(hole, fab.block_margin)
+    return hole
+
+
 def certify_blocks(
     scene: Scene,
-    pass_shapes: list[Shape],
+    hole,
     block_shapes: list[Shape],
-    quats: np.ndarray,
-    trans: np.ndarray,
     blocked: np.ndarray,
     progress: Callable[[str], None] | None = None,
     workers: int | None = None,
@@ -105,21 +135,17 @@ def certify_blocks(
 ) -> list[Certification | None]:
     """Try to prove, for every B the verdict found blocked, that it cannot pass in any pose.
 
-    The hole is the exact outline the plate is cut from (:func:`sieve_mi.geometry.outline.hole_outline`:
-    A's placed projections, dilated by the tolerance, gaps filled), grown by ``block_margin``
-    when there is one, so a proof covers the printed plate and the margin the scene asks for.
     The proofs run in parallel, one forked worker process per B (at most ``workers`` at once),
     each with ``[verdict] certify_budget`` seconds.
 
     Parameters
     ----------
     scene : Scene
-        ``[fabrication]`` gives the outline; ``[verdict] certify_budget`` each proof's budget.
-    pass_shapes, block_shapes : list of Shape
-    quats : (m, 4) ndarray
-        A's rotations.
-    trans : (m, 2) ndarray
-        A's translations, scene units.
+        ``[verdict] certify_budget`` gives each proof's budget.
+    hole : manifold3d.CrossSection
+        The hole to prove against: :func:`printed_hole` of A's placement, so a proof covers the
+        printed plate and the block margin.
+    block_shapes : list of Shape
     blocked : (n,) ndarray of bool
         The verdict's answer per B; only blocked B are certified.
     progress : callable, optional
@@ -135,11 +161,6 @@ def certify_blocks(
     list of Certification or None
         Per B, its certification, or None where the verdict already let it through.
     """
-    fab = scene.fabrication
-    closed = [is_closed(s) for s in pass_shapes]
-    hole = hole_outline(pass_shapes, quats, trans, fab.tolerance, fab.fill_holes, closed)
-    if fab.block_margin > 0:
-        hole = dilated(hole, fab.block_margin)
     todo = [j for j, b in enumerate(blocked) if b]
     contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
     budget = scene.verdict.certify_budget

@@ -26,13 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from sieve_mi.game.attack import AttackMemory
-from sieve_mi.game.placement import place
+from sieve_mi.game.placement import PlacementContext, place
 from sieve_mi.game.player_a import PlayerA
-from sieve_mi.game.player_b import PlayerB
 from sieve_mi.geometry.hole import Hole, build_hole
 from sieve_mi.geometry.rotations import angle_between, normalize
 from sieve_mi.optim import SwarmHistory
-from sieve_mi.scene import Layout, Solver
 
 __all__ = ["Merged", "alternative_rotations", "compose", "merge", "sort_by_area"]
 
@@ -95,7 +93,8 @@ def compose(players: list[PlayerA], quats: np.ndarray, trans: np.ndarray) -> Hol
 
 @dataclass
 class Merged:
-    """Where every A sits in a merged hole, as :func:`merge` left it.
+    """Where every A sits in a merged hole, as :func:`merge` left it (and, while it runs, where
+    the A placed so far sit).
 
     Attributes
     ----------
@@ -143,14 +142,10 @@ def _tries(quat, own_alternatives, base_alternatives, rounds: int, lost: bool, f
 
 def merge(
     players: list[PlayerA],
-    player_b: PlayerB,
     quats: np.ndarray,
     alternatives: dict,
+    context: PlacementContext,
     *,
-    solver: Solver,
-    layout: Layout,
-    recheck: tuple[int, int],
-    rng: np.random.Generator,
     progress: Callable[[str, float], None] | None = None,
 ) -> Merged:
     """The sequential scheme of Sec. 5.3: place every A, largest first, into one hole.
@@ -159,17 +154,15 @@ def merge(
     ----------
     players : list of PlayerA
         Every A on the union frame (:func:`sieve_mi.game.frames.union_frame`).
-    player_b : PlayerB
-        The shapes to block, on the same frame.
     quats : (m, 4) ndarray
         Each A's best rotation when solved alone.
     alternatives : dict of int to list of (4,) ndarray
         Per A, other good rotations from its own search (:func:`alternative_rotations`).
-    solver, layout : sieve_mi.scene.Solver, sieve_mi.scene.Layout
-        Swarm and attack settings; eq. 14, ``rounds`` and ``alternatives``.
-    recheck : (int, int)
-        Starts and steps of the attack that re-ranks each placement's finalists.
-    rng : numpy.random.Generator
+    context : PlacementContext
+        Player B (the shapes to block, on the same frame), the ``[solver]`` (swarm and attack)
+        and ``[layout]`` (eq. 14, ``rounds``, ``alternatives``) settings, the random generator,
+        the attack that re-ranks each placement's finalists, and B's memory, shared by every
+        placement.
     progress : callable, optional
         Called as ``progress(stage_label, best)`` after every swarm iteration.
 
@@ -178,11 +171,9 @@ def merge(
     Merged
     """
     quats = np.array(quats, dtype=np.float64)
-    trans = np.zeros((len(players), 2))
-    history, stages, value = SwarmHistory(), [], float("nan")
+    out = Merged(quats, np.zeros((len(players), 2)), float("nan"), SwarmHistory(), [])
     order = sort_by_area(players, quats)
     placed = [order[0]]
-    memory = AttackMemory.for_starts(len(player_b.shapes), solver.starts)
     lost = False  # a placement already lets some B through: later ones cannot mend that
     for i in order[1:]:
         name = players[i].shape.name
@@ -190,7 +181,7 @@ def merge(
             quats[i],
             alternatives.get(i, []),
             alternatives.get(placed[0], []),
-            layout.rounds,
+            context.layout.rounds,
             lost,
             len(placed) == 1,
         )
@@ -199,36 +190,33 @@ def merge(
         )
 
         def place_one(base, q, rounds, _i=i, _label=label):
-            return place(
-                players[_i], player_b, base, q, solver=solver, layout=layout, rng=rng,
-                progress=_label, memory=memory, recheck=recheck, rounds=rounds,
-            )  # fmt: skip
+            return place(players[_i], base, q, context, progress=_label, rounds=rounds)
 
-        kept, kept_base = _best_try(
-            players, placed, quats, trans, tries, place_one, history, stages, name
-        )
-        quats[i], trans[i], value = kept.quat, kept.trans, kept.value
+        kept, kept_base = _best_try(players, placed, out, tries, place_one, name)
+        quats[i], out.trans[i], out.value = kept.quat, kept.trans, kept.value
         quats[placed[0]] = kept_base
         lost = lost or not kept.blocks
         placed.append(i)
-    origin = trans[order[0]].copy()
-    trans -= origin  # the first (largest) shape sits at the origin
-    return Merged(quats, trans, value, history, stages, memory.shifted(-origin), not lost)
+    origin = out.trans[order[0]].copy()
+    out.trans -= origin  # the first (largest) shape sits at the origin
+    out.memory, out.blocks = context.memory.shifted(-origin), not lost
+    return out
 
 
-def _best_try(players, placed, quats, trans, tries, place_one, history, stages, name):
+def _best_try(players, placed, merged: Merged, tries, place_one, name):
     """Run the ``tries`` of one placement until one blocks; the best placement and base rotation.
 
     Parameters
     ----------
-    players, placed, quats, trans :
-        All A, the indices already placed, and the current rotations and translations.
+    players, placed :
+        All A and the indices already placed.
+    merged : Merged
+        The merge so far: the current rotations and translations are read, every try's swarm
+        values appended to ``history`` and one stage per try to ``stages``.
     tries : list of (base_q or None, q, rounds)
         From :func:`_tries`.
     place_one : callable
         ``place_one(base_mask, q, rounds) -> Placement``.
-    history, stages :
-        Appended to (swarm values; one stage per try).
     name : str
         The shape's name, for the stage labels.
 
@@ -237,6 +225,7 @@ def _best_try(players, placed, quats, trans, tries, place_one, history, stages, 
     Placement, (4,) ndarray
         The placement kept and the base shape's rotation it was made against.
     """
+    quats, trans = merged.quats, merged.trans
     current = compose([players[j] for j in placed], quats[placed], trans[placed]).mask
     kept, kept_base = None, quats[placed[0]]
     for attempt, (base_q, q, rounds) in enumerate(tries):
@@ -244,9 +233,9 @@ def _best_try(players, placed, quats, trans, tries, place_one, history, stages, 
         if base_q is not None:  # the first pair, with another rotation of the base shape
             base = compose([players[placed[0]]], base_q[None], trans[placed]).mask
         got = place_one(base, q, rounds)
-        history.extend(got.history)
+        merged.history.extend(got.history)
         suffix = f" (try {attempt + 1})" if attempt else ""
-        stages.append((f"place {name}{suffix}", len(got.history.best)))
+        merged.stages.append((f"place {name}{suffix}", len(got.history.best)))
         if kept is None or (got.blocks, got.value) > (kept.blocks, kept.value):
             kept, kept_base = got, (quats[placed[0]] if base_q is None else base_q).copy()
         if kept.blocks:

@@ -31,10 +31,10 @@ from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.geometry.hole import pieces
 from sieve_mi.geometry.rotations import normalize
-from sieve_mi.optim import SwarmHistory, particle_swarm
+from sieve_mi.optim import SwarmHistory, SwarmSettings, particle_swarm
 from sieve_mi.scene import Layout, Solver
 
-__all__ = ["FINALISTS", "SCREEN", "Placement", "eq14", "place"]
+__all__ = ["FINALISTS", "SCREEN", "Placement", "PlacementContext", "eq14", "place"]
 
 #: ``SCREEN * particles`` distinct candidates are screened with a short attack.
 SCREEN = 5
@@ -69,21 +69,65 @@ def eq14(beta: np.ndarray, area_fraction: np.ndarray, pieces: np.ndarray, s: Lay
     )
 
 
+@dataclass
+class PlacementContext:
+    """What every placement of one merge shares: B, the settings, the random generator and B's
+    memory.
+
+    Attributes
+    ----------
+    player_b : PlayerB
+        The shapes to block, on the union frame.
+    solver : sieve_mi.scene.Solver
+        Its ``particles``, ``iterations`` and ``patience`` are the placement swarm's; its
+        ``starts``, ``steps`` and ``learning_rate`` player B's attack on every candidate hole.
+    layout : sieve_mi.scene.Layout
+        Eq. 14's tau, rho, eta, alpha, the swarm's accelerations and ``rounds``.
+    rng : numpy.random.Generator
+    recheck : (int, int), optional
+        Starts and Adam steps of the attack that re-ranks the swarm's finalists (the solver passes
+        the verdict's settings, so the placement kept is the one that survives the attack the
+        winner is decided by); default three times ``solver.starts`` and ``solver.steps``.
+    memory : AttackMemory, optional
+        B's best poses so far, shared by the placements; every attack starts from them too.
+        Default: an empty memory sized for ``solver.starts``
+        (:meth:`~sieve_mi.game.attack.AttackMemory.for_starts`).
+    """
+
+    player_b: PlayerB
+    solver: Solver
+    layout: Layout
+    rng: np.random.Generator
+    recheck: tuple[int, int] | None = None
+    memory: AttackMemory | None = None
+
+    def __post_init__(self):
+        if self.recheck is None:
+            self.recheck = (3 * self.solver.starts, 3 * self.solver.steps)
+        if self.memory is None:
+            self.memory = AttackMemory.for_starts(len(self.player_b.shapes), self.solver.starts)
+
+    @property
+    def swarm(self) -> SwarmSettings:
+        """The placement swarm's settings: ``[layout]``'s accelerations, ``[solver] patience``
+        (the default inertia)."""
+        return SwarmSettings(
+            c_personal=self.layout.c_personal,
+            c_global=self.layout.c_global,
+            patience=self.solver.patience,
+        )
+
+
 def place(
     player: PlayerA,
-    player_b: PlayerB,
     base: np.ndarray,
     quat: np.ndarray,
+    context: PlacementContext,
     *,
-    solver: Solver,
-    layout: Layout,
-    rng: np.random.Generator,
     progress: Callable[[int, float], None] | None = None,
-    recheck: tuple[int, int] | None = None,
+    rounds: int | None = None,
     finalists: int = FINALISTS,
     screen: int = SCREEN,
-    memory: AttackMemory | None = None,
-    rounds: int | None = None,
 ):
     """Place one more A shape into a hole (one step of the sequential scheme).
 
@@ -91,51 +135,35 @@ def place(
     ----------
     player : PlayerA
         The shape to add, on the union frame.
-    player_b : PlayerB
-        The shapes to block, on the union frame.
     base : (N, N) bool ndarray
         The current hole (dilated, filled).
     quat : (4,) ndarray
         The shape's best rotation when it was solved alone.
-    solver : sieve_mi.scene.Solver
-        Its ``particles``, ``iterations`` and ``patience`` are the placement swarm's; its ``starts``,
-        ``steps`` and ``learning_rate`` player B's attack on every candidate hole.
-    layout : sieve_mi.scene.Layout
-        Eq. 14's tau, rho, eta, alpha, the swarm's accelerations and ``rounds``.
-    rng, progress :
-        Random generator; per-iteration callback of the swarm.
-    recheck : (int, int), optional
-        Starts and Adam steps of the attack that re-ranks the swarm's ``finalists`` best placements
-        (the solver passes the verdict's settings, so the placement kept is the one that survives
-        the attack the winner is decided by); default three times ``starts`` and ``steps``.
-    finalists : int
-    screen : int
-        ``screen * particles`` distinct candidate placements (half the most compact, half spread
-        over the others, see :func:`~sieve_mi.game.candidates.candidate_pool`) are scored with
-        one short attack each; the best ``particles`` of them start the swarm.
-    memory : AttackMemory, optional
-        B's best poses so far (shared across placements); every attack starts from them too.
+    context : PlacementContext
+        Player B, the ``[solver]`` and ``[layout]`` settings, the random generator, the
+        re-ranking attack's size and B's memory (updated by every attack).
+    progress : callable, optional
+        Per-iteration callback of the swarm.
     rounds : int, optional
         Screening + swarm + re-ranking is repeated (at most this many times, default
         ``layout.rounds``) while every re-ranked placement still lets some B through; each
         round's attacks start from the passing poses the previous rounds found.
+    finalists : int
+        The swarm's best placements re-ranked by the ``context.recheck`` attack.
+    screen : int
+        ``screen * particles`` distinct candidate placements (half the most compact, half spread
+        over the others, see :func:`~sieve_mi.game.candidates.candidate_pool`) are scored with
+        one short attack each; the best ``particles`` of them start the swarm.
 
     Returns
     -------
     Placement
     """
     reach = player.frame.half_extent / 2.0  # centres stay within the largest radius of the origin
-    starts, steps, particles = solver.starts, solver.steps, solver.particles
-    if memory is None:
-        memory = AttackMemory.for_starts(len(player_b.shapes), starts)
-    game = _PlacementGame(player, player_b, base, reach, memory, layout, solver.learning_rate, rng)
-    pool = candidate_pool(player, base, quat, reach, screen * particles)
-    recheck = recheck if recheck is not None else (3 * starts, 3 * steps)
-    rounds = layout.rounds if rounds is None else rounds
-    return game.play(
-        pool, particles, solver.iterations, (starts, steps), recheck, finalists, rounds, progress,
-        patience=solver.patience,
-    )  # fmt: skip
+    game = _PlacementGame(player, base, reach, context)
+    pool = candidate_pool(player, base, quat, reach, screen * context.solver.particles)
+    rounds = context.layout.rounds if rounds is None else rounds
+    return game.play(pool, finalists, rounds, progress)
 
 
 @dataclass
@@ -143,52 +171,48 @@ class _PlacementGame:
     """Eq. 14 for placements of one A into a base hole, each scored by one batched attack of B."""
 
     player: PlayerA
-    player_b: PlayerB
     base: np.ndarray
     reach: float
-    memory: AttackMemory
-    settings: Layout
-    learning_rate: float
-    rng: np.random.Generator
+    context: PlacementContext
 
     def energy(self, x: np.ndarray, starts: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
         """Eq. 14 energy and the weakest B's β of placements ``x`` (P, 6): (P,) and (P,)."""
+        c = self.context
         holes = self.player.holes(x[:, :4], x[:, 4:] * self.reach, base=self.base)
-        attack = self.player_b.attack(
-            holes, Starts(starts, memory=self.memory), steps, self.learning_rate, self.rng,
+        attack = c.player_b.attack(
+            holes, Starts(starts, memory=c.memory), steps, c.solver.learning_rate, c.rng,
             settle=self.player.settle,
         )  # fmt: skip
         area = np.array([hh.mask.mean() for hh in holes])
         n = np.array([pieces(hh.mask) for hh in holes])
-        return eq14(attack.value(), area, n, self.settings), attack.value()
+        return eq14(attack.value(), area, n, c.layout), attack.value()
 
-    def play(self, pool, particles, iterations, attack, recheck, finalists, rounds, progress,
-             patience: int = 0):  # fmt: skip
+    def play(self, pool, finalists: int, rounds: int, progress) -> Placement:
         """Rounds of screening, swarm and re-ranking over the candidate ``pool`` (see :func:`place`).
 
-        ``attack`` and ``recheck`` are (starts, steps) of the swarm's and the re-ranking's attacks;
-        ``patience`` is the swarm's (``[solver] patience``).
+        The swarm's attacks are ``[solver]``'s (starts, steps), the re-ranking's
+        ``context.recheck``.
         """
-        reach, rng, settings = self.reach, self.rng, self.settings
+        reach, c = self.reach, self.context
+        particles, iterations = c.solver.particles, c.solver.iterations
 
         def evaluate(x):
-            return self.energy(x, *attack)[0]
+            return self.energy(x, c.solver.starts, c.solver.steps)[0]
 
         history = SwarmHistory()
         best, value, best_beta = pool[0], -np.inf, -np.inf
         for _ in range(rounds):
             x0 = _swarm_starts(pool, evaluate, particles, self.player.frame.pixel_size / reach)
             x, _, h = particle_swarm(
-                evaluate, _project(x0), iterations, rng, c_personal=settings.c_personal,
-                c_global=settings.c_global, project=_project, progress=progress,
-                patience=patience,
+                evaluate, _project(x0), iterations, c.rng, c.swarm, project=_project,
+                progress=progress,
             )  # fmt: skip
             history.extend(h)
             history.finalists = h.finalists
             # The swarm ranks placements with a short attack, which can miss a narrow passage.
             # Re-rank its best few placements with a long attack and keep the best of those.
             xs = np.stack([f for f, _ in h.finalists[:finalists]]) if h.finalists else x[None]
-            values, betas = self.energy(xs, *recheck)
+            values, betas = self.energy(xs, *c.recheck)
             i = int(np.argmax(values))
             if values[i] > value:
                 best, value, best_beta = xs[i], float(values[i]), float(betas[i])

@@ -7,6 +7,7 @@ re-runs player B for longer against the chosen hole and declares the winner.
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
 from dataclasses import dataclass, field
@@ -18,6 +19,7 @@ from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import AttackMemory
 from sieve_mi.game.frames import hole_frame, union_frame
 from sieve_mi.game.layout import alternative_rotations, merge
+from sieve_mi.game.placement import PlacementContext
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.game.result import Result, is_blocked
@@ -236,17 +238,38 @@ def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: _Bar):
     frame = union_frame([p.radius for p in passes], fab.tolerance, s.resolution)
     players = [PlayerA.from_settings(p, frame, fab, s) for p in passes]
     player_b = PlayerB.from_settings(blocks, frame, s)
+    recheck = (scene.verdict.starts, scene.verdict.steps)
+    context = PlacementContext(player_b, s, scene.layout, rng, recheck)
     return merge(
         players,
-        player_b,
         quats,
         alternatives,
-        solver=s,
-        layout=scene.layout,
-        recheck=(scene.verdict.starts, scene.verdict.steps),
-        rng=rng,
+        context,
         progress=lambda label, best: bar.update(s.particles, best=f"{best:.3f}", stage=label),
     )
+
+
+@dataclass
+class _Stages:
+    """The solve's telemetry, stage by stage: ``with stages.stage(name):`` adds the stage's
+    seconds to ``timings`` as ``<name>_s`` and then marks the memory watch with ``name``.
+
+    Attributes
+    ----------
+    timings : dict
+    watch : sieve_mi.backend.MemoryWatch
+    """
+
+    timings: dict
+    watch: object
+
+    @contextlib.contextmanager
+    def stage(self, name: str):
+        """Time the ``with`` block as stage ``name`` (not recorded when it raises)."""
+        t0 = time.perf_counter()
+        yield
+        self.timings[f"{name}_s"] = time.perf_counter() - t0
+        self.watch.mark(name)
 
 
 def solve(
@@ -267,20 +290,17 @@ def solve(
     seed = scene.solver.seed if seed is None else seed
     rng = np.random.default_rng(seed)
     timings = {"init_s": t_load - t_init, "load_s": time.perf_counter() - t_load}
-    t0 = time.perf_counter()
-    sure = proved_by_size(scene, passes, blocks)
-    timings["screen_s"] = time.perf_counter() - t0
-    watch.mark("screen")
+    stages = _Stages(timings, watch)
+    with stages.stage("screen"):
+        sure = proved_by_size(scene, passes, blocks)
     open_blocks = [b for j, b in enumerate(blocks) if j not in sure]
-    t0 = time.perf_counter()
-    found = (
-        search(scene, passes, open_blocks, rng, seed, progress)
-        if open_blocks
-        else _unsearched(scene)
-    )
-    timings["search_s"] = time.perf_counter() - t0
-    watch.mark("search")
-    v, certified = _verdict(scene, passes, blocks, sure, found, rng, progress, timings, watch)
+    with stages.stage("search"):
+        found = (
+            search(scene, passes, open_blocks, rng, seed, progress)
+            if open_blocks
+            else _unsearched(scene)
+        )
+    v, certified = _verdict(scene, passes, blocks, sure, found, rng, progress, stages)
     sheet = _sheet(scene, passes, blocks, v, certified, seed, progress, timings)
     certified = on_sheet(certified, sheet.thickness)  # a cell proof needs a plate >= B's diameter
     watch.mark("thin")
@@ -312,32 +332,28 @@ def solve(
     )
 
 
-def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progress, timings,
-             watch):  # fmt: skip
+def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progress,
+             stages: _Stages):  # fmt: skip
     """The verdict on the B not proved before the game, completed with those that were, and the
-    optional certification: (judgement, certifications or []); ``timings`` gains
-    ``verdict_s`` (and ``certify_s``), the :class:`~sieve_mi.backend.MemoryWatch` ``watch`` the
-    stages "verdict" (and "certify")."""
-    t1 = time.perf_counter()
+    optional certification: (judgement, certifications or []); ``stages`` gets the stages
+    "verdict" (and "certify")."""
     certified = [None] * len(blocks)
-    while True:
-        rows = [j for j in range(len(blocks)) if j not in sure]
-        bar = _Bar(progress and bool(rows), scene.verdict.steps, "verdict")
-        v = judge(scene, passes, [blocks[j] for j in rows], found.quats, found.trans, rng,
-                  progress=lambda n, bar=bar: bar.update(1), memory=found.memory)  # fmt: skip
-        bar.close()
-        failed = _with_screened(scene, blocks, rows, sure, v, certified) if sure else []
-        if not failed:
-            break
-        sure = {j: r for j, r in sure.items() if j not in failed}  # play them after all
-    timings["verdict_s"] = time.perf_counter() - t1
-    watch.mark("verdict")
+    with stages.stage("verdict"):
+        while True:
+            rows = [j for j in range(len(blocks)) if j not in sure]
+            bar = _Bar(progress and bool(rows), scene.verdict.steps, "verdict")
+            v = judge(scene, passes, [blocks[j] for j in rows], found.quats, found.trans, rng,
+                      progress=lambda n, bar=bar: bar.update(1), memory=found.memory)  # fmt: skip
+            bar.close()
+            failed = _with_screened(scene, blocks, rows, sure, v, certified) if sure else []
+            if not failed:
+                break
+            sure = {j: r for j, r in sure.items() if j not in failed}  # play them after all
     if scene.verdict.certify:
-        t2 = time.perf_counter()
-        for j, c in enumerate(_certify(scene, passes, blocks, found.quats, v, progress, sure)):
-            certified[j] = certified[j] if j in sure else c
-        timings["certify_s"] = time.perf_counter() - t2
-        watch.mark("certify")
+        with stages.stage("certify"):
+            proofs = _certify(scene, passes, blocks, found.quats, v, progress, sure)
+            for j, c in enumerate(proofs):
+                certified[j] = certified[j] if j in sure else c
     return v, (certified if any(c is not None for c in certified) else [])
 
 
@@ -406,7 +422,7 @@ def _certify(scene, passes, blocks, quats, v, progress: bool, proved=()) -> list
 
     A passage found through the exact hole overrules the verdict: it is added to ``v.warnings``.
     """
-    from sieve_mi.certify.blocks import certify_blocks
+    from sieve_mi.certify.blocks import certify_blocks, printed_hole
 
     def say(line: str) -> None:
         if progress:
@@ -414,7 +430,8 @@ def _certify(scene, passes, blocks, quats, v, progress: bool, proved=()) -> list
 
     todo = v.attack.blocked()[0] & ~np.isin(np.arange(len(blocks)), list(proved))
     found = v.attack.protrusion[0]
-    certified = certify_blocks(scene, passes, blocks, quats, v.trans, todo, say, found=found)
+    hole = printed_hole(scene, passes, quats, v.trans)
+    certified = certify_blocks(scene, hole, blocks, todo, say, found=found)
     for shape, c in zip(blocks, certified):
         if c is not None and c.status == "passage":
             v.warnings.append(
