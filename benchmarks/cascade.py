@@ -51,6 +51,7 @@ def write_mixture(folder: str) -> str:
 
 def main() -> None:
     import sieve_mi  # noqa: F401
+    from sieve_mi.cascade.games import EngineSettings
     from sieve_mi.cascade.mixture import load_mixture
     from sieve_mi.cascade.sort import sort_mixture
 
@@ -65,9 +66,11 @@ def main() -> None:
             rep = sort_mixture(
                 load_mixture(path),
                 os.path.join(tmp, mode),
-                use_ray=mode == "ray",
-                workers=args.workers if mode == "ray" else None,
-                progress=False,
+                engine=EngineSettings(
+                    use_ray=mode == "ray",
+                    workers=args.workers if mode == "ray" else None,
+                    progress=False,
+                ),
             )
             rows[mode] = (time.perf_counter() - t0, rep)
     print(

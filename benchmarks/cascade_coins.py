@@ -26,6 +26,7 @@ MIXTURE = os.path.join(os.path.dirname(HERE), "scenes", "euro-coins-8.toml")
 
 def run(mode: str, workers: int, folder: str) -> tuple[float, dict]:
     """One sort from an empty cache: (wall seconds, cascade.json)."""
+    from sieve_mi.cascade.games import EngineSettings
     from sieve_mi.cascade.mixture import load_mixture
     from sieve_mi.cascade.sort import sort_mixture
 
@@ -33,9 +34,9 @@ def run(mode: str, workers: int, folder: str) -> tuple[float, dict]:
     report = sort_mixture(
         load_mixture(MIXTURE),
         os.path.join(folder, mode),
-        use_ray=mode == "ray",
-        workers=workers if mode == "ray" else None,
-        progress=False,
+        engine=EngineSettings(
+            use_ray=mode == "ray", workers=workers if mode == "ray" else None, progress=False
+        ),
     )
     return time.perf_counter() - t0, report
 

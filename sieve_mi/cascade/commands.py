@@ -123,11 +123,11 @@ def parse_tolerances(text: str | None) -> list[float] | None:
     return [read_value(Fabrication, "tolerance", v, "sweep", "--tolerance") for v in values]
 
 
-def _engine(args) -> dict:
-    from sieve_mi.api import check_seed
-    from sieve_mi.cascade.games import check_address, ray_module
+def _engine(args):
+    """The :class:`~sieve_mi.cascade.games.EngineSettings` of ``--variant``, ``--address``,
+    ``--workers``, ``--serial`` and ``--quiet`` (checked)."""
+    from sieve_mi.cascade.games import EngineSettings, check_address, ray_module
 
-    check_seed(getattr(args, "seed", None), "--seed")
     if args.workers is not None and args.workers < 1:
         raise SieveError(f"--workers {args.workers}: must be at least 1")
     if args.serial and args.address:
@@ -144,17 +144,17 @@ def _engine(args) -> dict:
         use_ray = False
     if args.address:
         check_address(args.address)
-    return {
-        "use_ray": use_ray,
-        "address": args.address,
-        "workers": args.workers,
-        "variant": args.variant,
-        "seed": getattr(args, "seed", None),
-        "progress": not args.quiet,
-    }
+    return EngineSettings(
+        use_ray=use_ray,
+        address=args.address,
+        workers=args.workers,
+        variant=args.variant,
+        progress=not args.quiet,
+    )
 
 
 def cmd_sort(args) -> int:
+    from sieve_mi.api import check_seed
     from sieve_mi.cascade.mixture import load_mixture
     from sieve_mi.cascade.purity import purity_table
     from sieve_mi.cascade.sort import sort_mixture
@@ -162,9 +162,10 @@ def cmd_sort(args) -> int:
 
     mixture = load_mixture(args.mixture)
     shake = trials_option(args.shake, "sort", base=mixture.shake)
+    check_seed(args.seed, "--seed")
     engine = _engine(args)
     out = args.out or os.path.join("out", mixture.name)
-    report = sort_mixture(mixture, out, shake=shake, **engine)
+    report = sort_mixture(mixture, out, engine=engine, seed=args.seed, shake=shake)
     text = tray_table(report)
     if "shake" in report:
         text += "\n" + purity_table(report["shake"])
@@ -208,9 +209,8 @@ def cmd_sweep(args) -> int:
     tolerances = parse_tolerances(args.tolerance)
     scene = load_scene(args.scene)
     engine = _engine(args)
-    engine.pop("seed")
     out = args.out or os.path.join("out", scene.name + "-sweep")
-    report = sweep_scene(scene, out, seeds=seeds, tolerances=tolerances, **engine)
+    report = sweep_scene(scene, out, seeds=seeds, tolerances=tolerances, engine=engine)
     print(json.dumps(report, indent=2) if args.json else sweep_table(report))
     print(f"outputs: {out}/", file=sys.stderr if args.json else sys.stdout)
     return EXIT_OK if report["best"]["winner"] == "A" else EXIT_NO

@@ -18,9 +18,9 @@ import socket
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-from sieve_mi.backend import THREADS_ENV
+from sieve_mi.backend import THREADS_ENV, default_variant
 from sieve_mi.errors import SieveError
 from sieve_mi.outputs import outdir
 from sieve_mi.scene import Scene
@@ -28,6 +28,7 @@ from sieve_mi.scene import Scene
 __all__ = [
     "RAY_CLIENT_PORT",
     "Engine",
+    "EngineSettings",
     "FAULT_ENV",
     "GAME_FILE",
     "GameCache",
@@ -423,6 +424,36 @@ def _clear_cache(folder: str, keys) -> None:
         pass
 
 
+@dataclass(frozen=True)
+class EngineSettings:
+    """Where and how the games of ``sort`` and ``sweep`` run (their command-line options).
+
+    Attributes
+    ----------
+    use_ray : bool, optional
+        Run the games as Ray tasks; None: when Ray is installed (:meth:`resolved`).
+    address : str, optional
+        An existing Ray cluster (``host:port``); default: a local Ray on this machine.
+    workers : int, optional
+        Local Ray: CPUs to give Ray (default: all of this machine's).
+    variant : str, optional
+        The Mitsuba variant of every game; None: :func:`sieve_mi.backend.default_variant`.
+    progress : bool
+        A bar for the games and a line per finished game on stderr.
+    """
+
+    use_ray: bool | None = None
+    address: str | None = None
+    workers: int | None = None
+    variant: str | None = None
+    progress: bool = True
+
+    def resolved(self) -> EngineSettings:
+        """These settings with ``use_ray`` and ``variant`` decided (no None left in them)."""
+        use_ray = (ray_module() is not None) if self.use_ray is None else self.use_ray
+        return replace(self, use_ray=use_ray, variant=self.variant or default_variant())
+
+
 class Engine:
     """The game engine of ``sort`` and ``sweep``: cache, runner and progress together.
 
@@ -433,12 +464,12 @@ class Engine:
     ----------
     out_dir : str
         The command's output folder.
-    use_ray, address, workers
-        As :class:`Runner`.
-    progress : bool
+    settings : EngineSettings
+        Resolved (:meth:`EngineSettings.resolved`): ``use_ray``, ``address``, ``workers`` as
+        :class:`Runner` takes them, and ``progress``.
     """
 
-    def __init__(self, out_dir: str, *, use_ray, address=None, workers=None, progress=True):
+    def __init__(self, out_dir: str, settings: EngineSettings):
         folder = cache_folder(out_dir)
         if os.path.lexists(folder) and not os.path.isdir(folder):  # found before any game
             raise SieveError(
@@ -446,9 +477,13 @@ class Engine:
                 "until the output is written: move it or choose another --out"
             )
         self.cache = GameCache(folder, also=(os.path.join(out_dir, "games"),))
-        self.bar = Progress(progress)
+        self.bar = Progress(settings.progress)
         self.runner = Runner(
-            self.cache, use_ray=use_ray, address=address, workers=workers, on_done=self.bar.done
+            self.cache,
+            use_ray=settings.use_ray,
+            address=settings.address,
+            workers=settings.workers,
+            on_done=self.bar.done,
         )
         self.records: dict = {}
 

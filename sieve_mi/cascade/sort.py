@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from sieve_mi.cascade.games import Engine, GameSpec, game_key, ray_module
+from sieve_mi.cascade.games import Engine, EngineSettings, GameSpec, game_key
 from sieve_mi.cascade.mixture import Mixture
 from sieve_mi.cascade.outputs import (
     cascade_dict,
@@ -97,12 +97,8 @@ def sort_mixture(
     mixture: Mixture,
     out_dir: str,
     *,
-    use_ray: bool | None = None,
-    address: str | None = None,
-    workers: int | None = None,
-    variant: str | None = None,
+    engine: EngineSettings | None = None,
     seed: int | None = None,
-    progress: bool = True,
     shake: ShakeSettings | None = None,
 ) -> dict:
     """Design a cascade for ``mixture`` and write it to ``out_dir``; returns ``cascade.json``.
@@ -113,50 +109,42 @@ def sort_mixture(
     out_dir : str
         The cascade's folder (refused unless empty, missing or an earlier sieve-mi output).
         Finished games wait in ``<out_dir>.games`` until the folder is written.
-    use_ray : bool, optional
-        Run games as Ray tasks; default: when Ray is installed.
-    address : str, optional
-        A running Ray cluster (``host:port``).
-    workers : int, optional
-        CPUs for a local Ray (default: all of this machine's).
-    variant : str, optional
+    engine : EngineSettings, optional
+        Where the games run (serially or on Ray), their Mitsuba variant, and the progress output
+        (default: :class:`EngineSettings`' defaults).
     seed : int, optional
         Overrides ``[solver] seed`` for every game.
-    progress : bool
     shake : ShakeSettings, optional
         Then shake each sieve with the parts that reach it, ``shake.trials`` parts per shape
         (:mod:`sieve_mi.cascade.purity`), into ``cascade.json``'s ``shake``.
     """
-    from sieve_mi.backend import default_variant
-
     t0 = time.perf_counter()
     inputs = [mixture.path] + [mixture.resolve(e.mesh) for e in mixture.shapes]
     outdir.validate(out_dir, inputs=inputs)
-    variant = variant or default_variant()
+    settings = (engine or EngineSettings()).resolved()
     seed = mixture.tables["solver"].seed if seed is None else seed
-    use_ray = (ray_module() is not None) if use_ray is None else use_ray
     digests, shapes, icons, bodies = prepare(mixture)
     order = [r["name"] for r in sorted(shapes, key=lambda r: (-r["passage_radius"], r["name"]))]
     rules = rules_for(mixture, bodies)
     measured = time.perf_counter() - t0
-    make_spec, screen_spec = _spec_makers(mixture, seed, variant, digests)
-    engine = Engine(out_dir, use_ray=use_ray, address=address, workers=workers, progress=progress)
-    with engine:
+    make_spec, screen_spec = _spec_makers(mixture, seed, settings.variant, digests)
+    with Engine(out_dir, settings) as games:
         plan = plan_cascade(
             order,
-            engine.play,
+            games.play,
             make_spec,
-            parallel=use_ray,
+            parallel=settings.use_ray,
             screen_spec=screen_spec,
             hopeless=rules.hopeless,
             margin=rules.margin,
         )
-    shaken = None if shake is None else shake_plan(plan, engine.folders(), mixture, shake, progress)
+    folders = games.folders()
+    shaken = None if shake is None else shake_plan(plan, folders, mixture, shake, settings.progress)
     report = cascade_dict(
         plan,
         shapes=shapes,
-        games=_games(engine.records),
-        runner=engine.info(),
+        games=_games(games.records),
+        runner=games.info(),
         timings={
             "measure_s": round(measured, 3),
             "rules_s": round(rules.seconds, 3),
@@ -170,8 +158,8 @@ def sort_mixture(
     if shaken is not None:
         report["shake"] = shaken
     spacing = 2.0 * max(r["radius"] for r in shapes)  # a gap the largest shape fits in
-    _write(out_dir, inputs, plan, report, engine.folders(), spacing, mixture.units, icons)
-    engine.clear_cache()
+    _write(out_dir, inputs, plan, report, folders, spacing, mixture.units, icons)
+    games.clear_cache()
     return report
 
 

@@ -12,7 +12,7 @@ import os
 import shutil
 import time
 
-from sieve_mi.cascade.games import Engine, GameSpec, game_key, weakest
+from sieve_mi.cascade.games import Engine, EngineSettings, GameSpec, game_key, weakest
 from sieve_mi.cascade.outputs import copy_games, write_json
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.provenance import sha256
@@ -50,48 +50,57 @@ def sweep_scene(
     *,
     seeds: list[int],
     tolerances: list[float] | None = None,
-    use_ray: bool | None = None,
-    address: str | None = None,
-    workers: int | None = None,
-    variant: str | None = None,
-    progress: bool = True,
+    engine: EngineSettings | None = None,
 ) -> dict:
     """Solve ``scene`` for every seed and tolerance; write all runs and the best one.
 
     Writes ``out_dir/sweep.json`` (also as ``report.json``): ``"runs"`` (seed, tolerance,
     winner, weakest B, β, protrusion, seconds, folder), ``"best"`` (the kept run); every run's
     folder as ``solve`` writes it under ``games/``, and the kept one again as ``best/``.
-    """
-    from sieve_mi.backend import default_variant
-    from sieve_mi.cascade.games import ray_module
 
+    Parameters
+    ----------
+    scene : Scene
+    out_dir : str
+        The sweep's folder (refused unless empty, missing or an earlier sieve-mi output).
+    seeds : list of int
+    tolerances : list of float, optional
+        ``[fabrication] tolerance`` values (scene units); default: the scene's.
+    engine : EngineSettings, optional
+        Where the games run (serially or on Ray), their Mitsuba variant, and the progress output
+        (default: :class:`EngineSettings`' defaults).
+
+    Returns
+    -------
+    dict
+        ``sweep.json``.
+    """
     t0 = time.perf_counter()
     inputs = [scene.path] + [
         scene.resolve(e.mesh) for e in scene.passes + scene.blocks if e.data is None
     ]
     outdir.validate(out_dir, inputs=inputs)
-    variant = variant or default_variant()
-    use_ray = (ray_module() is not None) if use_ray is None else use_ray
+    settings = (engine or EngineSettings()).resolved()
     base, digests = _loaded(scene)
-    specs = _specs(base, digests, seeds, tolerances or [base.fabrication.tolerance], variant)
-    engine = Engine(out_dir, use_ray=use_ray, address=address, workers=workers, progress=progress)
-    with engine:
-        records = engine.play(specs)
+    tolerances = tolerances or [base.fabrication.tolerance]
+    specs = _specs(base, digests, seeds, tolerances, settings.variant)
+    with Engine(out_dir, settings) as games:
+        records = games.play(specs)
     runs = [_run_row(spec, records[spec.key]["summary"]) for spec in specs]
     best = max(runs, key=lambda r: r["rank"])
     report = {
         "scene": scene.path,
         "runs": [{k: v for k, v in r.items() if k != "rank"} for r in runs],
         "best": {k: v for k, v in best.items() if k != "rank"},
-        "runner": engine.info(),
+        "runner": games.info(),
         "timings": {"total_s": round(time.perf_counter() - t0, 3)},
     }
     with outdir.writing(out_dir, command="sweep", inputs=inputs) as tmp:
-        copy_games(engine.folders(), tmp)
+        copy_games(games.folders(), tmp)
         shutil.copytree(os.path.join(tmp, best["folder"]), os.path.join(tmp, "best"))
         write_json(os.path.join(tmp, "sweep.json"), report)
         write_json(os.path.join(tmp, "report.json"), report)
-    engine.clear_cache()
+    games.clear_cache()
     return report
 
 

@@ -14,6 +14,7 @@ import pytest
 import trimesh
 
 from sieve_mi.cascade import games as games_mod
+from sieve_mi.cascade.games import EngineSettings
 from sieve_mi.cascade.mixture import load_mixture
 from sieve_mi.cascade.size import inscribed_radius, passage_radius
 from sieve_mi.cascade.sort import sort_mixture
@@ -85,12 +86,14 @@ def test_four_shapes_sort_into_four_trays_and_an_interrupted_sort_resumes(tmp_pa
 
     monkeypatch.setattr(games_mod.GameCache, "store", store_then_stop)
     with pytest.raises(KeyboardInterrupt):
-        sort_mixture(mixture, out, use_ray=False, progress=False)
+        sort_mixture(mixture, out, engine=EngineSettings(use_ray=False, progress=False))
     assert not os.path.exists(out) and len(stored) == 1
     assert os.listdir(out + ".games") == stored  # the finished game waits
     monkeypatch.setattr(games_mod.GameCache, "store", original)
 
-    report = sort_mixture(load_mixture(mixture.path), out, use_ray=False, progress=False)
+    report = sort_mixture(
+        load_mixture(mixture.path), out, engine=EngineSettings(use_ray=False, progress=False)
+    )
     assert report["trays"] == [["cube28"], ["ball20"], ["cube14"], ["ball10"]]
     assert report["runner"]["reused"] == 1 and report["runner"]["played"] == 2
     assert not os.path.exists(out + ".games")  # the waiting games moved into the output
@@ -111,7 +114,9 @@ def test_four_shapes_sort_into_four_trays_and_an_interrupted_sort_resumes(tmp_pa
     assert sum(g.volume for g in bed.geometry.values()) == pytest.approx(plates.volume, rel=1e-6)
     assert os.path.getsize(os.path.join(out, "cascade.png")) > 10_000
     # a second sort of the same mixture plays nothing: every game is in the output
-    again = sort_mixture(load_mixture(mixture.path), out, use_ray=False, progress=False)
+    again = sort_mixture(
+        load_mixture(mixture.path), out, engine=EngineSettings(use_ray=False, progress=False)
+    )
     assert again["runner"] == {**report["runner"], "played": 0, "reused": 3}
     assert again["sieves"] == report["sieves"]
 
@@ -122,16 +127,16 @@ def test_ray_with_two_workers_gives_the_serial_cascade_and_retries_a_dead_worker
 ):
     pytest.importorskip("ray")
     serial = sort_mixture(
-        load_mixture(_four(tmp_path)), str(tmp_path / "serial"), use_ray=False, progress=False
+        load_mixture(_four(tmp_path)),
+        str(tmp_path / "serial"),
+        engine=EngineSettings(use_ray=False, progress=False),
     )
     flag = tmp_path / "killed-once"
     monkeypatch.setenv(games_mod.FAULT_ENV, str(flag))  # the first game's worker dies
     ray = sort_mixture(
         load_mixture(_four(tmp_path)),
         str(tmp_path / "ray"),
-        use_ray=True,
-        workers=2,
-        progress=False,
+        engine=EngineSettings(use_ray=True, workers=2, progress=False),
     )
     assert flag.exists()  # a worker did die, and Ray played its game again
     assert ray["runner"]["mode"] == "ray" and ray["runner"]["played"] == 3
@@ -232,7 +237,11 @@ def test_sweep_keeps_the_run_with_the_largest_margin(tmp_path):
     scene = load_scene(str(tmp_path / "pair.toml"))
     out = tmp_path / "sweep"
     report = sweep_scene(
-        scene, str(out), seeds=[0, 1], tolerances=[0.5, 2.0], use_ray=False, progress=False
+        scene,
+        str(out),
+        seeds=[0, 1],
+        tolerances=[0.5, 2.0],
+        engine=EngineSettings(use_ray=False, progress=False),
     )
     assert len(report["runs"]) == 4 and all(r["winner"] == "A" for r in report["runs"])
     # a wider tolerance makes a wider hole: the ball sticks out less; the smaller one wins

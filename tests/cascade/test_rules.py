@@ -15,7 +15,7 @@ import pytest
 import trimesh
 from shapely.geometry import MultiPoint
 
-from sieve_mi.cascade.games import label_text
+from sieve_mi.cascade.games import EngineSettings, label_text
 from sieve_mi.cascade.mixture import load_mixture
 from sieve_mi.cascade.plan import plan_cascade
 from sieve_mi.cascade.rules import Rules, body, end_first, fits_inside
@@ -339,8 +339,7 @@ def test_three_coins_sort_by_diameter_with_two_games(tmp_path):
     report = sort_mixture(
         load_mixture(str(tmp_path / "three.toml")),
         str(tmp_path / "out"),
-        use_ray=False,
-        progress=False,
+        engine=EngineSettings(use_ray=False, progress=False),
     )
     assert report["trays"] == [["2eur"], ["5c"], ["1c"]]
     assert [(g["stage"], g["holds"]) for g in report["games"]] == [
