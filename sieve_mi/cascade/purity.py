@@ -101,7 +101,7 @@ def _shake_sieve(k, stage, parts, reaching, settings, unit_m, progress):
     try:
         for n in arriving:
             entry, _ = shape_entry(
-                n, _role(n, stage), None, parts[n], plate, here, unit_m, bar, reaching[n]
+                parts[n], _role(n, stage), None, plate, here, unit_m, bar, reaching[n]
             )
             times = entry.pop("pass_times_s")
             passed[n] = [i for i, t in zip(reaching[n], times) if t is not None]

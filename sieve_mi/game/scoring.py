@@ -276,7 +276,7 @@ def _walk_and_count(renderer, stack, quats, trans, pose_hole, window):
     lanes = int(np.sum(window[2]))
     start = [dr.zeros(mi.Float, lanes) for _ in range(3)]
     hole_of = mi.UInt32(np.asarray(pose_hole).astype(np.uint32))
-    acc, pose = renderer.walk_rows(quats, trans, frame, *window, visit, start, extra=[hole_of])
+    acc, pose = renderer.walk_rows(quats, trans, frame, window, visit, start, extra=[hole_of])
     dr.eval(pose, *acc)
     sums = [dr.zeros(mi.Float, len(quats)) for _ in range(3)]
     for target, value, op in zip(sums, acc, (dr.ReduceOp.Add,) * 2 + (dr.ReduceOp.Max,)):

@@ -158,9 +158,7 @@ class SilhouetteRenderer:
             col,
         )
 
-    def walk_rows(
-        self, quats, trans, frame: Frame, row0, col0, rows, cols, visit, start: list, extra=()
-    ):
+    def walk_rows(self, quats, trans, frame: Frame, window: tuple, visit, start: list, extra=()):
         """One thread per window row, walking its pixel centres left to right (a Dr.Jit loop).
 
         The same rays and hits as :meth:`trace` (the same arithmetic per pixel), but each row
@@ -169,8 +167,11 @@ class SilhouetteRenderer:
 
         Parameters
         ----------
-        quats, trans, frame, row0, col0, rows, cols
-            As for :meth:`trace` (``rows`` and ``cols`` (K,) arrays).
+        quats, trans, frame
+            As for :meth:`trace`.
+        window : (row0, col0, rows, cols)
+            The K windows: lattice index of each one's top-left pixel, its number of rows and of
+            columns ((K,) arrays of int each, as for :meth:`trace`).
         visit : callable
             ``visit(hit, row, col, extra, acc) -> acc``: folds one pixel (mi.Bool, mi.Int32,
             mi.Int32) into the row's accumulators ``acc`` (a list of Dr.Jit arrays); ``extra``
@@ -188,6 +189,7 @@ class SilhouetteRenderer:
             Each row's pose.
         """
         mi, dr = self._mi, self._dr
+        row0, col0, rows, cols = window
         quats, trans = np.atleast_2d(quats), np.atleast_2d(trans)
         k = len(quats)
         rows = np.broadcast_to(np.asarray(rows, dtype=np.int64), k)

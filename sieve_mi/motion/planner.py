@@ -214,9 +214,12 @@ def _try(world, out: Search, poses, method: str) -> bool:
     return v.ok
 
 
-def _via_crossings(world, out: Search, planner, start, goal, crossings, left, slice_s, reverse):
-    """Plan from ``start`` to the nearest reachable crossing pose, then on to ``goal``; drop a
-    crossing that leads nowhere and try the others. True when a verified passage was found."""
+def _via_crossings(planner: _Planner, out: Search, ends, side: int, crossings, left, slice_s):
+    """Plan from ``ends[side]`` to the nearest reachable crossing pose, then on to the other end;
+    drop a crossing that leads nowhere and try the others. True when a verified passage was found
+    (kept in ``out`` from ``ends[0]`` to ``ends[1]``). ``left()`` is the budget's seconds left,
+    ``slice_s`` the most one plan may take."""
+    world, start, goal, reverse = planner.world, ends[side], ends[1 - side], side == 1
     pending = list(crossings)
     while pending and left() > 0.05:
         first = planner.plan(start, pending, min(slice_s, left()))
@@ -278,8 +281,7 @@ def search_passage(world, outline, seeds, budget_s: float, seed: int = 0) -> Sea
         if any(_down(world, out, window, ends, q, t[:2]) for q, t in crossings):
             break
         side = rounds % 2  # reach the crossings from above, then from below, in turn
-        done = _via_crossings(world, out, planner, ends[side], ends[1 - side], crossings, left,
-                              slice_s, reverse=side == 1)  # fmt: skip
+        done = _via_crossings(planner, out, ends, side, crossings, left, slice_s)
         rounds += 1
     out.seconds = time.perf_counter() - t0
     out.checks = world.checks

@@ -92,6 +92,8 @@ def _silhouette_plugin(mi) -> str:
     from mitsuba.ad.integrators.direct_projective import DirectProjectiveIntegrator
 
     class SilhouetteProjectiveIntegrator(DirectProjectiveIntegrator):
+        # Mitsuba's interface (``ADIntegrator.sample``), not sieve-mi's: Mitsuba calls it with
+        # these ten arguments, by position or by name, so the signature is the library's.
         def sample(
             self,
             mode,

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
@@ -29,6 +30,7 @@ __all__ = [
     "ELEVATION",
     "ESCAPED_RGB",
     "FOV",
+    "FigureSettings",
     "GROUND_GAP",
     "GROUND_RGB",
     "INTEGRATOR",
@@ -86,6 +88,23 @@ ESCAPED_RGB = linear("escaped")
 GROUND_RGB = (0.50, 0.45, 0.38)
 
 
+@dataclass(frozen=True)
+class FigureSettings:
+    """The picture :func:`render_figure` makes: its size and its samples per pixel.
+
+    Attributes
+    ----------
+    width, height : int
+        Picture size, pixels.
+    spp : int
+        Samples per pixel.
+    """
+
+    width: int = 1200
+    height: int = 900
+    spp: int = 16
+
+
 def render_figure(
     path: str,
     plate: trimesh.Trimesh,
@@ -93,9 +112,7 @@ def render_figure(
     blocks: list[trimesh.Trimesh],
     blocked: list[bool],
     *,
-    width: int = 1200,
-    height: int = 900,
-    spp: int = 16,
+    picture: FigureSettings | None = None,
     title: str | None = None,
 ) -> None:
     """Render the sieve, the shapes that pass and the attempts of the shapes to block into a PNG.
@@ -117,10 +134,9 @@ def render_figure(
         The B shapes, placed beside the plate (scene units).
     blocked : list of bool
         One per entry of ``blocks``: True draws the shape red (blocked), False orange (it passes).
-    width, height : int
-        Picture size, pixels.
-    spp : int
-        Samples per pixel.
+    picture : FigureSettings, optional
+        Picture size and samples per pixel (default: :class:`FigureSettings`' defaults, 1200 x
+        900 pixels at 16 spp).
     title : str, optional
         A line of text drawn at the top of the picture (the picture keeps its size).
 
@@ -137,6 +153,8 @@ def render_figure(
     effect before the call is in effect after it; if none was set, the RGB variant stays selected
     (Mitsuba cannot unset a variant).
     """
+    picture = FigureSettings() if picture is None else picture
+    width, height, spp = picture.width, picture.height, picture.spp
     if len(blocked) != len(blocks):
         raise ValueError(
             f"blocked has {len(blocked)} entries but there are {len(blocks)} block meshes"
@@ -149,9 +167,7 @@ def render_figure(
     before = mi.variant()
     try:
         variant = _backend.select_rgb_variant(mi, before)
-        scene, sensor = _scene(
-            mi, plate, passes, blocks, blocked, width, height, spp, title is not None
-        )
+        scene, sensor = _scene(mi, plate, passes, blocks, blocked, picture, title is not None)
         image = np.asarray(mi.render(scene, sensor=sensor, spp=spp), dtype=np.float32)
     finally:
         if before is not None and mi.variant() != before:
@@ -300,11 +316,12 @@ def _camera(boxes: list[np.ndarray], aspect: float, title: bool):
     return origin, origin + fwd * max(1.0, float(np.max(pf) - cf)), up
 
 
-def _scene(mi, plate, passes, blocks, blocked, width, height, spp, title):
+def _scene(mi, plate, passes, blocks, blocked, picture: FigureSettings, title: bool):
     """The loaded Mitsuba scene (lights, ground, meshes) and the fitted perspective sensor.
 
     Arguments are those of :func:`render_figure`; ``title`` (bool) keeps the title band free.
     """
+    width, height, spp = picture.width, picture.height, picture.spp
     items = (
         [(plate, PLATE_RGB, False)]
         + [(m, PASS_RGB, True) for m in passes]

@@ -96,14 +96,15 @@ def engine_doc() -> dict:
     }
 
 
-def shape_entry(name, role, path, part, plate, settings, unit_m, progress, trials=None):
+def shape_entry(part, role, path, plate, settings, unit_m, progress, trials=None):
     """One part's trials on one plate, their statistics and the part's fidelity there.
 
     Parameters
     ----------
-    name, role, path
-        The part's name, role (``"A"``, ``"B"`` or None) and file, for the entry.
     part : Part
+        The part; its name names the entry.
+    role, path
+        The part's role on this plate (``"A"``, ``"B"`` or None) and its file, for the entry.
     plate : Plate
     settings : ShakeSettings
     unit_m : float
@@ -117,7 +118,7 @@ def shape_entry(name, role, path, part, plate, settings, unit_m, progress, trial
     (dict, float)
         ``shake.json``'s entry of the shape, and the seconds it took.
     """
-    t0 = time.perf_counter()
+    t0, name = time.perf_counter(), part.name
     check_plate(plate, settings, unit_m)
     fidelity = measure_sink(plate, part, settings, unit_m)
     progress.shape(name)
@@ -177,8 +178,8 @@ def shake(
     bar = Progress(progress, settings.trials * len(parts))
     shapes = []
     try:
-        for name, role, path, part in parts:
-            entry, seconds = shape_entry(name, role, path, part, plate, settings, unit_m, bar)
+        for _, role, path, part in parts:
+            entry, seconds = shape_entry(part, role, path, plate, settings, unit_m, bar)
             shapes.append(entry)
             timings[f"trials_{len(shapes) - 1}_s"] = seconds
     finally:

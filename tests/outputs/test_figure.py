@@ -13,10 +13,11 @@ from PIL import Image
 
 import sieve_mi.outputs.figure as figure
 from sieve_mi import backend
-from sieve_mi.outputs.figure import render_figure, title_figure
+from sieve_mi.outputs.figure import FigureSettings, render_figure, title_figure
 from sieve_mi.testing.pictures import layout_problems
 
 W, H, SPP = 160, 120, 4
+SMALL = FigureSettings(W, H, SPP)
 
 
 def _plate(size: float = 80.0, thickness: float = 12.0, hole: float = 20.0) -> trimesh.Trimesh:
@@ -82,7 +83,7 @@ def test_colours_size_and_variant(tmp_path, scene, mi, colour):
     plate, passes, blocks = scene
     before = mi.variant()
     path = tmp_path / "figure.png"
-    render_figure(str(path), plate, passes, blocks, [True], width=W, height=H, spp=SPP)
+    render_figure(str(path), plate, passes, blocks, [True], picture=SMALL)
     assert mi.variant() == before
     assert path.is_file() and path.stat().st_size > 0
     assert os.listdir(tmp_path) == ["figure.png"], (
@@ -103,9 +104,7 @@ def test_colours_size_and_variant(tmp_path, scene, mi, colour):
 def test_escaped_block_is_orange_and_title_keeps_size(tmp_path, scene, mi, colour):
     plate, passes, blocks = scene
     path = tmp_path / "figure.png"
-    render_figure(
-        str(path), plate, passes, blocks, [False], width=W, height=H, spp=SPP, title="a title"
-    )
+    render_figure(str(path), plate, passes, blocks, [False], picture=SMALL, title="a title")
     img = _read(path)
     orange = _orange(img)
     assert orange.sum() > 0.01 * W * H
@@ -128,9 +127,11 @@ def test_title_lies_in_its_band_on_no_shape(tmp_path, scene, mi, colour, monkeyp
     title = "a scene with a rather long name, longer than the picture is wide: winner A"
     args = (plate, passes, blocks, [True])
     monkeypatch.setattr(figure, "_with_title", lambda rgb, title: rgb)
-    render_figure(str(tmp_path / "raw.png"), *args, width=w, height=h, spp=SPP, title=title)
+    render_figure(str(tmp_path / "raw.png"), *args, picture=FigureSettings(w, h, SPP), title=title)
     monkeypatch.undo()
-    render_figure(str(tmp_path / "titled.png"), *args, width=w, height=h, spp=SPP, title=title)
+    render_figure(
+        str(tmp_path / "titled.png"), *args, picture=FigureSettings(w, h, SPP), title=title
+    )
     with Image.open(tmp_path / "raw.png") as raw, Image.open(tmp_path / "titled.png") as titled:
         raw, titled = (np.asarray(im.convert("RGB")).astype(int) for im in (raw, titled))
     fig = title_figure(w, h, title)
@@ -167,7 +168,7 @@ def test_flat_open_meshes_render(tmp_path, mi, colour):
     tilted.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 3, [1, 0, 0]))
     tilted.apply_translation([45, 0, 10])
     path = tmp_path / "flat.png"
-    render_figure(str(path), plate, [sheet], [tilted], [True], width=W, height=H, spp=SPP)
+    render_figure(str(path), plate, [sheet], [tilted], [True], picture=SMALL)
     img = _read(path)
     assert _green(img).sum() > 0 and _red(img).sum() > 0
 
@@ -177,7 +178,7 @@ def test_degenerate_input_still_writes(tmp_path, mi):
     plate = _plate(40.0, 5.0, 10.0)
     degenerate = trimesh.Trimesh([[0, 0, 3], [1, 1, 3], [2, 2, 3]], [[0, 1, 2]], process=False)
     path = tmp_path / "d.png"
-    render_figure(str(path), plate, [degenerate], [], [], width=W, height=H, spp=SPP)
+    render_figure(str(path), plate, [degenerate], [], [], picture=SMALL)
     assert _read(path).std() > 1
 
 
@@ -186,7 +187,7 @@ def test_mono_fallback_and_restore_on_error(tmp_path, scene, mi, monkeypatch):
     before = mi.variant()
     monkeypatch.setattr(backend, "RGB_VARIANTS", ())
     path = tmp_path / "grey.png"
-    render_figure(str(path), plate, passes, blocks, [True], width=W, height=H, spp=SPP)
+    render_figure(str(path), plate, passes, blocks, [True], picture=SMALL)
     img = _read(path)
     assert np.all(img[..., 0] == img[..., 1]) and np.all(img[..., 1] == img[..., 2]), (
         "mono renders grey"
@@ -199,15 +200,11 @@ def test_mono_fallback_and_restore_on_error(tmp_path, scene, mi, monkeypatch):
 
     monkeypatch.setattr(figure, "_scene", boom)
     with pytest.raises(RuntimeError, match="boom"):
-        render_figure(
-            str(tmp_path / "x.png"), plate, passes, blocks, [True], width=W, height=H, spp=SPP
-        )
+        render_figure(str(tmp_path / "x.png"), plate, passes, blocks, [True], picture=SMALL)
     assert mi.variant() == before
     assert not (tmp_path / "x.png").exists()
     with pytest.raises(ValueError):
-        render_figure(
-            str(tmp_path / "x.png"), plate, passes, blocks, [], width=W, height=H, spp=SPP
-        )
+        render_figure(str(tmp_path / "x.png"), plate, passes, blocks, [], picture=SMALL)
 
 
 def test_silhouettes_work_after_a_render(tmp_path, scene, cube20, mi):
@@ -219,9 +216,7 @@ def test_silhouettes_work_after_a_render(tmp_path, scene, cube20, mi):
     early = SilhouetteRenderer(cube20)
     m0 = early.frame_mask([1, 0, 0, 0], [5.0, -3.0], f)
     plate, passes, blocks = scene
-    render_figure(
-        str(tmp_path / "f.png"), plate, passes, blocks, [True], width=W, height=H, spp=SPP
-    )
+    render_figure(str(tmp_path / "f.png"), plate, passes, blocks, [True], picture=SMALL)
     m1 = early.frame_mask([1, 0, 0, 0], [5.0, -3.0], f)
     m2 = SilhouetteRenderer(cube20).frame_mask([1, 0, 0, 0], [5.0, -3.0], f)
     assert m0.sum() > 0 and np.array_equal(m0, m1) and np.array_equal(m0, m2)

@@ -87,7 +87,8 @@ def test_a_shape_that_leaks_through_is_shaken_below_and_the_fractions_multiply(m
     "big" that leaked through sieve 1 are shaken on sieve 2 as coming "from above" (role None),
     and its tray fractions are the products of its per-sieve fractions."""
 
-    def fake_entry(name, role, path, part, plate, settings, unit_m, progress, trials=None):
+    def fake_entry(part, role, path, plate, settings, unit_m, progress, trials=None):
+        name = part.name
         k = [sieve_seed(0, j) for j in range(3)].index(settings.seed)
         rule = {"big": lambda i: (i + k) % 3 != 0, "mid": lambda i: k == 0, "small": lambda i: True}
         passes = [rule[name](i) for i in trials]
