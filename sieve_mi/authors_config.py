@@ -25,7 +25,7 @@ from sieve_mi.scene import (
     Verdict,
     check_folder_name,
 )
-from sieve_mi.settings import key_text, read_value, shown
+from sieve_mi.settings import Reader, key_text, read_value, shown
 
 __all__ = [
     "MESH_KEYS",
@@ -163,7 +163,7 @@ def mesh_path(path: str, filename, where: str) -> str:
     for rel in (filename, os.path.join(os.pardir, "data", filename)):
         if os.path.isfile(os.path.join(folder, rel)):
             return rel
-    name = filename if filename.isprintable() else shown(filename)
+    name = filename if filename.isprintable() else shown(filename, spelling="json")
     raise SieveError(
         f"{path}: {where}.filename: {name}: mesh file not found (looked beside the "
         "configuration and in ../data/)"
@@ -181,13 +181,11 @@ def _meshes(path: str, data: dict, key: str) -> tuple[list[ShapeEntry], list]:
         if not isinstance(item, dict):
             raise SieveError(f"{path}: {where}: expected an object with 'filename'")
         _check_keys(path, item, MESH_KEYS, where + ".")
-        scale = item.get("fabrication_scale", 1.0)
-        scale = read_value(ShapeEntry, "scale", scale, path, f"{where}.fabrication_scale")
+        reader = Reader(path, {"fabrication_scale": 1.0, **item}, f"{where}.", "json")
+        scale = reader.value(ShapeEntry, "scale", "fabrication_scale")
         offset = item.get("fabrication_offset")
         if offset is not None:
-            offset = read_value(
-                Fabrication, "tolerance", offset, path, f"{where}.fabrication_offset"
-            )
+            offset = reader.value(Fabrication, "tolerance", "fabrication_offset")
         entries.append(ShapeEntry(mesh=mesh_path(path, item.get("filename"), where), scale=scale))
         offsets.append(offset)
     return entries, offsets
@@ -217,7 +215,9 @@ def _settings(path: str, data: dict) -> dict:
     classes = {"solver": Solver, "verdict": Verdict, "fabrication": Fabrication, "layout": Layout}
     for key, (table, name) in SETTINGS.items():
         if key in data:
-            tables[table][name] = read_value(classes[table], name, data[key], path, key)
+            tables[table][name] = read_value(
+                classes[table], name, data[key], path, key, spelling="json"
+            )
     for key, (ok, expected, why) in NO_EFFECT.items():
         if key in data and not ok(data[key]):
             raise SieveError(f"{path}: {key}: expected {expected} (no effect here: {why})")
@@ -225,11 +225,12 @@ def _settings(path: str, data: dict) -> dict:
         shape = data["image_shape"]
         if not (isinstance(shape, list) and len(shape) == 2 and shape[0] == shape[1]):
             raise SieveError(
-                f"{path}: image_shape: {shown(shape, 40)}: sieve-mi's raster is square; give [N, N]"
+                f"{path}: image_shape: {shown(shape, 40, 'json')}: sieve-mi's raster is square; "
+                "give [N, N]"
             )
         for table, cls in (("solver", Solver), ("verdict", Verdict)):
             tables[table]["resolution"] = read_value(
-                cls, "resolution", shape[0], path, "image_shape"
+                cls, "resolution", shape[0], path, "image_shape", spelling="json"
             )
     if data.get("mesh_B_opt_use_area_proportion", True) is not True:
         raise SieveError(

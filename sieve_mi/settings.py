@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import math
 import re
 import types
@@ -323,11 +324,14 @@ def checked(where: str):
     return decorate
 
 
-def shown(value, limit: int = 60) -> str:
-    """A value as a message shows it: its ``repr`` on one line, at most ``limit`` characters.
+def shown(value, limit: int = 60, spelling: str = "python") -> str:
+    """A value as a message shows it: on one line, at most ``limit`` characters.
 
-    Never fails: an integer too long to print is described by its number of digits, a value
-    nested too deeply to ``repr`` by its type.
+    ``spelling`` is the language the value was given in: ``"python"`` (code, the command line,
+    TOML files) shows its ``repr``; ``"json"`` (a JSON file) its JSON text, so that a JSON file's
+    ``null``, ``true`` and ``"text"`` are shown as the file has them, not as Python's ``None``,
+    ``True`` and ``'text'``. Never fails: an integer too long to print is described by its
+    number of digits, a value nested too deeply to print by its type.
 
     Examples
     --------
@@ -335,12 +339,17 @@ def shown(value, limit: int = 60) -> str:
     "'aaaaaaaa…"
     >>> shown(10**5000)
     'an integer of 5,001 digits'
+    >>> shown([None, True, "x"], spelling="json")
+    '[null, true, "x"]'
     """
     if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 256:
         return f"an integer of {_digits(value):,} digits"
     try:
-        text = repr(value).replace("\n", " ")
-    except (ValueError, RecursionError):
+        if spelling == "json":
+            text = json.dumps(value, ensure_ascii=False)
+        else:
+            text = repr(value).replace("\n", " ")
+    except (ValueError, TypeError, RecursionError):
         text = f"<{type(value).__name__}>"
     return cut(text, limit)
 
@@ -367,8 +376,13 @@ class Reader:
     """Type-checked access to one table of settings (of a scene file, a mixture, a command line),
     with errors that name the file (or command) and the key."""
 
-    def __init__(self, path: str, table: dict, where: str):
+    def __init__(self, path: str, table: dict, where: str, spelling: str = "python"):
         self.path, self.table, self.where = path, table, where
+        self.spelling = spelling  # how values are shown (:func:`shown`): "python" or "json"
+
+    def shown(self, value) -> str:
+        """``value`` as the messages show it, in the spelling of what gave it (:func:`shown`)."""
+        return shown(value, spelling=self.spelling)
 
     def error(self, key: str, what: str) -> SieveError:
         return SieveError(f"{self.path}: {self.where}{key_text(key)}: {what}")
@@ -398,27 +412,29 @@ class Reader:
             if value in spec.choices:
                 return value
             words = " or ".join(repr(c) for c in spec.choices)
-            raise self.error(key, f"expected a number or {words}, got {shown(value)}")
+            raise self.error(key, f"expected a number or {words}, got {self.shown(value)}")
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(
-                key, f"expected a {'whole number' if integer else 'number'}, got {shown(value)}"
+                key,
+                f"expected a {'whole number' if integer else 'number'}, got {self.shown(value)}",
             )
         if not (isinstance(value, int) or math.isfinite(value)):  # an int of any size is finite
-            raise self.error(key, f"expected a finite number, got {shown(value)}")
+            raise self.error(key, f"expected a finite number, got {self.shown(value)}")
         if integer and isinstance(value, float) and not value.is_integer():
-            raise self.error(key, f"expected a whole number, got {shown(value)}")
+            raise self.error(key, f"expected a whole number, got {self.shown(value)}")
         low, high = spec.minimum, spec.maximum
         if low is not None and (value <= low if spec.exclusive_min else value < low):
             raise self.error(
-                key, f"must be {'>' if spec.exclusive_min else '>='} {low}, got {shown(value)}"
+                key, f"must be {'>' if spec.exclusive_min else '>='} {low}, got {self.shown(value)}"
             )
         if high is not None and (value >= high if spec.exclusive_max else value > high):
             raise self.error(
-                key, f"must be {'<' if spec.exclusive_max else '<='} {high}, got {shown(value)}"
+                key,
+                f"must be {'<' if spec.exclusive_max else '<='} {high}, got {self.shown(value)}",
             )
         if integer or abs(value) <= _FLOAT_MAX:
             return int(value) if integer else float(value)
-        raise self.error(key, f"{shown(value)} is beyond a number's range (±1.8e308)")
+        raise self.error(key, f"{self.shown(value)} is beyond a number's range (±1.8e308)")
 
     def integer(self, key: str, spec: Spec) -> int:
         return self.number(key, spec, integer=True)
@@ -426,15 +442,15 @@ class Reader:
     def boolean(self, key: str, spec: Spec) -> bool:
         value = self.table[key]
         if not isinstance(value, bool):
-            raise self.error(key, f"expected true or false, got {shown(value)}")
+            raise self.error(key, f"expected true or false, got {self.shown(value)}")
         return value
 
     def string(self, key: str, spec: Spec) -> str:
         value = self.table[key]
         if not isinstance(value, str) or not value:
-            raise self.error(key, f"expected a non-empty string, got {shown(value)}")
+            raise self.error(key, f"expected a non-empty string, got {self.shown(value)}")
         if spec.choices is not None and value not in spec.choices:
-            raise self.error(key, f"{shown(value)} is not one of: {', '.join(spec.choices)}")
+            raise self.error(key, f"{self.shown(value)} is not one of: {', '.join(spec.choices)}")
         return value
 
     def quaternion(self, key: str, spec: Spec) -> list[float]:
@@ -445,17 +461,18 @@ class Reader:
             and len(q) == 4
             and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in q)
         ):
-            raise self.error(key, f"expected a quaternion [w, x, y, z], got {shown(q)}")
+            raise self.error(key, f"expected a quaternion [w, x, y, z], got {self.shown(q)}")
         if any(abs(v) > _FLOAT_MAX for v in q if isinstance(v, int)):
-            raise self.error(key, f"quaternion {shown(q)} has a number beyond ±1.8e308")
+            raise self.error(key, f"quaternion {self.shown(q)} has a number beyond ±1.8e308")
         qn = np.asarray(q, float)
-        norm = float(np.linalg.norm(qn))
+        with np.errstate(over="ignore", invalid="ignore"):  # 1e308 squared: inf, refused below
+            norm = float(np.linalg.norm(qn))
         if not np.all(np.isfinite(qn)) or norm < 1e-9:
-            raise self.error(key, f"quaternion {shown(q)} has no direction")
+            raise self.error(key, f"quaternion {self.shown(q)} has no direction")
         if abs(norm - 1.0) > 1e-3:
             raise self.error(
                 key,
-                f"quaternion {shown(q)} is not a unit quaternion (norm {norm:.4g}); divide it "
+                f"quaternion {self.shown(q)} is not a unit quaternion (norm {norm:.4g}); divide it "
                 "by its norm",
             )
         return [float(v) for v in qn / norm]
@@ -470,7 +487,9 @@ _READERS = {
 }
 
 
-def read_value(cls: type, name: str, value, where: str, key: str | None = None):
+def read_value(
+    cls: type, name: str, value, where: str, key: str | None = None, spelling: str = "python"
+):
     """A value of field ``name`` of ``cls`` given outside a scene file, checked as a key of one.
 
     Parameters
@@ -486,6 +505,8 @@ def read_value(cls: type, name: str, value, where: str, key: str | None = None):
         What gave it, for the message (e.g. ``"check"``, the command).
     key : str, optional
         The name it was given under (e.g. ``"--learning-rate"``); default its TOML key.
+    spelling : {"python", "json"}
+        How the message shows the value (:func:`shown`): ``"json"`` for a JSON file's value.
 
     Returns
     -------
@@ -511,7 +532,7 @@ def read_value(cls: type, name: str, value, where: str, key: str | None = None):
     1.0
     """
     key = key or key_of(field_of(cls, name))
-    return Reader(where, {key: value}, "").value(cls, name, key)
+    return Reader(where, {key: value}, "", spelling).value(cls, name, key)
 
 
 def option_flag(name: str) -> str:

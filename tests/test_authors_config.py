@@ -133,6 +133,34 @@ def test_bad_keys_are_one_line_naming_the_key(authors_repo, changes, needle):
     assert "\n" not in message and message.startswith(f"{path}: ") and needle in message, message
 
 
+#: (changes, how the line goes on after "<path>: "): values shown as JSON writes them.
+JSON_SPELLING = [
+    ({"sieve_thickness": None}, "sieve_thickness: expected a number, got null"),
+    ({"mesh_A_pso_iters": True}, "mesh_A_pso_iters: expected a whole number, got true"),
+    ({"mesh_B_opt_learning_rate": False}, "mesh_B_opt_learning_rate: expected a number, got false"),
+    ({"mesh_B_opt_num_posns": "ten"}, 'mesh_B_opt_num_posns: expected a whole number, got "ten"'),
+    ({"image_shape": [None, None]}, "image_shape: expected a whole number, got null"),
+    ({"image_shape": [None, 3]}, "image_shape: [null, 3]: sieve-mi's raster is square; give [N, N]"),
+    ({"meshes_A": [{"filename": "cube.stl", "fabrication_scale": None}]},
+     "meshes_A[0].fabrication_scale: expected a number, got null"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("changes, words", JSON_SPELLING, ids=range(len(JSON_SPELLING)))
+def test_values_are_shown_in_json_spelling(authors_repo, capsys, tmp_path, changes, words):
+    # Were Python's spellings: "got None", "got True", "got 'ten'".
+    import hashlib
+
+    from sieve_mi.cli import main
+
+    path = authors_repo(**changes)
+    before = hashlib.sha256(open(path, "rb").read()).hexdigest()
+    code, err = main(["solve", path, "--out", str(tmp_path / "o")]), capsys.readouterr().err
+    assert code == 2 and err == f"sieve-mi: error: {path}: {words}\n", err
+    assert hashlib.sha256(open(path, "rb").read()).hexdigest() == before
+    assert not (tmp_path / "o").exists()
+
+
 def test_two_a_offsets_must_agree(authors_repo):
     meshes = [
         {"filename": "cube.stl", "fabrication_offset": 1.0},
