@@ -7,7 +7,7 @@ import sys
 from dataclasses import fields, replace
 
 from sieve_mi.errors import SieveError
-from sieve_mi.shake.settings import ShakeSettings
+from sieve_mi.shake.settings import ShakeSettings, check_workers, metres_per_unit
 
 __all__ = [
     "add_parser",
@@ -68,6 +68,7 @@ def settings_from_args(args) -> ShakeSettings:
         value = getattr(args, f.name, None)
         if value is not None:
             values[f.name] = read_option(ShakeSettings, f.name, value, "shake")
+    check_workers(values.get("workers", 0), "shake: --workers")  # as --threads is bounded
     return ShakeSettings(**values)
 
 
@@ -87,7 +88,7 @@ def shake_folder(
     from sieve_mi.shake.outputs import add_to_folder, check_folder
     from sieve_mi.shake.run import shake
 
-    inp = select(from_folder(folder), only)
+    inp = select(from_folder(folder, only), only)
     check_folder(folder)
     with tempfile.TemporaryDirectory(prefix="sieve-mi-shake-") as tmp:
         gif = os.path.join(tmp, "shake.gif") if clip else None
@@ -106,6 +107,7 @@ def _shake_files(args, settings: ShakeSettings, inputs: list[str]) -> dict:
     from sieve_mi.shake.outputs import write_new_folder
     from sieve_mi.shake.run import shake
 
+    metres_per_unit(args.units or "mm")  # an unknown unit refused before any mesh is read
     inp = select(from_files(args.sieve, args.paths, args.units or "mm"), only_names(args.only))
     if args.out is None:
         return shake(inp, settings, not args.quiet)

@@ -15,6 +15,7 @@ converted with :data:`UNIT_TO_M`.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import asdict, dataclass, fields
 
 from sieve_mi.errors import SieveError
@@ -32,6 +33,7 @@ __all__ = [
     "TIMESTEP_MAX_MS",
     "UNIT_TO_M",
     "ShakeSettings",
+    "check_workers",
     "metres_per_unit",
 ]
 
@@ -162,6 +164,7 @@ class ShakeSettings:
         for f in fields(self):  # as a scene key is checked; an int for a float becomes a float
             value = read_value(ShakeSettings, f.name, getattr(self, f.name), "shake")
             object.__setattr__(self, f.name, value)
+        check_workers(self.workers, "shake: workers")
         self._check_motion()
 
     def peak_acceleration_g(self, radius_mm: float = 0.0) -> float:
@@ -198,6 +201,28 @@ class ShakeSettings:
     def units() -> dict:
         """Unit of each setting that has one, for the output."""
         return {f.name: spec_of(f).unit for f in fields(ShakeSettings) if spec_of(f).unit}
+
+
+def check_workers(workers: int, say: str) -> int:
+    """``workers`` if it is at most :func:`sieve_mi.backend.max_threads` (four per core, the
+    bound ``--threads`` has: more processes only compete for the cores, each with its own
+    engine); ``say`` names the setting in the error (``"shake: --workers"``).
+
+    Raises
+    ------
+    SieveError
+        ``"shake: --workers 1024: must be a whole number from 0 to 8 (0: every core; four per
+        core on this machine's 2 cores)"``.
+    """
+    from sieve_mi.backend import max_threads
+
+    top = max_threads()
+    if isinstance(workers, int) and not isinstance(workers, bool) and workers > top:
+        raise SieveError(
+            f"{say} {workers}: must be a whole number from 0 to {top} (0: every core; four per "
+            f"core on this machine's {os.cpu_count() or 1} cores)"
+        )
+    return workers
 
 
 def metres_per_unit(units: str) -> float:
