@@ -199,10 +199,10 @@ def _say_fit(v) -> None:
 
 def _recorded_pixel_size(image: str, units: str) -> float:
     """The pixel size a hole image records (PNG ``pHYs``, as solve's hole.png has), in ``units``."""
+    from sieve_mi.geometry.hole_image import image_size
     from sieve_mi.geometry.pixels import image_pixel_size
 
-    if not os.path.isfile(image):
-        raise SieveError(f"{image}: hole image not found")
+    image_size(image)  # a missing, unreadable or oversized image: one line
     size = image_pixel_size(image, units)
     if size is None:
         raise SieveError(
@@ -239,6 +239,7 @@ def cmd_check(args) -> int:
         units=args.units,
         settings=settings,
         progress=None if args.quiet else _say_fit,
+        variant=args.variant,
     )
     text = json.dumps(rep.to_dict(), indent=2, default=lambda x: None if x != x else str(x))
     if args.out is not None:

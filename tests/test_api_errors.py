@@ -78,7 +78,13 @@ def test_result_save_wants_a_folder_path(bad):
         (("part.stl",), {"image": "hole.png"}, "needs pixel_size"),
     ],
 )
-def test_check_refuses_missing_pieces_in_words_of_the_api(args, kwargs, needle):
+def test_check_refuses_missing_pieces_in_words_of_the_api(
+    args, kwargs, needle, tmp_path, monkeypatch
+):
+    from PIL import Image
+
+    monkeypatch.chdir(tmp_path)
+    Image.new("L", (8, 8)).save("hole.png")  # an image that records no pixel size
     with pytest.raises(sm.SieveError) as e:
         sm.check(*args, **kwargs)
     _one_line(e, needle)

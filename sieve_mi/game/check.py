@@ -29,14 +29,15 @@ from dataclasses import asdict, dataclass, field, replace
 import manifold3d
 import numpy as np
 
+from sieve_mi.backend import use_variant
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import Starts
 from sieve_mi.game.check_settings import AXIS_NAMES, CheckInputs, CheckSettings
 from sieve_mi.game.exact import CANDIDATES, exact_rescore
 from sieve_mi.game.verdict import REACH
 from sieve_mi.geometry.hole import Hole
-from sieve_mi.geometry.hole_image import read_image_holes
-from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.hole_image import image_size, read_image_holes
+from sieve_mi.geometry.meshes import Shape, edge_length
 from sieve_mi.geometry.outline import placed_vertices, projection, union
 from sieve_mi.geometry.pixels import image_pixel_size
 from sieve_mi.geometry.sieve import PlateReading, SieveHoles, read_plate_holes
@@ -50,6 +51,7 @@ __all__ = [
     "as_shape",
     "attempt",
     "check",
+    "check_part_size",
     "fit_scale",
     "scaled",
 ]
@@ -249,6 +251,7 @@ def check(
     units: str = "mm",
     settings: CheckSettings | None = None,
     progress=None,
+    variant: str | None = None,
 ) -> CheckReport:
     """Test a shape against a sieve (a plate mesh or a hole image).
 
@@ -268,26 +271,27 @@ def check(
     settings : CheckSettings, optional
     progress : callable, optional
         Called with each :class:`ShapeCheck` as it is computed.
+    variant : str, optional
+        Mitsuba variant ("llvm_ad_mono" or "cuda_ad_mono"), selected here as
+        :func:`sieve_mi.solve` selects it; default ``$SIEVE_MI_VARIANT`` or "llvm_ad_mono".
 
     Returns
     -------
     CheckReport
+
+    Raises
+    ------
+    SieveError
+        One line, before any work: a bad argument (as ``sieve-mi check`` refuses its options), an
+        unreadable or oversized hole image, a part too large for the raster (:func:`check_part_size`).
     """
     sieve, image, axis, pixel_size, units, settings = _arguments(
-        sieve, image, axis, pixel_size, units, settings, progress
+        sieve, image, axis, pixel_size, units, settings, progress, variant
     )
-    if image is not None and pixel_size is None:
-        pixel_size = image_pixel_size(image, units)  # a PNG's pHYs, as hole.png has
-    if image is not None and pixel_size is None:
-        raise SieveError(
-            "check: image= needs pixel_size= (scene units per pixel); the image records none"
-        )
     shape = as_shape(shape)
+    use_variant(variant)
     t0 = time.perf_counter()
-    if sieve is not None:
-        given = read_plate_holes(sieve, axis, settings.resolution)
-    else:
-        given = read_image_holes(image, pixel_size)
+    given = _sieve_holes(shape, sieve, image, axis, pixel_size, units, settings)
     holes, outlines, centre = given.holes, given.outlines, given.centre
     # Poses are reported in the sieve's own coordinates.
     evaluations: list[ShapeCheck] = []
@@ -319,15 +323,75 @@ def check(
     return rep
 
 
-def _arguments(sieve, image, axis, pixel_size, units, settings, progress) -> tuple:
+def _sieve_holes(shape, sieve, image, axis, pixel_size, units, settings) -> SieveHoles:
+    """The holes of the plate ``sieve`` (along ``axis``) or of the hole ``image``, on their
+    raster; the part's size checked against its pixel (:func:`check_part_size`)."""
+    if sieve is not None:
+        given = read_plate_holes(sieve, axis, settings.resolution)
+    else:
+        given = read_image_holes(image, pixel_size)
+    check_part_size(shape, given.frame.pixel_size, given.source, units, sieve is not None)
+    return given
+
+
+#: Most samples along a part's edges the search takes (:func:`check_part_size`): the edges are
+#: sampled one pixel of the sieve's raster apart, and each sample costs about 60 bytes while the
+#: objective is built (30 million: under 2 GB; a 1 m part against a 22 mm hole at the default
+#: resolution needs well under a million).
+EDGE_SAMPLES_MAX = 30_000_000
+
+
+def check_part_size(
+    shape: Shape, pixel_size: float, sieve: str, units: str = "mm", plate: bool = True
+) -> None:
+    """Refuse, before any work, a part whose edges would need more than
+    :data:`EDGE_SAMPLES_MAX` samples on the sieve's raster: a part of absurd size against its
+    holes (mostly the wrong units or scale: a 2e9 mm part against a 22 mm hole wanted 2 TiB).
+
+    Parameters
+    ----------
+    shape : Shape
+        The part, scene units.
+    pixel_size : float
+        The raster's pixel, scene units (the holes' frame: ``resolution`` pixels across the
+        holes of a plate, the image's own pixels).
+    sieve : str
+        The plate or image, for the message.
+    units : str
+        The scene's units, for the message.
+    plate : bool
+        The raster is a plate's (its pixel follows ``resolution``), not a hole image's.
+
+    Raises
+    ------
+    SieveError
+        One line naming the part's file, its size, the pixel and the bound.
+    """
+    samples = edge_length(shape) / pixel_size
+    if samples <= EDGE_SAMPLES_MAX:
+        return
+    across = float(np.ptp(shape.vertices, axis=0).max())
+    other = "a lower resolution" if plate else "an image of larger pixels"
+    raise SieveError(
+        f"{shape.path or shape.name}: the part is {across:.4g} {units} across, "
+        f"{across / pixel_size:,.0f} pixels of {sieve}'s raster ({pixel_size:.3g} {units} each): "
+        f"its edges would need {samples:.3g} samples, check takes at most "
+        f"{EDGE_SAMPLES_MAX:,}; check the part's scale and units (or use {other})"
+    )
+
+
+def _arguments(sieve, image, axis, pixel_size, units, settings, progress, variant=None) -> tuple:
     """:func:`check`'s arguments checked as ``sieve-mi check`` checks its options, in the API's
-    words (``axis``, not ``--axis``): one-line SieveError before any work.
+    words (``axis``, not ``--axis``): one-line SieveError before any work. A hole image's size
+    is checked from its header (:func:`~sieve_mi.geometry.hole_image.image_size`) and, without
+    ``pixel_size``, its recorded pixel size read.
 
     Returns
     -------
     tuple
         ``(sieve, image, axis, pixel_size, units, settings)``: paths as str, ``pixel_size`` a
-        float or None, ``settings`` a :class:`CheckSettings` (the default one for None).
+        float (None with a sieve), ``settings`` a :class:`CheckSettings` (the default one for
+        None).
     """
     if sieve is None and image is None:
         raise SieveError("check: give sieve=PLATE (a plate mesh) or image=HOLE with pixel_size=MM")
@@ -350,6 +414,16 @@ def _arguments(sieve, image, axis, pixel_size, units, settings, progress) -> tup
                          f"CheckSettings(starts=...)), got {shown(settings)}")  # fmt: skip
     if progress is not None and not callable(progress):
         raise SieveError(f"check: progress: expected a function or None, got {shown(progress)}")
+    if variant is not None and not isinstance(variant, str):
+        raise SieveError(f"check: variant: expected a string such as 'llvm_ad_mono', got {shown(variant)}")  # fmt: skip
+    if what == "image":
+        image_size(path)  # a missing, unreadable or oversized image: one line, nothing decoded
+        if pixel_size is None:
+            pixel_size = image_pixel_size(path, units)  # a PNG's pHYs, as hole.png has
+        if pixel_size is None:
+            raise SieveError(
+                "check: image= needs pixel_size= (scene units per pixel); the image records none"
+            )
     sieve, image = (path, None) if what == "sieve" else (None, path)
     return sieve, image, axis, pixel_size, units, settings
 
@@ -380,15 +454,28 @@ def _thin_plate(
 
 
 def as_shape(part) -> Shape:
-    """A Shape from a Shape, a trimesh mesh or a mesh file's path (scene units)."""
+    """A Shape from a Shape, a trimesh mesh or a mesh file's path (scene units).
+
+    Raises
+    ------
+    SieveError
+        Anything else (None, a list of numbers, a ``trimesh.Scene``): one line naming what was
+        given; a mesh that is not a usable triangle mesh (:func:`~sieve_mi.geometry.meshes.
+        shape_from_arrays`).
+    """
+    import trimesh
+
     from sieve_mi.geometry.meshes import load_shape, shape_from_trimesh
 
     if isinstance(part, Shape):
         return part
     if isinstance(part, (str, os.PathLike)):
         return load_shape(os.fspath(part))
-    if part is None or isinstance(part, bytes | int | float):
+    if not isinstance(part, trimesh.Trimesh):
+        hint = " (a trimesh.Scene: give scene.to_mesh())" if isinstance(part, trimesh.Scene) else ""
         raise SieveError(
-            f"check: expected a mesh file path, a trimesh mesh or a Shape, got {part!r:.60}"
+            f"check: expected a mesh file path, a trimesh.Trimesh or a Shape, got "
+            f"{shown(part)}{hint}"
         )
-    return shape_from_trimesh(part, name=getattr(part, "metadata", {}).get("name", "part"))
+    name = part.metadata.get("name") if isinstance(part.metadata, dict) else None
+    return shape_from_trimesh(part, name=name if isinstance(name, str) and name else "part")

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sieve_mi.scene import ShapeEntry, Solver, Verdict
+from sieve_mi.scene import UNITS, ShapeEntry, Solver, Verdict
 from sieve_mi.settings import checked, documented, like, setting
 
 __all__ = ["AXIS_NAMES", "CheckInputs", "CheckSettings"]
@@ -72,4 +72,4 @@ class CheckInputs:
         maximum=1_000_000,
         default_doc="the image's PNG pHYs; required with --hole where it has none",
     )
-    units: str = setting("mm", "unit name for the report")
+    units: str = setting("mm", "unit name for the report", choices=UNITS)

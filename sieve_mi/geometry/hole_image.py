@@ -9,8 +9,12 @@ is one hole (:func:`read_image_holes`), the pixels being the truth (no exact out
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import re
+import struct
+import warnings
 
 import numpy as np
 
@@ -19,18 +23,125 @@ from sieve_mi.geometry.hole import Hole, split_pieces
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.sieve import SieveHoles
 
-__all__ = ["frame_for_image", "image_mask", "mask_from_image", "read_image_holes"]
+__all__ = [
+    "IMAGE_PIXELS_MAX",
+    "exr_size",
+    "frame_for_image",
+    "image_mask",
+    "image_size",
+    "mask_from_image",
+    "open_image",
+    "read_image_holes",
+]
+
+
+#: Most pixels a hole image may have: Pillow's own bound against decompression bombs
+#: (``PIL.Image.MAX_IMAGE_PIXELS``, about 9459 x 9459; a 48 KB PNG can hold 20000 x 20000).
+#: Beyond it Pillow warns (two lines on stderr) and, at twice as many, refuses with a traceback;
+#: sieve-mi refuses it in one line. The search's raster is at most 4096 pixels across.
+IMAGE_PIXELS_MAX = 89_478_485
+
+
+def _unreadable(path: str, exc: BaseException) -> SieveError:
+    return SieveError(f"{path}: could not be read as an image ({exc.__class__.__name__})")
+
+
+@contextlib.contextmanager
+def open_image(path: str):
+    """A hole image opened with Pillow (header read, pixels not yet decoded), its size checked.
+
+    Yields
+    ------
+    PIL.Image.Image
+
+    Raises
+    ------
+    SieveError
+        A missing or unreadable file; an image of more than :data:`IMAGE_PIXELS_MAX` pixels,
+        naming its pixel count (Pillow's warning or error about a decompression bomb caught:
+        nothing else is printed).
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    if not os.path.isfile(path):
+        raise SieveError(f"{path}: hole image not found")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            im = Image.open(path)
+    except (Image.DecompressionBombWarning, Image.DecompressionBombError) as exc:
+        raise _too_many_pixels(path, str(exc)) from None
+    except (UnidentifiedImageError, OSError, ValueError) as exc:
+        raise _unreadable(path, exc) from None
+    with im:
+        if im.width * im.height > IMAGE_PIXELS_MAX:  # Pillow's bound may have been raised
+            raise _too_many_pixels(path, f"({im.width * im.height} pixels)", im.size)
+        yield im
+
+
+def _too_many_pixels(path: str, words: str, size: tuple | None = None) -> SieveError:
+    """The one line for an image of too many pixels (their count read from Pillow's words)."""
+    count = re.search(r"\((\d+) pixels\)", words)
+    pixels = f"{int(count.group(1)):,} pixels" if count else "too many pixels"
+    dims = f" ({size[0]} x {size[1]})" if size else ""
+    return SieveError(
+        f"{path}: the image has {pixels}{dims}; hole images may have at most "
+        f"{IMAGE_PIXELS_MAX:,} (Pillow's bound against decompression bombs): crop it to the "
+        "holes or scale it down (and its pixel size up)"
+    )
+
+
+def exr_size(path: str) -> tuple[int, int] | None:
+    """An OpenEXR file's width and height from its header's ``dataWindow`` (nothing decoded);
+    None where the header cannot be read (Mitsuba's reader then says what is wrong)."""
+    with open(path, "rb") as fh:
+        head = fh.read(1 << 16)
+    if head[:4] != b"\x76\x2f\x31\x01":
+        return None
+    at = 8  # magic number and version
+    while at < len(head) and head[at] != 0:  # attributes: name, type, size, value; "" ends them
+        name_end = head.find(b"\0", at)
+        type_end = head.find(b"\0", name_end + 1)
+        if name_end < 0 or type_end < 0 or type_end + 5 > len(head):
+            return None
+        (size,) = struct.unpack_from("<i", head, type_end + 1)
+        value = type_end + 5
+        if head[at:name_end] == b"dataWindow" and size == 16 and value + 16 <= len(head):
+            x0, y0, x1, y1 = struct.unpack_from("<4i", head, value)
+            return x1 - x0 + 1, y1 - y0 + 1
+        at = value + max(size, 0)
+    return None
+
+
+def image_size(path: str) -> tuple[int, int]:
+    """A hole image's width and height in pixels, read from its header (:func:`open_image`,
+    :func:`exr_size`): one line for a missing, unreadable or oversized image, before anything
+    is decoded (an EXR whose header is not read here: ``(0, 0)``, left to Mitsuba's reader)."""
+    if not path.lower().endswith(".exr"):
+        with open_image(path) as im:
+            return im.size
+    if not os.path.isfile(path):
+        raise SieveError(f"{path}: hole image not found")
+    try:
+        size = exr_size(path)
+    except OSError as exc:
+        raise _unreadable(path, exc) from None
+    if size is not None and size[0] * size[1] > IMAGE_PIXELS_MAX:
+        raise _too_many_pixels(path, f"({size[0] * size[1]} pixels)", size)
+    return size or (0, 0)
 
 
 def mask_from_image(path: str) -> np.ndarray:
     """A binary hole mask from an image: white (or opaque, for images with alpha) pixels are the hole."""
-    from PIL import Image, UnidentifiedImageError
+    from PIL import UnidentifiedImageError
 
     if not os.path.isfile(path):
         raise SieveError(f"{path}: hole image not found")
     try:
         if path.lower().endswith(".exr"):
             import mitsuba as mi
+
+            image_size(path)  # its header's size, before Mitsuba decodes it all
 
             from sieve_mi.backend import bitmap_threads
 
@@ -39,7 +150,7 @@ def mask_from_image(path: str) -> np.ndarray:
             img = img[..., 0] if img.ndim == 3 else img
             mask = img > 0.5
         else:
-            with Image.open(path) as im:
+            with open_image(path) as im:
                 mask = image_mask(im)
     except (UnidentifiedImageError, OSError, RuntimeError) as exc:
         raise SieveError(

@@ -19,6 +19,7 @@ from sieve_mi.errors import SieveError
 __all__ = [
     "Segments",
     "Shape",
+    "edge_length",
     "edge_topology",
     "load_shape",
     "load_trimesh",
@@ -314,6 +315,24 @@ def edge_topology(vertices: np.ndarray, faces: np.ndarray):
     m1 = np.where(always[:, None], 0.0, m1)
     m2 = np.where(always[:, None], 0.0, m2)
     return edges, m1, m2, always
+
+
+def edge_length(shape: Shape) -> float:
+    """Total length of a shape's edges, each counted once, scene units: what
+    :func:`segments` samples (one sample per ``spacing`` along it).
+
+    Examples
+    --------
+    >>> import trimesh
+    >>> cube = shape_from_trimesh(trimesh.creation.box((1.0, 1.0, 1.0)), name="cube")
+    >>> round(edge_length(cube), 4)  # 12 sides and 6 face diagonals
+    20.4853
+    """
+    f = np.asarray(shape.faces, dtype=np.int64)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    e = np.unique(e[e[:, 0] != e[:, 1]], axis=0)
+    v = shape.vertices
+    return float(np.linalg.norm(v[e[:, 1]] - v[e[:, 0]], axis=1).sum())
 
 
 def segments(shape: Shape, spacing: float, samples_per_segment: int) -> Segments:
