@@ -639,9 +639,9 @@ def test_check_settings_are_declared_once(tmp_path):
 def test_the_pso_default_lives_in_one_place():
     import inspect
 
-    from sieve_mi.optim import PSO_COEFFICIENT, particle_swarm
+    from sieve_mi.optim import PSO_COEFFICIENT, SwarmSettings
 
-    defaults = inspect.signature(particle_swarm).parameters
+    defaults = inspect.signature(SwarmSettings).parameters
     s = scene.Solver()
     assert (s.inertia, s.c_personal, s.c_global) == (PSO_COEFFICIENT,) * 3
     assert all(
