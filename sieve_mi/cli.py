@@ -27,7 +27,7 @@ __all__ = ["Terminated", "cmd_certify", "cmd_check", "cmd_solve", "cmd_view", "m
 
 def _parser() -> argparse.ArgumentParser:
     from sieve_mi.game.check_settings import CheckInputs, CheckSettings
-    from sieve_mi.settings import add_options
+    from sieve_mi.options import add_options
 
     p = argparse.ArgumentParser(
         prog="sieve-mi", description="Design shape-aware sieves (Mitsuba 3 + Dr.Jit)."
@@ -131,8 +131,8 @@ def _view_parser(sub) -> None:
 def _certify_parser(sub) -> None:
     """``sieve-mi certify SHAPE (--sieve PLATE | --hole SVG)`` and ``sieve-mi certify --replay CERT``."""
     from sieve_mi.game.check_settings import CheckInputs
+    from sieve_mi.options import add_options
     from sieve_mi.scene import Verdict
-    from sieve_mi.settings import add_options
 
     k = sub.add_parser(
         "certify",
@@ -421,7 +421,7 @@ def _certify_summary(name: str, r) -> str:
 def _dispatch(args) -> int:
     """Apply the shared options, then run ``args.command``; its exit code."""
     from sieve_mi.backend import apply_threads, set_threads
-    from sieve_mi.settings import check_options
+    from sieve_mi.options import check_options
 
     check_options(args)
     if args.threads is not None:

@@ -417,7 +417,7 @@ def test_check_options_make_the_check_settings():
 
     from sieve_mi.cli import _parser
     from sieve_mi.game.check_settings import CheckSettings
-    from sieve_mi.settings import check_options
+    from sieve_mi.options import check_options
 
     args = _parser().parse_args(["check", "a.stl", "--sieve", "p.stl"])
     check_options(args)

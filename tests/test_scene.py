@@ -20,9 +20,9 @@ from helpers import REPO
 from sieve_mi import scene
 from sieve_mi.errors import SieveError
 from sieve_mi.game.check_settings import CheckInputs, CheckSettings
+from sieve_mi.options import check_options
 from sieve_mi.scene import Scene, ShapeEntry, load_scene
 from sieve_mi.settings import (
-    check_options,
     describe,
     field_of,
     key_of,

@@ -13,8 +13,9 @@ import pytest
 from helpers import REPO
 
 from sieve_mi import cli
-from sieve_mi.backend import max_threads, set_threads, worker_pool
+from sieve_mi.backend import max_threads, set_threads
 from sieve_mi.errors import SieveError
+from sieve_mi.workers import worker_pool
 
 
 def _alive(pid: int) -> bool:
@@ -88,7 +89,7 @@ _SCRIPT = textwrap.dedent(
     sys.path.insert(0, {tests!r})
     from test_workers import _pid_then_sleep
     from sieve_mi import cli
-    from sieve_mi.backend import worker_pool
+    from sieve_mi.workers import worker_pool
 
     def run(args):  # stands in for a command that proves or searches on workers
         with worker_pool(2, method={method!r}, what="test") as pool:

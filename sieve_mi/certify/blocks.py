@@ -10,11 +10,11 @@ from concurrent.futures import as_completed
 import manifold3d
 import numpy as np
 
-from sieve_mi.backend import worker_pool
 from sieve_mi.certify.certificate import Certification
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import dilated, hole_outline, is_closed
 from sieve_mi.scene import Scene
+from sieve_mi.workers import worker_pool
 
 __all__ = [
     "MARGIN_FACTOR",

@@ -1,7 +1,7 @@
 """Settings of ``sieve-mi check`` (and ``certify``): its search, and how it reads its inputs.
 
 Neither table is a table of a scene file: each field is an option of the command line
-(:func:`sieve_mi.settings.add_options` builds it) and a setting of :func:`sieve_mi.check` in code,
+(:func:`sieve_mi.options.add_options` builds it) and a setting of :func:`sieve_mi.check` in code,
 checked as a scene file's key is (:mod:`sieve_mi.settings`). The budgets that are also a
 scene's (starts, steps, resolution, learning rate, seed, thin-plate budget) are declared once,
 on the scene's tables, and taken from there with their bounds (:func:`~sieve_mi.settings.like`).

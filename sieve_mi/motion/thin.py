@@ -14,11 +14,11 @@ from dataclasses import dataclass, field
 import manifold3d
 import numpy as np
 
-from sieve_mi.backend import worker_pool
 from sieve_mi.certify.bounds import contour_segments, inscribed_ball, no_disk_fits
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.plate import LENGTH_SLACK, diameter
+from sieve_mi.workers import worker_pool
 
 __all__ = [
     "BALL_ARGUMENT",

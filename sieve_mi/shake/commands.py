@@ -22,7 +22,7 @@ __all__ = [
 
 def add_parser(sub) -> None:
     """Add ``shake`` to the subcommand parsers ``sub``."""
-    from sieve_mi.settings import add_options
+    from sieve_mi.options import add_options
 
     p = sub.add_parser(
         "shake",
@@ -59,9 +59,9 @@ def settings_from_args(args) -> ShakeSettings:
     ----------
     args : argparse.Namespace
         With an attribute per field (text or a value; None or absent: the default), as
-        :func:`sieve_mi.settings.add_options` makes them.
+        :func:`sieve_mi.options.add_options` makes them.
     """
-    from sieve_mi.settings import read_option
+    from sieve_mi.options import read_option
 
     values = {}
     for f in fields(ShakeSettings):
@@ -162,7 +162,7 @@ def trials_option(
     """
     if text is None:
         return None
-    from sieve_mi.settings import read_option
+    from sieve_mi.options import read_option
 
     trials = read_option(ShakeSettings, "trials", text, command, flag)
     return replace(base or ShakeSettings(), trials=trials)

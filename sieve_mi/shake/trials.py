@@ -15,10 +15,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from sieve_mi.backend import worker_pool
 from sieve_mi.shake.geometry import Part, Plate
 from sieve_mi.shake.model import build_model, engine_warnings, plate_motion, wall_thickness
 from sieve_mi.shake.settings import ShakeSettings
+from sieve_mi.workers import worker_pool
 
 __all__ = [
     "CHECK_EVERY",

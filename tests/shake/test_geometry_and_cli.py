@@ -168,7 +168,8 @@ def test_shake_settings_are_checked_as_scene_keys_are():
     import argparse
     from dataclasses import replace
 
-    from sieve_mi.settings import add_options, read_value
+    from sieve_mi.options import add_options
+    from sieve_mi.settings import read_value
     from sieve_mi.shake.commands import settings_from_args, trials_option
     from sieve_mi.shake.settings import ShakeSettings
 
