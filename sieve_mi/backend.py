@@ -31,6 +31,7 @@ __all__ = [
     "bitmap_threads",
     "configure_llvm",
     "default_variant",
+    "ensure_variant",
     "find_llvm",
     "gpu_available",
     "max_threads",
@@ -150,6 +151,23 @@ def use_variant(variant: str | None = None):
     if mi.variant() != variant:
         mi.set_variant(variant)
     return mi
+
+
+def ensure_variant():
+    """The ``mitsuba`` module with a variant selected: the one in effect (a caller's
+    :func:`use_variant`, ``--variant``), else :func:`default_variant` (``$SIEVE_MI_VARIANT`` or
+    ``llvm_ad_mono``). For entry points such as :func:`sieve_mi.check` that render but leave the
+    choice of variant to their caller.
+
+    Raises
+    ------
+    SieveError
+        As :func:`use_variant`.
+    """
+    configure_llvm()
+    import mitsuba as mi
+
+    return mi if mi.variant() else use_variant(None)
 
 
 def gpu_available() -> bool:

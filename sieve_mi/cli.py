@@ -239,7 +239,6 @@ def cmd_check(args) -> int:
         units=args.units,
         settings=settings,
         progress=None if args.quiet else _say_fit,
-        variant=args.variant,
     )
     text = json.dumps(rep.to_dict(), indent=2, default=lambda x: None if x != x else str(x))
     if args.out is not None:

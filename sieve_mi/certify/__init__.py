@@ -28,7 +28,7 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.certify import bounds, cells, symmetry
-from sieve_mi.certify.certificate import Certification, build, scope
+from sieve_mi.certify.certificate import Certification, Evidence, build, scope
 from sieve_mi.certify.replay import replay
 from sieve_mi.certify.search import Search, Settings
 from sieve_mi.certify.svg import read_svg_hole
@@ -132,7 +132,8 @@ def _certify(shape, holes, budget_s, settings, scale, use_symmetry) -> Certifica
     ball = bounds.inscribed_ball(shape)
     if ball is not None and bounds.no_disk_fits(bounds.contour_segments(contours), ball[1]):
         root = {"kind": "ball", "centre": ball[0].tolist(), "radius": ball[1]}
-        cert = build(shape, contours, "proved", "none", root, None, settings, scale, diameter)
+        evidence = Evidence("none", root, None)
+        cert = build(shape, contours, "proved", evidence, settings, scale, diameter)
         return Certification(
             "proved",
             time.perf_counter() - t0,
@@ -151,7 +152,7 @@ def _certify(shape, holes, budget_s, settings, scale, use_symmetry) -> Certifica
         "passage" if outcome.passage else ("proved" if outcome.open_cells == 0 else "undecided")
     )
     total = float(cells.volumes(roots).sum())
-    cert = build(shape, contours, status, group, None, outcome, settings, scale, diameter)
+    cert = build(shape, contours, status, Evidence(group, None, outcome), settings, scale, diameter)
     return Certification(
         status,
         time.perf_counter() - t0,

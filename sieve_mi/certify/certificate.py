@@ -41,6 +41,7 @@ import math
 import os
 import tempfile
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -51,6 +52,7 @@ from sieve_mi.geometry.plate import LENGTH_SLACK
 __all__ = [
     "ANY_PLATE",
     "Certification",
+    "Evidence",
     "FORMAT",
     "MAX_CERTIFICATE_BYTES",
     "REQUIRED",
@@ -427,13 +429,29 @@ def tree_to_dict(node) -> dict:
     return {"open": True}
 
 
+class Evidence(NamedTuple):
+    """What a certificate's status rests on.
+
+    Attributes
+    ----------
+    symmetry : str
+        The shape's symmetry group the rotations were reduced by ("none" when not used).
+    root : dict or None
+        The ball proof at the root (``kind``, ``centre``, ``radius``), or None.
+    outcome : object or None
+        The cell search's outcome (roots, points used, candidates, passage), or None.
+    """
+
+    symmetry: str
+    root: dict | None
+    outcome: object
+
+
 def build(
     shape: Shape,
     contours: list,
     status: str,
-    symmetry: str,
-    root: dict | None,
-    outcome,
+    evidence: Evidence,
     settings,
     scale: float = 1.0,
     diameter: float | None = None,
@@ -443,6 +461,7 @@ def build(
 
     Point indices in the evidence are renumbered into ``shape.points``.
     """
+    symmetry, root, outcome = evidence
     used = sorted(outcome.points) if outcome is not None else []
     renumber = {old: new for new, old in enumerate(used)}
     vertices = shape.vertices[np.unique(shape.faces)]

@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass, field, replace
 import manifold3d
 import numpy as np
 
-from sieve_mi.backend import use_variant
+from sieve_mi.backend import ensure_variant
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import Starts
 from sieve_mi.game.check_settings import AXIS_NAMES, CheckInputs, CheckSettings
@@ -251,9 +251,12 @@ def check(
     units: str = "mm",
     settings: CheckSettings | None = None,
     progress=None,
-    variant: str | None = None,
 ) -> CheckReport:
     """Test a shape against a sieve (a plate mesh or a hole image).
+
+    The Mitsuba variant is the one in effect (``sieve_mi.backend.use_variant``, ``--variant``),
+    else the default (``$SIEVE_MI_VARIANT`` or "llvm_ad_mono"), selected here, so ``check``
+    works first thing in a fresh process.
 
     Parameters
     ----------
@@ -271,9 +274,6 @@ def check(
     settings : CheckSettings, optional
     progress : callable, optional
         Called with each :class:`ShapeCheck` as it is computed.
-    variant : str, optional
-        Mitsuba variant ("llvm_ad_mono" or "cuda_ad_mono"), selected here as
-        :func:`sieve_mi.solve` selects it; default ``$SIEVE_MI_VARIANT`` or "llvm_ad_mono".
 
     Returns
     -------
@@ -286,10 +286,10 @@ def check(
         unreadable or oversized hole image, a part too large for the raster (:func:`check_part_size`).
     """
     sieve, image, axis, pixel_size, units, settings = _arguments(
-        sieve, image, axis, pixel_size, units, settings, progress, variant
+        sieve, image, axis, pixel_size, units, settings, progress
     )
     shape = as_shape(shape)
-    use_variant(variant)
+    ensure_variant()
     t0 = time.perf_counter()
     given = _sieve_holes(shape, sieve, image, axis, pixel_size, units, settings)
     holes, outlines, centre = given.holes, given.outlines, given.centre
@@ -380,7 +380,7 @@ def check_part_size(
     )
 
 
-def _arguments(sieve, image, axis, pixel_size, units, settings, progress, variant=None) -> tuple:
+def _arguments(sieve, image, axis, pixel_size, units, settings, progress) -> tuple:
     """:func:`check`'s arguments checked as ``sieve-mi check`` checks its options, in the API's
     words (``axis``, not ``--axis``): one-line SieveError before any work. A hole image's size
     is checked from its header (:func:`~sieve_mi.geometry.hole_image.image_size`) and, without
@@ -414,8 +414,6 @@ def _arguments(sieve, image, axis, pixel_size, units, settings, progress, varian
                          f"CheckSettings(starts=...)), got {shown(settings)}")  # fmt: skip
     if progress is not None and not callable(progress):
         raise SieveError(f"check: progress: expected a function or None, got {shown(progress)}")
-    if variant is not None and not isinstance(variant, str):
-        raise SieveError(f"check: variant: expected a string such as 'llvm_ad_mono', got {shown(variant)}")  # fmt: skip
     if what == "image":
         image_size(path)  # a missing, unreadable or oversized image: one line, nothing decoded
         if pixel_size is None:
