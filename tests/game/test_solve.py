@@ -96,8 +96,11 @@ def test_both_objectives_find_the_face_on_cube(write_scene, objective):
     # inscribed disk is up to 2 * 14.1 mm wide. Both objectives must lead player A there: the
     # swarm alone, without the canonical views (which include the face-on one) and the polish.
     body = f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\n[[block]]\nmesh = "{_mesh_path("sphere.stl")}"\n'
+    # Mitsuba's projective integrator costs most a step: 20 steps lead the swarm face-on as 40
+    # do (the same protrusions on seeds 0-2, 2026-12-03) in half the time.
+    steps = 20 if objective == "overlap-mitsuba" else 40
     settings = (
-        f'[solver]\nobjective = "{objective}"\nresolution = 64\nparticles = 6\niterations = 3\nstarts = 4\nsteps = 40\n'
+        f'[solver]\nobjective = "{objective}"\nresolution = 64\nparticles = 6\niterations = 3\nstarts = 4\nsteps = {steps}\n'
         "canonical = 0\npolish = 0\n"
         "[verdict]\nstarts = 40\nsteps = 250\nresolution = 160\n"
     )
