@@ -147,3 +147,12 @@ def test_a_signal_a_library_swallowed_still_stops_an_addition(tmp_path):
     finally:
         clear_signals()
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+
+
+def test_shake_workers_start_no_opengl_probe_subprocesses():
+    # MuJoCo's import probes GLFW with a Python subprocess per library unless MUJOCO_GL says
+    # otherwise; a run stopped meanwhile printed those subprocesses' tracebacks.
+    code = "import sieve_mi.shake, mujoco, sys, os; print('glfw' in sys.modules, os.environ['MUJOCO_GL'])"
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert out.stdout.split() == ["False", "disable"], out.stderr
