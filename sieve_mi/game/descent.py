@@ -83,8 +83,6 @@ def pose_loss(opt, loss, stack, pose_hole, scale: float, live=None, capacity: in
     t = (opt["tx"] * scale, opt["ty"] * scale)
     if capacity is not None:
         total, per_pose, overflow = loss.loss_fixed(q, t, stack, pose_hole, capacity, live=live)
-    elif live is None:
-        (total, per_pose), overflow = loss.loss(q, t, stack, pose_hole), None
     else:
         (total, per_pose), overflow = loss.loss(q, t, stack, pose_hole, live=live), None
     if live is not None:
@@ -156,10 +154,10 @@ class Settle:
     @classmethod
     def make(cls, group, loss) -> Settle | None:
         """Settling for poses in groups ``group`` ((K,) ints, or None: no settling) under the
-        objective ``loss`` (None where it has no ``fit_loss``)."""
+        objective ``loss`` (None where its ``fit_loss`` is None)."""
         import mitsuba as mi
 
-        fit_loss = getattr(loss, "fit_loss", None)
+        fit_loss = loss.fit_loss
         if group is None or fit_loss is None or len(group) == 0:
             return None
         _, dense = np.unique(np.asarray(group), return_inverse=True)
@@ -302,7 +300,7 @@ class Descent:
         from sieve_mi.geometry.hole import HoleStack
 
         self.loss = player.objective
-        self.stack = HoleStack(batch.holes, corners=getattr(self.loss, "hole_corners", False))
+        self.stack = HoleStack(batch.holes, corners=self.loss.hole_corners)
         self.pose_hole, self.pose_shape = batch.pose_hole, batch.pose_shape
         self.scale = player.frame.half_extent
         self.opt = pose_adam(batch.q0, batch.t0 / self.scale, learning_rate)

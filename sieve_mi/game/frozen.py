@@ -88,7 +88,7 @@ def pays(loss) -> bool:
     objective is ``freezable``, and on the CPU it binds at most :data:`CPU_FREEZE_PAIRS` pairs."""
     import mitsuba as mi
 
-    if not getattr(loss, "freezable", False):
+    if not loss.freezable:
         return False
     return not (loss.pair_count > CPU_FREEZE_PAIRS and mi.variant().startswith("llvm"))
 

@@ -263,7 +263,7 @@ class PlayerB:
             When one pose alone needs more than the budget (the scene cannot fit).
         """
         pose_shape = np.asarray(pose_shape, dtype=np.int64)
-        counts = getattr(self.objective, "counts", None)
+        counts = self.objective.counts
         if counts is None or len(pose_shape) == 0:
             return [slice(0, len(pose_shape))]
         per = np.asarray(counts)[pose_shape]

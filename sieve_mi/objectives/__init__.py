@@ -20,17 +20,18 @@ Three objectives exist:
 
 The first two share their edge segments, (pose, segment) pairs, silhouette-edge test and fixed-order
 per-pose sums (:class:`sieve_mi.objectives.edges.EdgeSampledObjective`, built on the device's pair
-machinery of :mod:`sieve_mi.objectives.pairs`). :meth:`Objective.bind` and
-:meth:`Objective.loss` are documented here once; each implementation adds only what is its own.
+machinery of :mod:`sieve_mi.objectives.pairs`). Everything player B reads of an objective
+(:class:`~sieve_mi.objectives.base.Objective`: :meth:`~Objective.bind`, :meth:`~Objective.loss`, ``fit_loss``, ``freezable``, ...)
+is documented here once; each implementation adds only what is its own.
 
 Neither decides a winner: the verdict scores poses on the hole itself (:mod:`sieve_mi.game.scoring`).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING
 
-import numpy as np
+from sieve_mi.objectives.base import Objective
 
 if TYPE_CHECKING:  # kept light: scene.py reads OBJECTIVES from here
     from sieve_mi.geometry.meshes import Shape
@@ -40,50 +41,6 @@ __all__ = ["OBJECTIVES", "Objective", "make_objective"]
 
 #: Names of the objectives, as ``[solver] objective`` accepts them.
 OBJECTIVES = ("clearance", "overlap", "overlap-mitsuba")
-
-
-class Objective(Protocol):
-    """What player B needs of a loss.
-
-    Attributes
-    ----------
-    frame : Frame
-        The raster frame of the holes it is evaluated against.
-    """
-
-    frame: Frame
-
-    def bind(self, pose_shape: np.ndarray) -> None:
-        """Fix which shape each pose belongs to, before any :meth:`loss` call.
-
-        Parameters
-        ----------
-        pose_shape : (K,) ndarray of int
-            Index into the objective's shape list for every pose.
-        """
-
-    def loss(self, q: tuple, t: tuple, holes: Any, pose_hole: Any) -> tuple:
-        """Total and per-pose loss of all K bound poses.
-
-        Parameters
-        ----------
-        q : tuple of 4 mi.Float
-            Quaternions (w, x, y, z), K entries each, possibly with gradients enabled; they need
-            not be normalised (the rotation uses q / |q|).
-        t : tuple of 2 mi.Float
-            Translations in the hole plane, scene units.
-        holes : HoleStack
-            The holes (:class:`sieve_mi.geometry.hole.HoleStack`), on this objective's frame.
-        pose_hole : mi.UInt32
-            Which hole of the stack each pose is tested against (K entries).
-
-        Returns
-        -------
-        total : mi.Float
-            One value, the sum over poses; ``dr.backward(total)`` gives each pose's gradient.
-        per_pose : mi.Float
-            K values, detached; 0 means the pose fits (up to the raster).
-        """
 
 
 def make_objective(

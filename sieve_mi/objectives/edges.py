@@ -22,6 +22,7 @@ import numpy as np
 from sieve_mi.geometry.meshes import Shape, segments
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import quat_rows
+from sieve_mi.objectives.base import Objective
 from sieve_mi.objectives.pairs import expand_ranges, packet_table, packet_type, pose_ranges
 
 __all__ = ["EdgeSampledObjective", "PER_EDGE_RATIO", "auto_samples"]
@@ -92,7 +93,7 @@ def auto_samples(shapes: list[Shape], spacing: float, most: int = 4) -> int:
     return int(np.clip(np.ceil(median), 1, most))
 
 
-class EdgeSampledObjective:
+class EdgeSampledObjective(Objective):
     """Silhouette-edge segments of several shapes and their (pose, segment) pairs.
 
     The base of the edge-sampled objectives (:class:`~sieve_mi.objectives.clearance.ClearanceObjective`,
@@ -132,10 +133,6 @@ class EdgeSampledObjective:
     pose_count : int
         K, the number of bound poses (set by :meth:`bind`).
     """
-
-    #: Whether the subclass offers ``loss_fixed`` and ``capacity``, so that player B may freeze its
-    #: steps (:mod:`sieve_mi.game.frozen`).
-    freezable = False
 
     def __init__(self, shapes: list[Shape], frame: Frame, samples_per_segment: int | None = None):
         import drjit as dr

@@ -94,8 +94,8 @@ class EdgeOverlapObjective(EdgeSampledObjective):
         super().bind(pose_shape)
         self._pose_shape = self.mi.UInt32(np.asarray(pose_shape).astype(np.uint32))
 
-    def loss(self, q, t, holes: HoleStack, pose_hole):
-        """See :meth:`sieve_mi.objectives.Objective.loss`.
+    def loss(self, q, t, holes: HoleStack, pose_hole, live=None):
+        """See :meth:`sieve_mi.objectives.Objective.loss` (no ``fit_loss``: ``live`` is refused).
 
         ``per_pose`` is β, the fraction of each silhouette outside its hole, in [0, 1]; 1 for a
         pose whose outline has no length. The gradient of ``total`` with respect to ``q`` and
@@ -103,6 +103,7 @@ class EdgeOverlapObjective(EdgeSampledObjective):
         another frame.
         """
         dr = self.dr
+        self._no_live(live)
         if holes.frame != self.frame:
             raise ValueError("the hole stack's frame differs from the objective's frame")
         rows = quat_rows(*q)

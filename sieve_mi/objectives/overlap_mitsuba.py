@@ -61,6 +61,7 @@ import numpy as np
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import quat_rows
+from sieve_mi.objectives.base import Objective
 
 __all__ = ["INTEGRATORS", "OverlapObjective"]
 
@@ -121,7 +122,7 @@ def _silhouette_plugin(mi) -> str:
     return _PLUGIN
 
 
-class OverlapObjective:
+class OverlapObjective(Objective):
     """Overlap loss (fraction of the silhouette outside H) of several shapes, pose by pose.
 
     An :class:`~sieve_mi.objectives.Objective` (see there for :meth:`bind` and :meth:`loss`).
@@ -300,8 +301,8 @@ class OverlapObjective:
             img = mi.render(self._scenes[shape], spp=self.spp, seed=seed)
             return mi.TensorXf(self._coverage(img), (self.size, self.size))
 
-    def loss(self, q, t, holes, pose_hole, seed: int | None = None):
-        """See :meth:`sieve_mi.objectives.Objective.loss`.
+    def loss(self, q, t, holes, pose_hole, live=None, seed: int | None = None):
+        """See :meth:`sieve_mi.objectives.Objective.loss` (no ``fit_loss``: ``live`` is refused).
 
         ``per_pose`` is the fraction of each silhouette outside its hole, in [0, 1]. The gradient
         of ``total`` with respect to ``q`` and ``t`` is Mitsuba's (see the module docstring: the
@@ -315,6 +316,7 @@ class OverlapObjective:
             finite differences); by default every call uses new seeds.
         """
         dr, mi = self.dr, self.mi
+        self._no_live(live)
         if self._pose_shape is None:
             raise RuntimeError("call bind(pose_shape) before loss()")
         if holes.frame != self.frame:
