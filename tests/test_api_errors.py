@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
 
 import pytest
 import trimesh
@@ -54,13 +53,21 @@ def test_solve_wants_a_scene(bad, needle):
     _one_line(e, needle)
 
 
+def _must_not_run(monkeypatch, target):
+    """Make the function at dotted path ``target`` fail the test if it is called."""
+
+    def called(*args, **kwargs):
+        raise AssertionError(f"{target} must not be called")
+
+    monkeypatch.setattr(target, called, raising=False)
+
+
 @pytest.mark.parametrize("seed", [-1, "3", 1.5, True, 2**64, float("nan")])
-def test_solve_refuses_bad_seeds_at_once(scene, seed):
-    t0 = time.perf_counter()
+def test_solve_refuses_bad_seeds_at_once(scene, seed, monkeypatch):
+    _must_not_run(monkeypatch, "sieve_mi.game.solver.solve")  # refused before any work
     with pytest.raises(sm.SieveError) as e:
         sm.solve(scene, seed=seed, progress=False)
     _one_line(e, "seed")
-    assert time.perf_counter() - t0 < 1.0  # refused before any work
 
 
 @pytest.mark.parametrize("bad", [None, 123, b"x", ""])
@@ -92,12 +99,11 @@ def test_check_refuses_missing_pieces_in_words_of_the_api(
 
 
 @pytest.mark.parametrize("text", ["0-1000000000", "0-100000", f"{2**64}", "5-2", "-3", "x"])
-def test_sweep_seeds_are_bounded_before_any_list_is_built(text):
-    t0 = time.perf_counter()
+def test_sweep_seeds_are_bounded_before_any_list_is_built(text, monkeypatch):
+    _must_not_run(monkeypatch, "sieve_mi.cascade.commands.range")  # no seed is listed
     with pytest.raises(sm.SieveError) as e:
         parse_seeds(text)
     _one_line(e, "--seeds")
-    assert time.perf_counter() - t0 < 0.5
 
 
 def test_seed_two_to_the_64_is_one_line_from_the_cli(tmp_path):
@@ -255,13 +261,13 @@ CUBE = os.path.join(os.path.dirname(DEFAULT), "meshes", "cube.stl")
         ({"sieve": CUBE, "progress": 3}, "check: progress: expected a function or None, got 3"),
     ],
 )  # fmt: skip
-def test_check_refuses_bad_arguments_in_one_line_before_any_work(kwargs, needle):
+def test_check_refuses_bad_arguments_in_one_line_before_any_work(kwargs, needle, monkeypatch):
     # Were KeyError ('w'), AttributeError (a dict for settings), or image= silently ignored.
-    t0 = time.perf_counter()
+    _must_not_run(monkeypatch, "sieve_mi.game.check.as_shape")  # the part is not even read
     with pytest.raises(sm.SieveError) as e:
         sm.check(CUBE, **kwargs)
     _one_line(e, needle)
-    assert "--" not in str(e.value) and time.perf_counter() - t0 < 1.0
+    assert "--" not in str(e.value)
 
 
 @pytest.mark.parametrize(

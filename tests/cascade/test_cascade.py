@@ -7,7 +7,6 @@ import os
 import socket
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -293,7 +292,9 @@ def test_bad_mixtures_and_addresses_are_one_line_errors(tmp_path):
         games_mod.check_address("nowhere")
 
 
-def test_a_file_where_the_games_wait_is_refused_before_any_game(tmp_path):
+def test_a_file_where_the_games_wait_is_refused_before_any_game(tmp_path, monkeypatch, capsys):
+    from sieve_mi.cli import main
+
     two = _mixture(
         tmp_path,
         {"a": trimesh.creation.box((1.0, 1.0, 1.0)), "b": trimesh.creation.box((2.0, 2.0, 2.0))},
@@ -301,10 +302,19 @@ def test_a_file_where_the_games_wait_is_refused_before_any_game(tmp_path):
     )
     mine = tmp_path / "out.games"
     mine.write_text("my notes")
-    t0 = time.perf_counter()
-    proc = _cli("sort", two, "--out", str(tmp_path / "out"), "--serial", cwd=tmp_path)
-    _one_error_line(proc, "out.games: exists and is not a folder")
-    assert time.perf_counter() - t0 < 60  # no game played
+
+    def no_game(self, specs):
+        raise AssertionError("no game may be played")
+
+    monkeypatch.setattr(games_mod.Engine, "play", no_game)
+    monkeypatch.chdir(tmp_path)
+    code = main(["sort", two, "--out", str(tmp_path / "out"), "--serial"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, lines
+    assert (
+        lines[0].startswith("sieve-mi: error: ")
+        and "out.games: exists and is not a folder" in lines[0]
+    )
     assert mine.read_text() == "my notes" and not (tmp_path / "out").exists()
 
 
