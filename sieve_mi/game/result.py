@@ -18,7 +18,7 @@ from sieve_mi.geometry.outline import is_closed, silhouette
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.scene import Scene
 
-__all__ = ["BlockAttempt", "Result", "is_blocked"]
+__all__ = ["BlockAttempt", "Result", "block_margin", "block_margins", "is_blocked"]
 
 
 def is_blocked(attack_blocked, certification=None, thin_plate=None) -> bool:
@@ -57,6 +57,44 @@ def is_blocked(attack_blocked, certification=None, thin_plate=None) -> bool:
     return bool(attack_blocked) and not passage
 
 
+def block_margin(shape, hole, found: float, certified=None, grown: float = 0.0) -> dict:
+    """How far a blocked B sticks out of H at best, bracketed (:attr:`BlockAttempt.margin`,
+    report.json's ``margin``).
+
+    ``found_at_most``: the protrusion of the best pose found (the true margin is at most this).
+    ``proved_at_least``: from a certification that proved the block (``certified``, a
+    :class:`~sieve_mi.certify.Certification` against H grown by ``grown``, the scene's
+    ``block_margin``), ``grown`` plus its margin bisection's m
+    (:func:`sieve_mi.certify.blocks.prove_margin`, whose steps try the ball test first); without
+    one, from a ball certified inside B, the largest m for which no disk of its radius fits H
+    grown by m (:func:`sieve_mi.certify.blocks.ball_margin`). None when nothing proves it.
+    """
+    from sieve_mi.certify.blocks import ball_margin
+    from sieve_mi.certify.bounds import inscribed_ball
+
+    if certified is not None and certified.status == "proved":
+        proved = grown + (certified.margin or 0.0)
+    else:
+        ball = inscribed_ball(shape)
+        proved = (ball_margin(ball[1], hole) if ball is not None else 0.0) or None
+    return {"proved_at_least": proved, "found_at_most": float(found)}
+
+
+def block_margins(shapes, hole, attack: Attack, certified: list, grown: float) -> list:
+    """Per shape of B, its :func:`block_margin` where it is blocked straight through the exact
+    hole ``hole`` (the verdict's attack and its certification, :func:`is_blocked`), else None.
+    The solver computes them once (:attr:`Result.margins`)."""
+    blocked = attack.blocked()[0]
+    out = []
+    for j, shape in enumerate(shapes):
+        c = certified[j] if j < len(certified) else None
+        found = float(attack.protrusion[0, j])
+        out.append(
+            block_margin(shape, hole, found, c, grown) if is_blocked(blocked[j], c) else None
+        )
+    return out
+
+
 @dataclass
 class BlockAttempt:
     """One shape of B in the verdict: its best attempt against the exact hole, its proof and
@@ -78,6 +116,9 @@ class BlockAttempt:
         certify's answer against the exact hole (``[verdict] certify``).
     thin_plate : ThinPlate or None
         The motion search through a plate thinner than the shape, where one ran.
+    margin : dict or None
+        Where it is blocked straight through the exact hole: how far it sticks out of H at best,
+        bracketed (:func:`block_margin`); None otherwise.
     """
 
     name: str
@@ -88,6 +129,7 @@ class BlockAttempt:
     translation: np.ndarray
     certification: object = None
     thin_plate: object = None
+    margin: dict | None = None
 
 
 @dataclass
@@ -163,6 +205,9 @@ class Result:
     polish: list = field(default_factory=list)
     #: ``time.perf_counter()`` when the solve started (report.json's ``total_s`` counts from it).
     started: float | None = None
+    #: Per B, its :func:`block_margin` or None (:func:`block_margins`, computed once by the
+    #: solver); empty when none were computed.
+    margins: list = field(default_factory=list)
     #: Peak resident memory per stage (:class:`sieve_mi.backend.MemoryWatch`), or None.
     memory: object = None
     #: :meth:`overlay_sections`' polygons, made on first use (a 500k-face B's projection takes
@@ -188,6 +233,7 @@ class Result:
                     translation=self.attack.trans[0, j].copy(),
                     certification=c,
                     thin_plate=thin,
+                    margin=self.margins[j] if j < len(self.margins) else None,
                 )
             )
         return out

@@ -22,7 +22,7 @@ from sieve_mi.game.layout import alternative_rotations, merge
 from sieve_mi.game.placement import PlacementContext
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
-from sieve_mi.game.result import Result, is_blocked
+from sieve_mi.game.result import Result, block_margins, is_blocked
 from sieve_mi.game.scoring import mask_window
 from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved
 from sieve_mi.game.sheet import plate_sheet
@@ -303,6 +303,7 @@ def solve(
     v, certified = _verdict(scene, passes, blocks, sure, found, rng, progress, stages)
     sheet = _sheet(scene, passes, blocks, v, certified, seed, progress, timings)
     certified = on_sheet(certified, sheet.thickness)  # a cell proof needs a plate >= B's diameter
+    margins = block_margins(blocks, v.outline, v.attack, certified, scene.fabrication.block_margin)
     watch.mark("thin")
     watch.stop()
     return Result(
@@ -325,6 +326,7 @@ def solve(
         seed=seed,
         certified=certified,
         sheet=sheet,
+        margins=margins,
         outline=v.outline,
         polish=found.polish,
         started=t_init,

@@ -181,18 +181,19 @@ def rest_offset(
     return -float(pts[over, 2].min())
 
 
-def build(result) -> Passage:
+def build(result, plate_mesh=None) -> Passage:
     """The passage scene of a solve (:class:`sieve_mi.game.result.Result`).
 
     The plate is :func:`sieve_mi.outputs.fabrication.plate` with the thickness and border of the printed
-    sieve (``sieve.stl``).
+    sieve (``sieve.stl``): ``plate_mesh``, the one the save already built
+    (:func:`sieve_mi.outputs.fabrication.plate_files`), or built here when none was (no plate files).
     """
     from sieve_mi.outputs.fabrication import plate, plate_thickness
 
-    fab = result.scene.fabrication
     thickness, _ = plate_thickness(result)
-    sieve = plate(result.outline, thickness, fab.border)
-    pv = np.asarray(sieve.mesh.vertices, dtype=np.float64)
+    if plate_mesh is None:
+        plate_mesh = plate(result.outline, thickness, result.scene.fabrication.border).mesh
+    pv = np.array(plate_mesh.vertices, dtype=np.float64)
     box = np.array([pv[:, :2].min(0), pv[:, :2].max(0)])
     size = float(np.max(pv.max(0) - pv.min(0)))
     gap = 0.15 * size
@@ -219,7 +220,7 @@ def build(result) -> Passage:
             piece.stop = (piece.start - rest) / (piece.start - piece.end)
             piece.end, piece.passes = rest, False
         pieces.append(piece)
-    return Passage(pv, np.asarray(sieve.mesh.faces, dtype=np.int64), float(thickness), gap, pieces)
+    return Passage(pv, np.array(plate_mesh.faces, dtype=np.int64), float(thickness), gap, pieces)
 
 
 def _moving(shape, index: int, poses: np.ndarray, slot: tuple) -> Piece:

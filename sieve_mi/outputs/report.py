@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from sieve_mi.game.result import BlockAttempt, Result, is_blocked
+from sieve_mi.game.result import BlockAttempt, Result
 from sieve_mi.geometry.meshes import mesh_sha256
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.images import safe_name, write_images
@@ -56,9 +56,8 @@ def _block_row(result: Result, j: int, record: BlockAttempt) -> dict:
     if c is not None:
         row["certified"] = c.status
         row["certification"] = c.to_dict()
-    if is_blocked(attack.blocked()[0, j], c):  # blocked straight through the exact hole
-        grown = result.scene.fabrication.block_margin
-        row["margin"] = block_margin(shape, result.outline, row["protrusion"], c, grown)
+    if record.margin is not None:  # blocked straight through the exact hole
+        row["margin"] = record.margin
     if thin is not None:
         row["thin_plate"] = thin.to_dict()
     if attack.margin_beta is not None:
@@ -66,28 +65,6 @@ def _block_row(result: Result, j: int, record: BlockAttempt) -> dict:
         row["margin_loss"] = row["margin_beta"]
         row["margin_protrusion"] = float(attack.margin_protrusion[0, j])
     return row
-
-
-def block_margin(shape, hole, found: float, certified=None, grown: float = 0.0) -> dict:
-    """How far a blocked B sticks out of H at best, bracketed (report.json's ``margin``).
-
-    ``found_at_most``: the protrusion of the best pose found (the true margin is at most this).
-    ``proved_at_least``: from a certification that proved the block (``certified``, a
-    :class:`~sieve_mi.certify.Certification` against H grown by ``grown``, the scene's
-    ``block_margin``), ``grown`` plus its margin bisection's m
-    (:func:`sieve_mi.certify.blocks.prove_margin`, whose steps try the ball test first); without
-    one, from a ball certified inside B, the largest m for which no disk of its radius fits H
-    grown by m (:func:`sieve_mi.certify.blocks.ball_margin`). None when nothing proves it.
-    """
-    from sieve_mi.certify.blocks import ball_margin
-    from sieve_mi.certify.bounds import inscribed_ball
-
-    if certified is not None and certified.status == "proved":
-        proved = grown + (certified.margin or 0.0)
-    else:
-        ball = inscribed_ball(shape)
-        proved = (ball_margin(ball[1], hole) if ball is not None else 0.0) or None
-    return {"proved_at_least": proved, "found_at_most": float(found)}
 
 
 def report_dict(result: Result) -> dict:
@@ -243,7 +220,8 @@ def write_outputs(
             timings["figure_s"] = round(figure_file(result, tmp, report["fabrication"], meshes), 4)
             mark("figure")
             done.append("figure")
-        _write_passage(result, report, tmp, animation, mark, done)
+        plate_mesh = meshes[0] if fabricate else None  # the plate, built once per save
+        _write_passage(result, report, tmp, animation, mark, done, plate_mesh)
     if watch is not None:
         watch.stop()
     return report
@@ -293,9 +271,11 @@ def _salvage(report: dict, done: list, figure: bool, animation: bool):
 
 
 def _write_passage(
-    result: Result, report: dict, tmp: str, animation: bool, mark, done: list
+    result: Result, report: dict, tmp: str, animation: bool, mark, done: list, plate_mesh=None
 ) -> None:
-    """passage.gif (with ``animation``), report.json and report.html into ``tmp``.
+    """passage.gif (with ``animation``), report.json and report.html into ``tmp``, the passage's
+    plate ``plate_mesh`` (the one the save built; None: built by
+    :func:`sieve_mi.outputs.passage.build`).
 
     The GIF's record and its time go into ``report`` before report.json is written; the page,
     written last, holds report.json's content and links every other file. ``mark(stage)`` ends
@@ -306,7 +286,7 @@ def _write_passage(
 
     timings = report["timings"]
     t0 = time.perf_counter()
-    passage = build(result)
+    passage = build(result, plate_mesh)
     timings["passage_s"] = round(time.perf_counter() - t0, 4)
     if animation:
         from sieve_mi.outputs.animation import write_gif

@@ -53,6 +53,30 @@ def test_report_numbers_are_the_results(solved):
     json.loads(json.dumps(rep))  # plain JSON, no NumPy scalars
 
 
+def test_the_margin_is_the_records_computed_once_by_the_game(solved, monkeypatch):
+    # the game computes each blocked B's margin once (Result.margins); the report only copies it
+    import sieve_mi.certify.bounds as bounds
+
+    sphere, small = solved.blocks
+    assert sphere.blocked and not small.blocked and small.margin is None
+    assert sphere.margin["found_at_most"] == pytest.approx(sphere.protrusion)
+    assert sphere.margin["proved_at_least"] > 0  # certify proved it
+    monkeypatch.setattr(bounds, "inscribed_ball", None)  # no proof is made again
+    rows = report_dict(solved)["block"]
+    assert rows[0]["margin"] == sphere.margin and "margin" not in rows[1]
+
+
+def test_the_passage_takes_the_saved_plate(solved):
+    from sieve_mi.outputs.fabrication import plate, plate_thickness
+    from sieve_mi.outputs.passage import build
+
+    thickness, _ = plate_thickness(solved)
+    mesh = plate(solved.outline, thickness, solved.scene.fabrication.border).mesh
+    given, own = build(solved, mesh), build(solved)
+    assert given.plate_vertices.tobytes() == own.plate_vertices.tobytes()
+    assert given.plate_faces.tobytes() == own.plate_faces.tobytes()
+
+
 def test_small_sphere_passes_the_cube_hole(solved):
     # The 12 mm ball fits through any 20 mm cube's hole (every projection of the cube contains
     # the projection of its inscribed 20 mm ball): it must be reported as passing, with β = 0.
