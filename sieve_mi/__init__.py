@@ -29,7 +29,7 @@ Mitsuba, Dr.Jit and the solver are imported on first use of a public name.
 """
 
 from sieve_mi import backend as _backend
-from sieve_mi.outputs.provenance import VERSION
+from sieve_mi._version import VERSION
 
 __version__ = VERSION
 

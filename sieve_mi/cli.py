@@ -32,7 +32,7 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="sieve-mi", description="Design shape-aware sieves (Mitsuba 3 + Dr.Jit)."
     )
-    from sieve_mi.outputs.provenance import VERSION
+    from sieve_mi._version import VERSION
 
     p.add_argument("--version", action="version", version=f"sieve-mi {VERSION}")
     sub = p.add_subparsers(dest="command", required=True)

@@ -5,7 +5,7 @@ Usage: python tools/layering.py [--graph]; exit status 1 when a rule is broken (
 Every import counts, at module level or inside a function. The units of the floor plan, bottom
 to top (a unit may import only units below it, or modules of its own):
 
-    errors < settings < options < parsing < backend < workers < optim < geometry < objectives < scene < authors_config
+    _version < errors < settings < options < parsing < backend < workers < optim < geometry < objectives < scene < authors_config
     < certify < motion < game < outputs < api < shake < cascade < testing < cli < __main__
     < __init__
 
@@ -28,6 +28,7 @@ import sys
 
 #: The floor plan, bottom to top: a module's unit is its top-level module or package.
 UNITS = (
+    "_version",
     "errors",
     "settings",
     "options",

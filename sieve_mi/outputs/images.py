@@ -68,7 +68,7 @@ def exr_metadata(result: Result, origin: tuple[float, float] | None = None) -> d
     origin : (float, float), optional
         Scene (x, y) of the image's top-left corner; default the hole frame's.
     """
-    from sieve_mi.outputs.provenance import VERSION
+    from sieve_mi._version import VERSION
 
     frame = result.hole.frame
     x0, y0 = origin if origin is not None else (-frame.half_extent, frame.half_extent)

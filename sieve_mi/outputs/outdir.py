@@ -356,7 +356,7 @@ def remove_stale(parent: str) -> list[str]:
 
 def write_marker(folder: str, command: str) -> None:
     """Write ``.sieve-mi`` into ``folder``: version, command and every file and folder in it."""
-    from sieve_mi.outputs.provenance import VERSION
+    from sieve_mi._version import VERSION
 
     files, folders = _entries(folder)
     marker = {

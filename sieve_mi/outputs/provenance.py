@@ -14,10 +14,9 @@ import subprocess
 import sys
 from importlib import metadata
 
-__all__ = ["PACKAGES", "VERSION", "git_commit", "machine", "provenance", "sha256", "versions"]
+from sieve_mi._version import VERSION
 
-#: sieve-mi's version (``sieve_mi.__version__``; pyproject.toml reads it from here).
-VERSION = "0.1.0"
+__all__ = ["PACKAGES", "VERSION", "git_commit", "machine", "provenance", "sha256", "versions"]
 
 #: Distributions whose versions are recorded (their numerics or geometry enter the result).
 PACKAGES = ("sieve-mi", "mitsuba", "drjit", "manifold3d", "nlopt", "numpy", "scipy", "trimesh")
