@@ -30,7 +30,7 @@ import numpy as np
 from sieve_mi.certify import bounds, cells, symmetry
 from sieve_mi.certify.certificate import Certification, Evidence, build, scope
 from sieve_mi.certify.replay import replay
-from sieve_mi.certify.search import Search, Settings
+from sieve_mi.certify.search import CellSearch, Settings
 from sieve_mi.certify.svg import read_svg_hole
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape
@@ -147,7 +147,7 @@ def _certify(shape, holes, budget_s, settings, scale, use_symmetry) -> Certifica
     group = symmetry.detect(shape) if use_symmetry else "none"
     faces, half = symmetry.domain(group)
     roots = cells.roots(faces, half)
-    outcome = Search(shape, hole, settings, group).run(roots)
+    outcome = CellSearch(shape, hole, settings, group).run(roots)
     status = (
         "passage" if outcome.passage else ("proved" if outcome.open_cells == 0 else "undecided")
     )

@@ -34,7 +34,7 @@ __all__ = [
     "Node",
     "Outcome",
     "PASSAGE_PROBES",
-    "Search",
+    "CellSearch",
     "Settings",
     "count_open",
     "farthest_points",
@@ -316,7 +316,7 @@ def count_open(node: Node) -> int:
     return int(node.evidence is None)
 
 
-class Search:
+class CellSearch:
     """One branch and bound of ``shape`` against the hole ``hole`` (one CrossSection, scene units)."""
 
     def __init__(self, shape: Shape, hole: manifold3d.CrossSection, settings: Settings, group: str):

@@ -172,7 +172,7 @@ class Result:
     seed : int
         The seed the run used.
     polish : list of dict
-        Per searched A, the local polish of its rotation (see :class:`Search`).
+        Per searched A, the local polish of its rotation (see :class:`SearchOutcome`).
     started : float or None
         ``time.perf_counter()`` when the solve started.
     certified : list of Certification or None

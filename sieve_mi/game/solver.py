@@ -34,11 +34,11 @@ from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.scene import Scene
 
-__all__ = ["Search", "load_shapes", "search", "solve"]
+__all__ = ["SearchOutcome", "load_shapes", "search", "solve"]
 
 
 @dataclass
-class Search:
+class SearchOutcome:
     """Player A's choice, as :func:`search` made it.
 
     Attributes
@@ -149,7 +149,7 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Ba
 
 def search(
     scene: Scene, passes: list[Shape], blocks: list[Shape], rng, seed: int, progress: bool
-) -> Search:
+) -> SearchOutcome:
     """Player A's placements: rotations (and translations for several shapes) of every A.
 
     Parameters
@@ -165,7 +165,7 @@ def search(
 
     Returns
     -------
-    Search
+    SearchOutcome
     """
     s, lay = scene.solver, scene.layout
     m = len(passes)
@@ -181,7 +181,9 @@ def search(
     return out
 
 
-def _merge_with_restarts(scene: Scene, passes, blocks, out: Search, rng, seed: int, bar) -> None:
+def _merge_with_restarts(
+    scene: Scene, passes, blocks, out: SearchOutcome, rng, seed: int, bar
+) -> None:
     """Merge every A into one hole (``out`` holds their rotations and receives the result).
 
     While the merge still lets some B through, every A's rotation is searched again from another
@@ -212,10 +214,14 @@ def _merge_with_restarts(scene: Scene, passes, blocks, out: Search, rng, seed: i
             return
 
 
-def _rotate_each(scene: Scene, passes, blocks, rng, seed: int, bar: _Bar, tag: str = "") -> Search:
+def _rotate_each(
+    scene: Scene, passes, blocks, rng, seed: int, bar: _Bar, tag: str = ""
+) -> SearchOutcome:
     """Every A's rotation searched alone against all of B (fixed ones taken from the scene)."""
     lay, m = scene.layout, len(passes)
-    out = Search(np.zeros((m, 4)), np.zeros((m, 2)), float("nan"), SwarmHistory(), [], [None] * m)
+    out = SearchOutcome(
+        np.zeros((m, 4)), np.zeros((m, 2)), float("nan"), SwarmHistory(), [], [None] * m
+    )
     for i, entry in enumerate(scene.passes):
         if entry.rotation is not None:
             out.quats[i] = normalize(np.asarray(entry.rotation))
@@ -334,7 +340,7 @@ def solve(
     )
 
 
-def _verdict(scene: Scene, passes, blocks, sure: dict, found: Search, rng, progress,
+def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng, progress,
              stages: _Stages):  # fmt: skip
     """The verdict on the B not proved before the game, completed with those that were, and the
     optional certification: (judgement, certifications or []); ``stages`` gets the stages
@@ -377,13 +383,13 @@ def _sheet(scene: Scene, passes, blocks, v, certified, seed, progress, timings):
     return sheet
 
 
-def _unsearched(scene: Scene) -> Search:
+def _unsearched(scene: Scene) -> SearchOutcome:
     """A's rotations when every B was proved before the game: the scene's fixed ones, else the
     identity (any rotation makes a hole that blocks them all)."""
     m = len(scene.passes)
     quats = np.array([normalize(np.asarray(e.rotation)) if e.rotation is not None else
                       [1.0, 0.0, 0.0, 0.0] for e in scene.passes])  # fmt: skip
-    return Search(quats, np.zeros((m, 2)), float("nan"), SwarmHistory(), [], [None] * m)
+    return SearchOutcome(quats, np.zeros((m, 2)), float("nan"), SwarmHistory(), [], [None] * m)
 
 
 def _with_screened(scene: Scene, blocks, rows, sure: dict, v, certified: list):

@@ -19,7 +19,7 @@ import numpy as np
 from sieve_mi.geometry.rotations import random_uniform, to_matrix
 from sieve_mi.motion.path import Verified, verify
 
-__all__ = ["Search", "Window", "search_passage"]
+__all__ = ["PassageSearch", "Window", "search_passage"]
 
 
 @dataclass
@@ -61,7 +61,7 @@ class Window:
 
 
 @dataclass
-class Search:
+class PassageSearch:
     """What :func:`search_passage` did and found.
 
     Attributes
@@ -197,14 +197,14 @@ class _Planner:
         return [self._pose(path.getState(i)) for i in range(path.getStateCount())]
 
 
-def _down(world, out: Search, window: Window, ends, quat, xy) -> bool:
+def _down(world, out: PassageSearch, window: Window, ends, quat, xy) -> bool:
     """Try the straight descent in rotation ``quat`` over ``xy``: from the start, over the hole
     wholly above the plate, straight down through it, and on to the goal wholly below."""
     path = [ends[0], *_straight(world, window, quat, xy), ends[1]]
     return _try(world, out, path, "straight descent")
 
 
-def _try(world, out: Search, poses, method: str) -> bool:
+def _try(world, out: PassageSearch, poses, method: str) -> bool:
     """Re-check a candidate motion; keep it in ``out`` when it holds."""
     if poses is None:
         return False
@@ -214,7 +214,9 @@ def _try(world, out: Search, poses, method: str) -> bool:
     return v.ok
 
 
-def _via_crossings(planner: _Planner, out: Search, ends, side: int, crossings, left, slice_s):
+def _via_crossings(
+    planner: _Planner, out: PassageSearch, ends, side: int, crossings, left, slice_s
+):
     """Plan from ``ends[side]`` to the nearest reachable crossing pose, then on to the other end;
     drop a crossing that leads nowhere and try the others. True when a verified passage was found
     (kept in ``out`` from ``ends[0]`` to ``ends[1]``). ``left()`` is the budget's seconds left,
@@ -239,7 +241,7 @@ def _via_crossings(planner: _Planner, out: Search, ends, side: int, crossings, l
     return False
 
 
-def search_passage(world, outline, seeds, budget_s: float, seed: int = 0) -> Search:
+def search_passage(world, outline, seeds, budget_s: float, seed: int = 0) -> PassageSearch:
     """Look for a motion taking the shape from wholly above the plate to wholly below it.
 
     Parameters
@@ -256,10 +258,10 @@ def search_passage(world, outline, seeds, budget_s: float, seed: int = 0) -> Sea
 
     Returns
     -------
-    Search
+    PassageSearch
     """
     t0 = time.perf_counter()
-    out = Search()
+    out = PassageSearch()
     window = Window.around(world, outline)
     seeds = list(seeds) or [(np.array([1.0, 0, 0, 0]), window.centre)]
     q0 = np.asarray(seeds[0][0], dtype=np.float64)

@@ -140,7 +140,7 @@ def test_a_lost_merge_restarts_from_another_seed(write_scene, monkeypatch, resta
 
     def fake_rotate(scene, passes, blocks, rng, seed, bar, tag=""):
         rotated.append(seed)
-        out = solve_mod.Search(
+        out = solve_mod.SearchOutcome(
             np.tile([1.0, 0, 0, 0], (2, 1)), np.zeros((2, 2)), 0.0, SwarmHistory(), [], [0.5] * 2
         )
         return out
