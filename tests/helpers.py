@@ -5,17 +5,17 @@ from __future__ import annotations
 import os
 
 import numpy as np
-import trimesh
 
 from sieve_mi.geometry.meshes import Shape, shape_from_trimesh
+from sieve_mi.testing import shapes
 
 #: The checkout's root (scenes/, docs/ and tools/ are found from it).
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def sphere(radius: float, subdivisions: int = 3) -> Shape:
-    """An icosphere of ``radius`` as a Shape named "sphere"."""
-    return shape_from_trimesh(trimesh.creation.icosphere(subdivisions, radius), name="sphere")
+    """:func:`sieve_mi.testing.shapes.sphere` (the one home of test solids) as a Shape named "sphere"."""
+    return shape_from_trimesh(shapes.sphere(radius, subdivisions), name="sphere")
 
 
 def rng(seed: int = 0) -> np.random.Generator:
