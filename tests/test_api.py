@@ -65,7 +65,9 @@ def test_check_takes_a_mesh_or_a_path(tmp_path):
     assert not sm.check(big, sieve=plate_path, settings=fast).passes
 
 
-@pytest.mark.parametrize("name", ["sieve_mi.scene", "sieve_mi.settings", "sieve_mi.parsing"])
+@pytest.mark.parametrize(
+    "name", ["sieve_mi.scene", "sieve_mi.settings", "sieve_mi.parsing", "sieve_mi.objectives"]
+)
 def test_scene_docstring_examples_run(name):
     import importlib
 

@@ -59,9 +59,13 @@ def make_objective(
 
     Examples
     --------
+    >>> from sieve_mi.geometry.meshes import shape_from_trimesh
     >>> from sieve_mi.geometry.raster import Frame
     >>> from sieve_mi.testing.shapes import sphere
-    >>> loss = make_objective("clearance", [sphere(5.0, 2)], Frame(16, 8.0))  # doctest: +SKIP
+    >>> ball = shape_from_trimesh(sphere(5.0, 2), name="ball")
+    >>> loss = make_objective("clearance", [ball], Frame(16, 8.0))
+    >>> type(loss).__name__
+    'ClearanceObjective'
     """
     if name == "clearance":
         from sieve_mi.objectives.clearance import ClearanceObjective
