@@ -17,6 +17,29 @@ thick-plate argument): given a plate's ``thickness``, a thinner one turns it int
 so).
 
 :func:`replay` re-checks a certificate file with an independent implementation.
+
+Modules
+-------
+search
+    The branch and bound over rotation space (:class:`~sieve_mi.certify.search.CellSearch`).
+cells
+    Rotation-space cells on the faces of the quaternion cube, and their covering radii.
+bounds
+    Exclusion tests: rigorous reasons why no rotation of a cell lets the shape through H.
+symmetry
+    Rotational symmetries of a shape that shrink the search's domain.
+certificate
+    The result of a certification and its certificate file (JSON).
+structure
+    A certificate's form, checked before any geometry.
+replay
+    The independent replay of a certificate.
+replay_geometry
+    The replay's own exact geometry.
+svg
+    A hole outline read exactly from an SVG file.
+blocks
+    A solve's blocked B certified against the exact hole that gets printed.
 """
 
 from __future__ import annotations

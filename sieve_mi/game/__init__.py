@@ -15,6 +15,8 @@ player_b
     Player B: random starts, batched descents in chunks that fit memory, raster scores.
 player_a
     Player A: canonical views, then a swarm (or nlopt) over rotations, then a local polish.
+screen
+    Blocks proved before the game: a B holding a ball larger than any hole A can make.
 scoring
     Raster scores of poses against holes, and B's silhouettes in a mask window.
 exact
@@ -29,6 +31,8 @@ layout
     Several A merged into one hole: the sequential scheme and its retries.
 verdict
     The long re-run of player B against the exact polygon that declares the winner.
+sheet
+    The plate's thickness and its verdict: safe by diameter, or a thin-plate motion search per B.
 solver
     The whole game of one scene: search, verdict, optional certification.
 result

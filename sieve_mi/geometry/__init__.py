@@ -6,6 +6,10 @@ rotations
     Unit quaternions (w, x, y, z): products, matrices, axis-angle, alignment.
 meshes
     Reading meshes into :class:`~sieve_mi.geometry.meshes.Shape` (vertices, faces, radius).
+plate
+    The plate as solid geometry: B's diameter (the safe thickness), an exact convex decomposition.
+pixels
+    A raster image's physical pixel size: PNG's ``pHYs`` chunk, written and read.
 raster
     :class:`~sieve_mi.geometry.raster.Frame`: the square pixel lattice a hole is drawn on.
 outline

@@ -6,6 +6,17 @@ A plate at least as thick as a shape's diameter blocks it iff no projection fits
 (:func:`sieve_mi.geometry.plate.safe_thickness`); on a thinner plate the shape may thread through.
 :func:`thin_plate` answers ``"safe"``, ``"passage"`` (with a verified motion) or
 ``"no passage found"`` (with what was searched: a heuristic answer, never a proof).
+
+Modules
+-------
+collide
+    Exact collision and distance queries: a shape's mesh against the plate's convex prisms (coal).
+planner
+    The motion search: seeded straight descents, then OMPL's RRT-Connect via crossing poses.
+path
+    Rigid motions as pose sequences, and their conservative continuous re-check.
+thin
+    One shape's thin-plate answer; the B of a solve searched in parallel processes.
 """
 
 from __future__ import annotations

@@ -25,6 +25,19 @@ machinery of :mod:`sieve_mi.objectives.pairs`). Everything player B reads of an 
 is documented here once; each implementation adds only what is its own.
 
 Neither decides a winner: the verdict scores poses on the hole itself (:mod:`sieve_mi.game.scoring`).
+
+Modules
+-------
+edges
+    The edge sampling that the clearance and overlap objectives share.
+pairs
+    (pose, item) pairs on the device: built from ranges, read as packets, summed in a fixed order.
+clearance
+    ``"clearance"``: squared distance to H on B's silhouette edges.
+overlap
+    ``"overlap"``: the paper's eq. 12 by edge sampling.
+overlap_mitsuba
+    ``"overlap-mitsuba"``: eq. 8 by Mitsuba's projective sampling.
 """
 
 from __future__ import annotations

@@ -9,6 +9,8 @@ images
 plots
     The matplotlib pictures (``overlay.png``, ``convergence.png``) and their layout: text off the
     shapes, axes and scale bars in 2D views.
+palette
+    One palette for every picture sieve-mi draws.
 console
     What is printed on the terminal: the result tables and summary lines of solve and check.
 viewer

@@ -6,6 +6,31 @@ MuJoCo's own OpenGL rendering is switched off (``MUJOCO_GL=disable``, unless the
 before MuJoCo is imported: sieve-mi renders with Mitsuba, and MuJoCo's import otherwise probes
 for GLFW by starting a Python subprocess per candidate library in every worker, which prints a
 traceback (EOFError, BrokenPipeError) when a run is stopped while it waits.
+
+Modules
+-------
+settings
+    The settings of a shake run (shaker motion, physics, trials) and the engine's constants.
+inputs
+    What a run reads: a solve's output folder, or a plate mesh and part meshes.
+geometry
+    Solids for the engine: the plate as exact convex prisms, each part as convex pieces.
+model
+    The MuJoCo model of one trial: a plate driven along a shaker motion, a frame, a part.
+fidelity
+    How far a part sinks into the plate in the engine, measured.
+trials
+    One trial: drop a part at random, shake, record whether and when it fell through.
+stats
+    Pass fractions with Wilson intervals, times to pass, curves.
+run
+    One shake run: every part's geometry, fidelity and trials, gathered into ``shake.json``'s dict.
+outputs
+    ``shake.json``, ``shake.png`` and a summary table.
+clip
+    ``shake.gif``: a short Mitsuba-rendered clip of one trial per shape.
+commands
+    The ``shake`` subcommand of the command line.
 """
 
 import os

@@ -4,6 +4,17 @@
 prisms, coins); :mod:`sieve_mi.testing.mesh_io` reads back what the solver writes;
 :mod:`sieve_mi.testing.settings` holds the small solver settings tests and benchmarks run with;
 :mod:`sieve_mi.testing.pictures` checks that a drawn picture keeps its text off its shapes.
+
+Modules
+-------
+shapes
+    Test solids with known answers.
+mesh_io
+    Reading back the files sieve-mi writes.
+settings
+    Small solver settings for tests and benchmarks.
+pictures
+    Checks that a drawn picture keeps its text off its shapes.
 """
 
 __all__ = ["mesh_io", "pictures", "settings", "shapes"]
