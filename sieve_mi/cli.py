@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import os
 import signal
 import sys
@@ -22,7 +23,7 @@ from sieve_mi.errors import (
     signals_received,
 )
 
-__all__ = ["Terminated", "cmd_certify", "cmd_check", "cmd_solve", "cmd_view", "main"]
+__all__ = ["COMMANDS", "Terminated", "cmd_certify", "cmd_check", "cmd_solve", "cmd_view", "main"]
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -417,6 +418,18 @@ def _certify_summary(name: str, r) -> str:
     return line
 
 
+#: Each subcommand -> the module and function that run it (looked up, and imported, on use).
+COMMANDS = {
+    "solve": (__name__, "cmd_solve"),
+    "check": (__name__, "cmd_check"),
+    "certify": (__name__, "cmd_certify"),
+    "sort": ("sieve_mi.cascade.commands", "cmd_sort"),
+    "sweep": ("sieve_mi.cascade.commands", "cmd_sweep"),
+    "shake": ("sieve_mi.shake.commands", "cmd_shake"),
+    "view": (__name__, "cmd_view"),
+}
+
+
 def _dispatch(args) -> int:
     """Apply the shared options, then run ``args.command``; its exit code."""
     from sieve_mi.backend import apply_threads, set_threads
@@ -427,21 +440,8 @@ def _dispatch(args) -> int:
         set_threads(args.threads)
     else:
         apply_threads()  # $SIEVE_MI_THREADS, checked as --threads is
-    if args.command == "solve":
-        return cmd_solve(args)
-    if args.command == "check":
-        return cmd_check(args)
-    if args.command == "certify":
-        return cmd_certify(args)
-    if args.command == "view":
-        return cmd_view(args)
-    if args.command == "shake":
-        from sieve_mi.shake.commands import cmd_shake
-
-        return cmd_shake(args)
-    from sieve_mi.cascade.commands import COMMANDS  # sort, sweep
-
-    return COMMANDS[args.command](args)
+    module, function = COMMANDS[args.command]
+    return getattr(importlib.import_module(module), function)(args)
 
 
 def _import_swallowers() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -624,3 +625,14 @@ def test_a_signal_a_frozen_step_swallowed_as_text_still_ends_the_run(monkeypatch
     word = "terminated" if signum == 15 else "interrupted"
     assert capsys.readouterr().err.strip() == f"sieve-mi: {word}"
     clear_signals()
+
+
+def test_every_subcommand_runs_from_the_one_command_table():
+    import importlib
+
+    from sieve_mi import cli
+
+    sub = next(a for a in cli._parser()._actions if isinstance(a, argparse._SubParsersAction))
+    assert list(sub.choices) == list(cli.COMMANDS)
+    for module, function in cli.COMMANDS.values():
+        assert callable(getattr(importlib.import_module(module), function))
