@@ -28,6 +28,8 @@ Neither decides a winner: the verdict scores poses on the hole itself (:mod:`sie
 
 Modules
 -------
+base
+    The ``Objective`` base class: what player B reads of a loss, documented once.
 edges
     The edge sampling that the clearance and overlap objectives share.
 pairs
