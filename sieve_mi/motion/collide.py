@@ -17,7 +17,7 @@ import numpy as np
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.plate import convex_pieces, plate_region, prism_vertices
 
-__all__ = ["PlateWorld", "edge_pairs", "plate_prisms"]
+__all__ = ["MeshWorld", "PlateWorld", "edge_pairs", "place", "plate_prisms"]
 
 
 def plate_prisms(
@@ -97,10 +97,7 @@ class PlateWorld:
         return len(self._pieces)
 
     def _place(self, quat, trans) -> None:
-        w, x, y, z = (float(v) for v in quat)
-        n = (w * w + x * x + y * y + z * z) ** 0.5
-        rot = coal.Quaternion(w / n, x / n, y / n, z / n)  # Eigen's order: w, x, y, z
-        self.body.setTransform(coal.Transform3s(rot, np.asarray(trans, dtype=np.float64)))
+        place(self.body, quat, trans)
         self.body.computeAABB()
         self.checks += 1
 
@@ -117,3 +114,44 @@ class PlateWorld:
         callback = coal.DistanceCallBackDefault()
         self.manager.distance(self.body, callback)
         return float(callback.data.result.min_distance)
+
+
+def place(body, quat, trans) -> None:
+    """Put a coal collision object at the pose ``(quat, trans)``: (w, x, y, z), normalised here,
+    and (3,) scene units."""
+    w, x, y, z = (float(v) for v in quat)
+    n = (w * w + x * x + y * y + z * z) ** 0.5
+    rot = coal.Quaternion(w / n, x / n, y / n, z / n)  # Eigen's order: w, x, y, z
+    body.setTransform(coal.Transform3s(rot, np.asarray(trans, dtype=np.float64)))
+
+
+class MeshWorld:
+    """One shape against a plate's own triangle mesh (coal BVHs), as
+    :func:`~sieve_mi.motion.path.verify` queries it: ``radius`` and ``distance(quat, trans)``
+    (0 where they meet).
+
+    For a plate that is more than its slab (a post, a raised rim): surfaces that never meet
+    along a continuous motion that starts apart keep the solids apart, so the surface distance
+    decides for a closed shape and a closed plate.
+
+    Parameters
+    ----------
+    shape : Shape
+    vertices : (V, 3) float
+        The plate mesh's vertices, scene units.
+    faces : (F, 3) int
+    """
+
+    def __init__(self, shape: Shape, vertices: np.ndarray, faces: np.ndarray):
+        self.radius = float(shape.radius)
+        self.plate = coal.CollisionObject(_bvh(vertices, faces), coal.Transform3s())
+        self.body = coal.CollisionObject(_bvh(shape.vertices, shape.faces), coal.Transform3s())
+
+    def distance(self, quat, trans) -> float:
+        """Distance between the shape at this pose and the plate, scene units (0: they meet)."""
+        place(self.body, quat, trans)
+        if coal.collide(self.body, self.plate, coal.CollisionRequest(), coal.CollisionResult()):
+            return 0.0
+        result = coal.DistanceResult()
+        coal.distance(self.body, self.plate, coal.DistanceRequest(), result)
+        return float(result.min_distance)

@@ -165,46 +165,6 @@ def _search(shape: Shape, polygons: list, thickness: float, budget_s: float, see
     return out
 
 
-class _MeshPlate:
-    """A shape against a plate's own triangle mesh (coal BVHs), as :func:`~sieve_mi.motion.path.
-    verify` queries it: ``radius`` and ``distance(quat, trans)`` (0 where they meet).
-
-    Surfaces that never meet along a continuous motion that starts apart keep the solids apart,
-    so the surface distance decides for a closed shape and a closed plate.
-    """
-
-    def __init__(self, shape: Shape, vertices: np.ndarray, faces: np.ndarray):
-        import coal
-
-        self.coal = coal
-        self.radius = float(shape.radius)
-        self.plate = coal.CollisionObject(_bvh(coal, vertices, faces), coal.Transform3s())
-        self.body = coal.CollisionObject(_bvh(coal, shape.vertices, shape.faces),
-                                         coal.Transform3s())  # fmt: skip
-
-    def distance(self, quat, trans) -> float:
-        """Distance between the shape at this pose and the plate, scene units (0: they meet)."""
-        c = self.coal
-        w, x, y, z = (float(v) for v in quat)
-        n = math.sqrt(w * w + x * x + y * y + z * z)
-        rot = c.Quaternion(w / n, x / n, y / n, z / n)
-        self.body.setTransform(c.Transform3s(rot, np.asarray(trans, dtype=np.float64)))
-        if c.collide(self.body, self.plate, c.CollisionRequest(), c.CollisionResult()):
-            return 0.0
-        result = c.DistanceResult()
-        c.distance(self.body, self.plate, c.DistanceRequest(), result)
-        return float(result.min_distance)
-
-
-def _bvh(coal, vertices: np.ndarray, faces: np.ndarray):
-    model = coal.BVHModelOBBRSS()
-    model.beginModel(len(faces), len(vertices))
-    model.addVertices(np.ascontiguousarray(vertices, dtype=np.float64))
-    model.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
-    model.endModel()
-    return model
-
-
 def _on_mesh(shape: Shape, plate, poses: list):
     """Re-check a motion found through the slab model against the plate's own mesh.
 
@@ -223,10 +183,11 @@ def _on_mesh(shape: Shape, plate, poses: list):
     -------
     (Verified, list of (quat, trans))
     """
+    from sieve_mi.motion.collide import MeshWorld
     from sieve_mi.motion.path import verify
 
     vertices, faces = plate
-    world = _MeshPlate(shape, vertices, faces)
+    world = MeshWorld(shape, vertices, faces)
     gap = max(0.05 * world.radius, 1e-3)
     (q0, t0), (q1, t1) = poses[0], poses[-1]
     top = float(np.max(vertices[:, 2])) + world.radius + gap
