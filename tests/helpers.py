@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 
 import numpy as np
@@ -21,3 +22,14 @@ def sphere(radius: float, subdivisions: int = 3) -> Shape:
 def rng(seed: int = 0) -> np.random.Generator:
     """NumPy's default generator with ``seed``."""
     return np.random.default_rng(seed)
+
+
+def tree(folder) -> dict:
+    """Every file under ``folder`` (relative path) with the SHA-256 of its bytes."""
+    out = {}
+    for root, _, names in os.walk(folder):
+        for name in names:
+            path = os.path.join(root, name)
+            with open(path, "rb") as fh:
+                out[os.path.relpath(path, folder)] = hashlib.sha256(fh.read()).hexdigest()
+    return out

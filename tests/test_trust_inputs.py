@@ -10,7 +10,6 @@ except where the row is about a fresh process.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import struct
@@ -22,7 +21,7 @@ import zlib
 import manifold3d
 import pytest
 import trimesh
-from helpers import REPO
+from helpers import REPO, tree
 
 import sieve_mi as sm
 from sieve_mi.backend import max_threads
@@ -37,17 +36,6 @@ from sieve_mi.testing.shapes import from_manifold
 SHAKE_QUICK = ("--trials", "1", "--duration", "0.1", "--workers", "1", "--no-clip", "--quiet")
 CHECK_QUICK = ("--starts", "2", "--steps", "2", "--no-fit", "--thin-budget", "0.5", "--quiet")
 UNITS = "mm, cm, m, in, um"
-
-
-def tree(folder) -> dict:
-    """Every file under ``folder`` (relative path) with the SHA-256 of its bytes."""
-    out = {}
-    for root, _, names in os.walk(folder):
-        for name in names:
-            path = os.path.join(root, name)
-            with open(path, "rb") as fh:
-                out[os.path.relpath(path, folder)] = hashlib.sha256(fh.read()).hexdigest()
-    return out
 
 
 def refused(capsys, args) -> str:

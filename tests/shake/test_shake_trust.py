@@ -8,7 +8,6 @@ trial, which ``no_trials`` holds by making the trials fail the test.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -16,6 +15,7 @@ import os
 import mujoco
 import pytest
 import trimesh
+from helpers import tree
 from shake_helpers import ball, plate_mesh, quick, round_hole, square_hole
 
 from sieve_mi.cli import main
@@ -28,17 +28,6 @@ from sieve_mi.shake.settings import ShakeSettings
 from sieve_mi.shake.trials import Outcome, run_trial
 
 QUICK = ("--trials", "1", "--duration", "0.1", "--workers", "1", "--no-clip", "--quiet")
-
-
-def tree(folder) -> dict:
-    """Every file under ``folder`` (relative path) with the SHA-256 of its bytes."""
-    out = {}
-    for root, _, names in os.walk(folder):
-        for name in names:
-            path = os.path.join(root, name)
-            with open(path, "rb") as fh:
-                out[os.path.relpath(path, folder)] = hashlib.sha256(fh.read()).hexdigest()
-    return out
 
 
 def solve_folder(tmp_path, html=True, listed=()):
