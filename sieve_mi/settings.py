@@ -247,8 +247,8 @@ def known_names(where: str):
     """Class decorator: a dataclass whose constructor refuses a keyword that is not a field
     (:func:`refuse_unknown`: one line listing the known names) instead of Python's TypeError.
 
-    For settings tables checked by their own ``__post_init__`` (``ShakeSettings``); the scene's
-    tables get this and more from their checking decorator.
+    Used alone by settings tables checked by their own ``__post_init__`` (``ShakeSettings``),
+    and by :func:`checked`, which adds the checking of every value.
     """
 
     def decorate(cls: type) -> type:
@@ -280,12 +280,10 @@ def checked(where: str):
     def decorate(cls: type) -> type:
         declared = {f.name for f in fields(cls) if spec_of(f) is not None}
         optional = {f.name for f in fields(cls) if f.default is None}  # None: back to the default
-        init = cls.__init__
+        init = known_names(where)(cls).__init__  # an unknown keyword: refused before any value
 
         @functools.wraps(init)
         def __init__(self, *args, **kwargs):
-            for name in kwargs:
-                refuse_unknown(cls, name, where)
             init(self, *args, **kwargs)
             for f in fields(cls):  # in their order: the first bad one is named
                 value = getattr(self, f.name)
