@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import contextlib
 import sys
+from concurrent.futures import ProcessPoolExecutor
 
-from sieve_mi.errors import SieveError
+from sieve_mi.errors import SieveError, deferred_signals
 
 __all__ = ["stop_workers", "worker_pool"]
 
@@ -70,21 +71,15 @@ def stop_workers(pool, others=()) -> None:
             proc.join(timeout=1.0)
 
 
-def _pool_class():
+class _Pool(ProcessPoolExecutor):
     """:class:`~concurrent.futures.ProcessPoolExecutor` whose ``submit`` (where it starts its
     worker processes) holds SIGINT, SIGTERM and SIGHUP back: a worker interrupted half-started is
     unknown to the pool, outlives its parent and prints a traceback
     (``SemLock._rebuild ... FileNotFoundError``) once the parent is gone."""
-    from concurrent.futures import ProcessPoolExecutor
 
-    from sieve_mi.errors import deferred_signals
-
-    class Pool(ProcessPoolExecutor):
-        def submit(self, fn, /, *args, **kwargs):
-            with deferred_signals():
-                return super().submit(fn, *args, **kwargs)
-
-    return Pool
+    def submit(self, fn, /, *args, **kwargs):
+        with deferred_signals():
+            return super().submit(fn, *args, **kwargs)
 
 
 @contextlib.contextmanager
@@ -120,9 +115,8 @@ def worker_pool(workers: int, *, method: str = "fork", initializer=None, initarg
     import multiprocessing
     from concurrent.futures.process import BrokenProcessPool
 
-    pool_class = _pool_class()
     before = set(multiprocessing.active_children())
-    pool = pool_class(
+    pool = _Pool(
         max(1, int(workers)),
         mp_context=multiprocessing.get_context(method),
         initializer=_start_worker,
