@@ -301,7 +301,7 @@ def release_cached_memory() -> None:
 
     Dr.Jit keeps freed arrays in a cache for reuse, so after one attack of player B the process
     holds that attack's peak whether it is used again or not: on cow-bunny 0.5 GB of the 0.95 GB
-    peak was this cache (docs/performance.md, "Memory"). Called between attacks; on a GPU the
+    peak was this cache (benchmarks/notes/performance-history.md, "Memory"). Called between attacks; on a GPU the
     cache is kept (allocating device memory synchronises, and the device has the room).
     """
     import drjit as dr
@@ -432,14 +432,14 @@ class MemoryWatch:
 # Player B's memory budget: how many (pose, segment) pairs one descent may bind at once.
 
 #: Memory one (pose, segment) pair of a descent holds, bytes: 32 measured on the CPU at 5M pairs
-#: (traced or frozen, docs/performance.md), doubled for the AD graph, buffers and allocator slack.
+#: (traced or frozen, benchmarks/notes/performance-history.md), doubled for the AD graph, buffers and allocator slack.
 BYTES_PER_PAIR = 64
 #: Share of the machine's available memory player B's descents use by default (``[solver] memory
 #: = 0``) ...
 MEMORY_SHARE = 0.25
 #: ... at most this many GB on the CPU: chunks of 4M pairs keep both cores busy, and a larger
 #: budget only raises the peak (cow-bunny's verdict, one run: 0.125 / 0.25 / 0.5 GB / a quarter
-#: of 23 GB gave peaks of 0.94 / 1.05 / 1.15 / 1.73 GB in the same time, docs/performance.md).
+#: of 23 GB gave peaks of 0.94 / 1.05 / 1.15 / 1.73 GB in the same time, benchmarks/notes/performance-history.md).
 #: Not on a GPU, where fewer, larger launches pay.
 CPU_MEMORY_CAP_GB = 0.25
 

@@ -29,7 +29,7 @@ __all__ = ["CPU_FREEZE_PAIRS", "frozen_step", "pays", "replay"]
 
 #: On the CPU (LLVM variants) descents with more (pose, segment) pairs than this trace their steps
 #: even with ``freeze``: there a big step is bound by arithmetic and the frozen step's fixed-size
-#: buffer passes cost more than tracing saves (docs/performance.md: a 70k-face bunny at 100 poses,
+#: buffer passes cost more than tracing saves (benchmarks/notes/performance-history.md: a 70k-face bunny at 100 poses,
 #: 15M pairs, steps 15 % slower frozen; spot/cow's verdict, 2.7M pairs, is 1.1x faster frozen).
 CPU_FREEZE_PAIRS = 5_000_000
 
