@@ -59,7 +59,15 @@ from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.plate import diameter as points_diameter
 
-__all__ = ["Certification", "Settings", "certify", "read_svg_hole", "replay"]
+__all__ = [
+    "Certification",
+    "Settings",
+    "certify",
+    "read_svg_hole",
+    "replay",
+    "thin_plate_proof",
+    "thinnest_proved",
+]
 
 
 def union_of_holes(holes: list[manifold3d.CrossSection]) -> manifold3d.CrossSection:
@@ -140,7 +148,94 @@ def certify(
     """
     _check_arguments(shape, holes, budget_s, settings, thickness)
     result = _certify(shape, holes, budget_s, settings, scale, use_symmetry)
-    return result if thickness is None else result.on_plate(thickness)
+    if thickness is None:
+        return result
+    result = result.on_plate(thickness)
+    left = budget_s - result.seconds
+    if result.straight == "proved" and not result.covers_plate and thickness > 0 and left > 0:
+        result = thin_plate_proof(result, shape, holes, thickness, left, settings)
+    return result
+
+
+def thin_plate_proof(result: Certification, shape: Shape, holes: list, thickness: float,
+                     budget_s: float, settings: Settings | None = None) -> Certification:  # fmt: skip
+    """``result`` (a straight proof) completed by the slab-section proof at ``thickness``
+    (:func:`sieve_mi.certify.section.prove_section`, within ``budget_s`` seconds): proved on
+    plates at least that thick when it succeeds (:meth:`Certification.with_section`).
+
+    Examples
+    --------
+    A closed wire ring (centre circle 20 mm across, wire 2 mm) cannot pass a 9 mm hole in a
+    1 mm plate: any plane through its centre meets the ring at two points 20 mm apart.
+
+    >>> import manifold3d, trimesh
+    >>> from sieve_mi.geometry.meshes import shape_from_trimesh
+    >>> ring = shape_from_trimesh(trimesh.creation.torus(10, 1), name="ring")
+    >>> hole = manifold3d.CrossSection.circle(4.5, 64)
+    >>> c = certify(ring, [hole], budget_s=60, thickness=1.0)
+    >>> c.status, c.holds_for, c.section["thickness"]
+    ('proved', "plates at least the section's thickness thick", 1.0)
+    """
+    from sieve_mi.certify.section import prove_section
+
+    settings = settings or Settings()
+    outcome, entry = prove_section(shape, union_of_holes(list(holes)), float(thickness),
+                                   budget_s, settings)  # fmt: skip
+    return result.with_section(outcome, entry)
+
+
+def thinnest_proved(result: Certification, shape: Shape, holes: list, low: float,
+                    budget_s: float, steps: int = 5) -> Certification:  # fmt: skip
+    """The thinnest plate (of a bisection between ``low`` and the shape's diameter) on which a
+    straight proof ``result`` is completed by a section proof.
+
+    ``low`` is tried first (a printable minimum); then the bisection, each step with an equal
+    share of the budget left. A section proof at t holds on every thicker plate (its band holds
+    more of the shape), so the bracket is sound.
+
+    Parameters
+    ----------
+    result : Certification
+        A proof by cells (``straight == "proved"``); a ball proof or anything else is returned
+        as it is.
+    shape : Shape
+    holes : list of manifold3d.CrossSection
+    low : float
+        The thinnest plate worth proving, scene units.
+    budget_s : float
+        Seconds for all steps.
+    steps : int
+        Bisection steps after ``low``.
+
+    Returns
+    -------
+    Certification
+        With :attr:`~Certification.section` the thinnest proved (the last tried when none was)
+        and ``section["bracket"]``: ``proved`` (the thinnest thickness proved, or None) and
+        ``unproved`` (the thickest tried that was not).
+    """
+    if result.straight != "proved" or result.method != "cells" or result.diameter is None:
+        return result
+    t0, best, unproved = time.perf_counter(), None, None
+    hi, lo = float(result.diameter), float(low)
+    tries = [lo] + [None] * steps
+    for k, t in enumerate(tries):
+        left = budget_s - (time.perf_counter() - t0)
+        if left < 0.5 or hi - lo <= 1e-3 * hi or (t is not None and t >= hi):
+            break
+        t = t if t is not None else round(0.5 * (lo + hi), 4)
+        c = thin_plate_proof(result, shape, holes, t, left / (len(tries) - k))
+        if c.section["status"] == "proved":
+            best, hi = c, t
+            if k == 0:
+                break
+        else:
+            unproved, lo = t, t
+    out = best or result
+    if out.section is not None:
+        out.section = {**out.section, "bracket": {"proved": hi if best else None,
+                                                  "unproved": unproved}}  # fmt: skip
+    return out
 
 
 def _certify(shape, holes, budget_s, settings, scale, use_symmetry) -> Certification:

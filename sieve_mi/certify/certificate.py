@@ -56,6 +56,7 @@ __all__ = [
     "FORMAT",
     "MAX_CERTIFICATE_BYTES",
     "REQUIRED",
+    "SECTION_PLATES",
     "build",
     "excluded_percent",
     "is_certificate",
@@ -72,6 +73,9 @@ FORMAT = "sieve-mi-certificate/1"
 ANY_PLATE = "any plate"
 #: ``holds_for`` of a cell-tree proof: the thick-plate argument (docs/certify.md, "The claim").
 THICK_PLATES = "plates at least the diameter thick"
+#: ``holds_for`` of a proof with a slab-section proof (``section``): plates at least the
+#: section's thickness thick (docs/certify.md, "Thin plates").
+SECTION_PLATES = "plates at least the section's thickness thick"
 
 
 def excluded_percent(fraction: float, complete: bool, digits: int = 2) -> str:
@@ -155,6 +159,10 @@ class Certification:
         plate, or a plate whose thickness could not be measured (then ``plate_note`` says why).
     plate_note : str
         Why the plate's thickness is unknown (empty otherwise).
+    section : dict or None
+        The slab-section proof tried on a plate thinner than the diameter (:meth:`with_section`):
+        ``status``, ``thickness``, ``pin``, ``seconds``, ``cells_examined``, ``cells_excluded``,
+        ``cells_open``; None when none was tried.
     """
 
     status: str
@@ -175,6 +183,7 @@ class Certification:
     diameter: float | None = None
     thickness: float | None = None
     plate_note: str = ""
+    section: dict | None = None
 
     @property
     def covers_plate(self) -> bool | None:
@@ -186,6 +195,9 @@ class Certification:
             return None
         if self.holds_for == ANY_PLATE:
             return True
+        if self.holds_for == SECTION_PLATES:
+            need = self.section["thickness"]
+            return self.thickness is not None and self.thickness + LENGTH_SLACK >= need
         return (
             self.thickness is not None
             and self.diameter is not None
@@ -213,12 +225,47 @@ class Certification:
         out.plate_note = "" if thickness is not None else (note or "thickness not measured")
         if out.straight is None:
             out.straight = self.status
-        if out.straight == "proved" and not out.covers_plate:
-            out.status = "undecided"
+        if out.straight == "proved":  # again "proved" on a plate a section proof covers
+            out.status = "proved" if out.covers_plate else "undecided"
         if self.certificate:
             out.certificate = {**self.certificate}
             out.certificate["plate"] = {**self.certificate.get("plate", {}),
                                         "thickness": out.thickness}  # fmt: skip
+        return out
+
+    def with_section(self, outcome, entry: dict) -> Certification:
+        """This answer completed by a slab-section proof (:mod:`sieve_mi.certify.section`).
+
+        A proved section at thickness t makes the claim hold on plates at least t thick
+        (:data:`SECTION_PLATES`), and the certificate carries the proof (``section``) for the
+        replay; an unproved one is only recorded in :attr:`section`.
+
+        Returns
+        -------
+        Certification
+            A copy; this one is not changed.
+        """
+        import copy
+
+        out = copy.copy(self)
+        out.section = {
+            "status": outcome.status,
+            "thickness": float(outcome.thickness),
+            "pin": [float(c) for c in outcome.pin],
+            "seconds": float(outcome.seconds),
+            "cells_examined": outcome.examined,
+            "cells_excluded": outcome.excluded,
+            "cells_open": outcome.open_cells,
+        }
+        out.seconds = self.seconds + float(outcome.seconds)
+        if outcome.status != "proved" or self.straight != "proved":
+            return out
+        out.holds_for = SECTION_PLATES
+        out.status = "proved" if out.thickness is None or out.covers_plate else "undecided"
+        if self.certificate:
+            out.certificate = {**self.certificate, "section": entry}
+            out.certificate["plate"] = {**self.certificate.get("plate", {}),
+                                        "holds_for": SECTION_PLATES}  # fmt: skip
         return out
 
     def excluded_percent(self, digits: int = 2) -> str:
@@ -236,6 +283,12 @@ class Certification:
             return (
                 "holds on a plate of any thickness (a ball inside the part is wider than any "
                 "disk in the hole)"
+            )
+        if self.holds_for == SECTION_PLATES:
+            t = self.section["thickness"]
+            return (
+                f"holds on plates at least {t:.4g} {units} thick, by any motion (the part's slab "
+                f"section about a pinned point never fits the hole; the part is {d} across)"
             )
         if self.holds_for != THICK_PLATES:
             return ""
@@ -276,6 +329,7 @@ class Certification:
             "thickness": self.thickness,
             "covers_plate": self.covers_plate,
             **({"plate_note": self.plate_note} if self.plate_note else {}),
+            **({"section": self.section} if self.section is not None else {}),
         }
 
     def write_certificate(self, path: str, inputs: tuple[str, ...] = ()) -> None:

@@ -86,6 +86,7 @@ class Replay:
         a = np.pi * np.arange(m) / m
         self.dirs = np.column_stack([np.cos(a), np.sin(a)])
         self.leaves = self.open = 0
+        self.section: float | None = None  # the thickness a replayed section proof covers
         self._edges = None
 
     def check_mesh(self) -> None:
@@ -381,6 +382,14 @@ def _run_checks(cert: dict) -> Replay:
             r.walk(node, face, np.full(3, -half), np.full(3, half))
     if cert["passage"]:
         r.check_passage(cert["passage"])
+    if cert.get("section") is not None:
+        from sieve_mi.certify.replay_section import SectionReplay
+
+        s = SectionReplay(cert["section"], r.vertices, r.faces, r.hole)
+        r.section = s.thickness if s.run() else None
+        r.errors += s.errors
+        if r.section is None and not s.errors:
+            r.errors.append(f"section: {s.open} open cells; the section is not proved")
     return r
 
 
@@ -415,6 +424,7 @@ def _status_errors(cert: dict, r: Replay) -> list[str]:
 
 #: What a claim covers (``plate.holds_for``; :func:`sieve_mi.certify.certificate.scope`).
 ANY_PLATE, THICK_PLATES = "any plate", "plates at least the diameter thick"
+SECTION_PLATES = "plates at least the section's thickness thick"
 #: Lengths within this many scene units count as equal (``geometry.plate.LENGTH_SLACK``).
 LENGTH_SLACK = 1e-6
 
@@ -443,6 +453,8 @@ def _plate_scope(cert: dict, r: Replay) -> tuple[dict, list[str]]:
     claim = cert["status"]
     holds = ANY_PLATE if claim == "passage" or (claim == "proved" and cert["root"]) else None
     holds = THICK_PLATES if claim == "proved" and not cert["root"] else holds
+    if holds == THICK_PLATES and r.section is not None:
+        holds = SECTION_PLATES  # a slab-section proof, re-proved here
     diameter = mesh_diameter(r.vertices[np.unique(r.faces)])
     plate, errors = cert.get("plate"), []
     thickness = plate.get("thickness") if plate else None
@@ -451,6 +463,8 @@ def _plate_scope(cert: dict, r: Replay) -> tuple[dict, list[str]]:
             why = {ANY_PLATE: "a ball proof or a passage holds on any plate",
                    THICK_PLATES: "a cell-tree proof holds only on plates at least the shape's "
                                  "diameter thick (a thinner one may let it through tilted)",
+                   SECTION_PLATES: "a section proof holds on plates at least section.thickness "
+                                   "thick",
                    None: "an undecided claim holds for nothing"}[holds]  # fmt: skip
             errors.append(f"plate.holds_for: claims {plate.get('holds_for')!r}, but {why}")
         d = plate.get("diameter")
@@ -458,6 +472,9 @@ def _plate_scope(cert: dict, r: Replay) -> tuple[dict, list[str]]:
             errors.append(f"plate.diameter: claims {d!r}, the mesh's is {diameter!r}")
     covers = None
     if thickness is not None and holds is not None:
-        covers = holds == ANY_PLATE or thickness + LENGTH_SLACK >= diameter
+        need = r.section if holds == SECTION_PLATES else diameter
+        covers = holds == ANY_PLATE or thickness + LENGTH_SLACK >= need
     info = {"holds_for": holds, "diameter": diameter, "thickness": thickness}
+    if holds == SECTION_PLATES:
+        info["section_thickness"] = r.section
     return {**info, "covers_plate": covers}, errors

@@ -37,6 +37,7 @@ __all__ = [
     "CellSearch",
     "Settings",
     "count_open",
+    "candidate_points",
     "farthest_points",
     "representative",
 ]
@@ -195,6 +196,27 @@ def edge_points(
     return pts, np.column_stack([edges[e], lam])
 
 
+def candidate_points(shape: Shape, settings: Settings, group: str) -> tuple[np.ndarray, dict]:
+    """The points evidence may use: the vertices, then edge points (on the edges the symmetry
+    group ``group`` maps onto edges, :data:`Settings.edge_spacing` apart, at most
+    ``max_candidates`` in all); and ``{index: [i, j, lam]}`` for the edge points.
+
+    Returns
+    -------
+    points : (k, 3) ndarray
+        Centred frame, scene units.
+    on_edge : dict
+    """
+    vertices = shape.vertices[np.unique(shape.faces)]
+    if settings.edge_spacing <= 0:
+        return vertices, {}
+    edges = symmetry.symmetric_edges(shape, group)
+    most = max(0, settings.max_candidates - len(vertices))
+    pts, refs = edge_points(shape, edges, settings.edge_spacing * shape.radius, most)
+    refs = {len(vertices) + k: [int(r[0]), int(r[1]), float(r[2])] for k, r in enumerate(refs)}
+    return np.concatenate([vertices, pts]), refs
+
+
 def farthest_points(vertices: np.ndarray, hull_idx: np.ndarray, count: int) -> list[int]:
     """``count`` hull vertex indices by farthest-point sampling, the farthest from the centre first."""
     pts = vertices[hull_idx]
@@ -321,7 +343,7 @@ class CellSearch:
 
     def __init__(self, shape: Shape, hole: manifold3d.CrossSection, settings: Settings, group: str):
         self.shape, self.hole, self.settings = shape, hole, settings
-        self.vertices, self.on_edge = self._candidates(shape, settings, group)
+        self.vertices, self.on_edge = candidate_points(shape, settings, group)
         self.lengths = np.linalg.norm(self.vertices, axis=1)
         self.segs = bounds.contour_segments([np.asarray(c) for c in hole.to_polygons()])
         scale = float(np.abs(self.segs).max())
@@ -336,19 +358,6 @@ class CellSearch:
         self.region = EvenOdd([np.asarray(c) for c in hole.to_polygons()])
         self.field = DistanceField(self.region, self.segs, 2.0 * shape.radius)
         self.lower: bounds.LowerDistance | None = None
-
-    @staticmethod
-    def _candidates(shape: Shape, settings: Settings, group: str) -> tuple[np.ndarray, dict]:
-        """The points evidence may use: the vertices, then edge points (on the edges the
-        symmetry group maps onto edges); and ``{index: [i, j, lam]}`` for the edge points."""
-        vertices = shape.vertices[np.unique(shape.faces)]
-        if settings.edge_spacing <= 0:
-            return vertices, {}
-        edges = symmetry.symmetric_edges(shape, group)
-        most = max(0, settings.max_candidates - len(vertices))
-        pts, refs = edge_points(shape, edges, settings.edge_spacing * shape.radius, most)
-        refs = {len(vertices) + k: [int(r[0]), int(r[1]), float(r[2])] for k, r in enumerate(refs)}
-        return np.concatenate([vertices, pts]), refs
 
     def _hull_indices(self) -> np.ndarray:
         hull = {tuple(p) for p in self.shape.hull}

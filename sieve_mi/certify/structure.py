@@ -125,6 +125,28 @@ def check_structure(cert: dict, where: str = "certificate") -> None:
         raise SieveError(f"{where}: settings.bound must be a string")
     _check_root_and_passage(cert, where)
     _check_plate(cert.get("plate"), where)
+    _check_section(cert.get("section"), len(vertices), where)
+
+
+def _check_section(section, n_vertices: int, where: str) -> None:
+    """``section`` (only with a slab-section proof): pin, thickness, band, kappa, points,
+    on_edge and a tree of six roots."""
+    if section is None:
+        return
+    if not isinstance(section, dict):
+        raise SieveError(f"{where}: section must be an object")
+    if not isinstance(section.get("status"), str):
+        raise SieveError(f"{where}: section.status must be a string")
+    _numbers(section.get("pin"), "section.pin", (3,), where)
+    for key in ("thickness", "band", "kappa"):
+        _positive(section.get(key), f"section.{key}", where)
+    _numbers(section.get("points"), "section.points", (-1, 3), where, allow_empty=True)
+    refs = section.get("on_edge")
+    if not isinstance(refs, list) or len(refs) != len(section["points"]):
+        raise SieveError(f"{where}: section.on_edge must be a list, one entry per point")
+    _check_on_edge(refs, n_vertices, where, "section.on_edge")
+    if not isinstance(section.get("tree"), list) or len(section["tree"]) != 6:
+        raise SieveError(f"{where}: section.tree must be a list of 6 nodes (the cube's faces)")
 
 
 def _check_plate(plate, where: str) -> None:
@@ -162,11 +184,11 @@ def _check_root_and_passage(cert: dict, where: str) -> None:
             raise SieveError(f"{where}: passage.quaternion is zero, not a rotation")
 
 
-def _check_on_edge(refs, n_vertices: int, where: str) -> None:
+def _check_on_edge(refs, n_vertices: int, where: str, key: str = "shape.on_edge") -> None:
     if refs is None:
         return
     if not isinstance(refs, list):
-        raise SieveError(f"{where}: shape.on_edge must be a list")
+        raise SieveError(f"{where}: {key} must be a list")
     for k, ref in enumerate(refs):
         if ref is None:
             continue
@@ -176,7 +198,7 @@ def _check_on_edge(refs, n_vertices: int, where: str) -> None:
         ok = ok and isinstance(ref[2], (int, float)) and abs(ref[2]) <= MAX_COORDINATE
         if not ok:
             raise SieveError(
-                f"{where}: shape.on_edge[{k}] must be null or [i, j, lam] with vertex indices i, j"
+                f"{where}: {key}[{k}] must be null or [i, j, lam] with vertex indices i, j"
             )
 
 

@@ -1,0 +1,607 @@
+"""The slab-section proof: no rigid motion carries a shape through a plate of a given thickness.
+
+Fix a point p of the shape's convex hull (the *pin*). A motion that carries the shape from wholly
+above a plate of thickness t to wholly below carries p through the plate's mid-plane, and at that
+moment every point of the shape strictly inside the plate's slab must lie inside the hole's prism:
+the projection of the shape's *slab section* (its points within t/2 above or below p) must fit H.
+So if no rotation and no horizontal offset makes that section's projection fit H, the shape cannot
+pass a plate of thickness t by any rigid motion (nor a thicker one: its band holds more points).
+With t at least the shape's diameter the section is the whole shape (the thick-plate theorem);
+a ball around p gives the ball argument.
+
+Which points are in the band depends only on the direction n that the rotation turns to the
+vertical (n = R^T e_z, in the shape's own frame); the rest of the rotation is a turn about the
+vertical. The search is a branch and bound over n on the sphere (:class:`SphereCells`: quadtree
+cells on the six faces of the cube, each covered by a cap of angle alpha about its centre
+direction), with v = q - p for every candidate point q of the shape (vertices and points on mesh
+edges):
+
+* v is in the band for every n of the cell if |n_c . v| + 2 sin(alpha / 2) |v| < t / 2;
+* its position in the plane (coordinates x along a frame of the plane normal to n_c) moves by at
+  most r = 2 sin(alpha / 2) |v| over the cell, before the free turn and offset.
+
+A cell is excluded by a test that holds for every turn and offset (docs/certify.md, "Thin
+plates"):
+
+``diameter``
+    two band points i, j with |x_i - x_j| - r_i - r_j > diam(H): the section is wider than any
+    two points of H are apart;
+``width``
+    band points whose convex hull's minimal width, less twice their largest r, exceeds the
+    minimal width of H's convex hull;
+``turns``
+    a one-dimensional branch and bound over the turn psi: each interval of turns is excluded when
+    no offset puts every chosen point within its bound (r plus the turn's displacement
+    2 sin(delta / 2) |x|) of H (:func:`~sieve_mi.certify.bounds.translations_left`).
+
+The certificate's ``section`` entry records the pin, thickness, band, points and the tree; the
+replay (:mod:`sieve_mi.certify.replay_section`) re-proves every leaf with its own geometry.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import manifold3d
+import numpy as np
+
+from sieve_mi.certify import bounds
+from sieve_mi.geometry.meshes import Shape
+
+__all__ = [
+    "FACES",
+    "SectionOutcome",
+    "SectionSearch",
+    "Plane",
+    "SECTION_CANDIDATES",
+    "SphereCells",
+    "caps",
+    "certificate_entry",
+    "pins",
+    "prove_section",
+    "hull_widths",
+    "min_width",
+    "plane_frames",
+    "sphere_roots",
+]
+
+#: Faces of the cube whose quadtree cells tile the sphere of directions: (axis, sign).
+FACES = ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0))
+#: Added to every cap angle (radians): covers rounding in the corner angles.
+ANGLE_MARGIN = 1e-12
+#: Relative margin on every displacement bound and band test (rounding).
+RELATIVE_MARGIN = 1e-9
+#: Directions of the batched diameter test, over a half circle.
+DIAMETER_DIRECTIONS = 16
+#: Points of a cell's width and turn tests: those extreme along these many directions (x2).
+EXTREME_DIRECTIONS = 12
+#: Levels of the turn search: intervals of 2 pi / 8 halved this many times at most.
+TURN_DEPTH = 6
+#: Most candidate points of a section search (vertices first, then points on edges).
+SECTION_CANDIDATES = 6000
+#: Cells of one batched level processed at once (memory: cells x points x 16 floats).
+CHUNK = 2048
+
+
+@dataclass
+class SphereCells:
+    """A batch of cells of directions: squares ``[lo, hi]`` on faces of the cube [-1, 1]^3.
+
+    Attributes
+    ----------
+    face : (n,) int ndarray
+        Index into :data:`FACES`.
+    lo, hi : (n, 2) float ndarray
+        The square's corners in the face's two other coordinates (in increasing axis order).
+    """
+
+    face: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def __len__(self) -> int:
+        return int(len(self.face))
+
+    def take(self, idx) -> SphereCells:
+        """The cells at ``idx`` (index array or boolean mask)."""
+        return SphereCells(self.face[idx], self.lo[idx], self.hi[idx])
+
+    def split(self) -> SphereCells:
+        """The four quadrants of every cell, grouped per parent (child c takes the upper half of
+        coordinate j iff bit (1 - j) of c is set)."""
+        mid = 0.5 * (self.lo + self.hi)
+        bits = np.array([[(c >> 1) & 1, c & 1] for c in range(4)], dtype=bool)
+        lo = np.where(bits[None], mid[:, None], self.lo[:, None]).reshape(-1, 2)
+        hi = np.where(bits[None], self.hi[:, None], mid[:, None]).reshape(-1, 2)
+        return SphereCells(np.repeat(self.face, 4), lo, hi)
+
+
+def sphere_roots() -> SphereCells:
+    """One cell per cube face, the square [-1, 1]^2."""
+    n = len(FACES)
+    return SphereCells(np.arange(n), np.full((n, 2), -1.0), np.full((n, 2), 1.0))
+
+
+def _on_cube(face: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Unit directions of points ``uv`` (n, ..., 2) on the cube faces ``face`` (n,)."""
+    axis = np.array([FACES[f][0] for f in face])
+    sign = np.array([FACES[f][1] for f in face])
+    out = np.empty(uv.shape[:-1] + (3,))
+    for a in range(3):
+        sel = axis == a
+        others = [k for k in range(3) if k != a]
+        out[sel, ..., a] = sign[sel].reshape((-1,) + (1,) * (uv.ndim - 2))
+        out[sel, ..., others[0]] = uv[sel, ..., 0]
+        out[sel, ..., others[1]] = uv[sel, ..., 1]
+    return out / np.linalg.norm(out, axis=-1, keepdims=True)
+
+
+def caps(cells: SphereCells) -> tuple[np.ndarray, np.ndarray]:
+    """Centre directions and cap angles of the cells.
+
+    The angle from the centre direction is largest at a corner of the square (the set of
+    directions within an angle a < pi / 2 of n_c is a convex cone, so its preimage on the face is
+    convex); it is computed as 2 asin(|n_c - n_k| / 2) over the four corners, plus
+    :data:`ANGLE_MARGIN`.
+
+    Returns
+    -------
+    centre : (n, 3) ndarray
+        Unit directions.
+    alpha : (n,) ndarray
+        Radians.
+    """
+    centre = _on_cube(cells.face, 0.5 * (cells.lo + cells.hi))
+    corners = np.stack(
+        [
+            np.where(np.array([(c >> 1) & 1, c & 1], dtype=bool), cells.hi, cells.lo)
+            for c in range(4)
+        ],
+        axis=1,
+    )
+    n_k = _on_cube(cells.face, corners)
+    chord = np.linalg.norm(n_k - centre[:, None], axis=-1).max(axis=1)
+    return centre, 2.0 * np.arcsin(np.minimum(1.0, 0.5 * chord)) + ANGLE_MARGIN
+
+
+def plane_frames(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal vectors (e1, e2) spanning the planes normal to the unit vectors ``normal``
+    (n, 3); each (n, 3)."""
+    helper = np.where(
+        (np.abs(normal[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    )
+    e1 = np.cross(helper, normal)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    return e1, np.cross(normal, e1)
+
+
+def min_width(points: np.ndarray) -> float:
+    """The minimal width of the convex hull of planar points (rotating calipers), scene units.
+
+    The minimal width of a convex polygon is attained with a side of the polygon on one of the
+    two supporting lines, so it is the least, over the hull's edges, of the largest distance of a
+    hull vertex from the edge's line. Fewer than three points, or collinear ones: 0.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> round(min_width(np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 1.0], [0.0, 1.0]])), 12)
+    1.0
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    p = np.asarray(points, dtype=np.float64)
+    if len(p) < 3:
+        return 0.0
+    try:
+        h = p[ConvexHull(p).vertices]
+    except (QhullError, ValueError):
+        return 0.0
+    a, b = h, np.roll(h, -1, axis=0)
+    d = b - a
+    length = np.linalg.norm(d, axis=1)
+    ok = length > 0
+    cross = d[ok, None, 0] * (h[None, :, 1] - a[ok, None, 1]) - d[ok, None, 1] * (
+        h[None, :, 0] - a[ok, None, 0]
+    )
+    return float((np.abs(cross).max(axis=1) / length[ok]).min()) if ok.any() else 0.0
+
+
+def hull_widths(contours: list[np.ndarray]) -> tuple[float, float]:
+    """H's diameter (largest distance between two of its points) and the minimal width of its
+    convex hull, scene units (both exact up to rounding)."""
+    v = np.concatenate([np.asarray(c, dtype=np.float64) for c in contours])
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        v = v[ConvexHull(v).vertices]
+    except (QhullError, ValueError):
+        pass
+    diam = math.sqrt(float(((v[:, None] - v[None]) ** 2).sum(-1).max()))
+    return diam, min_width(v)
+
+
+@dataclass
+class Node:
+    """A cell of the tree over directions: a leaf with evidence, split (4 children) or open."""
+
+    evidence: dict | None = None
+    children: list | None = None
+
+    def to_dict(self) -> dict:
+        """The certificate's node: ``{"e": ...}``, ``{"c": [4 nodes]}`` or ``{"open": true}``."""
+        if self.children:
+            return {"c": [c.to_dict() for c in self.children]}
+        return {"e": self.evidence} if self.evidence is not None else {"open": True}
+
+
+@dataclass
+class SectionOutcome:
+    """What the section search found.
+
+    Attributes
+    ----------
+    status : {"proved", "undecided"}
+    pin : (3,) ndarray
+        The pinned point, in the shape's centred frame, scene units.
+    thickness : float
+        The plate's thickness proved (or tried), scene units.
+    roots : list of Node
+        One per cube face.
+    points : list of int
+        Indices into the candidates of the points the evidence uses.
+    examined, excluded, open_cells, depth : int
+    seconds : float
+    """
+
+    status: str
+    pin: np.ndarray
+    thickness: float
+    roots: list
+    points: set = field(default_factory=set)
+    examined: int = 0
+    excluded: int = 0
+    open_cells: int = 0
+    depth: int = 0
+    seconds: float = 0.0
+
+
+class Plane:
+    """The band points of a chunk of cells, their plane coordinates and displacement bounds.
+
+    For a cell with centre direction n_c and cap angle alpha, and v = q - p:
+
+    * v is in the band for every direction n of the cap if |n_c . v| + 2 sin(alpha / 2) |v| is
+      below the half-thickness (|n . v - n_c . v| <= |n - n_c| |v|);
+    * its plane coordinates x = (e1 . v, e2 . v) move by at most
+      r = 2 (1 - cos alpha) |v| + sin(alpha) |n_c . v| (the rotation S taking n to n_c turns
+      by beta <= alpha about an axis a normal to n_c, and the part of S v - v in the plane is
+      (cos beta - 1) P v + sin beta (n_c . v) (a x n_c) + (1 - cos beta)(a . v) a; docs/certify.md).
+
+    Attributes
+    ----------
+    centre : (n, 3) ndarray
+    chord : (n,) ndarray
+        2 sin(alpha / 2) per cell.
+    rows, cols : (P,) int ndarray
+        The (cell, point) pairs in the band, by cell.
+    x : (P, 2) ndarray
+    r : (P,) ndarray
+    """
+
+    def __init__(self, centre, alpha, v, lengths, band: float, eta: float):
+        self.centre, self.chord = centre, 2.0 * np.sin(0.5 * alpha)
+        z = centre @ v.T
+        usable = np.abs(z) + self.chord[:, None] * lengths[None] * (1 + RELATIVE_MARGIN) < (
+            band * (1 - RELATIVE_MARGIN) - eta
+        )
+        self.rows, self.cols = np.nonzero(usable)
+        e1, e2 = plane_frames(centre)
+        vk, zk = v[self.cols], z[self.rows, self.cols]
+        self.x = np.column_stack([(e1[self.rows] * vk).sum(1), (e2[self.rows] * vk).sum(1)])
+        a = alpha[self.rows]
+        second = 2.0 * (1.0 - np.cos(a)) * lengths[self.cols] + np.sin(a) * np.abs(zk)
+        self.r = second * (1 + RELATIVE_MARGIN) + eta
+        self.starts = np.searchsorted(self.rows, np.arange(len(centre) + 1))
+
+    def cell(self, c: int):
+        """Cell ``c``'s band points: candidate indices, x (k, 2), r (k,)."""
+        sl = slice(self.starts[c], self.starts[c + 1])
+        return self.cols[sl], self.x[sl], self.r[sl]
+
+    def widest(self, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per cell, the pair of band points furthest apart along one of ``dirs`` (m, 2) after
+        their bounds, and its proved gap |x_i - x_j| - r_i - r_j (-inf without two points).
+
+        Returns
+        -------
+        pair : (n, 2) int ndarray
+            Candidate indices.
+        gap : (n,) ndarray
+        """
+        n = len(self.centre)
+        pair, gap = np.zeros((n, 2), dtype=np.int64), np.full(n, -np.inf)
+        have = np.flatnonzero(np.diff(self.starts) >= 2)
+        if not len(have):
+            return pair, gap
+        s = self.x @ dirs.T
+        hi = _segment_arg(s - self.r[:, None], self.starts, have, np.argmax)
+        lo = _segment_arg(s + self.r[:, None], self.starts, have, np.argmin)
+        d = np.linalg.norm(self.x[hi] - self.x[lo], axis=-1) - self.r[hi] - self.r[lo]
+        best = d.argmax(axis=1)
+        k = np.arange(len(have))
+        pair[have] = np.column_stack([self.cols[hi[k, best]], self.cols[lo[k, best]]])
+        gap[have] = d[k, best]
+        return pair, gap
+
+
+def _segment_arg(values: np.ndarray, starts: np.ndarray, cells: np.ndarray, arg) -> np.ndarray:
+    """Per cell in ``cells`` and column, the row index (into ``values``) of ``arg`` over the
+    cell's rows ``starts[c]:starts[c + 1]``; (len(cells), m) int."""
+    out = np.empty((len(cells), values.shape[1]), dtype=np.int64)
+    for k, c in enumerate(cells):
+        out[k] = starts[c] + arg(values[starts[c] : starts[c + 1]], axis=0)
+    return out
+
+
+class SectionSearch:
+    """The branch and bound over directions for one shape, pin and thickness against H.
+
+    Parameters
+    ----------
+    candidates : (k, 3) ndarray
+        Points of the shape (vertices and points on mesh edges), centred frame, scene units.
+    hole : manifold3d.CrossSection
+        H (the union of the plate's holes), scene units.
+    radius : float
+        The shape's radius (largest |q| of a vertex), scene units: scales the slack.
+    kappa : float
+        Slack of the turn test, as certify's :class:`~sieve_mi.certify.search.Settings`.
+    """
+
+    def __init__(self, candidates: np.ndarray, hole: manifold3d.CrossSection, radius: float,
+                 kappa: float = 0.02):  # fmt: skip
+        self.candidates = np.asarray(candidates, dtype=np.float64)
+        self.hole, self.radius, self.kappa = hole, float(radius), float(kappa)
+        contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
+        self.diameter, self.width = hull_widths(contours)
+        segs = bounds.contour_segments(contours)
+        self.eta = 1e-6 * max(float(np.abs(segs).max()), self.radius)
+        self.cache = bounds.OffsetCache(hole, self.eta, r_min=self.eta)
+        a = np.pi * np.arange(DIAMETER_DIRECTIONS) / DIAMETER_DIRECTIONS
+        self.dirs = np.column_stack([np.cos(a), np.sin(a)])
+        b = 2 * np.pi * np.arange(EXTREME_DIRECTIONS) / EXTREME_DIRECTIONS
+        self.extreme_dirs = np.column_stack([np.cos(b), np.sin(b)])
+
+    def run(self, pin, thickness: float, budget_s: float, min_angle: float = 2e-3):
+        """Prove every direction excluded, or stop at the budget or at cells below ``min_angle``.
+
+        Returns
+        -------
+        SectionOutcome
+        """
+        t0 = time.perf_counter()
+        pin = np.asarray(pin, dtype=np.float64)
+        v = self.candidates - pin
+        lengths = np.linalg.norm(v, axis=1)
+        band = 0.5 * float(thickness)
+        level = sphere_roots()
+        nodes = [Node() for _ in range(len(level))]
+        out = SectionOutcome("undecided", pin, float(thickness), list(nodes))
+        while len(level):
+            out.depth += 1
+            verdicts = self._level(level, v, lengths, band, t0, budget_s)
+            if verdicts is None:
+                break
+            split = []
+            for i, (node, ev) in enumerate(zip(nodes, verdicts)):
+                out.examined += 1
+                if ev is not None:
+                    node.evidence = ev
+                    out.excluded += 1
+                    out.points.update(_evidence_points(ev))
+                elif 0.5 * float(np.max(level.hi[i] - level.lo[i])) > min_angle:
+                    split.append(i)
+            level, nodes = self._split(level, nodes, split)
+        out.open_cells = sum(_count_open(n) for n in out.roots)
+        out.status = "proved" if out.open_cells == 0 and len(level) == 0 else "undecided"
+        out.seconds = time.perf_counter() - t0
+        return out
+
+    @staticmethod
+    def _split(level: SphereCells, nodes: list, split: list):
+        if not split:
+            return level.take(np.zeros(0, dtype=np.int64)), []
+        kids = level.take(np.asarray(split)).split()
+        out = []
+        for i in split:
+            nodes[i].children = [Node() for _ in range(4)]
+            out += nodes[i].children
+        return kids, out
+
+    def _level(self, level: SphereCells, v, lengths, band, t0, budget_s):
+        """Evidence (or None) for every cell of a level; None for the whole level when the
+        budget ran out."""
+        centre, alpha = caps(level)
+        out = []
+        for s in range(0, len(level), CHUNK):
+            if time.perf_counter() - t0 > budget_s:
+                return None
+            sl = slice(s, s + CHUNK)
+            out += self._chunk(Plane(centre[sl], alpha[sl], v, lengths, band, self.eta), t0,
+                               budget_s)  # fmt: skip
+        return out
+
+    def _chunk(self, plane: Plane, t0: float, budget_s: float) -> list:
+        """Per cell of a chunk: the diameter test batched, then width and turns one by one."""
+        pair, gap = plane.widest(self.dirs)
+        out = []
+        for c in range(len(plane.centre)):
+            if gap[c] > self.diameter * (1 + RELATIVE_MARGIN) + self.eta:
+                out.append({"kind": "diameter", "pair": pair[c].tolist()})
+            elif time.perf_counter() - t0 > budget_s:
+                out.append(None)
+            else:
+                pts, x, r = plane.cell(c)
+                near = gap[c] > self.diameter - 8.0 * float(r.max(initial=0.0))
+                out.append(None if near else self._narrow(pts, x, r, plane.chord[c]))
+        return out
+
+    def _narrow(self, pts, x, r, chord: float) -> dict | None:
+        """The width test, then the turn search, on the cell's band points extreme along
+        :data:`EXTREME_DIRECTIONS` directions (``pts`` their indices, ``x`` (k, 2), ``r`` (k,))."""
+        if len(pts) < 2:
+            return None
+        keep = np.unique((x @ self.extreme_dirs.T - r[:, None]).argmax(axis=0))
+        pts, x, r = pts[keep], x[keep], r[keep]
+        w = min_width(x) - 2.0 * float(r.max())
+        if w > self.width * (1 + RELATIVE_MARGIN) + self.eta:
+            return {"kind": "width", "points": pts.tolist()}
+        slack = self.kappa * self.radius * chord
+        turns = self._turns(x, r + slack)
+        if turns is None:
+            return None
+        return {"kind": "turns", "points": pts.tolist(), "slack": slack, "turns": turns}
+
+    def _turns(self, x, r) -> dict | None:
+        """The turn tree: intervals of psi (eight of 2 pi / 8 at the root, halved), each excluded
+        by the translation test; None when an interval is left at :data:`TURN_DEPTH`."""
+        lengths = np.linalg.norm(x, axis=1)
+
+        def decide(lo: float, hi: float, depth: int):
+            mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+            c, s = math.cos(mid), math.sin(mid)
+            placed = x @ np.array([[c, s], [-s, c]])
+            grow = 2.0 * math.sin(0.5 * half) * lengths * (1 + RELATIVE_MARGIN)
+            if bounds.translations_left(self.cache, placed, r + grow).is_empty():
+                return {"e": True}
+            if depth >= TURN_DEPTH:
+                return None
+            first = decide(lo, mid, depth + 1)
+            second = None if first is None else decide(mid, hi, depth + 1)
+            return None if second is None else {"c": [first, second]}
+
+        step = 2.0 * math.pi / 8
+        roots = []
+        for k in range(8):
+            roots.append(decide(k * step, (k + 1) * step, 0))
+            if roots[-1] is None:
+                return None
+        return {"roots": roots}
+
+
+def _evidence_points(ev: dict) -> list:
+    return ev["pair"] if ev["kind"] == "diameter" else ev["points"]
+
+
+def _count_open(node: Node) -> int:
+    if node.children:
+        return sum(_count_open(c) for c in node.children)
+    return int(node.evidence is None)
+
+
+def pins(shape: Shape) -> list[np.ndarray]:
+    """Points of the shape's convex hull to pin, best first: the centre of its frame (where the
+    mesh is centred), the centroid of its convex hull, the centre of its inscribed ball; those
+    outside the hull (up to rounding) or within 1 % of its radius of an earlier one are left out.
+
+    Returns
+    -------
+    list of (3,) ndarray
+        Centred frame, scene units.
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        hull = ConvexHull(shape.hull)
+    except (QhullError, ValueError):  # a flat shape: its centre only
+        return [np.zeros(3)]
+    found = [np.zeros(3), shape.hull[hull.vertices].mean(axis=0)]
+    ball = bounds.inscribed_ball(shape)
+    if ball is not None:
+        found.append(np.asarray(ball[0], dtype=np.float64))
+    out: list[np.ndarray] = []
+    tol = 1e-9 * max(shape.radius, 1e-300)
+    for p in found:
+        inside = float((hull.equations[:, :3] @ p + hull.equations[:, 3]).max()) <= -tol
+        fresh = all(np.linalg.norm(p - q) > 0.01 * shape.radius for q in out)
+        if inside and fresh:
+            out.append(p)
+    return out or [np.zeros(3)]
+
+
+def prove_section(shape: Shape, hole: manifold3d.CrossSection, thickness: float, budget_s: float,
+                  settings) -> tuple[SectionOutcome, dict]:  # fmt: skip
+    """The section proof at ``thickness`` (module docstring), over :func:`pins` in turn, each
+    with an equal share of what is left of ``budget_s``.
+
+    Parameters
+    ----------
+    shape : Shape
+    hole : manifold3d.CrossSection
+        The union of the plate's holes, scene units.
+    thickness : float
+        Scene units.
+    budget_s : float
+        Seconds for all pins together.
+    settings : sieve_mi.certify.search.Settings
+        ``edge_spacing``, ``max_candidates``, ``min_angle`` (floored at 1e-3 here) and
+        ``kappa``.
+
+    Returns
+    -------
+    (SectionOutcome, dict)
+        The last outcome (the proved one, if any) and its certificate entry (see
+        :mod:`sieve_mi.certify.certificate`).
+    """
+    from sieve_mi.certify.search import candidate_points
+
+    t0 = time.perf_counter()
+    most = min(settings.max_candidates, SECTION_CANDIDATES)
+    points, on_edge = candidate_points(
+        shape, type(settings)(**{**settings.__dict__, "max_candidates": most}), "none"
+    )
+    search = SectionSearch(points, hole, shape.radius, settings.kappa)
+    todo = pins(shape)
+    out = None
+    for k, pin in enumerate(todo):
+        left = budget_s - (time.perf_counter() - t0)
+        if left <= 0:
+            break
+        out = search.run(pin, thickness, left / (len(todo) - k), max(settings.min_angle, 1e-3))
+        if out.status == "proved":
+            break
+    if out is None:
+        out = SectionOutcome("undecided", todo[0], float(thickness), [Node()] * len(FACES))
+    out.seconds = time.perf_counter() - t0
+    return out, certificate_entry(out, points, on_edge, settings.kappa)
+
+
+def certificate_entry(out: SectionOutcome, points: np.ndarray, on_edge: dict, kappa: float) -> dict:
+    """The certificate's ``section`` entry: pin, thickness, band, the points the evidence uses
+    (renumbered), where they lie on the mesh, and the tree over directions."""
+    used = sorted(out.points)
+    renumber = {old: new for new, old in enumerate(used)}
+
+    def renum(node: dict) -> dict:
+        if "c" in node:
+            return {"c": [renum(c) for c in node["c"]]}
+        if "e" not in node:
+            return node
+        e = dict(node["e"])
+        key = "pair" if e["kind"] == "diameter" else "points"
+        e[key] = [renumber[p] for p in e[key]]
+        return {"e": e}
+
+    return {
+        "status": out.status,
+        "pin": [float(c) for c in out.pin],
+        "thickness": float(out.thickness),
+        "band": 0.5 * float(out.thickness),
+        "kappa": float(kappa),
+        "points": points[used].tolist(),
+        "on_edge": [on_edge.get(u) for u in used],
+        "tree": [renum(n.to_dict()) for n in out.roots],
+    }
