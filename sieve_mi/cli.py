@@ -9,7 +9,6 @@ import os
 import signal
 import sys
 import threading
-import time
 
 from sieve_mi.errors import (
     EXIT_BAD_INPUT,
@@ -153,10 +152,11 @@ def _certify_parser(sub) -> None:
 
 def cmd_solve(args) -> int:
     from sieve_mi import api as sm
-    from sieve_mi.backend import process_age
+    from sieve_mi.game.solver import solve as play
     from sieve_mi.outputs.console import summary_table
     from sieve_mi.outputs.outdir import validate
     from sieve_mi.outputs.report import input_paths
+    from sieve_mi.telemetry import Run
 
     scene = sm.load_scene(args.scene)
     out_dir = args.out or os.path.join("out", scene.name)
@@ -165,12 +165,12 @@ def cmd_solve(args) -> int:
     from sieve_mi.shake.commands import shake_after_solve, solve_shake_settings
 
     shake = solve_shake_settings(args.shake)
-    before, startup = time.perf_counter(), process_age()
-    result = sm.solve(scene, variant=args.variant, seed=args.seed, progress=not args.quiet)
-    if startup is not None and result.started is not None:
-        # The times count from the process's start: Python, imports and reading the scene first.
-        result.timings = {"startup_s": startup + (result.started - before), **result.timings}
-        result.started = before - startup
+    # sm.solve's game, with a record whose times count from the process's start (Python, the
+    # imports and reading the scene are "startup"); sm.solve's checks of the arguments ran above.
+    run = Run.from_process_start()
+    result = sm.Result.of(
+        play(scene, variant=args.variant, seed=args.seed, progress=not args.quiet, run=run)
+    )
     report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
     if args.json:  # report.json's content, for scripts (jq); everything else on stderr
         import json

@@ -5,7 +5,8 @@ Usage: python tools/layering.py [--graph]; exit status 1 when a rule is broken (
 Every import counts, at module level or inside a function. The units of the floor plan, bottom
 to top (a unit may import only units below it, or modules of its own):
 
-    _version < errors < settings < options < parsing < backend < workers < optim < geometry < objectives < scene < authors_config
+    _version < errors < settings < options < parsing < backend < telemetry < workers < optim
+    < geometry < objectives < scene < authors_config
     < certify < motion < game < outputs < api < shake < cascade < testing < cli < __main__
     < __init__
 
@@ -34,6 +35,7 @@ UNITS = (
     "options",
     "parsing",
     "backend",
+    "telemetry",
     "workers",
     "optim",
     "geometry",

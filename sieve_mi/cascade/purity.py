@@ -18,7 +18,6 @@ fractions on the sieves above times its block fraction on sieve k (the counts te
 from __future__ import annotations
 
 import os
-import time
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -29,6 +28,7 @@ from sieve_mi.shake.geometry import part_from_mesh, plate_from_mesh
 from sieve_mi.shake.run import Progress, engine_doc, motion_doc, shape_entry
 from sieve_mi.shake.settings import ShakeSettings, metres_per_unit
 from sieve_mi.shake.stats import wilson
+from sieve_mi.telemetry import Run
 
 __all__ = [
     "MODEL",
@@ -171,27 +171,26 @@ def shake_cascade(
         ``geometry``, ``warnings``), ``trays`` (``parts`` landing there, ``purity``), ``fidelity_ok``,
         ``timings`` (seconds).
     """
-    unit_m, t0 = metres_per_unit(units), time.perf_counter()
-    parts = {n: part_from_mesh(m, n, None, settings.coacd_threshold) for n, m in meshes.items()}
-    timings = {"geometry_s": time.perf_counter() - t0}
+    unit_m, run = metres_per_unit(units), Run().start()
+    with run.stage("geometry"):
+        parts = {n: part_from_mesh(m, n, None, settings.coacd_threshold) for n, m in meshes.items()}
     reaching = {n: list(range(settings.trials)) for n in parts}
     ends = {n: np.full(settings.trials, len(stages)) for n in parts}
     sieves = []
     for k, stage in enumerate(stages):
-        t1 = time.perf_counter()
-        sieve, passed = _shake_sieve(k, stage, parts, reaching, settings, unit_m, progress)
-        for n in parts:
-            ends[n][sorted(set(reaching[n]) - set(passed[n]))] = k
-        sieves.append(sieve)
-        reaching = passed
-        timings[f"sieve_{k}_s"] = time.perf_counter() - t1
+        with run.stage(f"sieve_{k}"):
+            sieve, passed = _shake_sieve(k, stage, parts, reaching, settings, unit_m, progress)
+            for n in parts:
+                ends[n][sorted(set(reaching[n]) - set(passed[n]))] = k
+            sieves.append(sieve)
+            reaching = passed
     belongs = {n: len(stages) for n in parts}
     belongs.update({n: k for k, s in enumerate(stages) for n in s.holds})
     shapes, trays = _tray_rows(list(parts), ends, belongs, len(stages) + 1, settings.trials)
     for row in shapes:
         part = parts[row["name"]]
         row.update(geometry=part.to_dict(), warnings=list(part.warnings))
-    timings["total_s"] = time.perf_counter() - t0
+    run.timings["total_s"] = run.elapsed()
     return {
         "model": MODEL,
         "trials": settings.trials,
@@ -210,7 +209,7 @@ def shake_cascade(
                 for w in r.get("warnings", [])
             )
         ),
-        "timings": timings,
+        "timings": run.timings,
     }
 
 

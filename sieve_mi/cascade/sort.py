@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import time
 
 import numpy as np
 
@@ -32,6 +31,7 @@ from sieve_mi.cascade.stages import FULL, SCREEN, screening_tables, worth_screen
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.provenance import sha256
 from sieve_mi.shake.settings import ShakeSettings
+from sieve_mi.telemetry import Run
 
 __all__ = ["prepare", "rules_for", "sort_mixture"]
 
@@ -118,15 +118,15 @@ def sort_mixture(
         Then shake each sieve with the parts that reach it, ``shake.trials`` parts per shape
         (:mod:`sieve_mi.cascade.purity`), into ``cascade.json``'s ``shake``.
     """
-    t0 = time.perf_counter()
-    inputs = [mixture.path] + [mixture.resolve(e.mesh) for e in mixture.shapes]
-    outdir.validate(out_dir, inputs=inputs)
-    settings = (engine or EngineSettings()).resolved()
-    seed = mixture.tables["solver"].seed if seed is None else seed
-    digests, shapes, icons, bodies = prepare(mixture)
-    order = [r["name"] for r in sorted(shapes, key=lambda r: (-r["passage_radius"], r["name"]))]
-    rules = rules_for(mixture, bodies)
-    measured = time.perf_counter() - t0
+    run = Run().start()
+    with run.stage("measure"):  # the rules' time included
+        inputs = [mixture.path] + [mixture.resolve(e.mesh) for e in mixture.shapes]
+        outdir.validate(out_dir, inputs=inputs)
+        settings = (engine or EngineSettings()).resolved()
+        seed = mixture.tables["solver"].seed if seed is None else seed
+        digests, shapes, icons, bodies = prepare(mixture)
+        order = [r["name"] for r in sorted(shapes, key=lambda r: (-r["passage_radius"], r["name"]))]
+        rules = rules_for(mixture, bodies)
     make_spec, screen_spec = _spec_makers(mixture, seed, settings.variant, digests)
     with Engine(out_dir, settings) as games:
         plan = plan_cascade(
@@ -146,9 +146,9 @@ def sort_mixture(
         games=_games(games.records),
         runner=games.info(),
         timings={
-            "measure_s": round(measured, 3),
+            "measure_s": round(run.timings["measure_s"], 3),
             "rules_s": round(rules.seconds, 3),
-            "total_s": round(time.perf_counter() - t0, 3),
+            "total_s": round(run.elapsed(), 3),
         },
     )
     report["rules"] = {"grow": rules.grow, "ruled_out": rules.table()}

@@ -10,13 +10,13 @@ from __future__ import annotations
 import copy
 import os
 import shutil
-import time
 
 from sieve_mi.cascade.games import Engine, EngineSettings, GameSpec, game_key, weakest
 from sieve_mi.cascade.outputs import copy_games, write_json
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.provenance import sha256
 from sieve_mi.scene import Scene
+from sieve_mi.telemetry import Run
 
 __all__ = ["margin", "sweep_scene", "sweep_table"]
 
@@ -75,7 +75,7 @@ def sweep_scene(
     dict
         ``sweep.json``.
     """
-    t0 = time.perf_counter()
+    run = Run().start()
     inputs = [scene.path] + [
         scene.resolve(e.mesh) for e in scene.passes + scene.blocks if e.data is None
     ]
@@ -93,7 +93,7 @@ def sweep_scene(
         "runs": [{k: v for k, v in r.items() if k != "rank"} for r in runs],
         "best": {k: v for k, v in best.items() if k != "rank"},
         "runner": games.info(),
-        "timings": {"total_s": round(time.perf_counter() - t0, 3)},
+        "timings": {"total_s": round(run.elapsed(), 3)},
     }
     with outdir.writing(out_dir, command="sweep", inputs=inputs) as tmp:
         copy_games(games.folders(), tmp)

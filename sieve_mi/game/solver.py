@@ -7,7 +7,6 @@ re-runs player B for longer against the chosen hole and declares the winner.
 
 from __future__ import annotations
 
-import contextlib
 import sys
 import time
 from dataclasses import dataclass, field
@@ -33,6 +32,7 @@ from sieve_mi.geometry.rotations import normalize
 from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.scene import Scene
+from sieve_mi.telemetry import Run
 
 __all__ = ["SearchOutcome", "load_shapes", "search", "solve"]
 
@@ -255,63 +255,46 @@ def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: _Bar):
     )
 
 
-@dataclass
-class _Stages:
-    """The solve's telemetry, stage by stage: ``with stages.stage(name):`` adds the stage's
-    seconds to ``timings`` as ``<name>_s`` and then marks the memory watch with ``name``.
-
-    Attributes
-    ----------
-    timings : dict
-    watch : sieve_mi.backend.MemoryWatch
-    """
-
-    timings: dict
-    watch: object
-
-    @contextlib.contextmanager
-    def stage(self, name: str):
-        """Time the ``with`` block as stage ``name`` (not recorded when it raises)."""
-        t0 = time.perf_counter()
-        yield
-        self.timings[f"{name}_s"] = time.perf_counter() - t0
-        self.watch.mark(name)
-
-
 def solve(
-    scene: Scene, *, variant: str | None = None, seed: int | None = None, progress: bool = True
+    scene: Scene,
+    *,
+    variant: str | None = None,
+    seed: int | None = None,
+    progress: bool = True,
+    run: Run | None = None,
 ) -> Result:
     """Play the sieve game for a scene; parameters as :func:`sieve_mi.api.solve`, which checks
     them and returns this game's :class:`~sieve_mi.game.result.Result` as a
-    :class:`sieve_mi.api.Result` (one that can save its outputs)."""
-    from sieve_mi.backend import MemoryWatch, use_variant
+    :class:`sieve_mi.api.Result` (one that can save its outputs).
 
-    t_init = time.perf_counter()
-    watch = MemoryWatch()
-    variant = use_variant(variant).variant()
-    watch.mark("init")
-    t_load = time.perf_counter()
-    passes, blocks = load_shapes(scene)
-    watch.mark("load")
+    ``run`` is the record that gets the solve's stages and memory (default a new one, counted
+    from here): the command line passes one counted from the process's start.
+    """
+    from sieve_mi.backend import use_variant
+
+    run = (Run() if run is None else run).start(memory=True)
+    with run.stage("init"):
+        variant = use_variant(variant).variant()
+    with run.stage("load"):
+        passes, blocks = load_shapes(scene)
     seed = scene.solver.seed if seed is None else seed
     rng = np.random.default_rng(seed)
-    timings = {"init_s": t_load - t_init, "load_s": time.perf_counter() - t_load}
-    stages = _Stages(timings, watch)
-    with stages.stage("screen"):
+    with run.stage("screen"):
         sure = proved_by_size(scene, passes, blocks)
     open_blocks = [b for j, b in enumerate(blocks) if j not in sure]
-    with stages.stage("search"):
+    with run.stage("search"):
         found = (
             search(scene, passes, open_blocks, rng, seed, progress)
             if open_blocks
             else _unsearched(scene)
         )
-    v, certified = _verdict(scene, passes, blocks, sure, found, rng, progress, stages)
-    sheet = _sheet(scene, passes, blocks, v, certified, seed, progress, timings)
+    v, certified = _verdict(scene, passes, blocks, sure, found, rng, progress, run)
+    with run.stage("thin", mark=False):  # its memory stage ends after the margins
+        sheet = _sheet(scene, passes, blocks, v, certified, seed, progress)
     certified = on_sheet(certified, sheet.thickness)  # a cell proof needs a plate >= B's diameter
     margins = block_margins(blocks, v.outline, v.attack, certified, scene.fabrication.block_margin)
-    watch.mark("thin")
-    watch.stop()
+    run.mark("thin")
+    run.stop()
     return Result(
         scene=scene,
         pass_shapes=passes,
@@ -327,7 +310,7 @@ def solve(
         variant=variant,
         stages=found.stages,
         warnings=v.warnings,
-        timings=timings,
+        timings=run.timings,
         alone=found.alone,
         seed=seed,
         certified=certified,
@@ -335,18 +318,18 @@ def solve(
         margins=margins,
         outline=v.outline,
         polish=found.polish,
-        started=t_init,
-        memory=watch,
+        started=run.started,
+        memory=run.memory,
     )
 
 
 def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng, progress,
-             stages: _Stages):  # fmt: skip
+             run: Run):  # fmt: skip
     """The verdict on the B not proved before the game, completed with those that were, and the
-    optional certification: (judgement, certifications or []); ``stages`` gets the stages
+    optional certification: (judgement, certifications or []); ``run`` gets the stages
     "verdict" (and "certify")."""
     certified = [None] * len(blocks)
-    with stages.stage("verdict"):
+    with run.stage("verdict"):
         while True:
             rows = [j for j in range(len(blocks)) if j not in sure]
             bar = _Bar(progress and bool(rows), scene.verdict.steps, "verdict")
@@ -358,23 +341,20 @@ def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng
                 break
             sure = {j: r for j, r in sure.items() if j not in failed}  # play them after all
     if scene.verdict.certify:
-        with stages.stage("certify"):
+        with run.stage("certify"):
             proofs = _certify(scene, passes, blocks, found.quats, v, progress, sure)
             for j, c in enumerate(proofs):
                 certified[j] = certified[j] if j in sure else c
     return v, (certified if any(c is not None for c in certified) else [])
 
 
-def _sheet(scene: Scene, passes, blocks, v, certified, seed, progress, timings):
+def _sheet(scene: Scene, passes, blocks, v, certified, seed, progress):
     """The plate's thickness and the thin-plate motion searches (:mod:`sieve_mi.game.sheet`) of
-    the B still blocked after certify; a verified passage unblocks its B (:func:`is_blocked`).
-    ``timings`` gains ``thin_s``."""
-    t0 = time.perf_counter()
+    the B still blocked after certify; a verified passage unblocks its B (:func:`is_blocked`)."""
     proofs = certified or [None] * len(blocks)
     blocked = np.array([is_blocked(b, c) for b, c in zip(v.attack.blocked()[0], proofs)])
     sheet = plate_sheet(scene, passes, blocks, v.outline, v.attack, blocked, seed=seed,
                         progress=progress)  # fmt: skip
-    timings["thin_s"] = time.perf_counter() - t0
     for j in sheet.passages():
         v.warnings.append(
             f"{blocks[j].name} passes a {sheet.thickness:g} {scene.units} plate by tilting and "

@@ -25,6 +25,7 @@ from sieve_mi.shake.settings import (
 )
 from sieve_mi.shake.stats import summarize
 from sieve_mi.shake.trials import run_trials
+from sieve_mi.telemetry import Run
 
 __all__ = [
     "FORMAT",
@@ -164,32 +165,30 @@ def shake(
         (:func:`check_sizes`, :func:`check_plate`), a motion too harsh for the plate
         (:func:`check_plate`), or a model MuJoCo refuses (:func:`preflight`).
     """
-    unit_m = metres_per_unit(inp.units)
-    t0 = time.perf_counter()
-    check_sizes(inp, unit_m)
-    plate = plate_from_mesh(inp.plate, inp.plate_path, inp.units)
-    check_plate(plate, settings, unit_m, inp.plate_path)
-    parts = [
-        (name, role, path, part_from_mesh(mesh, name, role, settings.coacd_threshold))
-        for name, role, path, mesh in inp.parts
-    ]
-    preflight(plate, parts, inp.plate_path, settings, unit_m)
-    timings = {"geometry_s": time.perf_counter() - t0}
+    unit_m, run = metres_per_unit(inp.units), Run().start()
+    with run.stage("geometry"):
+        check_sizes(inp, unit_m)
+        plate = plate_from_mesh(inp.plate, inp.plate_path, inp.units)
+        check_plate(plate, settings, unit_m, inp.plate_path)
+        parts = [
+            (name, role, path, part_from_mesh(mesh, name, role, settings.coacd_threshold))
+            for name, role, path, mesh in inp.parts
+        ]
+        preflight(plate, parts, inp.plate_path, settings, unit_m)
     bar = Progress(progress, settings.trials * len(parts))
     shapes = []
     try:
         for _, role, path, part in parts:
             entry, seconds = shape_entry(part, role, path, plate, settings, unit_m, bar)
             shapes.append(entry)
-            timings[f"trials_{len(shapes) - 1}_s"] = seconds
+            run.timings[f"trials_{len(shapes) - 1}_s"] = seconds  # as the progress line said
     finally:
         bar.close()
     extra = {}
     if clip is not None:
-        t1 = time.perf_counter()
-        extra["clip"] = _clip(clip, inp, plate, parts, shapes, settings, unit_m)
-        timings["clip_s"] = time.perf_counter() - t1
-    timings["total_s"] = time.perf_counter() - t0
+        with run.stage("clip"):
+            extra["clip"] = _clip(clip, inp, plate, parts, shapes, settings, unit_m)
+    run.timings["total_s"] = run.elapsed()
     return {
         "format": FORMAT,
         "units": inp.units,
@@ -201,7 +200,7 @@ def shake(
         "fidelity_ok": all(s["fidelity"]["within_bound"] for s in shapes),
         "warnings": list(plate.warnings) + [w for s in shapes for w in s["warnings"]],
         **extra,
-        "timings": timings,
+        "timings": run.timings,
     }
 
 
