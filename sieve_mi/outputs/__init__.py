@@ -18,6 +18,9 @@ viewer
     places other commands' cards in the page (:func:`~sieve_mi.outputs.viewer.insert_card`).
 svg
     The pages' inline SVG pictures: the 2D hole view and the convergence plot.
+stage
+    The Mitsuba stage of ``figure.png`` and ``passage.gif``: the RGB variant, a camera looking at
+    a box, sky and sun, the palette's materials on meshes, sRGB.
 figure
     ``figure.png``: a Mitsuba rendering of the sieve.
 animation
@@ -43,6 +46,7 @@ __all__ = [
     "plots",
     "provenance",
     "report",
+    "stage",
     "svg",
     "viewer",
 ]

@@ -5,11 +5,11 @@ All frames are rendered by one ``mi.render`` call: the scene holds one copy of t
 shapes per frame (Mitsuba instances of shared shape groups, so the geometry is stored once), the
 copies far apart along x, and a ``batch`` sensor puts one perspective camera on each copy side by
 side on one film. :func:`write_gif` renders in colour: it switches Mitsuba to an RGB variant for
-the call, as :func:`sieve_mi.outputs.figure.render_figure` does, and restores the previous one (green:
-every A; red: a blocked B; orange: a B that gets through; grey: the plate). Where no RGB variant
-can be used (e.g. a packed GPU site without them) it renders in the monochrome variant in effect:
-grey frames (light: passes, dark: blocked, mid-grey: the plate).
-The sampler is seeded the same way every run and each sample lands in one pixel (box filter), so
+the call (:func:`sieve_mi.outputs.stage.rgb_variant`, as :func:`sieve_mi.outputs.figure.render_figure`
+does) and restores the previous one (green: every A; red: a blocked B; orange: a B that gets
+through; grey: the plate). Where no RGB variant can be used (e.g. a packed GPU site without them)
+it renders in the monochrome variant in effect: grey frames (light: passes, dark: blocked,
+mid-grey: the plate). The sampler is seeded the same way every run and each sample lands in one pixel (box filter), so
 the same inputs give the same GIF (``tests/game/test_repro.py`` compares two processes' files).
 """
 
@@ -19,9 +19,8 @@ import math
 
 import numpy as np
 
-from sieve_mi.backend import select_rgb_variant
 from sieve_mi.errors import raise_if_signalled
-from sieve_mi.outputs.palette import linear
+from sieve_mi.outputs import stage
 from sieve_mi.outputs.passage import Passage
 
 __all__ = [
@@ -41,6 +40,8 @@ __all__ = [
     "SKY",
     "SPP",
     "SUN",
+    "SUN_AZIMUTH_OFFSET",
+    "SUN_ELEVATION",
     "WIDTH",
     "camera",
     "frame_count",
@@ -62,8 +63,8 @@ FRAME_MS = 120
 AZIMUTH = -60.0
 ELEVATION = 22.0
 FOV = 35.0
-#: Diffuse reflectances in RGB variants (linear RGB; the palette's, :mod:`sieve_mi.outputs.palette`) ...
-COLOURS = {k: linear(k) for k in ("plate", "pass", "blocked", "escaped")}
+#: Diffuse reflectances in RGB variants (linear RGB: the palette's, :data:`~sieve_mi.outputs.stage.COLOURS`) ...
+COLOURS = stage.COLOURS
 #: ... and in monochrome ones.
 PLATE_ALBEDO = 0.35
 PASS_ALBEDO = 0.6
@@ -74,6 +75,9 @@ SKY = 0.55
 #: Mitsuba sampler of the frames (stratified: far less grain than independent samples at 16 spp).
 SAMPLER = "multijitter"
 SUN = 2.2
+#: The sun: azimuth offset to the camera's left and elevation, degrees.
+SUN_AZIMUTH_OFFSET = 35.0
+SUN_ELEVATION = 55.0
 
 
 def frame_count(passage: Passage) -> int:
@@ -133,37 +137,24 @@ def render_frames(
 
 def _group(mi, vertices: np.ndarray, faces: np.ndarray, albedo):
     """A shape group (a dict for ``mi.load_dict``) holding one mesh with a two-sided diffuse
-    material; ``albedo`` is a float (monochrome) or an RGB triple."""
-    props = mi.Properties()
-    if np.ndim(albedo):
-        reflectance = {"type": "rgb", "value": [float(c) for c in albedo]}
-    else:
-        reflectance = {"type": "spectrum", "value": float(albedo)}
-    props["bsdf"] = mi.load_dict(
-        {"type": "twosided", "material": {"type": "diffuse", "reflectance": reflectance}}
-    )
-    m = mi.Mesh("m", len(vertices), len(faces), props=props)
-    params = mi.traverse(m)
-    params["vertex_positions"] = type(params["vertex_positions"])(
-        np.asarray(vertices, dtype=np.float32).ravel()
-    )
-    params["faces"] = type(params["faces"])(np.asarray(faces, dtype=np.uint32).ravel())
-    params.update()
-    return {"type": "shapegroup", "mesh": m}
+    material (:func:`sieve_mi.outputs.stage.mesh`); ``albedo`` is a float (monochrome) or an RGB
+    triple."""
+    return {"type": "shapegroup", "mesh": stage.mesh(mi, "m", vertices, faces, albedo)}
 
 
 def _albedo(piece, colour: bool):
-    kind = "pass" if piece.role == "pass" else ("escaped" if piece.passes else "blocked")
+    """A piece's reflectance: its palette colour (:func:`sieve_mi.outputs.stage.colour_name`),
+    or its grey in a monochrome variant."""
+    kind = stage.colour_name(piece.role, piece.passes)
     if colour:
         return COLOURS[kind]
     return {"pass": PASS_ALBEDO, "escaped": ESCAPED_ALBEDO, "blocked": BLOCKED_ALBEDO}[kind]
 
 
-def _light(value: float, colour: bool) -> dict:
-    """A grey light: white RGB in RGB variants (a flat spectrum would be tinted pink in sRGB)."""
-    if colour:
-        return {"type": "rgb", "value": [value] * 3}
-    return {"type": "spectrum", "value": value}
+def _light(value: float, colour: bool):
+    """A grey light for :func:`sieve_mi.outputs.stage.spectrum`: white RGB in RGB variants (a
+    flat spectrum would be tinted pink in sRGB), else the number."""
+    return (value,) * 3 if colour else value
 
 
 def _scene(mi, passage: Passage, phases: np.ndarray, spacing: float, colour: bool = False):
@@ -172,18 +163,12 @@ def _scene(mi, passage: Passage, phases: np.ndarray, spacing: float, colour: boo
     plate = COLOURS["plate"] if colour else PLATE_ALBEDO
     groups = [_group(mi, passage.plate_vertices, passage.plate_faces, plate)]
     groups += [_group(mi, p.vertices, p.faces, _albedo(p, colour)) for p in passage.pieces]
-    az, el = math.radians(AZIMUTH - 35.0), math.radians(55.0)
-    sun = -np.array([math.cos(az) * math.cos(el), math.sin(az) * math.cos(el), math.sin(el)])
-    scene = {
-        "type": "scene",
-        "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 1},
-        "sky": {"type": "constant", "radiance": _light(SKY, colour)},
-        "sun": {
-            "type": "directional",
-            "direction": sun.tolist(),
-            "irradiance": _light(SUN, colour),
-        },
-    }
+    scene = stage.scene(
+        {"type": "direct", "emitter_samples": 1, "bsdf_samples": 1},
+        _light(SKY, colour),
+        _light(SUN, colour),
+        stage.sun_direction(AZIMUTH - SUN_AZIMUTH_OFFSET, SUN_ELEVATION),
+    )
     for g, group in enumerate(groups):
         scene[f"group_{g}"] = group
     for k, s in enumerate(phases):
@@ -212,15 +197,8 @@ def camera(box: np.ndarray, aspect: float) -> tuple[np.ndarray, np.ndarray]:
     lets every corner of the box stay in the picture. Returns (3,) arrays, scene units.
     """
     centre = 0.5 * (box[0] + box[1])
-    az, el = math.radians(AZIMUTH), math.radians(ELEVATION)
-    back = np.array([math.cos(az) * math.cos(el), math.sin(az) * math.cos(el), math.sin(el)])
-    right = np.cross(-back, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, -back)
-    corners = np.array(
-        [[box[i, 0], box[j, 1], box[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]
-    )
-    rel = corners - centre
+    back, right, up = stage.view_axes(AZIMUTH, ELEVATION)
+    rel = stage.box_corners(box) - centre
     tx = 0.92 * math.tan(math.radians(FOV) / 2)
     ty = tx / aspect
     need = np.maximum(np.abs(rel @ right) / tx, np.abs(rel @ up) / ty) + rel @ back
@@ -230,42 +208,24 @@ def camera(box: np.ndarray, aspect: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _batch_sensor(mi, box, frames, spacing, width, height, spp, size):
     """A batch sensor: one perspective camera per frame copy, side by side on one film."""
-    T = mi.ScalarTransform4f
     origin, target = camera(box, width / height)
-    fmt = "luminance" if "mono" in mi.variant() else "rgb"
     sensor = {
         "type": "batch",
         "sampler": {"type": SAMPLER, "sample_count": spp},
-        "film": {
-            "type": "hdrfilm",
-            "width": frames * width,
-            "height": height,
-            "rfilter": {"type": "box"},
-            "pixel_format": fmt,
-        },
+        "film": stage.film(mi, frames * width, height, rfilter="box"),
     }
     for k in range(frames):
         shift = np.array([k * spacing, 0.0, 0.0])
-        sensor[f"cam_{k}"] = {
-            "type": "perspective",
-            "fov": FOV,
-            "fov_axis": "x",
-            "film": {"type": "hdrfilm", "width": width, "height": height, "pixel_format": fmt},
-            "near_clip": 1e-3 * size,
-            "far_clip": 1e2 * size,
-            "to_world": T().look_at(
-                origin=(origin + shift).tolist(), target=(target + shift).tolist(), up=[0, 0, 1]
-            ),
-        }
+        cam = stage.perspective(mi, (origin + shift, target + shift, [0, 0, 1]), FOV, size, far=1e2)
+        cam["film"] = stage.film(mi, width, height)
+        sensor[f"cam_{k}"] = cam
     return mi.load_dict(sensor)
 
 
 def to_gray8(frames: np.ndarray) -> np.ndarray:
     """Linear radiance to 8-bit sRGB, one exposure for all frames (the sky maps to ~white); grey
     or RGB as the input."""
-    x = np.clip(frames / (1.1 * SKY), 0.0, 1.0)
-    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-    return np.round(255.0 * srgb).astype(np.uint8)
+    return stage.srgb8(frames, white=1.1 * SKY)
 
 
 def gif_frames(passage: Passage, phases: np.ndarray) -> tuple[list, str]:
@@ -282,13 +242,8 @@ def gif_frames(passage: Passage, phases: np.ndarray) -> tuple[list, str]:
     import mitsuba as mi
     from PIL import Image
 
-    before = mi.variant()
-    try:
-        variant = select_rgb_variant(mi, before)
+    with stage.rgb_variant(mi) as variant:
         images = to_gray8(render_frames(passage, phases=phases))
-    finally:
-        if before is not None and mi.variant() != before:
-            mi.set_variant(before)
     mode = "RGB" if images.ndim == 4 else "L"
     pics = [Image.fromarray(im, mode=mode) for im in images]
     if mode == "RGB":  # one adaptive palette per frame (PIL's default GIF palette tints greys)

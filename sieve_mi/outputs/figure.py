@@ -21,7 +21,7 @@ import numpy as np
 import trimesh
 
 from sieve_mi import backend as _backend
-from sieve_mi.outputs.palette import linear
+from sieve_mi.outputs import stage
 
 __all__ = [
     "AZIMUTH",
@@ -80,11 +80,11 @@ SAMPLER = "multijitter"
 SKY_RGB = (0.36, 0.37, 0.39)
 SUN_RGB = (1.7, 1.63, 1.52)
 
-#: Diffuse reflectances (linear RGB): the palette's colours (:mod:`sieve_mi.outputs.palette`).
-PLATE_RGB = linear("plate")
-PASS_RGB = linear("pass")
-BLOCKED_RGB = linear("blocked")
-ESCAPED_RGB = linear("escaped")
+#: Diffuse reflectances (linear RGB): the palette's colours (:data:`sieve_mi.outputs.stage.COLOURS`).
+PLATE_RGB = stage.COLOURS["plate"]
+PASS_RGB = stage.COLOURS["pass"]
+BLOCKED_RGB = stage.COLOURS["blocked"]
+ESCAPED_RGB = stage.COLOURS["escaped"]
 GROUND_RGB = (0.50, 0.45, 0.38)
 
 
@@ -164,24 +164,11 @@ def render_figure(
     _backend.configure_llvm()
     import mitsuba as mi
 
-    before = mi.variant()
-    try:
-        variant = _backend.select_rgb_variant(mi, before)
+    with stage.rgb_variant(mi) as variant:
         scene, sensor = _scene(mi, plate, passes, blocks, blocked, picture, title is not None)
         image = np.asarray(mi.render(scene, sensor=sensor, spp=spp), dtype=np.float32)
-    finally:
-        if before is not None and mi.variant() != before:
-            mi.set_variant(before)
     rgb = _to_srgb8(image, colour=variant.endswith("rgb"))
     _write_png(path, rgb, title)
-
-
-def _bsdf(rgb) -> dict:
-    """A two-sided diffuse material (open and inconsistently wound meshes shade from both sides)."""
-    return {
-        "type": "twosided",
-        "material": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(rgb)}},
-    }
 
 
 def _triangles(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, int]:
@@ -204,24 +191,15 @@ def _triangles(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 def _mesh(mi, name: str, triangles: tuple[np.ndarray, np.ndarray, int], rgb, smooth: bool):
-    """A Mitsuba mesh (world coordinates) with a two-sided diffuse BSDF (see :func:`_triangles`)."""
+    """A Mitsuba mesh (world coordinates) with a two-sided diffuse BSDF (see :func:`_triangles`).
+
+    Every triangle gets its own three corners (:func:`sieve_mi.outputs.stage.mesh`), so a
+    corner's shading normal (:func:`_corner_normals`, with ``smooth``) may differ between faces.
+    """
     corners, f, n_vertices = triangles
     normals = _corner_normals(corners, f, n_vertices) if smooth else None
-    props = mi.Properties()
-    props["bsdf"] = mi.load_dict(_bsdf(rgb))
-    m = mi.Mesh(name, 3 * len(f), len(f), props=props, has_vertex_normals=normals is not None)
-    params = mi.traverse(m)
-    # The buffers' own types: Dr.Jit arrays in JIT variants, dynamic arrays in scalar ones.
-    params["vertex_positions"] = type(params["vertex_positions"])(
-        corners.astype(np.float32).ravel()
-    )
-    params["faces"] = type(params["faces"])(np.arange(3 * len(f), dtype=np.uint32))
-    if normals is not None:
-        params["vertex_normals"] = type(params["vertex_normals"])(
-            normals.astype(np.float32).ravel()
-        )
-    params.update()
-    return m
+    flat = np.arange(3 * len(f)).reshape(-1, 3)
+    return stage.mesh(mi, name, corners.reshape(-1, 3), flat, rgb, normals)
 
 
 def _corner_normals(corners: np.ndarray, faces: np.ndarray, n_vertices: int) -> np.ndarray:
@@ -283,15 +261,9 @@ def _camera(boxes: list[np.ndarray], aspect: float, title: bool):
     origin, target, up : (3,) ndarrays
         Scene units.
     """
-    az, el = math.radians(AZIMUTH), math.radians(ELEVATION)
-    back = np.array([math.cos(az) * math.cos(el), math.sin(az) * math.cos(el), math.sin(el)])
+    back, right, up = stage.view_axes(AZIMUTH, ELEVATION)
     fwd = -back
-    right = np.cross(fwd, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, fwd)
-    corners = np.array(
-        [[b[i, 0], b[j, 1], b[k, 2]] for b in boxes for i in (0, 1) for j in (0, 1) for k in (0, 1)]
-    )
+    corners = stage.box_corners(boxes)
     pr, pu, pf = corners @ right, corners @ up, corners @ fwd
     tx = math.tan(math.radians(FOV) / 2)
     ty = tx / aspect
@@ -342,48 +314,21 @@ def _scene(mi, plate, passes, blocks, blocked, picture: FigureSettings, title: b
     origin, target, up = _camera(present, width / height, title)
 
     centre = 0.5 * (lo + hi)
-    scene = {
-        "type": "scene",
-        "integrator": dict(INTEGRATOR),
-        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": list(SKY_RGB)}},
-        "sun": {
-            "type": "directional",
-            "direction": _sun_direction().tolist(),
-            "irradiance": {"type": "rgb", "value": list(SUN_RGB)},
-        },
-        "ground": {
-            "type": "rectangle",
-            "bsdf": _bsdf(GROUND_RGB),  # 40 scene sizes wide: fills the view
-            "to_world": mi.ScalarTransform4f().translate(
-                [float(centre[0]), float(centre[1]), ground]
-            )
-            @ mi.ScalarTransform4f().scale([20 * size, 20 * size, 1.0]),
-        },
+    sun = stage.sun_direction(AZIMUTH - SUN_AZIMUTH_OFFSET, SUN_ELEVATION)
+    scene = stage.scene(dict(INTEGRATOR), SKY_RGB, SUN_RGB, sun)
+    scene["ground"] = {
+        "type": "rectangle",
+        "bsdf": stage.diffuse(GROUND_RGB),  # 40 scene sizes wide: fills the view
+        "to_world": mi.ScalarTransform4f().translate([float(centre[0]), float(centre[1]), ground])
+        @ mi.ScalarTransform4f().scale([20 * size, 20 * size, 1.0]),
     }
     for i, ((_, rgb, smooth), t) in enumerate(zip(items, tris)):
         if len(t[0]):
             scene[f"mesh_{i}"] = _mesh(mi, f"mesh_{i}", t, rgb, smooth)
-    sensor = mi.load_dict(
-        {
-            "type": "perspective",
-            "fov": FOV,
-            "fov_axis": "x",
-            "near_clip": 1e-3 * size,
-            "far_clip": 1e3 * size,
-            "to_world": mi.ScalarTransform4f().look_at(
-                origin=origin.tolist(), target=target.tolist(), up=up.tolist()
-            ),
-            "sampler": {"type": SAMPLER, "sample_count": spp},
-            "film": {
-                "type": "hdrfilm",
-                "width": width,
-                "height": height,
-                "rfilter": {"type": "gaussian"},
-                "pixel_format": "luminance" if "mono" in mi.variant() else "rgb",
-            },
-        }
-    )
-    return mi.load_dict(scene), sensor
+    sensor = stage.perspective(mi, (origin, target, up), FOV, size, far=1e3)
+    sensor["sampler"] = {"type": SAMPLER, "sample_count": spp}
+    sensor["film"] = stage.film(mi, width, height, rfilter="gaussian")
+    return mi.load_dict(scene), mi.load_dict(sensor)
 
 
 def _ground_height(
@@ -415,21 +360,12 @@ def _ground_height(
     return float(plate_lo - GROUND_GAP * (plate_hi - plate_lo) - 0.02 * size)
 
 
-def _sun_direction() -> np.ndarray:
-    """Direction the sunlight travels: from high up on the camera's left, so shadows fall back and right."""
-    az, el = math.radians(AZIMUTH - SUN_AZIMUTH_OFFSET), math.radians(SUN_ELEVATION)
-    toward_sun = np.array([math.cos(az) * math.cos(el), math.sin(az) * math.cos(el), math.sin(el)])
-    return -toward_sun
-
-
 def _to_srgb8(image: np.ndarray, colour: bool) -> np.ndarray:
     """Linear radiance (H, W, C) to 8-bit sRGB (H, W, 3); a single channel becomes grey."""
     if image.ndim == 2:
         image = image[..., None]
     rgb = image[..., :3] if colour and image.shape[2] >= 3 else np.repeat(image[..., :1], 3, axis=2)
-    rgb = np.clip(np.nan_to_num(rgb, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
-    srgb = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * np.power(rgb, 1 / 2.4) - 0.055)
-    return np.round(255 * srgb).astype(np.uint8)
+    return stage.srgb8(rgb)
 
 
 def title_figure(width: int, height: int, title: str):
