@@ -362,8 +362,10 @@ def cmd_certify(args) -> int:
         holes, thickness, note = _certify_plate(args.sieve, args.axis)
     else:
         holes, thickness, note = [read_svg_hole(args.hole)], None, ""
-    result = certify(shape, holes, budget_s=args.certify_budget, scale=args.scale)
-    if args.sieve:  # the answer on this plate: a thin one needs more than a straight proof
+    # the answer on this plate: a thin one needs more than a straight proof (a section proof)
+    result = certify(shape, holes, budget_s=args.certify_budget, scale=args.scale,
+                     thickness=thickness)  # fmt: skip
+    if args.sieve and thickness is None:
         result = result.on_plate(thickness, note)
     if args.certificate is not None:
         result.write_certificate(args.certificate, inputs)

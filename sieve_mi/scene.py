@@ -132,7 +132,16 @@ class Fabrication:
         exclusive_min=True,
         maximum=LENGTH_MAX,
         choices=("thinnest",),
-        default_doc="the largest diameter of a B (the thinnest proved plate)",
+        default_doc="the thinnest proved plate (each blocked B's slab-section proof, bisected; "
+        "its diameter where none holds), at least min_thickness",
+    )
+    min_thickness: float = setting(
+        1.2,
+        "the thinnest plate the default thickness may be (a printable sheet)",
+        unit="scene units",
+        minimum=0,
+        exclusive_min=True,
+        maximum=LENGTH_MAX,
     )
     border: float = setting(
         5.0,
@@ -234,6 +243,14 @@ class Verdict:
     certify_budget: float = setting(
         30.0,
         "time budget of each proof, seconds",
+        minimum=0,
+        exclusive_min=True,
+        maximum=86_400,
+    )
+    section_budget: float = setting(
+        30.0,
+        "seconds per blocked B for the slab-section proofs that bisect the thinnest proved plate "
+        "(in parallel over B, after its proof)",
         minimum=0,
         exclusive_min=True,
         maximum=86_400,

@@ -6,6 +6,7 @@ import os
 import time
 from collections.abc import Callable
 from concurrent.futures import as_completed
+from typing import NamedTuple
 
 import manifold3d
 import numpy as np
@@ -17,6 +18,7 @@ from sieve_mi.scene import Scene
 from sieve_mi.workers import worker_pool
 
 __all__ = [
+    "Budgets",
     "MARGIN_FACTOR",
     "MARGIN_MIN_S",
     "ball_margin",
@@ -163,7 +165,8 @@ def certify_blocks(
     """
     todo = [j for j, b in enumerate(blocked) if b]
     contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
-    budget = scene.verdict.certify_budget
+    budget = Budgets(scene.verdict.certify_budget, scene.verdict.section_budget,
+                     scene.fabrication.thickness, scene.fabrication.min_thickness)  # fmt: skip
     out: list[Certification | None] = [None] * len(block_shapes)
     tops = [None if found is None else float(found[j]) for j in todo]
     for j, c in _proofs([block_shapes[j] for j in todo], contours, budget, workers, tops):
@@ -173,7 +176,29 @@ def certify_blocks(
     return out
 
 
-def _proofs(shapes: list[Shape], contours: list, budget_s: float, workers, tops: list):
+class Budgets(NamedTuple):
+    """What each block's proof may spend, and the plate it is for.
+
+    Attributes
+    ----------
+    proof_s : float
+        Seconds of the straight proof and its margin (``[verdict] certify_budget``).
+    section_s : float
+        Seconds of the slab-section proofs after it (``[verdict] section_budget``).
+    thickness : float, str or None
+        ``[fabrication] thickness``: None bisects the thinnest proved plate from ``low`` up; a
+        number is proved at that thickness (when thinner than the shape); "thinnest" tries none.
+    low : float
+        ``[fabrication] min_thickness``, scene units.
+    """
+
+    proof_s: float
+    section_s: float
+    thickness: object
+    low: float
+
+
+def _proofs(shapes: list[Shape], contours: list, budget_s: Budgets, workers, tops: list):
     """Yield ``(index, Certification)`` for each shape as its proof ends (forked workers)."""
     n = max(1, min(len(shapes), workers or os.cpu_count() or 1))
     if n == 1:
@@ -189,19 +214,27 @@ def _proofs(shapes: list[Shape], contours: list, budget_s: float, workers, tops:
             yield jobs[job], job.result()
 
 
-def _prove(shape: Shape, contours: list, budget_s: float, found: float | None) -> Certification:
+def _prove(shape: Shape, contours: list, budget: Budgets, found: float | None) -> Certification:
     """Worker: certify one shape against the hole given by its contours, then bracket its
     margin (:func:`prove_margin`) with what is left of the budget, but at most
     :data:`MARGIN_FACTOR` times the proof's own time (at least :data:`MARGIN_MIN_S`): a step
     that takes much longer than the proof is near the true margin and would mostly end
-    undecided."""
-    from sieve_mi.certify import certify
+    undecided. A proof by cells then gets the slab-section proofs of the plate
+    (:func:`sieve_mi.certify.thinnest_proved`, or :func:`~sieve_mi.certify.thin_plate_proof` at a
+    given thickness)."""
+    from sieve_mi.certify import certify, thin_plate_proof, thinnest_proved
 
     hole = manifold3d.CrossSection(contours)
-    c = certify(shape, [hole], budget_s=budget_s)
+    c = certify(shape, [hole], budget_s=budget.proof_s)
     if c.status == "proved":
-        spare = min(budget_s - c.seconds, max(MARGIN_MIN_S, MARGIN_FACTOR * c.seconds))
+        spare = min(budget.proof_s - c.seconds, max(MARGIN_MIN_S, MARGIN_FACTOR * c.seconds))
         c.margin, c.margin_certificate = prove_margin(shape, hole, found, spare)
+    if c.status != "proved" or c.method != "cells":
+        return c
+    if budget.thickness is None:
+        return thinnest_proved(c, shape, [hole], budget.low, budget.section_s)
+    if isinstance(budget.thickness, float | int) and budget.thickness < (c.diameter or 0.0):
+        return thin_plate_proof(c, shape, [hole], float(budget.thickness), budget.section_s)
     return c
 
 

@@ -1,10 +1,13 @@
-"""The plate's thickness and the verdict on it: safe by diameter, or a thin-plate motion search per B.
+"""The plate's thickness and the verdict on it: safe by a proof, or a thin-plate motion search per B.
 
-The game's verdict holds for a plate at least as thick as every B's diameter (the default
-thickness). For a thinner plate (``[fabrication] thickness``), each blocked B whose diameter
-exceeds it gets a motion search (:mod:`sieve_mi.motion`); a verified passage overrules "blocked".
-``thickness = "thinnest"`` bisects between the safe thickness and zero for the thinnest plate on
-which no B was found to pass (a heuristic answer: only the safe thickness is proved).
+The default thickness is the thinnest *proved* plate (:func:`proved_thickness`): for each blocked
+B, ``[fabrication] min_thickness`` where a ball proves it, the thinnest plate its slab-section
+proof covers (bisected by certify, :func:`sieve_mi.certify.thinnest_proved`), else its diameter
+(the thick-plate argument); the largest of these. For a thinner plate (``[fabrication]
+thickness``), each blocked B not proved there gets a motion search (:mod:`sieve_mi.motion`); a
+verified passage overrules "blocked". ``thickness = "thinnest"`` bisects between the proved
+thickness and zero for the thinnest plate on which no B was found to pass (a heuristic answer:
+only the proved thickness is proved).
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from sieve_mi.geometry.plate import safe_thickness
 from sieve_mi.motion import thin_plates
 from sieve_mi.scene import Scene
 
-__all__ = ["Sheet", "plate_sheet"]
+__all__ = ["Sheet", "plate_sheet", "proof_thickness", "proved_thickness"]
 
 #: Bisection steps of ``thickness = "thinnest"`` (the bracket shrinks 2^-steps of the safe value).
 THINNEST_STEPS = 6
@@ -34,8 +37,7 @@ class Sheet:
     thickness : float
         The thickness the plate files are written at, scene units.
     safe : float
-        The thinnest plate on which the game's verdict is proved: the largest diameter of a B
-        (rounded up to 0.1 scene units).
+        The thinnest plate on which the game's verdict is proved (:func:`proved_thickness`).
     mode : {"safe", "given", "thinnest"}
         Where ``thickness`` came from.
     per_block : list of ThinPlate or None
@@ -52,7 +54,7 @@ class Sheet:
 
     @property
     def proved(self) -> bool:
-        """Whether every block on this plate is proved by the diameter argument."""
+        """Whether every block on this plate is proved (a ball, a section or its diameter)."""
         return self.thickness >= self.safe
 
     def passages(self) -> list[int]:
@@ -73,18 +75,52 @@ def _say(progress: bool, line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
 
-def _search(scene: Scene, blocks, todo, outline, attack, thickness: float, seed: int):
-    """ThinPlate per B in ``todo`` (None elsewhere), searched in parallel."""
+def proof_thickness(shape: Shape, proof, low: float) -> float:
+    """The thinnest plate on which one blocked B is proved, scene units: ``low`` for a ball proof
+    (any plate), the thickness of its slab-section proof, else its diameter (rounded up to 0.1).
+
+    Parameters
+    ----------
+    shape : Shape
+    proof : Certification or None
+        Its certification (None: not certified).
+    low : float
+        ``[fabrication] min_thickness``.
+    """
+    if proof is not None and proof.straight in ("proved", None) and proof.status == "proved":
+        if proof.method == "ball":
+            return low
+    if proof is not None and proof.section is not None and proof.section["status"] == "proved":
+        if proof.straight == "proved":
+            return max(low, float(proof.section["thickness"]))
+    return max(low, safe_thickness([shape.hull]))
+
+
+def proved_thickness(blocks: list, blocked, certified: list, low: float) -> float:
+    """The thinnest plate on which every blocked B is proved: the largest of
+    :func:`proof_thickness` over them (``low`` when none is blocked), scene units."""
+    proofs = certified or [None] * len(blocks)
+    need = [proof_thickness(b, c, low) for b, c, on in zip(blocks, proofs, blocked) if on]
+    return max([low] + need)
+
+
+def _search(scene: Scene, blocks, todo, outline, attack, thickness: float, seed: int,
+            proved=None):  # fmt: skip
+    """ThinPlate per B in ``todo`` (None elsewhere), searched in parallel; ``proved`` (per B,
+    the section proof or None) says which need no search at this thickness."""
     out: list = [None] * len(blocks)
     seeds = [[(attack.quats[0, j], attack.trans[0, j])] for j in todo]
+    sections = [None if proved is None else proved[j] for j in todo]
     found = thin_plates([blocks[j] for j in todo], outline, thickness,
-                        budget_s=scene.verdict.thin_budget, seeds=seeds, seed=seed)  # fmt: skip
+                        budget_s=scene.verdict.thin_budget, seeds=seeds, seed=seed,
+                        sections=sections)  # fmt: skip
     for j, t in zip(todo, found):
         out[j] = t
     return out
 
 
-def _thinnest(scene, blocks, todo, outline, attack, safe: float, seed: int, progress: bool):
+def _thinnest(scene, blocks, todo, outline, attack, safe: float, seed: int, progress: bool,
+              sections=None):  # fmt: skip
     """Bisect (0, safe] for the thinnest plate where no B of ``todo`` was found to pass."""
     lo, hi, best, steps = 0.0, safe, None, []
     for _ in range(THINNEST_STEPS):
@@ -92,7 +128,7 @@ def _thinnest(scene, blocks, todo, outline, attack, safe: float, seed: int, prog
         if not lo < mid < hi:
             break
         _say(progress, f"thinnest plate: trying {mid:g} (passage found at {lo:g}, none at {hi:g})")
-        per = _search(scene, blocks, todo, outline, attack, mid, seed)
+        per = _search(scene, blocks, todo, outline, attack, mid, seed, sections)
         passed = [blocks[j].name for j in todo if per[j].status == "passage"]
         steps.append({"thickness": mid, "passage": passed})
         if passed:
@@ -110,6 +146,7 @@ def plate_sheet(
     attack,
     blocked: np.ndarray,
     *,
+    certified: list | None = None,
     seed: int = 0,
     progress: bool = False,
 ) -> Sheet:
@@ -118,15 +155,17 @@ def plate_sheet(
     Parameters
     ----------
     scene : Scene
-        ``[fabrication] thickness`` and ``[verdict] thin_budget`` are used.
+        ``[fabrication] thickness`` and ``min_thickness``, ``[verdict] thin_budget`` are used.
     passes, blocks : list of Shape
-        The safe thickness is the largest diameter of a B (of an A when there is no B).
+        The proved thickness is :func:`proved_thickness` of the blocked B.
     outline : manifold3d.CrossSection
         The exact hole H.
     attack : Attack
         The verdict's attack; each B's best attempt seeds its search.
     blocked : (n,) bool
         Which B the verdict (and certification) blocked; only those are searched.
+    certified : list of Certification or None, optional
+        Per B, its certification (ball and section proofs make the proved plate thinner).
     seed : int
     progress : bool
         Print a line per search round on stderr.
@@ -135,18 +174,28 @@ def plate_sheet(
     -------
     Sheet
     """
-    given = scene.fabrication.thickness
-    safe = safe_thickness([b.hull for b in (blocks or passes)])
+    given, low = scene.fabrication.thickness, scene.fabrication.min_thickness
+    safe = proved_thickness(blocks, blocked, certified or [], low)
     todo = [j for j in range(len(blocks)) if blocked[j]]
+    sections = _sections(certified, len(blocks))
     if given == "thinnest" and todo:
         thickness, per, steps = _thinnest(
-            scene, blocks, todo, outline, attack, safe, seed, progress
+            scene, blocks, todo, outline, attack, safe, seed, progress, sections
         )
-        per = per or _search(scene, blocks, todo, outline, attack, safe, seed)
+        per = per or _search(scene, blocks, todo, outline, attack, safe, seed, sections)
         return Sheet(thickness, safe, "thinnest", per, steps)
     thickness = safe if given in (None, "thinnest") else float(given)
     if thickness < safe and todo:
         _say(progress, f"thin plate {thickness:g}: motion search for {len(todo)} B, "
                        f"up to {scene.verdict.thin_budget:g} s each")  # fmt: skip
-    per = _search(scene, blocks, todo, outline, attack, thickness, seed)
+    per = _search(scene, blocks, todo, outline, attack, thickness, seed, sections)
     return Sheet(thickness, safe, "safe" if given in (None, "thinnest") else "given", per)
+
+
+def _sections(certified: list | None, n: int) -> list:
+    """Per B, its proved section (the certification's ``section`` entry) or None."""
+    out = [None] * n
+    for j, c in enumerate(certified or []):
+        if c is not None and c.section is not None and c.section["status"] == "proved":
+            out[j] = c.section if c.straight == "proved" else None
+    return out

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import numbers
 import os
+import time
 from dataclasses import dataclass, field
 
 import manifold3d
@@ -24,6 +25,7 @@ __all__ = [
     "BALL_ARGUMENT",
     "INTERPOLATION",
     "SAFE_ARGUMENT",
+    "SECTION_ARGUMENT",
     "ThinPlate",
     "thin_plate",
     "thin_plates",
@@ -44,6 +46,14 @@ BALL_ARGUMENT = (
     "a ball certified inside the shape is wider than any disk the hole holds: the ball's centre "
     "must cross the plate's slab, and there the horizontal disk through it lies in the slab, so "
     "it would have to fit H (any thickness)"
+)
+
+#: Why a shape proved by its slab section needs no motion search on a plate at least that thick.
+SECTION_ARGUMENT = (
+    "a point pinned in the shape must cross the plate's mid-plane, and then every point of the "
+    "shape inside the plate's slab must lie in the hole's prism; for no direction, turn and offset "
+    "does that slab section fit the hole (a certified branch and bound over directions: "
+    "docs/certify.md, 'Thin plates'), so no rigid motion passes this plate or a thicker one"
 )
 
 #: The planner, as reported.
@@ -79,6 +89,9 @@ class ThinPlate:
         that is not a uniform slab); empty when the slab is the plate.
     note : str
         Why a motion found through the slab was dropped (it met the plate's other material).
+    section : dict or None
+        The slab-section proof behind a ``"safe"`` answer by :data:`SECTION_ARGUMENT`: its
+        ``thickness`` (at most this plate's), ``pin``, cells and seconds.
     """
 
     name: str
@@ -97,6 +110,7 @@ class ThinPlate:
     argument: str = SAFE_ARGUMENT
     verified_on: str = ""
     note: str = ""
+    section: dict | None = None
 
     def to_dict(self) -> dict:
         """The ``thin_plate`` entry of report.json and of ``check --json``."""
@@ -106,8 +120,11 @@ class ThinPlate:
             "diameter": self.diameter,
         }
         if self.status == "safe":
-            out["by"] = "ball" if self.argument == BALL_ARGUMENT else "diameter"
+            by = {BALL_ARGUMENT: "ball", SECTION_ARGUMENT: "section"}
+            out["by"] = by.get(self.argument, "diameter")
             out["argument"] = self.argument
+            if self.section is not None:
+                out["section"] = self.section
             return out
         out.update(planner=PLANNER, seconds=self.seconds, budget_s=self.budget_s)
         out.update(checks=self.checks, plans=self.plans, crossings=self.crossings)
@@ -135,13 +152,35 @@ def _polygons(outline: manifold3d.CrossSection) -> list:
     return [np.asarray(c, dtype=np.float64) for c in outline.to_polygons()]
 
 
+def _section_first(shape: Shape, outline, thickness: float, budget_s: float) -> ThinPlate | None:
+    """ "safe" by a slab-section proof at ``thickness`` within ``budget_s`` (None when it fails)."""
+    from sieve_mi.certify.search import Settings
+    from sieve_mi.certify.section import prove_section
+
+    found, _ = prove_section(shape, outline, thickness, budget_s, Settings())
+    if found.status != "proved":
+        return None
+    record = {"thickness": float(thickness), "pin": [float(c) for c in found.pin],
+              "seconds": found.seconds, "cells_examined": found.examined,
+              "cells_excluded": found.excluded}  # fmt: skip
+    return ThinPlate(shape.name, float(thickness), diameter(shape.hull), "safe",
+                     argument=SECTION_ARGUMENT, seconds=found.seconds, section=record)  # fmt: skip
+
+
 def _search(shape: Shape, polygons: list, thickness: float, budget_s: float, seeds, seed: int,
-            plate=None):  # fmt: skip
-    """Worker: the motion search for one shape (see :func:`thin_plate`)."""
+            plate=None, section_s: float = 0.0):  # fmt: skip
+    """Worker: the section proof (``section_s`` seconds of the budget) then the motion search
+    for one shape (see :func:`thin_plate`)."""
     from sieve_mi.motion.collide import PlateWorld
     from sieve_mi.motion.planner import search_passage
 
     outline = manifold3d.CrossSection(polygons)
+    if section_s > 0:
+        t0 = time.perf_counter()
+        safe = _section_first(shape, outline, thickness, section_s)
+        if safe is not None:
+            return safe
+        budget_s = max(0.0, budget_s - (time.perf_counter() - t0))
     world = PlateWorld(shape, outline, thickness)
     found = search_passage(world, outline, seeds, budget_s, seed)
     d = diameter(shape.hull)
@@ -289,6 +328,7 @@ def thin_plates(
     seed: int = 0,
     workers: int | None = None,
     plate=None,
+    sections: list | None = None,
 ) -> list[ThinPlate]:
     """:func:`thin_plate` for several shapes, searched in parallel worker processes.
 
@@ -305,6 +345,11 @@ def thin_plates(
         Per shape, poses to try first.
     workers : int, optional
         Worker processes (default: the machine's cores, at most one per searched shape).
+    sections : list of dict or None, optional
+        Per shape, a slab-section proof already made (certify's ``section`` record) or None:
+        ``"safe"`` when it covers ``thickness``. Without the list, each shape thicker than the
+        plate first gets a section proof of its own, with half its ``budget_s``
+        (:data:`SECTION_ARGUMENT`).
 
     Returns
     -------
@@ -326,6 +371,9 @@ def thin_plates(
             out[j] = ThinPlate(shape.name, float(thickness), d, "safe", argument=BALL_ARGUMENT)
         elif d <= thickness + LENGTH_SLACK:
             out[j] = ThinPlate(shape.name, float(thickness), d, "safe")
+        elif sections and sections[j] and sections[j]["thickness"] <= thickness + LENGTH_SLACK:
+            out[j] = ThinPlate(shape.name, float(thickness), d, "safe",
+                               argument=SECTION_ARGUMENT, section=sections[j])  # fmt: skip
         else:
             todo.append(j)
     if not todo:
@@ -343,6 +391,7 @@ def thin_plates(
                 [(np.asarray(q, float), np.asarray(t, float)) for q, t in seeds[j]],
                 seed + j,
                 plate,
+                0.0 if sections is not None else 0.5 * budget_s,
             )  # fmt: skip
             for j in todo
         }

@@ -1,7 +1,8 @@
-"""The plate's thickness in a solve: safe by diameter, a thin sheet that leaks, and "thinnest".
+"""The plate's thickness in a solve: the thinnest proved, a thin sheet that leaks, and "thinnest".
 
 scenes/thin-sheet.toml: a 9 mm ball (A, hole: a 10 mm disk), an L-shaped rod and a 12 mm cube
-(B). Thick plate: the game's verdict (A wins) is proved by the diameter argument. 2 mm sheet: the
+(B). Default plate: the game's verdict (A wins) is proved by the rod's slab section, thinner than
+its diameter. 2 mm sheet: the
 rod threads through (found and verified), so B wins; the cube is safe on any plate by its
 inscribed 12 mm ball (wider than the 10 mm hole; its centre must cross the sheet).
 """
@@ -33,22 +34,27 @@ def _scene(thickness, budget: float):
     return scene
 
 
-def test_thick_plate_is_proved_by_the_diameter(tmp_path):
+def test_default_plate_is_the_thinnest_proved(tmp_path):
     result = sieve_mi.solve(_scene(None, 1.0), progress=False)
     assert result.winner == "A"
     sheet = result.sheet
-    # the rod's diameter sqrt(20² + 20² + 2²) = 28.35, rounded up: the plate is 28.4 mm thick
-    assert sheet.thickness == pytest.approx(28.4) and sheet.proved and sheet.mode == "safe"
+    # the rod's diameter is sqrt(20² + 20² + 2²) = 28.35 (the thick-plate argument's 28.4 mm);
+    # its slab-section proof, bisected above the 2 mm sheet it threads (next test), is thinner
     rod, cube = sheet.per_block
-    assert rod.status == "safe" and rod.to_dict()["by"] == "diameter"
+    proof = result.certified[0].section
+    assert proof["status"] == "proved" and 2.0 < proof["thickness"] < 28.35
+    assert sheet.thickness == pytest.approx(proof["thickness"]) and sheet.proved
+    assert sheet.mode == "safe" and sheet.safe == pytest.approx(proof["thickness"])
+    assert rod.status == "safe" and rod.to_dict()["by"] == "section"
     assert cube.status == "safe" and cube.to_dict()["by"] == "ball"
+    assert result.certified[0].status == "proved"  # on this plate, by its section
     result.save(str(tmp_path / "out"))
     report = json.loads((tmp_path / "out" / "report.json").read_text())
-    assert report["fabrication"]["thickness"] == pytest.approx(28.4)
+    assert report["fabrication"]["thickness"] == pytest.approx(proof["thickness"])
     assert report["fabrication"]["sheet"]["proved"] is True
     assert [b["thin_plate"]["status"] for b in report["block"]] == ["safe", "safe"]
     plate = trimesh.load(str(tmp_path / "out" / "sieve.stl"))
-    assert plate.extents[2] == pytest.approx(28.4, rel=1e-6)
+    assert plate.extents[2] == pytest.approx(proof["thickness"], rel=1e-6)
 
 
 def test_a_2_mm_sheet_leaks_the_rod(tmp_path):
@@ -70,17 +76,17 @@ def test_a_2_mm_sheet_leaks_the_rod(tmp_path):
 def test_thinnest_bisects_and_says_it_is_not_proved(tmp_path):
     result = sieve_mi.solve(_scene("thinnest", 1.5), progress=False)
     sheet = result.sheet
-    assert sheet.mode == "thinnest" and sheet.safe == pytest.approx(28.4)
+    assert sheet.mode == "thinnest" and 2.0 < sheet.safe < 28.4
     steps = sheet.bisection
     assert 1 <= len(steps) <= 6
     # a bracket: every thickness where some B passed is below every one where none did
     passed = [s["thickness"] for s in steps if s["passage"]]
     held = [s["thickness"] for s in steps if not s["passage"]]
     assert not passed or not held or max(passed) < min(held)
-    assert sheet.thickness == pytest.approx(min(held + [28.4]))
-    assert sheet.proved == (sheet.thickness >= 28.4)
-    # the first step halves the safe value
-    assert steps[0]["thickness"] == pytest.approx(14.2)
+    assert sheet.thickness == pytest.approx(min(held + [sheet.safe]))
+    assert sheet.proved == (sheet.thickness >= sheet.safe)
+    # the first step halves the proved value
+    assert steps[0]["thickness"] == pytest.approx(round(0.5 * sheet.safe, 3))
     # no B passes the plate that is written
     assert all(t.status != "passage" for t in sheet.per_block if t is not None)
     assert result.winner == "A"
