@@ -5,7 +5,7 @@ Usage: python tools/layering.py [--graph]; exit status 1 when a rule is broken (
 Every import counts, at module level or inside a function. The units of the floor plan, bottom
 to top (a unit may import only units below it, or modules of its own):
 
-    _version < errors < settings < options < parsing < backend < telemetry < workers < optim
+    _version < errors < settings < options < parsing < backend < telemetry < workers < progress < optim
     < geometry < objectives < scene < authors_config
     < certify < motion < game < outputs < api < shake < cascade < testing < cli < __main__
     < __init__
@@ -37,6 +37,7 @@ UNITS = (
     "backend",
     "telemetry",
     "workers",
+    "progress",
     "optim",
     "geometry",
     "objectives",

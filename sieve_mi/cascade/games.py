@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 from sieve_mi.backend import THREADS_ENV, default_variant
 from sieve_mi.errors import SieveError
 from sieve_mi.outputs import outdir
+from sieve_mi.progress import Progress
 from sieve_mi.scene import Scene
 
 __all__ = [
@@ -33,11 +34,11 @@ __all__ = [
     "GAME_FILE",
     "GameCache",
     "GameSpec",
-    "Progress",
     "Runner",
     "cache_folder",
     "check_address",
     "game_key",
+    "game_line",
     "label_text",
     "play",
     "ray_module",
@@ -374,42 +375,15 @@ def label_text(label: dict) -> str:
     )
 
 
-class Progress:
-    """One bar for the games (done / known so far) and a line per finished game (stderr)."""
-
-    def __init__(self, enabled: bool):
-        self.enabled, self.bar = enabled, None
-        self.plain = enabled and not sys.stderr.isatty()  # a log: lines, no \r frames
-        if enabled and not self.plain:
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=0, desc="games", unit="game", dynamic_ncols=True, file=sys.stderr)
-
-    def add(self, n: int) -> None:
-        if self.bar is not None:
-            self.bar.total += n
-            self.bar.refresh()
-
-    def done(self, record: dict, reused: bool) -> None:
-        if self.bar is None and not self.plain:
-            return
-        s, label = record["summary"], record["label"]
-        weak = weakest(s)
-        (
-            self.bar.write
-            if self.bar is not None
-            else lambda t: print(t, file=sys.stderr, flush=True)
-        )(
-            f"  {label_text(label)} winner {s['winner']}  "
-            f"weakest {weak['name']} beta {weak['beta']:.4f}  "
-            + ("reused" if reused else f"{s.get('game_s', 0):.1f} s")
-        )
-        if self.bar is not None:
-            self.bar.update(1)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+def game_line(record: dict, reused: bool) -> str:
+    """A finished game's progress line: its label, winner, weakest B, and its time or ``reused``."""
+    s, label = record["summary"], record["label"]
+    weak = weakest(s)
+    return (
+        f"  {label_text(label)} winner {s['winner']}  "
+        f"weakest {weak['name']} beta {weak['beta']:.4f}  "
+        + ("reused" if reused else f"{s.get('game_s', 0):.1f} s")
+    )
 
 
 def _clear_cache(folder: str, keys) -> None:
@@ -477,22 +451,28 @@ class Engine:
                 "until the output is written: move it or choose another --out"
             )
         self.cache = GameCache(folder, also=(os.path.join(out_dir, "games"),))
-        self.bar = Progress(settings.progress)
+        # One bar for the games (done / known so far), a line per finished game; no "done in".
+        self.bar = Progress(settings.progress, 0, "games", unit="game", done_line=False)
         self.runner = Runner(
             self.cache,
             use_ray=settings.use_ray,
             address=settings.address,
             workers=settings.workers,
-            on_done=self.bar.done,
+            on_done=self.done,
         )
         self.records: dict = {}
 
     def play(self, specs: list) -> dict:
         """Play (or reuse) ``specs``; returns ``{key: record}``."""
-        self.bar.add(len({s.key for s in specs}))
+        self.bar.grow(len({s.key for s in specs}))
         records = self.runner.run(specs)
         self.records.update(records)
         return records
+
+    def done(self, record: dict, reused: bool) -> None:
+        """A game is finished (played or ``reused``): its line (:func:`game_line`), a step."""
+        self.bar.write(game_line(record, reused))
+        self.bar.update(1)
 
     def info(self) -> dict:
         """How the games ran: mode, address, games played and reused."""

@@ -25,7 +25,7 @@ import numpy as np
 from sieve_mi.cascade.mixture import Mixture
 from sieve_mi.cascade.plan import Plan, flat
 from sieve_mi.shake.geometry import part_from_mesh, plate_from_mesh
-from sieve_mi.shake.run import Progress, engine_doc, motion_doc, shape_entry
+from sieve_mi.shake.run import engine_doc, motion_doc, shape_entry, trial_bar
 from sieve_mi.shake.settings import ShakeSettings, metres_per_unit
 from sieve_mi.shake.stats import wilson
 from sieve_mi.telemetry import Run
@@ -96,7 +96,7 @@ def _shake_sieve(k, stage, parts, reaching, settings, unit_m, progress):
     here = replace(settings, seed=sieve_seed(settings.seed, k))
     arriving = [n for n in parts if reaching[n]]
     total = sum(len(reaching[n]) for n in arriving)
-    bar = Progress(progress, total, desc=f"shake sieve {k + 1}")
+    bar = trial_bar(progress, total, desc=f"shake sieve {k + 1}")
     rows, passed = [], {n: [] for n in parts}
     try:
         for n in arriving:

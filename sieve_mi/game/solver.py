@@ -31,6 +31,7 @@ from sieve_mi.geometry.outline import dilated
 from sieve_mi.geometry.rotations import normalize
 from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 from sieve_mi.optim import SwarmHistory
+from sieve_mi.progress import Progress
 from sieve_mi.scene import Scene
 from sieve_mi.telemetry import Run
 
@@ -91,40 +92,7 @@ def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
     return passes, blocks
 
 
-class _Bar:
-    """Progress on stderr: a tqdm bar on a terminal; elsewhere (a log file, a pipe) one plain line
-    per stage and one when done, without tqdm's carriage-return frames; nothing when quiet."""
-
-    def __init__(self, enabled: bool, total: int, desc: str, grow_by: int = 0):
-        self.bar, self.plain = None, enabled and not sys.stderr.isatty()
-        self.grow_by, self.desc, self.stage, self.t0 = grow_by, desc, None, time.perf_counter()
-        if enabled and not self.plain:
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=total, desc=desc, unit="it", leave=True, dynamic_ncols=True)
-
-    def update(self, n: int = 1, **postfix):
-        if self.plain and postfix.get("stage", self.stage) != self.stage:
-            self.stage = postfix["stage"]
-            print(f"{self.desc}: {self.stage}", file=sys.stderr, flush=True)
-        if self.bar is not None:
-            if self.bar.total is not None and self.grow_by and self.bar.n + n > self.bar.total:
-                self.bar.total += self.grow_by  # an extra round of work nobody could foresee
-            if postfix:
-                self.bar.set_postfix(postfix, refresh=False)
-            self.bar.update(n)
-            if n == 0:
-                self.bar.refresh()
-
-    def close(self):
-        if self.plain:
-            took = time.perf_counter() - self.t0
-            print(f"{self.desc}: done in {took:.1f} s", file=sys.stderr, flush=True)
-        if self.bar is not None:
-            self.bar.close()
-
-
-def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: _Bar, label: str):
+def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: Progress, label: str):
     """Player A's rotation for one shape alone against all of B (Secs. 5.1, 5.2)."""
     s, fab = scene.solver, scene.fabrication
     frame = hole_frame(a, fab.tolerance, s.resolution)
@@ -173,7 +141,7 @@ def search(
     merged = m > 1 and lay.mode == "merged"
     per_stage = s.particles * (s.iterations + 1)
     stages_planned = sum(q is None for q in fixed) + (m - 1 if merged else 0)
-    bar = _Bar(progress, per_stage * stages_planned, "search", grow_by=per_stage)
+    bar = Progress(progress, per_stage * stages_planned, "search", grow_by=per_stage)
     out = _rotate_each(scene, passes, blocks, rng, seed, bar)
     if merged:
         _merge_with_restarts(scene, passes, blocks, out, rng, seed, bar)
@@ -215,7 +183,7 @@ def _merge_with_restarts(
 
 
 def _rotate_each(
-    scene: Scene, passes, blocks, rng, seed: int, bar: _Bar, tag: str = ""
+    scene: Scene, passes, blocks, rng, seed: int, bar: Progress, tag: str = ""
 ) -> SearchOutcome:
     """Every A's rotation searched alone against all of B (fixed ones taken from the scene)."""
     lay, m = scene.layout, len(passes)
@@ -238,7 +206,7 @@ def _rotate_each(
     return out
 
 
-def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: _Bar):
+def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: Progress):
     """Several A in one hole: the placements of :func:`sieve_mi.game.layout.merge` on the union frame."""
     s, fab = scene.solver, scene.fabrication
     frame = union_frame([p.radius for p in passes], fab.tolerance, s.resolution)
@@ -332,7 +300,7 @@ def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng
     with run.stage("verdict"):
         while True:
             rows = [j for j in range(len(blocks)) if j not in sure]
-            bar = _Bar(progress and bool(rows), scene.verdict.steps, "verdict")
+            bar = Progress(progress and bool(rows), scene.verdict.steps, "verdict")
             v = judge(scene, passes, [blocks[j] for j in rows], found.quats, found.trans, rng,
                       progress=lambda n, bar=bar: bar.update(1), memory=found.memory)  # fmt: skip
             bar.close()

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
 
 from sieve_mi.errors import SieveError
+from sieve_mi.progress import Progress
 from sieve_mi.shake.fidelity import judge, measure_sink
 from sieve_mi.shake.geometry import Plate, part_from_mesh, plate_from_mesh
 from sieve_mi.shake.inputs import ShakeInput
@@ -29,7 +29,6 @@ from sieve_mi.telemetry import Run
 
 __all__ = [
     "FORMAT",
-    "Progress",
     "check_plate",
     "check_sizes",
     "engine_doc",
@@ -37,47 +36,18 @@ __all__ = [
     "preflight",
     "shake",
     "shape_entry",
+    "trial_bar",
 ]
 
 #: Version of the ``shake.json`` layout.
 FORMAT = 1
 
 
-class Progress:
-    """Progress on stderr: a tqdm bar over trials on a terminal; elsewhere one plain line per
-    shape when its trials are done (no carriage-return frames in logs); nothing when quiet."""
-
-    def __init__(self, enabled: bool, total: int, desc: str = "shake"):
-        self.enabled, self.total, self.bar, self.desc = enabled, total, None, desc
-        self.plain = enabled and not sys.stderr.isatty()
-        if enabled and not self.plain:
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=total, desc=desc, unit="trial", dynamic_ncols=True)
-
-    def shape(self, name: str) -> None:
-        """A new shape starts."""
-        if self.bar is not None:
-            self.bar.set_description(f"{self.desc} {name}")
-
-    def trial(self, outcome) -> None:
-        """One trial is done."""
-        if self.bar is not None:
-            self.bar.update(1)
-
-    def done(self, name: str, summary: dict, seconds: float) -> None:
-        """A shape's trials are done."""
-        if self.plain:
-            print(
-                f"{self.desc}: {name}: {summary['passed']} of {summary['trials']} passed "
-                f"({100 * summary['fraction']:.1f} %) in {seconds:.1f} s",
-                file=sys.stderr,
-                flush=True,
-            )
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+def trial_bar(enabled: bool, total: int, desc: str = "shake") -> Progress:
+    """Progress of shake trials on stderr (:class:`sieve_mi.progress.Progress`): a bar over
+    ``total`` trials on a terminal; in a log one line per shape when its trials are done
+    (:func:`shape_entry`), no ``done in`` line; nothing when not ``enabled``."""
+    return Progress(enabled, total, desc, unit="trial", done_line=False)
 
 
 def engine_doc() -> dict:
@@ -110,7 +80,9 @@ def shape_entry(part, role, path, plate, settings, unit_m, progress, trials=None
     settings : ShakeSettings
     unit_m : float
         Metres per scene unit.
-    progress : Progress
+    progress : sieve_mi.progress.Progress
+        The run's bar (:func:`trial_bar`): named after the shape, a step per trial, and in a log
+        a line of the shape's result.
     trials : sequence of int, optional
         The trials to run (default every one, see :func:`~sieve_mi.shake.trials.run_trials`).
 
@@ -122,11 +94,17 @@ def shape_entry(part, role, path, plate, settings, unit_m, progress, trials=None
     t0, name = time.perf_counter(), part.name
     check_plate(plate, settings, unit_m)
     fidelity = measure_sink(plate, part, settings, unit_m)
-    progress.shape(name)
-    outcomes = run_trials(plate, part, settings, unit_m, progress.trial, indices=trials)
+    progress.describe(name)
+    outcomes = run_trials(
+        plate, part, settings, unit_m, lambda outcome: progress.update(1), indices=trials
+    )
     summary = summarize(outcomes)
     seconds = time.perf_counter() - t0
-    progress.done(name, summary, seconds)
+    progress.write(
+        f"{progress.desc}: {name}: {summary['passed']} of {summary['trials']} passed "
+        f"({100 * summary['fraction']:.1f} %) in {seconds:.1f} s",
+        terminal=False,
+    )
     fidelity, lines = judge(name, fidelity, outcomes)
     entry = {"name": name, "role": role, "file": path, "geometry": part.to_dict()}
     entry.update(summary)
@@ -175,7 +153,7 @@ def shake(
             for name, role, path, mesh in inp.parts
         ]
         preflight(plate, parts, inp.plate_path, settings, unit_m)
-    bar = Progress(progress, settings.trials * len(parts))
+    bar = trial_bar(progress, settings.trials * len(parts))
     shapes = []
     try:
         for _, role, path, part in parts:
