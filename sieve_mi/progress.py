@@ -101,7 +101,7 @@ class Progress:
         if self.plain:
             print(line, file=sys.stderr, flush=True)
         elif self.bar is not None and terminal:
-            self.bar.write(line)
+            self.bar.write(line, file=sys.stderr)
 
     def close(self) -> None:
         """The work is over: the bar stays on the terminal; the ``done in`` line (``done_line``)."""

@@ -8,7 +8,6 @@ re-runs player B for longer against the chosen hole and declares the winner.
 from __future__ import annotations
 
 import sys
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
