@@ -191,8 +191,8 @@ def test_docs_and_dataclasses_agree():
         (", `ags`", ""),  # an accepted outer method left out
         ("| `fill_holes` | bool | `true` |", "| `fill_holes` | bool | `false` |"),
         (
-            '| `thickness` | number > 0, ≤ 1000000 or "thinnest" | the largest',
-            '| `thickness` | number > 0, ≤ 1000000 or "thinnest" | the smallest',
+            '| `thickness` | number > 0, ≤ 1000000 or "thinnest" | the thinnest proved',
+            '| `thickness` | number > 0, ≤ 1000000 or "thinnest" | the thickest proved',
         ),
         (
             "| `block_margin` | number 0–1000000 | `0.0` | scene units",
