@@ -14,7 +14,8 @@ That answer is about straight passage. A ball proof and a passage hold on a plat
 thickness; a cell-tree proof only on a plate at least as thick as the shape's diameter (the
 thick-plate argument): given a plate's ``thickness``, a thinner one turns it into "undecided"
 (:meth:`Certification.on_plate`; the result's ``holds_for``, ``diameter`` and ``thickness`` say
-so).
+so). On such a plate, the slab-section proof (:mod:`sieve_mi.certify.section`, from what is left
+of the budget) can still prove it: then it holds on plates at least that thick.
 
 :func:`replay` re-checks a certificate file with an independent implementation.
 
@@ -36,6 +37,10 @@ replay
     The independent replay of a certificate.
 replay_geometry
     The replay's own exact geometry.
+section
+    The slab-section proof: no rigid motion passes a plate of a given thickness.
+replay_section
+    The independent replay of a slab-section proof.
 svg
     A hole outline read exactly from an SVG file.
 blocks
