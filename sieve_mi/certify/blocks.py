@@ -186,8 +186,8 @@ class Budgets(NamedTuple):
     section_s : float
         Seconds of the slab-section proofs after it (``[verdict] section_budget``).
     thickness : float, str or None
-        ``[fabrication] thickness``: None bisects the thinnest proved plate from ``low`` up; a
-        number is proved at that thickness (when thinner than the shape); "thinnest" tries none.
+        ``[fabrication] thickness``: None or "thinnest" bisects the thinnest proved plate from
+        ``low`` up; a number is proved at that thickness (when thinner than the shape).
     low : float
         ``[fabrication] min_thickness``, scene units.
     """
@@ -231,7 +231,7 @@ def _prove(shape: Shape, contours: list, budget: Budgets, found: float | None) -
         c.margin, c.margin_certificate = prove_margin(shape, hole, found, spare)
     if c.status != "proved" or c.method != "cells":
         return c
-    if budget.thickness is None:
+    if budget.thickness in (None, "thinnest"):
         return thinnest_proved(c, shape, [hole], budget.low, budget.section_s)
     if isinstance(budget.thickness, float | int) and budget.thickness < (c.diameter or 0.0):
         return thin_plate_proof(c, shape, [hole], float(budget.thickness), budget.section_s)

@@ -1,9 +1,9 @@
 """The plate's thickness and the verdict on it: safe by a proof, or a thin-plate motion search per B.
 
 The default thickness is the thinnest *proved* plate (:func:`proved_thickness`): for each blocked
-B, ``[fabrication] min_thickness`` where a ball proves it, the thinnest plate its slab-section
-proof covers (bisected by certify, :func:`sieve_mi.certify.thinnest_proved`), else its diameter
-(the thick-plate argument); the largest of these. For a thinner plate (``[fabrication]
+B, none where a ball proves it (any plate), the thinnest plate its slab-section proof covers
+(bisected by certify, :func:`sieve_mi.certify.thinnest_proved`), else its diameter (the
+thick-plate argument); the largest of these, and at least ``[fabrication] min_thickness``. For a thinner plate (``[fabrication]
 thickness``), each blocked B not proved there gets a motion search (:mod:`sieve_mi.motion`); a
 verified passage overrules "blocked". ``thickness = "thinnest"`` bisects between the proved
 thickness and zero for the thinnest plate on which no B was found to pass (a heuristic answer:
@@ -75,33 +75,30 @@ def _say(progress: bool, line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
 
-def proof_thickness(shape: Shape, proof, low: float) -> float:
-    """The thinnest plate on which one blocked B is proved, scene units: ``low`` for a ball proof
-    (any plate), the thickness of its slab-section proof, else its diameter (rounded up to 0.1).
+def proof_thickness(shape: Shape, proof) -> float:
+    """The thinnest plate on which one blocked B is proved, scene units: 0 for a ball proof (any
+    plate), the thickness of its slab-section proof, else its diameter (rounded up to 0.1).
 
     Parameters
     ----------
     shape : Shape
     proof : Certification or None
         Its certification (None: not certified).
-    low : float
-        ``[fabrication] min_thickness``.
     """
-    if proof is not None and proof.straight in ("proved", None) and proof.status == "proved":
-        if proof.method == "ball":
-            return low
+    if proof is not None and proof.method == "ball" and proof.status == "proved":
+        return 0.0
     if proof is not None and proof.section is not None and proof.section["status"] == "proved":
         if proof.straight == "proved":
-            return max(low, float(proof.section["thickness"]))
-    return max(low, safe_thickness([shape.hull]))
+            return float(proof.section["thickness"])
+    return safe_thickness([shape.hull])
 
 
-def proved_thickness(blocks: list, blocked, certified: list, low: float) -> float:
+def proved_thickness(blocks: list, blocked, certified: list) -> float:
     """The thinnest plate on which every blocked B is proved: the largest of
-    :func:`proof_thickness` over them (``low`` when none is blocked), scene units."""
+    :func:`proof_thickness` over them (0 when none is blocked or all by balls), scene units."""
     proofs = certified or [None] * len(blocks)
-    need = [proof_thickness(b, c, low) for b, c, on in zip(blocks, proofs, blocked) if on]
-    return max([low] + need)
+    need = [proof_thickness(b, c) for b, c, on in zip(blocks, proofs, blocked) if on]
+    return max([0.0] + need)
 
 
 def _search(scene: Scene, blocks, todo, outline, attack, thickness: float, seed: int,
@@ -175,16 +172,16 @@ def plate_sheet(
     Sheet
     """
     given, low = scene.fabrication.thickness, scene.fabrication.min_thickness
-    safe = proved_thickness(blocks, blocked, certified or [], low)
+    safe = proved_thickness(blocks, blocked, certified or [])
     todo = [j for j in range(len(blocks)) if blocked[j]]
     sections = _sections(certified, len(blocks))
     if given == "thinnest" and todo:
         thickness, per, steps = _thinnest(
-            scene, blocks, todo, outline, attack, safe, seed, progress, sections
+            scene, blocks, todo, outline, attack, max(low, safe), seed, progress, sections
         )
-        per = per or _search(scene, blocks, todo, outline, attack, safe, seed, sections)
+        per = per or _search(scene, blocks, todo, outline, attack, max(low, safe), seed, sections)
         return Sheet(thickness, safe, "thinnest", per, steps)
-    thickness = safe if given in (None, "thinnest") else float(given)
+    thickness = max(low, safe) if given in (None, "thinnest") else float(given)
     if thickness < safe and todo:
         _say(progress, f"thin plate {thickness:g}: motion search for {len(todo)} B, "
                        f"up to {scene.verdict.thin_budget:g} s each")  # fmt: skip

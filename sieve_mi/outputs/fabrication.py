@@ -96,7 +96,8 @@ def plate(
     border : float
         Width of material between the hole's bounding box and the plate's edge, scene units.
     required_thickness : float, optional
-        The safe thickness (the largest diameter of a B); a thinner plate gets a warning.
+        The thinnest proved plate (:func:`sieve_mi.game.sheet.proved_thickness`); a thinner plate
+        gets a warning.
 
     Returns
     -------
@@ -117,7 +118,7 @@ def plate(
     warnings = []
     if required_thickness is not None and thickness < required_thickness - 1e-9:
         warnings.append(
-            f"plate thickness {thickness:g} is less than the largest diameter of a blocked shape "
+            f"plate thickness {thickness:g} is less than the thinnest proved plate "
             f"{required_thickness:g}: blocks on it rest on a motion search (thin_plate in "
             "report.json), not on a proof; use at least that thickness for a guaranteed block"
         )

@@ -45,7 +45,9 @@ TINY_SOLVER = MappingProxyType(
 )
 #: ``[verdict]`` keys of a short verdict: 8 starts of 40 steps on a 96-pixel raster, and one
 #: second per proof of a block.
-TINY_VERDICT = MappingProxyType({"starts": 8, "steps": 40, "resolution": 96, "certify_budget": 1.0})
+TINY_VERDICT = MappingProxyType(
+    {"starts": 8, "steps": 40, "resolution": 96, "certify_budget": 1.0, "section_budget": 3.0}
+)
 #: ``[layout]`` keys that place each of several A once: one round, no alternatives, no restarts.
 TINY_LAYOUT = MappingProxyType({"rounds": 1, "alternatives": 0, "restarts": 0})
 #: ``[solver]`` keys of a sorting cascade's many games: :data:`TINY_SOLVER` with 30 steps, 6

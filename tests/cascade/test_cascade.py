@@ -110,7 +110,8 @@ def test_four_shapes_sort_into_four_trays_and_an_interrupted_sort_resumes(tmp_pa
     assert list(bed.geometry) == [
         f"sieve_{k + 1}_holds_{'+'.join(s['holds'])}" for k, s in enumerate(report["sieves"])
     ]
-    assert sum(g.volume for g in bed.geometry.values()) == pytest.approx(plates.volume, rel=1e-6)
+    # the STL stores float32 coordinates: on thin (1.2 mm) plates that is ~1e-6 of the volume
+    assert sum(g.volume for g in bed.geometry.values()) == pytest.approx(plates.volume, rel=1e-5)
     assert os.path.getsize(os.path.join(out, "cascade.png")) > 10_000
     # a second sort of the same mixture plays nothing: every game is in the output
     again = sort_mixture(

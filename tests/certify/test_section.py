@@ -14,8 +14,8 @@ import pytest
 import trimesh
 
 from sieve_mi.certify import certify, replay
-from sieve_mi.certify.section import hull_widths, min_width, prove_section
 from sieve_mi.certify.search import Settings
+from sieve_mi.certify.section import hull_widths, min_width, prove_section
 from sieve_mi.geometry.meshes import shape_from_trimesh
 from sieve_mi.motion import thin_plate
 from sieve_mi.testing import shapes

@@ -15,7 +15,7 @@ import trimesh
 
 from sieve_mi.geometry.meshes import shape_from_trimesh
 from sieve_mi.geometry.rotations import random_uniform, to_matrix
-from sieve_mi.motion import thin_plate
+from sieve_mi.motion import thin_plate, thin_plates
 from sieve_mi.motion.collide import PlateWorld
 from sieve_mi.motion.path import interpolate, segment_reach, verify
 from sieve_mi.testing import shapes
@@ -81,11 +81,13 @@ def test_coin_cannot_pass_a_slot_narrower_than_its_chord():
     """A 19.75 x 1.93 mm disk (10 cents) and a 19.5 x 3 mm slot in a 1 mm plate: when the coin's
     centre crosses the plate's mid-plane, the horizontal plane there cuts the coin in a chord of
     at least 19.75 cos(pi/96) = 19.739 mm (the 96-gon's rim), longer than the slot's diagonal
-    sqrt(19.5² + 3²) = 19.729 mm. No motion exists, and none is found."""
+    sqrt(19.5² + 3²) = 19.729 mm. No motion exists, and the motion search alone (no section
+    proof: ``sections`` given) finds none and says it is not a proof
+    (tests/certify/test_section.py proves it)."""
     coin = shape_from_trimesh(shapes.coin(19.75, 1.93), name="10c")
     slot = manifold3d.CrossSection.square([19.5, 3.0], center=True)
     assert 19.75 * math.cos(math.pi / 96) > math.hypot(19.5, 3.0)
-    result = thin_plate(coin, slot, 1.0, budget_s=3.0)
+    (result,) = thin_plates([coin], slot, 1.0, budget_s=3.0, sections=[None])
     assert result.status == "no passage found" and result.plans >= 1 and result.checks > 100
     d = result.to_dict()
     assert "not a proof" in d["note"] and d["seconds"] >= 2.9
