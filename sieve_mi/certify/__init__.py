@@ -221,7 +221,7 @@ def thinnest_proved(result: Certification, shape: Shape, holes: list, low: float
     """
     if result.straight != "proved" or result.method != "cells" or result.diameter is None:
         return result
-    t0, best, unproved = time.perf_counter(), None, None
+    t0, best, unproved, last = time.perf_counter(), None, None, None
     hi, lo = float(result.diameter), float(low)
     tries = [lo] + [None] * steps
     for k, t in enumerate(tries):
@@ -235,8 +235,8 @@ def thinnest_proved(result: Certification, shape: Shape, holes: list, low: float
             if k == 0:
                 break
         else:
-            unproved, lo = t, t
-    out = best or result
+            unproved, lo, last = t, t, c
+    out = best or last or result  # an attempt that failed is recorded too
     if out.section is not None:
         out.section = {**out.section, "bracket": {"proved": hi if best else None,
                                                   "unproved": unproved}}  # fmt: skip

@@ -22,6 +22,7 @@ __all__ = [
     "check_summary",
     "memory_line",
     "merge_hint",
+    "section_line",
     "sheet_line",
     "stage_line",
     "summary_table",
@@ -105,10 +106,13 @@ def stage_line(timings: dict) -> str:
 
 def sheet_line(report: dict) -> str | None:
     """``plate: 2 mm thick, not proved (safe: 28.4 mm) ...`` when the plate is thinner than the
-    safe thickness (:mod:`sieve_mi.game.sheet`); None on a proved plate."""
+    safe thickness (:mod:`sieve_mi.game.sheet`); on a proved plate, the B whose slab-section
+    proofs failed (:func:`section_line`), else None."""
     sheet = report.get("fabrication", {}).get("sheet")
-    if sheet is None or sheet["proved"]:
+    if sheet is None:
         return None
+    if sheet["proved"]:
+        return section_line(report)
     u = report["units"]
     head = f"plate: {sheet['thickness']:g} {u} thick"
     if sheet["mode"] == "thinnest":
@@ -117,6 +121,22 @@ def sheet_line(report: dict) -> str | None:
         head
         + f"; not proved (a motion search), the proved plate is {sheet['safe_thickness']:g} {u}"
     )
+
+
+def section_line(report: dict) -> str | None:
+    """``plate: 42.2 mm thick, proved by diameters; no slab-section proof at 21.7 mm or thinner
+    for letter_R (within [verdict] section_budget) ...``, or None when no B's section failed."""
+    u, failed = report["units"], []
+    for b in report["block"]:
+        c = b.get("certification")
+        bracket = ((c or {}).get("section") or {}).get("bracket") if isinstance(c, dict) else None
+        if bracket and bracket.get("proved") is None and bracket.get("unproved") is not None:
+            failed.append(f"{bracket['unproved']:g} {u} for {b['name']}")
+    if not failed:
+        return None
+    thickness = report["fabrication"]["sheet"]["thickness"]
+    return (f"plate: {thickness:g} {u} thick, proved by the blocks' diameters; no slab-section "
+            f"proof at (or below) {', '.join(failed)} within [verdict] section_budget")  # fmt: skip
 
 
 def _thin_cell(block: dict) -> str:

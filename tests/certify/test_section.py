@@ -112,3 +112,17 @@ def test_hole_widths_are_known_answers():
     assert diameter == pytest.approx(np.hypot(19.5, 3.0)) and width == pytest.approx(3.0)
     tri = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, np.sqrt(3.0)]])  # side 2: width sqrt(3)
     assert min_width(tri) == pytest.approx(np.sqrt(3.0))
+
+
+def test_the_console_names_the_blocks_whose_section_proof_failed():
+    from sieve_mi.outputs.console import sheet_line
+
+    def report(bracket):
+        section = {"status": "undecided", "bracket": bracket}
+        block = {"name": "letter_R", "certification": {"status": "proved", "section": section}}
+        sheet = {"thickness": 42.2, "safe_thickness": 42.2, "mode": "safe", "proved": True}
+        return {"units": "mm", "block": [block], "fabrication": {"sheet": sheet}}
+
+    line = sheet_line(report({"proved": None, "unproved": 41.5}))
+    assert line.startswith("plate: 42.2 mm thick") and "41.5 mm for letter_R" in line
+    assert sheet_line(report({"proved": 14.8, "unproved": 1.2})) is None  # proved: nothing to say
