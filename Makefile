@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml tools/ensure_llvm.sh tools/ensure_chromium.sh
 	-bash tools/ensure_chromium.sh
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test,cluster]'
+	$(PY) -m pip install -q -e '.[test,cluster,shake]'
 	touch $(STAMP)
 
 demo: setup

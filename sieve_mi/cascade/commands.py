@@ -156,18 +156,21 @@ def _engine(args):
 def cmd_sort(args) -> int:
     from sieve_mi.api import check_seed
     from sieve_mi.cascade.mixture import load_mixture
-    from sieve_mi.cascade.purity import purity_table
     from sieve_mi.cascade.sort import sort_mixture
-    from sieve_mi.shake.commands import trials_option
+    from sieve_mi.shake.commands import need_engine, trials_option
 
     mixture = load_mixture(args.mixture)
     shake = trials_option(args.shake, "sort", base=mixture.shake)
+    if shake is not None:
+        need_engine("sieve-mi sort --shake")
     check_seed(args.seed, "--seed")
     engine = _engine(args)
     out = args.out or os.path.join("out", mixture.name)
     report = sort_mixture(mixture, out, engine=engine, seed=args.seed, shake=shake)
     text = tray_table(report)
     if "shake" in report:
+        from sieve_mi.cascade.purity import purity_table
+
         text += "\n" + purity_table(report["shake"])
     print(json.dumps(report, indent=2) if args.json else text)
     for w in report["warnings"]:

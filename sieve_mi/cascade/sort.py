@@ -24,7 +24,6 @@ from sieve_mi.cascade.outputs import (
     write_plates,
 )
 from sieve_mi.cascade.plan import plan_cascade
-from sieve_mi.cascade.purity import shake_plan
 from sieve_mi.cascade.rules import Body, Rules, body
 from sieve_mi.cascade.size import passage_radius
 from sieve_mi.cascade.stages import FULL, SCREEN, screening_tables, worth_screening
@@ -139,7 +138,11 @@ def sort_mixture(
             margin=rules.margin,
         )
     folders = games.folders()
-    shaken = None if shake is None else shake_plan(plan, folders, mixture, shake, settings.progress)
+    shaken = None
+    if shake is not None:  # MuJoCo (the optional extra sieve-mi[shake]) is imported only then
+        from sieve_mi.cascade.purity import shake_plan
+
+        shaken = shake_plan(plan, folders, mixture, shake, settings.progress)
     report = cascade_dict(
         plan,
         shapes=shapes,

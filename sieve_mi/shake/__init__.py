@@ -7,6 +7,11 @@ before MuJoCo is imported: sieve-mi renders with Mitsuba, and MuJoCo's import ot
 for GLFW by starting a Python subprocess per candidate library in every worker, which prints a
 traceback (EOFError, BrokenPipeError) when a run is stopped while it waits.
 
+MuJoCo and CoACD are an optional extra (``pip install 'sieve-mi[shake]'``): the public names
+below are imported on first use, and only the engine's modules (``model``, ``fidelity``,
+``trials``, ``run``, ``clip``) import MuJoCo; :func:`~sieve_mi.shake.commands.need_engine` turns
+their absence into one line.
+
 Modules
 -------
 settings
@@ -37,12 +42,6 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 
-from sieve_mi.shake.commands import shake_folder
-from sieve_mi.shake.inputs import ShakeInput, from_files, from_folder
-from sieve_mi.shake.run import shake
-from sieve_mi.shake.settings import ShakeSettings
-from sieve_mi.shake.stats import wilson
-
 __all__ = [
     "ShakeInput",
     "ShakeSettings",
@@ -52,3 +51,28 @@ __all__ = [
     "shake_folder",
     "wilson",
 ]
+
+#: Public name -> module that defines it, imported on first use: MuJoCo and CoACD are an
+#: optional extra (``pip install 'sieve-mi[shake]'``), so importing this package (the command
+#: line does, for ``shake``'s options) must not import them.
+_LAZY = {
+    "ShakeInput": "sieve_mi.shake.inputs",
+    "ShakeSettings": "sieve_mi.shake.settings",
+    "from_files": "sieve_mi.shake.inputs",
+    "from_folder": "sieve_mi.shake.inputs",
+    "shake": "sieve_mi.shake.run",
+    "shake_folder": "sieve_mi.shake.commands",
+    "wilson": "sieve_mi.shake.stats",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'sieve_mi.shake' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(list(globals()) + __all__)

@@ -12,12 +12,39 @@ from sieve_mi.shake.settings import ShakeSettings, check_workers, metres_per_uni
 __all__ = [
     "add_parser",
     "cmd_shake",
+    "need_engine",
     "settings_from_args",
     "shake_after_solve",
     "shake_folder",
     "solve_shake_settings",
     "trials_option",
 ]
+
+
+#: The optional extra that holds the physics engine and the convex decomposition.
+ENGINE_MODULES = ("mujoco", "coacd")
+
+
+def need_engine(command: str = "sieve-mi shake") -> None:
+    """Refuse, in one line and before any work, a ``command`` that shakes where MuJoCo or CoACD
+    is not installed (they are the optional extra ``sieve-mi[shake]``).
+
+    Raises
+    ------
+    SieveError
+        ``"sieve-mi shake needs MuJoCo and CoACD: pip install 'sieve-mi[shake]'"``.
+    """
+    import importlib
+
+    for name in ENGINE_MODULES:
+        try:
+            importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:  # the module is there but something it needs is not
+                raise
+            raise SieveError(
+                f"{command} needs MuJoCo and CoACD: pip install 'sieve-mi[shake]'"
+            ) from None
 
 
 def add_parser(sub) -> None:
@@ -123,6 +150,7 @@ def cmd_shake(args) -> int:
     from sieve_mi.shake.inputs import only_names
     from sieve_mi.shake.outputs import summary, to_json
 
+    need_engine()
     settings = settings_from_args(args)
     only = only_names(args.only)
     if args.sieve is None:
@@ -169,8 +197,12 @@ def trials_option(
 
 
 def solve_shake_settings(text: str | None) -> ShakeSettings | None:
-    """``solve --shake N``'s settings (checked before the solve starts), None without it."""
-    return trials_option(text, "solve")
+    """``solve --shake N``'s settings (checked before the solve starts, as is the engine:
+    :func:`need_engine`), None without it."""
+    settings = trials_option(text, "solve")
+    if settings is not None:
+        need_engine("sieve-mi solve --shake")
+    return settings
 
 
 def shake_after_solve(out_dir: str, settings: ShakeSettings, quiet: bool, to_stderr: bool) -> None:
