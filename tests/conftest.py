@@ -18,13 +18,29 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+# `pytest -n N` runs N worker processes: each runs Dr.Jit's kernels on its share of the cores.
+# With a thread per core in every worker, N pools spin against each other: two letters solves
+# side by side on 2 cores took 18 s each, and 10 s each with one thread per worker. Only this
+# process's pool: the sieve-mi processes a test starts keep their default (a $SIEVE_MI_THREADS
+# here would change what they do, e.g. start Dr.Jit before a refused --out, which writes its
+# kernel cache into $HOME). On one thread Mitsuba's OpenEXR reader waits forever: tests read
+# EXR files with helpers.exr_bitmap.
+_XDIST_WORKERS = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+_THREADS = max(1, (os.cpu_count() or 1) // _XDIST_WORKERS) if _XDIST_WORKERS > 1 else None
+
+
 @pytest.fixture(scope="session", autouse=True)
 def mi():
     """Mitsuba on the default variant for every test: CPU unless ``SIEVE_MI_VARIANT=cuda_ad_mono``.
 
     Tests that switch variants switch back to this one.
     """
-    return use_variant(default_variant())
+    variant = use_variant(default_variant())
+    if _THREADS is not None:
+        import drjit as dr
+
+        dr.set_thread_count(_THREADS)
+    return variant
 
 
 @pytest.fixture

@@ -33,3 +33,19 @@ def tree(folder) -> dict:
             with open(path, "rb") as fh:
                 out[os.path.relpath(path, folder)] = hashlib.sha256(fh.read()).hexdigest()
     return out
+
+
+def exr_bitmap(path) -> object:
+    """``mitsuba.Bitmap(path)`` of an OpenEXR file, read on at least two Dr.Jit threads
+    (:func:`sieve_mi.backend.bitmap_threads`, as sieve-mi reads and writes them).
+
+    Under ``pytest -n N`` each worker runs Dr.Jit on its share of the cores (tests/conftest.py):
+    one thread on 2 cores, where Mitsuba 3.9's OpenEXR reader waits forever. Tests read EXR
+    files with this, never with a bare ``mi.Bitmap``.
+    """
+    import mitsuba as mi
+
+    from sieve_mi.backend import bitmap_threads
+
+    with bitmap_threads():
+        return mi.Bitmap(str(path))

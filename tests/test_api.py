@@ -33,7 +33,7 @@ def test_package_docstring_examples_run(monkeypatch):
 def test_result_blocks_and_save_match_report_json(tmp_path):
     # Prince Rupert's cube: A fixed, so only the verdict runs; the 1 % larger cube passes.
     result = sm.solve(sm.load_scene(os.path.join(ROOT, "scenes", "rupert.toml")), progress=False)
-    rep = result.save(str(tmp_path / "out"), fabricate=False)
+    rep = result.save(str(tmp_path / "out"), fabricate=False, figure=False, animation=False)
     on_disk = json.loads((tmp_path / "out" / "report.json").read_text())
     assert on_disk["winner"] == rep["winner"] == result.winner == "B"
     assert [(b.name, b.blocked) for b in result.blocks] == [("cube-1.01", False)]
@@ -103,7 +103,7 @@ def test_a_scene_built_in_code_plays_like_the_same_scene_from_toml(write_scene, 
     # flats), the hole holds a disk of radius 11: it sticks out by 0.96-1.0 mm at best
     assert a.attack.protrusion[0, 0] == b.attack.protrusion[0, 0]
     assert 0.9 < a.attack.protrusion[0, 0] <= 1.0 + 1e-6
-    rep = b.save(str(tmp_path / "out"), fabricate=False)
+    rep = b.save(str(tmp_path / "out"), fabricate=False, figure=False, animation=False)
     assert [m["mesh"] for m in rep["provenance"]["meshes"]] == [
         "<in memory: cube>", "<in memory: ball>",
     ]  # fmt: skip

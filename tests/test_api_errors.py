@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 
 import pytest
 import trimesh
@@ -21,11 +19,13 @@ def scene():
     return sm.load_scene(DEFAULT)
 
 
-def _cli(*args) -> subprocess.CompletedProcess:
-    """``python -m sieve_mi ARGS`` with its output captured."""
-    return subprocess.run(
-        [sys.executable, "-m", "sieve_mi", *args], capture_output=True, text=True, timeout=300
-    )
+def _cli(capsys, *args) -> tuple[int, str]:
+    """``sieve-mi ARGS`` in this process (``sieve_mi.cli.main``): its exit code and stderr (an
+    exception other than the one-line error fails the test as a traceback would)."""
+    from sieve_mi.cli import main
+
+    code = main(list(args))
+    return code, capsys.readouterr().err
 
 
 def _one_line(exc: pytest.ExceptionInfo, needle: str) -> None:
@@ -106,11 +106,11 @@ def test_sweep_seeds_are_bounded_before_any_list_is_built(text, monkeypatch):
     _one_line(e, "--seeds")
 
 
-def test_seed_two_to_the_64_is_one_line_from_the_cli(tmp_path):
-    run = _cli("solve", DEFAULT, "--seed", str(2**64), "--out", str(tmp_path / "o"))
-    assert run.returncode == 2
-    lines = run.stderr.strip().splitlines()
-    assert len(lines) == 1 and "--seed" in lines[0] and "2**64" in lines[0], run.stderr
+def test_seed_two_to_the_64_is_one_line_from_the_cli(tmp_path, capsys):
+    code, err = _cli(capsys, "solve", DEFAULT, "--seed", str(2**64), "--out", str(tmp_path / "o"))
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "--seed" in lines[0] and "2**64" in lines[0], err
     assert not (tmp_path / "o").exists()
 
 
@@ -207,26 +207,26 @@ def test_sweep_tolerances_are_checked_like_the_scene_key(text, needle):
     assert parse_tolerances("0.5,1") == [0.5, 1.0]
 
 
-def test_sweep_seed_and_seeds_are_one_option(tmp_path):
+def test_sweep_seed_and_seeds_are_one_option(tmp_path, capsys):
     from sieve_mi.cascade.commands import parse_seeds
     from sieve_mi.cli import _parser
 
     for flag in ("--seed", "--seeds"):
         assert _parser().parse_args(["sweep", DEFAULT, flag, "7"]).seeds == "7"
     assert parse_seeds("7") == [7]
-    run = _cli("sweep", DEFAULT, "--seed", "5-2", "--out", str(tmp_path / "o"))
-    assert run.returncode == 2
-    lines = run.stderr.strip().splitlines()
-    assert len(lines) == 1 and "--seeds 5-2" in lines[0], run.stderr
+    code, err = _cli(capsys, "sweep", DEFAULT, "--seed", "5-2", "--out", str(tmp_path / "o"))
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "--seeds 5-2" in lines[0], err
 
 
-def test_a_missing_mesh_names_the_scene_file_and_key(tmp_path):
+def test_a_missing_mesh_names_the_scene_file_and_key(tmp_path, capsys):
     scene = tmp_path / "l.toml"
     cube = os.path.join(os.path.dirname(DEFAULT), "meshes", "cube.stl")
     scene.write_text(f'[[pass]]\nmesh = "{cube}"\n[[block]]\nmesh = "nope.stl"\n')
-    run = _cli("solve", str(scene), "--out", str(tmp_path / "o"))
-    lines = run.stderr.strip().splitlines()
-    assert run.returncode == 2 and len(lines) == 1, run.stderr
+    code, err = _cli(capsys, "solve", str(scene), "--out", str(tmp_path / "o"))
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
     assert f"{scene}: block[0].mesh: " in lines[0] and "nope.stl: mesh file not found" in lines[0]
 
 

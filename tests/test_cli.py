@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 import trimesh
-from helpers import REPO
+from helpers import REPO, exr_bitmap
 
 from sieve_mi.errors import SieveError
 from sieve_mi.testing.settings import TINY
@@ -41,8 +41,6 @@ def _good_scene(write_scene, extra=""):
 @pytest.mark.slow
 def test_solve_writes_every_output(write_scene, tmp_path):
     import time
-
-    import mitsuba as mi
 
     scene = _good_scene(write_scene)
     out = tmp_path / "result"
@@ -87,7 +85,7 @@ def test_solve_writes_every_output(write_scene, tmp_path):
         "masks/block_0_sphere.exr",
     ):
         assert (out / f).is_file(), f
-    hole = np.array(mi.Bitmap(str(out / "hole.exr")))  # the exact hole's pixel centres
+    hole = np.array(exr_bitmap(out / "hole.exr"))  # the exact hole's pixel centres
     area = float(hole.sum()) * report["pixel_size"] ** 2
     assert abs(area - report["hole"]["area"]) < 0.05 * report["hole"]["area"]
     # check reads hole.png's pixel size from its pHYs: no --pixel-size; A (cube) passes: exit 0
@@ -140,6 +138,25 @@ def _assert_clean_error(p, *needles, out=None):
     lines = [ln for ln in p.stderr.strip().splitlines() if ln.strip()]
     assert len(lines) == 1, p.stderr
     assert "Traceback" not in p.stderr
+    for n in needles:
+        assert n in lines[0], lines[0]
+    if out is not None:
+        assert not os.path.exists(out)
+
+
+def _assert_clean_main_error(capsys, argv, *needles, out=None):
+    """:func:`_assert_clean_error` of ``sieve-mi ARGV`` run in this process
+    (``sieve_mi.cli.main``): exit code 2, one stderr line holding every needle, nothing on stdout,
+    ``out`` not made; any other exception fails the test as a traceback would. One process
+    fewer per case: the subprocess of ``test_missing_scene_file`` checks the same path end to
+    end, from ``python -m sieve_mi`` to the exit status."""
+    from sieve_mi.cli import main
+
+    code = main([str(a) for a in argv])
+    err = capsys.readouterr()
+    lines = [ln for ln in err.err.strip().splitlines() if ln.strip()]
+    assert code == 2 and len(lines) == 1, (err.out, err.err)
+    assert err.out == ""
     for n in needles:
         assert n in lines[0], lines[0]
     if out is not None:
@@ -202,12 +219,11 @@ def test_missing_scene_file(tmp_path):
         ),
     ],
 )
-def test_bad_scenes_fail_with_one_line(write_scene, tmp_path, text, needles):
+def test_bad_scenes_fail_with_one_line(write_scene, tmp_path, capsys, text, needles):
     mesh = os.path.abspath(os.path.join(SCENES, "meshes", "cube.stl"))
     scene = write_scene(text.replace("MESH", mesh))
-    _assert_clean_error(
-        run_cli("solve", scene, "--out", str(tmp_path / "o")), *needles, out=tmp_path / "o"
-    )
+    argv = ["solve", scene, "--out", tmp_path / "o"]
+    _assert_clean_main_error(capsys, argv, *needles, out=tmp_path / "o")
 
 
 def _bad_meshes(tmp_path):
@@ -225,15 +241,14 @@ def _bad_meshes(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["nan.obj", "cloud.ply", "empty.stl", "garbage.obj", "flat0.obj"])
-def test_bad_meshes_fail_with_one_line(write_scene, tmp_path, name):
+def test_bad_meshes_fail_with_one_line(write_scene, tmp_path, capsys, name):
     _bad_meshes(tmp_path)
     cube = os.path.abspath(os.path.join(SCENES, "meshes", "cube.stl"))
     scene = write_scene(
         f'name = "x"\n[[pass]]\nmesh = "{cube}"\n[[block]]\nmesh = "{tmp_path / name}"\n'
     )
-    _assert_clean_error(
-        run_cli("solve", scene, "--out", str(tmp_path / "o")), name, out=tmp_path / "o"
-    )
+    argv = ["solve", scene, "--out", tmp_path / "o"]
+    _assert_clean_main_error(capsys, argv, name, out=tmp_path / "o")
 
 
 def test_bad_variant_in_environment(write_scene, tmp_path):
@@ -249,16 +264,13 @@ def test_bad_variant_in_environment(write_scene, tmp_path):
     _assert_clean_error(p, "SIEVE_MI_VARIANT=scalar_rgb", out=tmp_path / "o")
 
 
-def test_unknown_variant_and_bad_out(write_scene, tmp_path):
+def test_unknown_variant_and_bad_out(write_scene, tmp_path, capsys):
     scene = _good_scene(write_scene)
-    _assert_clean_error(
-        run_cli("solve", scene, "--variant", "scalar_rgb", "--out", str(tmp_path / "o")),
-        "scalar_rgb",
-        out=tmp_path / "o",
-    )
+    argv = ["solve", scene, "--variant", "scalar_rgb", "--out", tmp_path / "o"]
+    _assert_clean_main_error(capsys, argv, "scalar_rgb", out=tmp_path / "o")
     f = tmp_path / "file"
     f.write_text("x")
-    _assert_clean_error(run_cli("solve", scene, "--out", str(f)), "--out")
+    _assert_clean_main_error(capsys, ["solve", scene, "--out", f], "--out")
 
 
 @pytest.mark.parametrize("name", ["suzanne.obj", "alligator.obj", "spot.obj"])
@@ -355,22 +367,22 @@ def test_bad_setting_options_fail_with_one_line(tmp_path, capsys, command, optio
 
 
 @pytest.mark.parametrize("value", ["0", "-1", "nan", "inf", "1e300"])
-def test_check_refuses_a_bad_learning_rate_in_one_line(tmp_path, value):
+def test_check_refuses_a_bad_learning_rate_in_one_line(tmp_path, capsys, value):
     # Before: 0 reported a passing cube as blocked (Adam never moved); the others crashed.
     argv, out = _command_line(tmp_path, "check", "--learning-rate", value)
-    _assert_clean_error(run_cli(*argv), "check: --learning-rate: ", out=out)
+    _assert_clean_main_error(capsys, argv, "check: --learning-rate: ", out=out)
 
 
-def test_a_bad_option_gets_the_message_of_a_bad_scene_key(tmp_path):
+def test_a_bad_option_gets_the_message_of_a_bad_scene_key(tmp_path, capsys):
     from sieve_mi.game.check_settings import CheckSettings
     from sieve_mi.settings import read_value
 
     scene = tmp_path / "s.toml"
     scene.write_text('[[pass]]\nmesh = "a.stl"\n[[block]]\nmesh = "a.stl"\n[solver]\nsteps = -2\n')
-    p = run_cli("solve", str(scene), "--out", str(tmp_path / "o"))
-    _assert_clean_error(p, f"{scene}: solver.steps: must be >= 0, got -2")
+    argv = ["solve", scene, "--out", tmp_path / "o"]
+    _assert_clean_main_error(capsys, argv, f"{scene}: solver.steps: must be >= 0, got -2")
     argv, _ = _command_line(tmp_path, "check", "--steps", "-2")
-    _assert_clean_error(run_cli(*argv), "check: --steps: must be >= 1, got -2")
+    _assert_clean_main_error(capsys, argv, "check: --steps: must be >= 1, got -2")
     with pytest.raises(SieveError, match=r"^check: --steps: must be >= 1, got -2$"):
         read_value(CheckSettings, "steps", -2, "check", "--steps")
 
@@ -455,25 +467,6 @@ def test_progress_into_a_log_is_plain_lines(tmp_path):
     assert "verdict: done in " in run.stderr
 
 
-def test_solve_json_prints_report_json_on_stdout(tmp_path):
-    out = tmp_path / "o"
-    run = run_cli(
-        "solve",
-        os.path.join(SCENES, "rupert.toml"),
-        "--out",
-        str(out),
-        "--no-figure",
-        "--no-animation",
-        "--json",
-        "--quiet",
-    )
-    assert run.returncode == 3, run.stderr  # B wins: the design failed
-    printed = json.loads(run.stdout)  # nothing else on stdout
-    with open(out / "report.json") as fh:
-        assert printed == json.load(fh)
-    assert printed["winner"] == "B" and "outputs:" in run.stderr
-
-
 @pytest.mark.parametrize("command", ["solve", "check", "certify", "sort", "sweep"])
 def test_every_working_subcommand_takes_quiet(command):
     from sieve_mi.cli import _parser
@@ -536,29 +529,34 @@ def test_exit_code_constants_are_the_documented_ones():
 
 
 @pytest.mark.parametrize("count", ["0", "-2"])
-def test_threads_below_one_is_one_line(count, tmp_path):
-    run = run_cli("solve", os.path.join(SCENES, "rupert.toml"), "--threads", count,
-                  "--out", str(tmp_path / "o"))  # fmt: skip
-    lines = run.stderr.strip().splitlines()
-    assert run.returncode == 2 and len(lines) == 1, run.stderr
-    assert f"--threads {count}: must be a whole number from 1 to " in lines[0]
-    assert not (tmp_path / "o").exists()
+def test_threads_below_one_is_one_line(count, tmp_path, capsys):
+    argv = [
+        "solve",
+        os.path.join(SCENES, "rupert.toml"),
+        "--threads",
+        count,
+        "--out",
+        tmp_path / "o",
+    ]
+    needle = f"--threads {count}: must be a whole number from 1 to "
+    _assert_clean_main_error(capsys, argv, needle, out=tmp_path / "o")
 
 
-def test_threads_one_runs_the_solve_and_writes_every_exr(tmp_path):
-    # One Dr.Jit thread: Mitsuba's OpenEXR reader and writer would wait forever on the pool
-    # (backend.bitmap_threads gives them two); the report records the count.
-    import mitsuba as mi
-
+def test_solve_json_prints_report_json_on_stdout_and_one_thread_writes_every_exr(tmp_path):
+    # One run for two tests that solved the same scene with the same flags (but --threads 1):
+    # --json prints report.json's content on stdout and nothing else; one Dr.Jit thread:
+    # Mitsuba's OpenEXR reader and writer would wait forever on the pool (backend.bitmap_threads
+    # gives them two); the report records the count.
     out = tmp_path / "o"
     run = run_cli("solve", os.path.join(SCENES, "rupert.toml"), "--threads", "1", "--out",
                   str(out), "--no-figure", "--no-animation", "--quiet", "--json")  # fmt: skip
     assert run.returncode == 3, run.stderr  # Rupert's cube gets through: the design failed
-    report = json.loads(run.stdout)
-    assert report["winner"] == "B" and report["provenance"]["machine"]["threads"] == 1
-    assert (
-        np.array(mi.Bitmap(str(out / "hole.exr"))).shape[:2] == (report["hole"]["resolution"],) * 2
-    )
+    report = json.loads(run.stdout)  # nothing else on stdout
+    with open(out / "report.json") as fh:
+        assert report == json.load(fh)
+    assert report["winner"] == "B" and "outputs:" in run.stderr
+    assert report["provenance"]["machine"]["threads"] == 1
+    assert np.array(exr_bitmap(out / "hole.exr")).shape[:2] == (report["hole"]["resolution"],) * 2
 
 
 @pytest.mark.slow

@@ -68,31 +68,42 @@ def test_inscribed_radius_and_passage_radius_known_answers():
         assert r == pytest.approx(expected, rel=rel) and np.linalg.norm(view) == pytest.approx(1)
 
 
-@pytest.mark.slow
-def test_four_shapes_sort_into_four_trays_and_an_interrupted_sort_resumes(tmp_path, monkeypatch):
-    # Coarsest on top: a hole that passes the 20 mm ball and the 14 mm cube cannot pass the
-    # 28 mm cube (its every projection holds a 28 mm square); a 14 mm cube's hole (+0.5 mm)
-    # cannot pass a 20 mm ball; a 10 mm ball's hole cannot pass the 14 mm cube.
+@pytest.fixture(scope="module")
+def four_sorted(tmp_path_factory):
+    """The four shapes sorted serially, the user stopping the first sort after its first game
+    and sorting again (so the second sort reuses that game and plays two): the mixture's path,
+    the output folder, the names of the games stored before the stop, whether the first sort
+    left the output folder alone, and the resumed sort's report. One sort for the tests of the
+    serial cascade and of Ray, which must give the same."""
+    tmp_path = tmp_path_factory.mktemp("four")
     mixture = load_mixture(_four(tmp_path))
     out = str(tmp_path / "out" / "four")
-    stored = []
-    original = games_mod.GameCache.store
+    stored, original = [], games_mod.GameCache.store
 
     def store_then_stop(self, spec, outcome):
         original(self, spec, outcome)
         stored.append(spec.key)
         raise KeyboardInterrupt  # the user stops the sort after its first game
 
-    monkeypatch.setattr(games_mod.GameCache, "store", store_then_stop)
-    with pytest.raises(KeyboardInterrupt):
-        sort_mixture(mixture, out, engine=EngineSettings(use_ray=False, progress=False))
-    assert not os.path.exists(out) and len(stored) == 1
-    assert os.listdir(out + ".games") == stored  # the finished game waits
-    monkeypatch.setattr(games_mod.GameCache, "store", original)
-
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(games_mod.GameCache, "store", store_then_stop)
+        with pytest.raises(KeyboardInterrupt):
+            sort_mixture(mixture, out, engine=EngineSettings(use_ray=False, progress=False))
+        waiting = (os.path.exists(out), sorted(os.listdir(out + ".games")))
     report = sort_mixture(
         load_mixture(mixture.path), out, engine=EngineSettings(use_ray=False, progress=False)
     )
+    return mixture.path, out, stored, waiting, report
+
+
+@pytest.mark.slow
+def test_four_shapes_sort_into_four_trays_and_an_interrupted_sort_resumes(four_sorted):
+    # Coarsest on top: a hole that passes the 20 mm ball and the 14 mm cube cannot pass the
+    # 28 mm cube (its every projection holds a 28 mm square); a 14 mm cube's hole (+0.5 mm)
+    # cannot pass a 20 mm ball; a 10 mm ball's hole cannot pass the 14 mm cube.
+    path, out, stored, (out_existed, waiting), report = four_sorted
+    assert not out_existed and len(stored) == 1
+    assert waiting == stored  # the finished game waits
     assert report["trays"] == [["cube28"], ["ball20"], ["cube14"], ["ball10"]]
     assert report["runner"]["reused"] == 1 and report["runner"]["played"] == 2
     assert not os.path.exists(out + ".games")  # the waiting games moved into the output
@@ -115,7 +126,7 @@ def test_four_shapes_sort_into_four_trays_and_an_interrupted_sort_resumes(tmp_pa
     assert os.path.getsize(os.path.join(out, "cascade.png")) > 10_000
     # a second sort of the same mixture plays nothing: every game is in the output
     again = sort_mixture(
-        load_mixture(mixture.path), out, engine=EngineSettings(use_ray=False, progress=False)
+        load_mixture(path), out, engine=EngineSettings(use_ray=False, progress=False)
     )
     assert again["runner"] == {**report["runner"], "played": 0, "reused": 3}
     assert again["sieves"] == report["sieves"]
@@ -123,14 +134,11 @@ def test_four_shapes_sort_into_four_trays_and_an_interrupted_sort_resumes(tmp_pa
 
 @pytest.mark.slow
 def test_ray_with_two_workers_gives_the_serial_cascade_and_retries_a_dead_worker(
-    tmp_path, monkeypatch
+    tmp_path, monkeypatch, four_sorted
 ):
+    # The serial cascade is four_sorted's: its games, resumed or not, are the same games.
     pytest.importorskip("ray")
-    serial = sort_mixture(
-        load_mixture(_four(tmp_path)),
-        str(tmp_path / "serial"),
-        engine=EngineSettings(use_ray=False, progress=False),
-    )
+    serial = four_sorted[-1]
     flag = tmp_path / "killed-once"
     monkeypatch.setenv(games_mod.FAULT_ENV, str(flag))  # the first game's worker dies
     ray = sort_mixture(
@@ -194,15 +202,17 @@ def test_sort_shake_reports_the_trays_each_ball_ends_in(tmp_path):
     assert "ball24          * 1.000 [0.510, 1.000]" in proc.stdout
 
 
-def test_bad_shake_settings_of_sort_are_one_line_before_any_game(tmp_path):
+def test_bad_shake_settings_of_sort_are_one_line_before_any_game(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
     two = _mixture(
         tmp_path,
         {"a": trimesh.creation.box((1.0, 1.0, 1.0)), "b": trimesh.creation.box((2.0, 2.0, 2.0))},
         name="two",
     )
     for value, words in (("many", "expected a whole number, got 'many'"), ("0", "must be >= 1")):
-        proc = _cli("sort", two, "--serial", "--shake", value, cwd=tmp_path)
-        _one_error_line(proc, f"sort: --shake: {words}")
+        _one_error_line(
+            capsys, f"sort: --shake: {words}", "sort", two, "--serial", "--shake", value
+        )
     cases = [
         ("duration = 0", "shake.duration: must be >= 0.01, got 0"),
         ("timestep = 1.0", "shake.timestep: must be <= 0.5, got 1.0"),
@@ -219,7 +229,7 @@ def test_bad_shake_settings_of_sort_are_one_line_before_any_game(tmp_path):
             name="bad",
             extra=f"[shake]\n{line}\n",
         )
-        _one_error_line(_cli("sort", bad, "--serial", "--shake", "2", cwd=tmp_path), words)
+        _one_error_line(capsys, words, "sort", bad, "--serial", "--shake", "2")
     assert not (tmp_path / "out").exists()
 
 
@@ -259,24 +269,30 @@ def _cli(*args, cwd):
     )
 
 
-def _one_error_line(proc, needle):
-    assert proc.returncode == 2, proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert "Traceback" not in proc.stderr and len(lines) == 1, proc.stderr
+def _one_error_line(capsys, needle, *argv):
+    """``sieve-mi ARGV`` (in this process: ``sieve_mi.cli.main``) exits with 2 and one stderr
+    line holding ``needle``; any other exception fails the test as a traceback would."""
+    from sieve_mi.cli import main
+
+    code = main(list(argv))
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
     assert lines[0].startswith("sieve-mi: error: ") and needle in lines[0], lines[0]
 
 
-def test_bad_mixtures_and_addresses_are_one_line_errors(tmp_path):
+def test_bad_mixtures_and_addresses_are_one_line_errors(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
     one = _mixture(tmp_path, {"a": trimesh.creation.box((1.0, 1.0, 1.0))}, name="one")
-    _one_error_line(_cli("sort", one, cwd=tmp_path), "a mixture needs at least two")
+    _one_error_line(capsys, "a mixture needs at least two", "sort", one)
     dup = tmp_path / "dup.toml"
     dup.write_text(
         '[[shape]]\nmesh = "meshes/a.stl"\nname = "x"\n[[shape]]\nmesh = "meshes/a.stl"\nname = "x"\n'
     )
-    _one_error_line(_cli("sort", str(dup), cwd=tmp_path), "shape[1].name: 'x'")
+    _one_error_line(capsys, "shape[1].name: 'x'", "sort", str(dup))
     old = tmp_path / "old.toml"
     old.write_text('[[pass]]\nmesh = "meshes/a.stl"\n[[block]]\nmesh = "meshes/a.stl"\n')
-    _one_error_line(_cli("sort", str(old), cwd=tmp_path), "[[shape]]")
+    _one_error_line(capsys, "[[shape]]", "sort", str(old))
     with socket.socket() as s:  # a port with nothing listening
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
@@ -286,9 +302,10 @@ def test_bad_mixtures_and_addresses_are_one_line_errors(tmp_path):
         name="two",
     )
     if games_mod.ray_module() is not None:
-        proc = _cli("sort", two, "--address", f"127.0.0.1:{port}", cwd=tmp_path)
-        _one_error_line(proc, "nothing is listening")
-    _one_error_line(_cli("sweep", two, "--seeds", "3-x", cwd=tmp_path), "--seeds 3-x")
+        _one_error_line(
+            capsys, "nothing is listening", "sort", two, "--address", f"127.0.0.1:{port}"
+        )
+    _one_error_line(capsys, "--seeds 3-x", "sweep", two, "--seeds", "3-x")
     with pytest.raises(SieveError, match="expected host:port"):
         games_mod.check_address("nowhere")
 

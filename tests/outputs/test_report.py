@@ -7,7 +7,7 @@ import os
 
 import numpy as np
 import pytest
-from helpers import REPO
+from helpers import REPO, exr_bitmap
 
 from sieve_mi.api import solve
 from sieve_mi.geometry.outline import rasterize
@@ -100,7 +100,6 @@ def test_summary_table_has_one_row_per_shape(solved):
 
 
 def test_written_images_are_the_hole(solved, tmp_path):
-    import mitsuba as mi
     from PIL import Image
 
     out = tmp_path / "out"
@@ -110,7 +109,7 @@ def test_written_images_are_the_hole(solved, tmp_path):
     # hole.png and hole.exr: the printed polygon's pixel centres (not the conservative cover)
     exact = rasterize(solved.outline, solved.hole.frame)
     png = np.array(Image.open(out / "hole.png")) > 127
-    exr = np.array(mi.Bitmap(str(out / "hole.exr"))).reshape(png.shape) > 0.5
+    exr = np.array(exr_bitmap(out / "hole.exr")).reshape(png.shape) > 0.5
     assert np.array_equal(png, exact) and np.array_equal(exr, exact)
     assert exact.sum() < solved.hole.mask.sum() and (solved.hole.mask >= exact).all()
     assert (out / ".sieve-mi").is_file()
@@ -123,13 +122,12 @@ def test_written_images_are_the_hole(solved, tmp_path):
 
 def test_layered_exr_has_every_layer_on_one_lattice(solved, tmp_path):
     import manifold3d
-    import mitsuba as mi
 
     from sieve_mi.geometry.outline import Boundary, silhouette
 
     out = tmp_path / "out"
     write_outputs(solved, str(out), fabricate=False)
-    bitmap = mi.Bitmap(str(out / "masks.exr"))
+    bitmap = exr_bitmap(out / "masks.exr")
     names = [f.name for f in bitmap.struct_()]
     data = np.array(bitmap)
     # OpenEXR's rule (tev's, OpenEXR's ChannelList::layers): the layer is the text before the
@@ -160,7 +158,7 @@ def test_layered_exr_has_every_layer_on_one_lattice(solved, tmp_path):
     for j, name in enumerate(["b0_sphere", "b1_small_sphere"]):
         window = solved.block_masks[j]
         assert np.array_equal(layer[name] > 0.5, paste_window(window, frame))
-        single = np.array(mi.Bitmap(str(out / "masks" / f"block_{j}_{name[3:]}.exr")))
+        single = np.array(exr_bitmap(out / "masks" / f"block_{j}_{name[3:]}.exr"))
         assert np.array_equal(single.reshape(window.mask.shape) > 0.5, window.mask)
     # each B's layer is its best attempt: its pixel centres lie on B's exact silhouette at the
     # reported pose (up to the ray caster's rounding), and that silhouette's area inside the frame

@@ -79,11 +79,14 @@ def _solve_like_folder(tmp_path):
     return folder
 
 
-def test_shake_dir_writes_json_png_and_clip_and_lists_them(tmp_path):
+def test_shake_dir_writes_json_png_and_clip_and_lists_them(tmp_path, capsys):
+    from sieve_mi.cli import main
+
     folder = _solve_like_folder(tmp_path)
-    p = run_cli("shake", str(folder), "--trials", "3", "--duration", "0.5", "--workers", "1")
-    assert p.returncode == 0, p.stderr
-    assert "small" in p.stdout and "big" in p.stdout and "0.02 mm" in p.stdout
+    code = main(["shake", str(folder), "--trials", "3", "--duration", "0.5", "--workers", "1"])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    assert "small" in out.out and "big" in out.out and "0.02 mm" in out.out
     report = json.loads((folder / "shake.json").read_text())
     assert [(s["name"], s["role"]) for s in report["shapes"]] == [("small", "A"), ("big", "B")]
     assert report["settings"]["trials"] == 3 and report["settings"]["seed"] == 0
@@ -96,13 +99,14 @@ def test_shake_dir_writes_json_png_and_clip_and_lists_them(tmp_path):
     assert not [f for f in os.listdir(folder) if ".tmp-" in f]
 
 
-def test_only_shakes_the_named_shapes(tmp_path):
+def test_only_shakes_the_named_shapes(tmp_path, capsys):
     """``--only`` picks shapes by name: the folder's shake.json then lists the big ball alone
     (and it stays on top of the 22 mm hole, as a 24 mm ball must)."""
+    from sieve_mi.cli import main
+
     folder = _solve_like_folder(tmp_path)
     quick = ("--trials", "2", "--duration", "0.3", "--workers", "1", "--no-clip", "--quiet")
-    p = run_cli("shake", str(folder), "--only", " big ", *quick)
-    assert p.returncode == 0, p.stderr
+    assert main(["shake", str(folder), "--only", " big ", *quick]) == 0, capsys.readouterr().err
     report = json.loads((folder / "shake.json").read_text())
     assert [(s["name"], s["role"], s["passed"]) for s in report["shapes"]] == [("big", "B", 0)]
 
@@ -127,7 +131,18 @@ def test_shake_sieve_json_same_seed_same_numbers(tmp_path):
     plate, part = tmp_path / "plate.stl", tmp_path / "ball.stl"
     plate_mesh(round_hole(22.0), 8.0, 2.0).export(str(plate))
     ball(20.0).export(str(part))
-    args = ("shake", "--sieve", str(plate), str(part), "--trials", "2", "--duration", "0.3")
+    args = (
+        "shake",
+        "--sieve",
+        str(plate),
+        str(part),
+        "--trials",
+        "2",
+        "--duration",
+        "0.3",
+        "--workers",
+        "1",
+    )  # fmt: skip  (the same numbers whatever the workers: test_fidelity_and_stats)
     a, b = run_cli(*args, "--json", "--quiet"), run_cli(*args, "--json", "--quiet")
     assert a.returncode == 0 and b.returncode == 0, a.stderr
     ra, rb = json.loads(a.stdout), json.loads(b.stdout)
@@ -149,16 +164,26 @@ def test_shake_sieve_json_same_seed_same_numbers(tmp_path):
         (("shake", "--sieve", "/no/plate.stl", "/no/part.stl"), "not found"),
     ],
 )
-def test_bad_input_is_one_line_exit_2(args, message):
-    p = run_cli(*args)
-    assert p.returncode == 2
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and message in lines[0] and "Traceback" not in p.stderr
+def test_bad_input_is_one_line_exit_2(args, message, capsys):
+    # In this process (sieve_mi.cli.main): an exception other than the one-line error would fail
+    # the test as a traceback would; test_shake_sieve_json_same_seed_same_numbers runs the
+    # command end to end.
+    from sieve_mi.cli import main
+
+    assert main(list(args)) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0]
 
 
-def test_solve_shake_bad_value_stops_before_the_solve(tmp_path):
-    p = run_cli("solve", os.path.join(REPO, "scenes", "default.toml"), "--shake", "lots")
-    assert p.returncode == 2 and "solve: --shake: expected a whole number, got 'lots'" in p.stderr
+def test_solve_shake_bad_value_stops_before_the_solve(tmp_path, monkeypatch, capsys):
+    from sieve_mi import api
+    from sieve_mi.cli import main
+
+    monkeypatch.setattr(api, "solve", lambda *a, **k: pytest.fail("the solve started"))
+    scene, out = os.path.join(REPO, "scenes", "default.toml"), tmp_path / "o"
+    assert main(["solve", scene, "--out", str(out), "--shake", "lots"]) == 2
+    err = capsys.readouterr().err
+    assert "solve: --shake: expected a whole number, got 'lots'" in err and not out.exists()
 
 
 def test_shake_settings_are_checked_as_scene_keys_are():
@@ -199,10 +224,26 @@ def test_shake_settings_are_checked_as_scene_keys_are():
 
 
 @pytest.mark.slow
-def test_solve_shake_adds_shake_outputs(tmp_path):
-    """``solve --shake N`` shakes the fresh folder: shake.json, shake.png, a report.html card."""
+def test_solve_shake_adds_shake_outputs(tmp_path, monkeypatch, capsys):
+    """``solve --shake N`` shakes the fresh folder: shake.json, shake.png, a report.html card.
+    In-process (``sieve_mi.cli.main``), with the shaking cut to 0.3 s on one worker and no
+    shake.gif (the default 10 s on every core and the rendered clip, which
+    test_shake_dir_writes_json_png_and_clip_and_lists_them checks, would only make the same
+    files slower): N trials reach shake.json."""
+    from dataclasses import replace
+
+    from sieve_mi.cli import main
+    from sieve_mi.shake import commands
     from sieve_mi.testing.settings import TINY
 
+    shaken = []
+    real = commands.shake_folder
+
+    def shorter(folder, settings, **kw):
+        shaken.append(settings)
+        return real(folder, replace(settings, duration=0.3, workers=1), **{**kw, "clip": False})
+
+    monkeypatch.setattr(commands, "shake_folder", shorter)
     mesh = os.path.join(REPO, "scenes", "meshes")
     scene = tmp_path / "s.toml"
     scene.write_text(
@@ -210,21 +251,14 @@ def test_solve_shake_adds_shake_outputs(tmp_path):
         + TINY
     )
     out = tmp_path / "out"
-    p = run_cli(
-        "solve",
-        str(scene),
-        "--out",
-        str(out),
-        "--quiet",
-        "--no-figure",
-        "--no-animation",
-        "--shake",
-        "2",
-    )
-    assert p.returncode == 0, p.stderr
+    argv = ["solve", str(scene), "--out", str(out), "--quiet", "--no-figure", "--no-animation"]
+    assert main([*argv, "--shake", "2"]) == 0, capsys.readouterr().err
+    assert [s.trials for s in shaken] == [2]  # --shake N: N trials, the rest the defaults
     report = json.loads((out / "shake.json").read_text())
     assert [s["role"] for s in report["shapes"]] == ["A", "B"] and report["settings"]["trials"] == 2
     assert 'id="shake"' in (out / "report.html").read_text()
+    assert "shake.json" in json.loads((out / ".sieve-mi").read_text())["files"]
+    assert "fidelity: resting sink under" in capsys.readouterr().out  # the shake table printed
 
 
 def test_the_letters_g_decomposes_within_a_millimetre():
