@@ -26,6 +26,7 @@ __all__ = [
     "INTERPOLATION",
     "SAFE_ARGUMENT",
     "SECTION_ARGUMENT",
+    "SECTION_MAX_S",
     "ThinPlate",
     "thin_plate",
     "thin_plates",
@@ -55,6 +56,9 @@ SECTION_ARGUMENT = (
     "does that slab section fit the hole (a certified branch and bound over directions: "
     "docs/certify.md, 'Thin plates'), so no rigid motion passes this plate or a thicker one"
 )
+
+#: Most seconds of a shape's own section proof before its motion search (half its budget).
+SECTION_MAX_S = 15.0
 
 #: The planner, as reported.
 PLANNER = "OMPL RRTConnect on SE(3), seeded straight descents and crossing poses"
@@ -348,8 +352,8 @@ def thin_plates(
     sections : list of dict or None, optional
         Per shape, a slab-section proof already made (certify's ``section`` record) or None:
         ``"safe"`` when it covers ``thickness``. Without the list, each shape thicker than the
-        plate first gets a section proof of its own, with half its ``budget_s``
-        (:data:`SECTION_ARGUMENT`).
+        plate first gets a section proof of its own, with half its ``budget_s`` (at most
+        :data:`SECTION_MAX_S`; :data:`SECTION_ARGUMENT`).
 
     Returns
     -------
@@ -391,7 +395,7 @@ def thin_plates(
                 [(np.asarray(q, float), np.asarray(t, float)) for q, t in seeds[j]],
                 seed + j,
                 plate,
-                0.0 if sections is not None else 0.5 * budget_s,
+                0.0 if sections is not None else min(0.5 * budget_s, SECTION_MAX_S),
             )  # fmt: skip
             for j in todo
         }

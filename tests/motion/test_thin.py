@@ -68,8 +68,9 @@ def test_l_rod_is_blocked_on_a_plate_as_thick_as_its_diameter():
 
 def test_l_rod_threads_through_a_thin_plate():
     """1 mm plate: the first arm goes straight down, the corner turns through the hole while the
-    second arm follows; the search finds it and the motion is real."""
-    result = thin_plate(ROD, ROD_HOLE, 1.0, budget_s=60.0, seed=1)
+    second arm follows; the search finds it and the motion is real (the motion search alone:
+    ``sections`` given, no section proof first)."""
+    (result,) = thin_plates([ROD], ROD_HOLE, 1.0, budget_s=60.0, seed=1, sections=[None])
     assert result.status == "passage", result.to_dict()
     _assert_real_passage(ROD, ROD_HOLE, result)
     d = result.to_dict()
