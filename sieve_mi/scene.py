@@ -248,7 +248,7 @@ class Verdict:
         maximum=86_400,
     )
     section_budget: float = setting(
-        30.0,
+        10.0,
         "seconds per blocked B for the slab-section proofs that bisect the thinnest proved plate "
         "(in parallel over B, after its proof)",
         minimum=0,
