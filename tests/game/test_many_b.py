@@ -131,14 +131,19 @@ def theta_of(q) -> float:
     return math.degrees(math.acos(min(1.0, abs(float(to_matrix(np.asarray(q))[2, 2])))))
 
 
-def _scene(write_scene, blocks: list[str], rotation=None):
+def _scene(write_scene, blocks: list[str], rotation=None, certify: bool = True):
+    """The scene; ``certify=False`` where B wins whatever the proofs say (a proof can only turn
+    a block into a passage): the attack's blocks are what is asserted, and the exact proof of a
+    blocked coin takes 10-15 s on 2 cores (the A-wins games keep it)."""
     meshes = {"wheel.stl": wheel(), "ball.stl": ball(), "coin.stl": coin()}
     body = 'name = "many-b"\n[[pass]]\nmesh = "meshes/wheel.stl"\n'
     if rotation is not None:
         body += f"rotation = {rotation}\n"
     for b in blocks:
         body += f'[[block]]\nmesh = "meshes/{b}.stl"\n'
-    return load_scene(write_scene(body + SETTINGS, meshes))
+    scene = load_scene(write_scene(body + SETTINGS, meshes))
+    scene.verdict.certify = certify
+    return scene
 
 
 # ------------------------------------------------------------------------------------------------
@@ -214,7 +219,8 @@ def test_hole_lies_where_the_argument_puts_it(theta):
     ],
 )
 def test_fixed_orientation(write_scene, theta, ball_blocked, coin_blocked):
-    r = solve(_scene(write_scene, ["ball", "coin"], rotation=tilt(theta)), seed=0, progress=False)
+    scene = _scene(write_scene, ["ball", "coin"], rotation=tilt(theta), certify=False)
+    r = solve(scene, seed=0, progress=False)
     assert theta_of(r.pass_quats[0]) == pytest.approx(theta, abs=1e-6)
     assert list(r.attack.blocked()[0]) == [ball_blocked, coin_blocked]
     assert r.winner == "B"  # never both blocked
@@ -252,6 +258,6 @@ def test_a_blocks_the_coin_alone_by_turning_face_on(write_scene):
 
 @pytest.mark.slow
 def test_a_cannot_block_both(write_scene):
-    r = solve(_scene(write_scene, ["ball", "coin"]), seed=0, progress=False)
+    r = solve(_scene(write_scene, ["ball", "coin"], certify=False), seed=0, progress=False)
     assert r.winner == "B"
     assert not r.attack.blocked()[0].all()

@@ -316,9 +316,12 @@ def tiny_result(tmp_path_factory):
 
 
 def _write(result, out):
+    """Write ``result``'s outputs into ``out`` as solve does, but for the two renders: the
+    folder's rules do not depend on which files it holds (the signal tests below interrupt a
+    real solve, passage.gif and all)."""
     from sieve_mi.outputs.report import write_outputs
 
-    return write_outputs(result, str(out), figure=False)
+    return write_outputs(result, str(out), figure=False, animation=False)
 
 
 @pytest.mark.slow

@@ -275,6 +275,7 @@ def run_browser(
         f"--user-data-dir={tmp_path / 'profile'}", "--no-first-run", "--disable-background-networking",
         "--disable-component-update", "--disable-sync", "--enable-logging=stderr", "--v=0",
         f"--log-net-log={net}", "--virtual-time-budget=4000",
+        "--host-resolver-rules=MAP * ~NOTFOUND",  # no DNS: a request is logged, then fails at once
     ]  # fmt: skip
     args += list(extra) + ([f"--screenshot={shot}"] if screenshot else ["--dump-dom"])
     p = subprocess.run(args + [url], capture_output=True, text=True, timeout=120)
