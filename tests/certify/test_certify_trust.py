@@ -521,7 +521,7 @@ def test_certify_says_proved_only_where_the_proof_covers_the_plate(
 def test_replay_of_a_thin_plate_certificate_says_it_does_not_cover_it(tmp_path, rod_files, capsys):
     cert = tmp_path / "c.json"
     args = ["certify", str(rod_files["rod"]), "--sieve", str(rod_files["plate2"])]
-    assert cli.main([*args, "--budget", "20", "--certificate", str(cert)]) == 4
+    assert cli.main([*args, "--budget", "8", "--certificate", str(cert)]) == 4
     capsys.readouterr()
     before = cert.read_bytes()
     assert cli.main(["certify", "--replay", str(cert)]) == 0
