@@ -58,6 +58,7 @@ __all__ = [
     "REQUIRED",
     "SECTION_PLATES",
     "build",
+    "certificate_entry",
     "excluded_percent",
     "is_certificate",
     "mesh_hash",
@@ -561,4 +562,33 @@ def build(
             "diameter": diameter,
             "holds_for": scope(status, "ball" if root is not None else "cells"),
         },
+    }
+
+
+def certificate_entry(out, points: np.ndarray, on_edge: dict, kappa: float) -> dict:
+    """The certificate's ``section`` entry of a section search's outcome
+    (:class:`~sieve_mi.certify.section.SectionOutcome`): pin, thickness, band, the points the
+    evidence uses (renumbered), where they lie on the mesh, and the tree over directions."""
+    used = sorted(out.points)
+    renumber = {old: new for new, old in enumerate(used)}
+
+    def renum(node: dict) -> dict:
+        if "c" in node:
+            return {"c": [renum(c) for c in node["c"]]}
+        if "e" not in node:
+            return node
+        e = dict(node["e"])
+        key = "pair" if e["kind"] == "diameter" else "points"
+        e[key] = [renumber[p] for p in e[key]]
+        return {"e": e}
+
+    return {
+        "status": out.status,
+        "pin": [float(c) for c in out.pin],
+        "thickness": float(out.thickness),
+        "band": 0.5 * float(out.thickness),
+        "kappa": float(kappa),
+        "points": points[used].tolist(),
+        "on_edge": [on_edge.get(u) for u in used],
+        "tree": [renum(n.to_dict()) for n in out.roots],
     }

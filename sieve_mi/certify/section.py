@@ -58,7 +58,6 @@ __all__ = [
     "SECTION_CANDIDATES",
     "SphereCells",
     "caps",
-    "certificate_entry",
     "pins",
     "prove_section",
     "hull_widths",
@@ -556,6 +555,7 @@ def prove_section(shape: Shape, hole: manifold3d.CrossSection, thickness: float,
         The last outcome (the proved one, if any) and its certificate entry (see
         :mod:`sieve_mi.certify.certificate`).
     """
+    from sieve_mi.certify.certificate import certificate_entry
     from sieve_mi.certify.search import candidate_points
 
     t0 = time.perf_counter()
@@ -577,31 +577,3 @@ def prove_section(shape: Shape, hole: manifold3d.CrossSection, thickness: float,
         out = SectionOutcome("undecided", todo[0], float(thickness), [Node()] * len(FACES))
     out.seconds = time.perf_counter() - t0
     return out, certificate_entry(out, points, on_edge, settings.kappa)
-
-
-def certificate_entry(out: SectionOutcome, points: np.ndarray, on_edge: dict, kappa: float) -> dict:
-    """The certificate's ``section`` entry: pin, thickness, band, the points the evidence uses
-    (renumbered), where they lie on the mesh, and the tree over directions."""
-    used = sorted(out.points)
-    renumber = {old: new for new, old in enumerate(used)}
-
-    def renum(node: dict) -> dict:
-        if "c" in node:
-            return {"c": [renum(c) for c in node["c"]]}
-        if "e" not in node:
-            return node
-        e = dict(node["e"])
-        key = "pair" if e["kind"] == "diameter" else "points"
-        e[key] = [renumber[p] for p in e[key]]
-        return {"e": e}
-
-    return {
-        "status": out.status,
-        "pin": [float(c) for c in out.pin],
-        "thickness": float(out.thickness),
-        "band": 0.5 * float(out.thickness),
-        "kappa": float(kappa),
-        "points": points[used].tolist(),
-        "on_edge": [on_edge.get(u) for u in used],
-        "tree": [renum(n.to_dict()) for n in out.roots],
-    }
