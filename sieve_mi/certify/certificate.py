@@ -187,6 +187,14 @@ class Certification:
     section: dict | None = None
 
     @property
+    def proved_section(self) -> dict | None:
+        """The ``section`` entry when it is a proof that counts: a proved section of a straight
+        claim that is proved (None otherwise)."""
+        s = self.section
+        ok = s is not None and s["status"] == "proved" and self.straight == "proved"
+        return s if ok else None
+
+    @property
     def covers_plate(self) -> bool | None:
         """Whether ``straight`` holds on the plate: None without a plate (:meth:`on_plate` not
         called) or when nothing is claimed (undecided); False for a cell-tree proof on a plate

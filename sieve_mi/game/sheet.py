@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -87,9 +88,8 @@ def proof_thickness(shape: Shape, proof) -> float:
     """
     if proof is not None and proof.method == "ball" and proof.status == "proved":
         return 0.0
-    if proof is not None and proof.section is not None and proof.section["status"] == "proved":
-        if proof.straight == "proved":
-            return float(proof.section["thickness"])
+    if proof is not None and proof.proved_section is not None:
+        return float(proof.proved_section["thickness"])
     return safe_thickness([shape.hull])
 
 
@@ -101,23 +101,32 @@ def proved_thickness(blocks: list, blocked, certified: list) -> float:
     return max([0.0] + need)
 
 
-def _search(scene: Scene, blocks, todo, outline, attack, thickness: float, seed: int,
-            proved=None):  # fmt: skip
-    """ThinPlate per B in ``todo`` (None elsewhere), searched in parallel; ``proved`` (per B,
-    the section proof or None) says which need no search at this thickness."""
-    out: list = [None] * len(blocks)
-    seeds = [[(attack.quats[0, j], attack.trans[0, j])] for j in todo]
-    sections = [None if proved is None else proved[j] for j in todo]
-    found = thin_plates([blocks[j] for j in todo], outline, thickness,
-                        budget_s=scene.verdict.thin_budget, seeds=seeds, seed=seed,
-                        sections=sections)  # fmt: skip
-    for j, t in zip(todo, found):
-        out[j] = t
-    return out
+class _Searches(NamedTuple):
+    """What every thin-plate search of one plate shares: the scene, the B, which of them are
+    searched (``todo``), the hole, the verdict's attack (its poses seed the searches), the seed
+    and, per B, its proved section or None (:func:`_sections`)."""
+
+    scene: Scene
+    blocks: list
+    todo: list
+    outline: object
+    attack: object
+    seed: int
+    sections: list
+
+    def at(self, thickness: float) -> list:
+        """ThinPlate per B in ``todo`` (None elsewhere) at ``thickness``, searched in parallel."""
+        out: list = [None] * len(self.blocks)
+        seeds = [[(self.attack.quats[0, j], self.attack.trans[0, j])] for j in self.todo]
+        found = thin_plates([self.blocks[j] for j in self.todo], self.outline, thickness,
+                            budget_s=self.scene.verdict.thin_budget, seeds=seeds, seed=self.seed,
+                            sections=[self.sections[j] for j in self.todo])  # fmt: skip
+        for j, t in zip(self.todo, found):
+            out[j] = t
+        return out
 
 
-def _thinnest(scene, blocks, todo, outline, attack, safe: float, seed: int, progress: bool,
-              sections=None):  # fmt: skip
+def _thinnest(searches: _Searches, safe: float, progress: bool):
     """Bisect (0, safe] for the thinnest plate where no B of ``todo`` was found to pass."""
     lo, hi, best, steps = 0.0, safe, None, []
     for _ in range(THINNEST_STEPS):
@@ -125,8 +134,8 @@ def _thinnest(scene, blocks, todo, outline, attack, safe: float, seed: int, prog
         if not lo < mid < hi:
             break
         _say(progress, f"thinnest plate: trying {mid:g} (passage found at {lo:g}, none at {hi:g})")
-        per = _search(scene, blocks, todo, outline, attack, mid, seed, sections)
-        passed = [blocks[j].name for j in todo if per[j].status == "passage"]
+        per = searches.at(mid)
+        passed = [searches.blocks[j].name for j in searches.todo if per[j].status == "passage"]
         steps.append({"thickness": mid, "passage": passed})
         if passed:
             lo = mid
@@ -137,7 +146,6 @@ def _thinnest(scene, blocks, todo, outline, attack, safe: float, seed: int, prog
 
 def plate_sheet(
     scene: Scene,
-    passes: list[Shape],
     blocks: list[Shape],
     outline,
     attack,
@@ -153,7 +161,7 @@ def plate_sheet(
     ----------
     scene : Scene
         ``[fabrication] thickness`` and ``min_thickness``, ``[verdict] thin_budget`` are used.
-    passes, blocks : list of Shape
+    blocks : list of Shape
         The proved thickness is :func:`proved_thickness` of the blocked B.
     outline : manifold3d.CrossSection
         The exact hole H.
@@ -174,18 +182,17 @@ def plate_sheet(
     given, low = scene.fabrication.thickness, scene.fabrication.min_thickness
     safe = proved_thickness(blocks, blocked, certified or [])
     todo = [j for j in range(len(blocks)) if blocked[j]]
-    sections = _sections(certified, len(blocks))
+    searches = _Searches(scene, blocks, todo, outline, attack, seed,
+                         _sections(certified, len(blocks)))  # fmt: skip
     if given == "thinnest" and todo:
-        thickness, per, steps = _thinnest(
-            scene, blocks, todo, outline, attack, max(low, safe), seed, progress, sections
-        )
-        per = per or _search(scene, blocks, todo, outline, attack, max(low, safe), seed, sections)
+        thickness, per, steps = _thinnest(searches, max(low, safe), progress)
+        per = per or searches.at(max(low, safe))
         return Sheet(thickness, safe, "thinnest", per, steps)
     thickness = max(low, safe) if given in (None, "thinnest") else float(given)
     if thickness < safe and todo:
         _say(progress, f"thin plate {thickness:g}: motion search for {len(todo)} B, "
                        f"up to {scene.verdict.thin_budget:g} s each")  # fmt: skip
-    per = _search(scene, blocks, todo, outline, attack, thickness, seed, sections)
+    per = searches.at(thickness)
     return Sheet(thickness, safe, "safe" if given in (None, "thinnest") else "given", per)
 
 
@@ -193,6 +200,5 @@ def _sections(certified: list | None, n: int) -> list:
     """Per B, its proved section (the certification's ``section`` entry) or None."""
     out = [None] * n
     for j, c in enumerate(certified or []):
-        if c is not None and c.section is not None and c.section["status"] == "proved":
-            out[j] = c.section if c.straight == "proved" else None
+        out[j] = None if c is None else c.proved_section
     return out

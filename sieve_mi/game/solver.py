@@ -320,7 +320,7 @@ def _sheet(scene: Scene, passes, blocks, v, certified, seed, progress):
     the B still blocked after certify; a verified passage unblocks its B (:func:`is_blocked`)."""
     proofs = certified or [None] * len(blocks)
     blocked = np.array([is_blocked(b, c) for b, c in zip(v.attack.blocked()[0], proofs)])
-    sheet = plate_sheet(scene, passes, blocks, v.outline, v.attack, blocked, certified=certified,
+    sheet = plate_sheet(scene, blocks, v.outline, v.attack, blocked, certified=certified,
                         seed=seed, progress=progress)  # fmt: skip
     for j in sheet.passages():
         v.warnings.append(

@@ -330,7 +330,6 @@ def thin_plates(
     budget_s: float = 10.0,
     seeds: list | None = None,
     seed: int = 0,
-    workers: int | None = None,
     plate=None,
     sections: list | None = None,
 ) -> list[ThinPlate]:
@@ -347,8 +346,6 @@ def thin_plates(
         As :func:`thin_plate` (shape j's search is seeded with ``seed + j``).
     seeds : list of sequences of (quat, xy), optional
         Per shape, poses to try first.
-    workers : int, optional
-        Worker processes (default: the machine's cores, at most one per searched shape).
     sections : list of dict or None, optional
         Per shape, a slab-section proof already made (certify's ``section`` record) or None:
         ``"safe"`` when it covers ``thickness``. Without the list, each shape thicker than the
@@ -383,7 +380,7 @@ def thin_plates(
     if not todo:
         return out
     polygons = _polygons(outline)
-    n = max(1, min(len(todo), workers or os.cpu_count() or 1))
+    n = max(1, min(len(todo), os.cpu_count() or 1))  # one worker per core, at most one per shape
     with worker_pool(n, what="thin-plate search") as pool:
         jobs = {
             j: pool.submit(
