@@ -23,10 +23,13 @@ from sieve_mi.geometry.plate import safe_thickness
 from sieve_mi.motion import thin_plates
 from sieve_mi.scene import Scene
 
-__all__ = ["Sheet", "plate_sheet", "proof_thickness", "proved_thickness"]
+__all__ = ["Sheet", "passage_bracket", "plate_sheet", "proof_thickness", "proved_thickness"]
 
 #: Bisection steps of ``thickness = "thinnest"`` (the bracket shrinks 2^-steps of the safe value).
 THINNEST_STEPS = 6
+
+#: Most motion searches per B for the passage side of its proof bracket (:func:`passage_bracket`).
+BRACKET_TRIES = 3
 
 
 @dataclass
@@ -45,6 +48,12 @@ class Sheet:
         Per B at ``thickness``: None where the verdict already lets it through.
     bisection : list of dict
         ``"thinnest"``: each thickness tried and whether some B passed.
+    bracket : list of dict
+        Per blocked B whose slab-section proofs stopped above the printable minimum: ``name``,
+        ``proved`` (its thinnest proved plate), ``unproved`` (the thickest tried without a
+        proof), ``passage`` (the thickest plate tried where a verified motion passes, or None)
+        and ``no_passage_found`` (the plates tried where the motion search found none, a
+        heuristic answer) (:func:`passage_bracket`).
     """
 
     thickness: float
@@ -52,6 +61,7 @@ class Sheet:
     mode: str
     per_block: list = field(default_factory=list)
     bisection: list = field(default_factory=list)
+    bracket: list = field(default_factory=list)
 
     @property
     def proved(self) -> bool:
@@ -68,6 +78,8 @@ class Sheet:
         out["proved"] = self.proved
         if self.bisection:
             out["bisection"] = self.bisection
+        if self.bracket:
+            out["bracket"] = self.bracket
         return out
 
 
@@ -124,6 +136,15 @@ class _Searches(NamedTuple):
         for j, t in zip(self.todo, found):
             out[j] = t
         return out
+
+    def at_each(self, tries: dict) -> dict:
+        """ThinPlate per B index of ``tries`` at its own thickness (no section proof first)."""
+        js = sorted(tries)
+        seeds = [[(self.attack.quats[0, j], self.attack.trans[0, j])] for j in js]
+        found = thin_plates([self.blocks[j] for j in js], self.outline, [tries[j] for j in js],
+                            budget_s=self.scene.verdict.thin_budget, seeds=seeds, seed=self.seed,
+                            sections=[None] * len(js))  # fmt: skip
+        return dict(zip(js, found))
 
 
 def _thinnest(searches: _Searches, safe: float, progress: bool):
@@ -193,7 +214,67 @@ def plate_sheet(
         _say(progress, f"thin plate {thickness:g}: motion search for {len(todo)} B, "
                        f"up to {scene.verdict.thin_budget:g} s each")  # fmt: skip
     per = searches.at(thickness)
-    return Sheet(thickness, safe, "safe" if given in (None, "thinnest") else "given", per)
+    if given is not None:
+        return Sheet(thickness, safe, "given", per)
+    return Sheet(
+        thickness, safe, "safe", per, bracket=passage_bracket(searches, certified, low, progress)
+    )
+
+
+def _gaps(searches: _Searches, certified: list | None, low: float) -> dict:
+    """Per blocked B (index) whose section proofs stopped above ``low``: its bracket entry."""
+    out = {}
+    for j in searches.todo:
+        c = (certified or [None] * len(searches.blocks))[j]
+        bracket = None if c is None or c.section is None else c.section.get("bracket")
+        if bracket and bracket.get("unproved") is not None and bracket["unproved"] > low:
+            proved = proof_thickness(searches.blocks[j], c)
+            out[j] = {"name": searches.blocks[j].name, "proved": proved,
+                      "unproved": bracket["unproved"], "passage": None,
+                      "no_passage_found": []}  # fmt: skip
+    return out
+
+
+def passage_bracket(searches: _Searches, certified: list | None, low: float,
+                    progress: bool = False) -> list:  # fmt: skip
+    """The other side of each B's proof bracket: the thickest plate where a verified motion
+    passes, searched below the thickest plate its section proofs left unproved.
+
+    Per B, motion searches (``[verdict] thin_budget`` each, in parallel over B) at its
+    ``unproved`` thickness, then at ``low``, then halfway between when ``low`` passes and the
+    other did not: at most :data:`BRACKET_TRIES`. A passage is a verified motion (a fact); "no
+    passage found" is a heuristic answer.
+
+    Returns
+    -------
+    list of dict
+        :attr:`Sheet.bracket`.
+    """
+    gaps = _gaps(searches, certified, low)
+    if gaps:
+        _say(progress, f"proof bracket: motion searches below the proved plate for {len(gaps)} B, "
+                       f"up to {BRACKET_TRIES} x {searches.scene.verdict.thin_budget:g} s")  # fmt: skip
+    plan = {j: [g["unproved"], low] for j, g in gaps.items()}
+    for _ in range(BRACKET_TRIES):
+        active = [j for j in plan if plan[j]]
+        if not active:
+            break
+        tries = {j: round(plan[j].pop(0), 4) for j in active}
+        found = searches.at_each(tries)
+        for j, t in tries.items():
+            g = gaps[j]
+            if found[j].status == "passage":
+                g["passage"], plan[j] = t, _between(t, g, plan[j])
+            else:
+                g["no_passage_found"].append(t)
+                plan[j] = [] if g["passage"] is None and t == low else plan[j]
+    return [gaps[j] for j in sorted(gaps)]
+
+
+def _between(t: float, gap: dict, left: list) -> list:
+    """After a passage at ``t``: halfway up to the thinnest plate without one, if any is left."""
+    above = [x for x in gap["no_passage_found"] if x > t]
+    return [0.5 * (t + min(above))] if above and not left else []
 
 
 def _sections(certified: list | None, n: int) -> list:

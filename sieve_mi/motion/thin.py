@@ -243,6 +243,21 @@ def _on_mesh(shape: Shape, plate, poses: list):
     return verify(world, path), path
 
 
+def _per_shape(thickness, n: int) -> list:
+    """``thickness`` (one number, or one per shape) as a list of ``n``.
+
+    Raises
+    ------
+    SieveError
+        A list of another length.
+    """
+    if not isinstance(thickness, (list, tuple, np.ndarray)):
+        return [thickness] * n
+    if len(thickness) != n:
+        raise SieveError(f"thin plate: {len(thickness)} thicknesses for {n} shapes; give one each")
+    return list(thickness)
+
+
 def _checked(outline: manifold3d.CrossSection, thickness, budget_s) -> None:
     """Refuse what would crash a worker: a thickness or budget that is not a positive finite
     number (a flat plate), an empty hole.
@@ -325,7 +340,7 @@ def thin_plate(
 def thin_plates(
     shapes: list[Shape],
     outline: manifold3d.CrossSection,
-    thickness: float,
+    thickness: float | list,
     *,
     budget_s: float = 10.0,
     seeds: list | None = None,
@@ -342,8 +357,10 @@ def thin_plates(
     Parameters
     ----------
     shapes : list of Shape
-    outline, thickness, budget_s, seed, plate
+    outline, budget_s, seed, plate
         As :func:`thin_plate` (shape j's search is seeded with ``seed + j``).
+    thickness : float or list of float
+        As :func:`thin_plate`, or one per shape (each searched against its own plate).
     seeds : list of sequences of (quat, xy), optional
         Per shape, poses to try first.
     sections : list of dict or None, optional
@@ -361,19 +378,22 @@ def thin_plates(
     SieveError
         As :func:`thin_plate`.
     """
-    _checked(outline, thickness, budget_s)
+    ts = _per_shape(thickness, len(shapes))
+    for t in ts:
+        _checked(outline, t, budget_s)
+    ts = [float(t) for t in ts]
     seeds = seeds or [()] * len(shapes)
     out: list = [None] * len(shapes)
     todo = []
     segs = contour_segments([np.asarray(c, float) for c in outline.to_polygons()])
     for j, shape in enumerate(shapes):
-        d = diameter(shape.hull)
+        d, t = diameter(shape.hull), ts[j]
         if _ball_proves(shape, segs):  # the stronger proof: safe on any plate
-            out[j] = ThinPlate(shape.name, float(thickness), d, "safe", argument=BALL_ARGUMENT)
-        elif d <= thickness + LENGTH_SLACK:
-            out[j] = ThinPlate(shape.name, float(thickness), d, "safe")
-        elif sections and sections[j] and sections[j]["thickness"] <= thickness + LENGTH_SLACK:
-            out[j] = ThinPlate(shape.name, float(thickness), d, "safe",
+            out[j] = ThinPlate(shape.name, t, d, "safe", argument=BALL_ARGUMENT)
+        elif d <= t + LENGTH_SLACK:
+            out[j] = ThinPlate(shape.name, t, d, "safe")
+        elif sections and sections[j] and sections[j]["thickness"] <= t + LENGTH_SLACK:
+            out[j] = ThinPlate(shape.name, t, d, "safe",
                                argument=SECTION_ARGUMENT, section=sections[j])  # fmt: skip
         else:
             todo.append(j)
@@ -387,7 +407,7 @@ def thin_plates(
                 _search,
                 shapes[j],
                 polygons,
-                thickness,
+                ts[j],
                 budget_s,
                 [(np.asarray(q, float), np.asarray(t, float)) for q, t in seeds[j]],
                 seed + j,

@@ -124,19 +124,37 @@ def sheet_line(report: dict) -> str | None:
 
 
 def section_line(report: dict) -> str | None:
-    """``plate: 42.2 mm thick, proved by diameters; no slab-section proof at 21.7 mm or thinner
-    for letter_R (within [verdict] section_budget) ...``, or None when no B's section failed."""
+    """``plate: 42.2 mm thick, proved by the blocks' diameters; no slab-section proof at (or
+    below) 40.1 mm for letter_R ...; below the proofs: letter_R a passage at 1.2 mm ...``, or
+    None when every B's section proof reached the printable minimum."""
     u, failed = report["units"], []
     for b in report["block"]:
         c = b.get("certification")
         bracket = ((c or {}).get("section") or {}).get("bracket") if isinstance(c, dict) else None
         if bracket and bracket.get("proved") is None and bracket.get("unproved") is not None:
             failed.append(f"{bracket['unproved']:g} {u} for {b['name']}")
-    if not failed:
+    sheet = report["fabrication"]["sheet"]
+    gaps = sheet.get("bracket") or []
+    if not failed and not gaps:
         return None
-    thickness = report["fabrication"]["sheet"]["thickness"]
-    return (f"plate: {thickness:g} {u} thick, proved by the blocks' diameters; no slab-section "
-            f"proof at (or below) {', '.join(failed)} within [verdict] section_budget")  # fmt: skip
+    line = f"plate: {sheet['thickness']:g} {u} thick"
+    if failed:
+        line += (", proved by the blocks' diameters; no slab-section proof at (or below) "
+                 f"{', '.join(failed)} within [verdict] section_budget")  # fmt: skip
+    else:
+        line += ", the thinnest proved"
+    if gaps:
+        line += "; below the proofs: " + "; ".join(_gap_words(g, u) for g in gaps)
+    return line
+
+
+def _gap_words(gap: dict, u: str) -> str:
+    """One B's bracket in words: where its proof stopped and what the motion search found."""
+    head = f"{gap['name']} unproved at {gap['unproved']:g} {u}"
+    if gap["passage"] is not None:
+        return head + f", a verified passage at {gap['passage']:g} {u}"
+    tried = ", ".join(f"{t:g}" for t in gap["no_passage_found"])
+    return head + f", no passage found at {tried} {u} (a motion search, a heuristic)"
 
 
 def _thin_cell(block: dict) -> str:
