@@ -143,6 +143,16 @@ class Fabrication:
         exclusive_min=True,
         maximum=LENGTH_MAX,
     )
+    window: float | str = setting(
+        0.0,
+        "turns about the vertical (degrees, either way) over which every A passes the hole "
+        '(a shaken part need not be turned exactly); "auto" bisects the widest that keeps every '
+        "B blocked (docs/fabrication.md)",
+        unit="degrees",
+        minimum=0,
+        maximum=90,
+        choices=("auto",),
+    )
     border: float = setting(
         5.0,
         "plate material around the hole",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from collections.abc import Callable
@@ -13,7 +14,8 @@ import numpy as np
 
 from sieve_mi.certify.certificate import Certification
 from sieve_mi.geometry.meshes import Shape
-from sieve_mi.geometry.outline import dilated, hole_outline, is_closed
+from sieve_mi.geometry.outline import dilated, is_closed
+from sieve_mi.geometry.window import windowed_hole
 from sieve_mi.scene import Scene
 from sieve_mi.workers import worker_pool
 
@@ -99,7 +101,7 @@ def printed_hole(scene: Scene, pass_shapes: list[Shape], quats: np.ndarray, tran
     """The hole a block's proof is against: the exact outline the plate is cut from, grown by the
     block margin.
 
-    That outline is :func:`sieve_mi.geometry.outline.hole_outline` of A's placed projections
+    That outline is :func:`sieve_mi.geometry.window.windowed_hole` of A's placed projections
     (dilated by ``[fabrication] tolerance``, gaps filled as ``fill_holes`` says), grown by
     ``[fabrication] block_margin`` when there is one, so a proof covers the printed plate and the
     margin the scene asks for.
@@ -120,7 +122,8 @@ def printed_hole(scene: Scene, pass_shapes: list[Shape], quats: np.ndarray, tran
     """
     fab = scene.fabrication
     closed = [is_closed(s) for s in pass_shapes]
-    hole = hole_outline(pass_shapes, quats, trans, fab.tolerance, fab.fill_holes, closed)
+    hole, _ = windowed_hole(pass_shapes, quats, trans, fab.tolerance, math.radians(fab.window),
+                            fab.fill_holes, closed)  # fmt: skip
     if fab.block_margin > 0:
         hole = dilated(hole, fab.block_margin)
     return hole

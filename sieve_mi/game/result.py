@@ -210,6 +210,9 @@ class Result:
     margins: list = field(default_factory=list)
     #: Peak resident memory per stage (:class:`sieve_mi.backend.MemoryWatch`), or None.
     memory: object = None
+    #: The turning window (report.json's ``fabrication.window``, :mod:`sieve_mi.game.window`),
+    #: or None without one.
+    window: dict | None = None
     #: :meth:`overlay_sections`' polygons, made on first use (a 500k-face B's projection takes
     #: minutes; the images and the page both draw it).
     _sections: tuple | None = field(default=None, repr=False, compare=False)

@@ -2,7 +2,8 @@
 
 A ball of radius ρ inside B projects to a disk of radius ρ in every pose, so B cannot pass a hole
 that holds no disk of radius ρ. The hole made by one A lies in the disk of radius
-``A.radius + tolerance (1 + ARC_ERROR + SIMPLIFY)`` around A's place (its outline is at most that
+``A.radius + tolerance (1 + ARC_ERROR + SIMPLIFY)`` around A's place (the tolerance plus a turning
+window's chord bound, :mod:`sieve_mi.geometry.window`, where there is one) (its outline is at most that
 far out, :mod:`sieve_mi.geometry.outline`), grown by ``block_margin`` where blocking is decided
 against the grown hole; with one hole per A (``separate``) the largest of them counts. A B whose
 certified inscribed ball (:func:`sieve_mi.certify.bounds.inscribed_ball`) is larger than that is
@@ -23,6 +24,7 @@ from sieve_mi.game.attack import Attack
 from sieve_mi.game.exact import score
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import ARC_ERROR, SIMPLIFY, Boundary, dilated, is_closed
+from sieve_mi.geometry.window import GROWTH
 from sieve_mi.scene import Scene
 
 __all__ = ["largest_hole_radius", "prove_proved", "proved_by_size", "with_proved"]
@@ -33,9 +35,11 @@ def largest_hole_radius(scene: Scene, passes: list[Shape]) -> float | None:
     margin), scene units; None for a merged hole of several A (not screened)."""
     if len(passes) > 1 and scene.layout.mode == "merged":
         return None
-    fab = scene.fabrication
-    outline = fab.tolerance * (1.0 + ARC_ERROR + SIMPLIFY)
-    return (max(p.radius for p in passes) + outline + fab.block_margin) * (1.0 + 1e-9)
+    fab, radius = scene.fabrication, max(p.radius for p in passes)
+    # a turning window turns A about its place (within its radius) and adds its chord bound
+    grow = max(GROWTH * fab.tolerance, 1e-4 * radius) if fab.window else 0.0
+    outline = (fab.tolerance + grow) * (1.0 + ARC_ERROR + SIMPLIFY)
+    return (radius + outline + fab.block_margin) * (1.0 + 1e-9)
 
 
 def proved_by_size(scene: Scene, passes: list[Shape], blocks: list[Shape]) -> dict[int, float]:

@@ -25,6 +25,7 @@ from sieve_mi.game.scoring import mask_window
 from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved
 from sieve_mi.game.sheet import plate_sheet
 from sieve_mi.game.verdict import judge
+from sieve_mi.game.window import at_window, widest_window, window_record
 from sieve_mi.geometry.meshes import Shape, load_shape, shape_from_trimesh
 from sieve_mi.geometry.outline import dilated
 from sieve_mi.geometry.rotations import normalize
@@ -255,9 +256,11 @@ def solve(
             if open_blocks
             else _unsearched(scene)
         )
-    v, certified = _verdict(scene, passes, blocks, sure, found, rng, progress, run)
+    play, window, rng = _window(scene, passes, [b for j, b in enumerate(blocks) if j not in sure],
+                                found, (seed, rng), progress, run)  # fmt: skip
+    v, certified = _verdict(play, passes, blocks, sure, found, rng, progress, run)
     with run.stage("thin", mark=False):  # its memory stage ends after the margins
-        sheet = _sheet(scene, passes, blocks, v, certified, seed, progress)
+        sheet = _sheet(play, passes, blocks, v, certified, seed, progress)
     certified = on_sheet(certified, sheet.thickness)  # a cell proof needs a plate >= B's diameter
     margins = block_margins(blocks, v.outline, v.attack, certified, scene.fabrication.block_margin)
     run.mark("thin")
@@ -287,7 +290,23 @@ def solve(
         polish=found.polish,
         started=run.started,
         memory=run.memory,
+        window=window,
     )
+
+
+def _window(scene: Scene, passes, open_blocks, found, seeds: tuple, progress: bool, run: Run):
+    """The scene the verdict plays (its ``[fabrication] window`` a number), report.json's window
+    record (:mod:`sieve_mi.game.window`) and the verdict's random numbers; ``seeds`` is (seed,
+    the solve's generator); ``run`` gets the stage "window" for "auto"."""
+    seed, rng = seeds
+    if scene.fabrication.window != "auto":
+        return scene, window_record(scene, passes, "given"), rng
+    degrees, tries = 0.0, []
+    if open_blocks:
+        with run.stage("window"):
+            degrees, tries, rng = widest_window(scene, passes, open_blocks, found, seed, progress)
+    play = at_window(scene, degrees)
+    return play, window_record(play, passes, "auto", tries), rng
 
 
 def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng, progress,

@@ -10,6 +10,7 @@ attacked on every hole and passes the sieve if it passes any one of them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -24,7 +25,8 @@ from sieve_mi.game.player_b import PlayerB
 from sieve_mi.game.scoring import mask_window
 from sieve_mi.geometry.hole import Hole
 from sieve_mi.geometry.meshes import Shape
-from sieve_mi.geometry.outline import dilated, hole_outline, is_closed, union
+from sieve_mi.geometry.outline import dilated, is_closed, union
+from sieve_mi.geometry.window import GROWTH, windowed_hole
 from sieve_mi.scene import Scene
 
 __all__ = ["Judgement", "REACH", "exact_holes", "judge", "start_centres"]
@@ -89,11 +91,12 @@ def exact_holes(
     closed = [is_closed(p) for p in passes]
     outlines = []
     for g in groups:
-        o = hole_outline(
+        o, _ = windowed_hole(
             [passes[i] for i in g],
             quats[g],
             trans[g],
             fab.tolerance,
+            math.radians(fab.window),
             fab.fill_holes,
             closed=[closed[i] for i in g],
         )
@@ -187,12 +190,13 @@ def judge(
     """
     fab, v = scene.fabrication, scene.verdict
     separate = len(passes) > 1 and scene.layout.mode == "separate"
+    reach = fab.tolerance * (1 + GROWTH) if fab.window else fab.tolerance  # a window's chord bound
     if separate:
         radii = [p.radius for p in passes]
-        trans, frame = separate_layout(radii, fab.tolerance, fab.border, v.resolution)
+        trans, frame = separate_layout(radii, reach, fab.border, v.resolution)
     else:
         trans = np.zeros((1, 2)) if len(passes) == 1 else np.asarray(trans, dtype=np.float64)
-        frame = frame_for(passes, fab.tolerance, v.resolution, trans)
+        frame = frame_for(passes, reach, v.resolution, trans)
     groups = _groups(len(passes), separate)
     a_masks, outlines, outline, hole, warnings = _holes(passes, quats, trans, frame, groups, fab)
     grown = [dilated(o, fab.block_margin) for o in outlines] if fab.block_margin > 0 else outlines

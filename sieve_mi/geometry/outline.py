@@ -252,6 +252,7 @@ def hole_outline(
     tolerance: float,
     fill_holes: bool = True,
     closed: list[bool] | None = None,
+    turns: np.ndarray | None = None,
 ) -> manifold3d.CrossSection:
     """The exact hole H: the union of the placed A projections, dilated, gaps filled.
 
@@ -269,14 +270,22 @@ def hole_outline(
         Keep only outer contours (paper Fig. 4).
     closed : list of bool, optional
         Per shape, whether it is watertight (see :func:`projection`); default False.
+    turns : (k,) ndarray, optional
+        Turns about the vertical (radians, counter-clockwise): every A's projection is also
+        taken turned by each about its own place (a turning window,
+        :mod:`sieve_mi.geometry.window`); default the pose alone.
     """
+    turns = np.zeros(1) if turns is None else np.asarray(turns, dtype=np.float64)
     parts, flat = [], []
     for i, shape in enumerate(shapes):
         v = placed_vertices(shape, quats[i], trans[i])
         is_closed_i = bool(closed[i]) if closed else False
-        parts.append(projection(v, shape.faces, closed=is_closed_i))
+        t = [float(trans[i][0]), float(trans[i][1])]
+        seen = projection(v, shape.faces, closed=is_closed_i)
+        parts += [_turned(seen, a, t) for a in turns]
         if not is_closed_i:  # a closed mesh's edge-on triangles lie inside its projection
-            flat.append(edge_on_segments(v, shape.faces))
+            segs = edge_on_segments(v, shape.faces)
+            flat += [_turned_segments(segs, a, t) for a in turns]
     union = (
         manifold3d.CrossSection.batch_boolean(parts, manifold3d.OpType.Add)
         if len(parts) > 1
@@ -286,6 +295,23 @@ def hole_outline(
     if flat and sum(len(f) for f in flat) and tolerance > 0:
         out = out + dilated_segments(np.concatenate(flat), tolerance)
     return filled(out) if fill_holes else out
+
+
+def _turned(section: manifold3d.CrossSection, angle: float, about: list) -> manifold3d.CrossSection:
+    """``section`` turned by ``angle`` (radians, counter-clockwise) about the point ``about``."""
+    if angle == 0 or section.is_empty():
+        return section
+    back = [-about[0], -about[1]]
+    return section.translate(back).rotate(math.degrees(angle)).translate(about)
+
+
+def _turned_segments(segments: np.ndarray, angle: float, about: list) -> np.ndarray:
+    """Segments (S, 2, 2) turned by ``angle`` (radians, counter-clockwise) about ``about``."""
+    if angle == 0 or len(segments) == 0:
+        return segments
+    c, s = math.cos(angle), math.sin(angle)
+    o = np.asarray(about, dtype=np.float64)
+    return (segments - o) @ np.array([[c, s], [-s, c]]) + o
 
 
 def rasterize(section: manifold3d.CrossSection, frame: Frame) -> np.ndarray:

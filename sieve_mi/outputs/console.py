@@ -69,6 +69,10 @@ def summary_table(report: dict) -> str:
     memory = memory_line(report)
     if memory:
         lines.append(memory)
+    window = report.get("fabrication", {}).get("window")
+    if window:
+        tries = f", {len(window['bisection'])} verdicts" if "bisection" in window else ""
+        lines.append(f"window: ±{window['degrees']:.3g}° ({window['mode']}{tries})")
     plate = sheet_line(report)
     if plate:
         lines.append(plate)
@@ -81,7 +85,7 @@ def summary_table(report: dict) -> str:
 #: report.json's stage timings, in the order they run, with the console's labels.
 STAGES = (
     ("startup_s", "startup"), ("init_s", "init"), ("load_s", "load"), ("screen_s", "screen"),
-    ("search_s", "search"),
+    ("search_s", "search"), ("window_s", "window"),
     ("verdict_s", "verdict"), ("certify_s", "certify"), ("thin_s", "thin plate"),
     ("images_s", "images"),
     ("fabrication_s", "plate"), ("figure_s", "figure"), ("passage_s", "passage"),

@@ -304,6 +304,7 @@ def plate_files(result, out_dir: str) -> tuple[dict, tuple]:
         "thickness": sieve.thickness,
         "required_thickness": required,
         **({"sheet": result.sheet.to_dict()} if getattr(result, "sheet", None) is not None else {}),
+        **({"window": result.window} if getattr(result, "window", None) else {}),
         "border": sieve.border,
         "plate_size": [float(x1 - x0), float(y1 - y0), float(z1 - z0)],
         "outline": raster_agreement(outline, result.hole.mask, result.hole.frame),
