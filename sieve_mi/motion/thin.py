@@ -243,6 +243,23 @@ def _on_mesh(shape: Shape, plate, poses: list):
     return verify(world, path), path
 
 
+def _safe_at_once(shapes: list, outline, ts: list, sections: list | None) -> list:
+    """Per shape, a ``"safe"`` ThinPlate that needs no search (a ball, its diameter, a section
+    proof that covers its plate), else None."""
+    out: list = [None] * len(shapes)
+    segs = contour_segments([np.asarray(c, float) for c in outline.to_polygons()])
+    for j, shape in enumerate(shapes):
+        d, t = diameter(shape.hull), ts[j]
+        if _ball_proves(shape, segs):  # the stronger proof: safe on any plate
+            out[j] = ThinPlate(shape.name, t, d, "safe", argument=BALL_ARGUMENT)
+        elif d <= t + LENGTH_SLACK:
+            out[j] = ThinPlate(shape.name, t, d, "safe")
+        elif sections and sections[j] and sections[j]["thickness"] <= t + LENGTH_SLACK:
+            out[j] = ThinPlate(shape.name, t, d, "safe",
+                               argument=SECTION_ARGUMENT, section=sections[j])  # fmt: skip
+    return out
+
+
 def _per_shape(thickness, n: int) -> list:
     """``thickness`` (one number, or one per shape) as a list of ``n``.
 
@@ -383,20 +400,8 @@ def thin_plates(
         _checked(outline, t, budget_s)
     ts = [float(t) for t in ts]
     seeds = seeds or [()] * len(shapes)
-    out: list = [None] * len(shapes)
-    todo = []
-    segs = contour_segments([np.asarray(c, float) for c in outline.to_polygons()])
-    for j, shape in enumerate(shapes):
-        d, t = diameter(shape.hull), ts[j]
-        if _ball_proves(shape, segs):  # the stronger proof: safe on any plate
-            out[j] = ThinPlate(shape.name, t, d, "safe", argument=BALL_ARGUMENT)
-        elif d <= t + LENGTH_SLACK:
-            out[j] = ThinPlate(shape.name, t, d, "safe")
-        elif sections and sections[j] and sections[j]["thickness"] <= t + LENGTH_SLACK:
-            out[j] = ThinPlate(shape.name, t, d, "safe",
-                               argument=SECTION_ARGUMENT, section=sections[j])  # fmt: skip
-        else:
-            todo.append(j)
+    out = _safe_at_once(shapes, outline, ts, sections)
+    todo = [j for j, o in enumerate(out) if o is None]
     if not todo:
         return out
     polygons = _polygons(outline)
