@@ -231,7 +231,7 @@ def _prove(shape: Shape, contours: list, budget: Budgets, found: float | None) -
     c = certify(shape, [hole], budget_s=budget.proof_s)
     if c.status == "proved":
         spare = min(budget.proof_s - c.seconds, max(MARGIN_MIN_S, MARGIN_FACTOR * c.seconds))
-        c.margin, c.margin_certificate = prove_margin(shape, hole, found, spare)
+        c.margin, c.margin_certificate, c.margin_steps = prove_margin(shape, hole, found, spare)
     if c.status != "proved" or c.method != "cells":
         return c
     if budget.thickness in (None, "thinnest"):
@@ -243,7 +243,7 @@ def _prove(shape: Shape, contours: list, budget: Budgets, found: float | None) -
 
 def prove_margin(
     shape: Shape, hole, found: float | None, budget_s: float, *, steps: int = 5
-) -> tuple[float, dict]:
+) -> tuple[float, dict, int]:
     """The largest m (of a bisection) for which ``shape`` is proved blocked by ``hole`` grown by m.
 
     A proof against H grown by m (:func:`sieve_mi.geometry.outline.dilated`, which contains the
@@ -265,21 +265,22 @@ def prove_margin(
 
     Returns
     -------
-    (float, dict)
-        m >= 0 and the certificate of the proof at m (empty for m = 0).
+    (float, dict, int)
+        m >= 0, the certificate of the proof at m (empty for m = 0) and the number of steps that
+        ran (0: not bisected, e.g. no budget left or ``found`` <= 0).
     """
     from sieve_mi.certify import certify
 
     t0 = time.perf_counter()
-    lo, hi, cert = 0.0, float(found or 0.0), {}
+    lo, hi, cert, ran = 0.0, float(found or 0.0), {}, 0
     for k in range(steps if hi > 0 else 0):
         left = budget_s - (time.perf_counter() - t0)
         if left < 0.5:
             break
-        mid = 0.5 * (lo + hi)
+        mid, ran = 0.5 * (lo + hi), ran + 1
         c = certify(shape, [dilated(hole, mid)], budget_s=left / (steps - k))
         if c.status == "proved":
             lo, cert = mid, c.certificate
         else:
             hi = mid
-    return lo, cert
+    return lo, cert, ran

@@ -148,6 +148,8 @@ class Certification:
         not tried or not proved).
     margin_certificate : dict
         The certificate of that proof against the grown hole (empty when m = 0 or None).
+    margin_steps : int
+        Steps of the margin bisection that ran (0: the margin was not bisected).
     straight : str or None
         The answer for straight passage (the search's status, the paper's model).
     holds_for : str or None
@@ -179,6 +181,7 @@ class Certification:
     certificate: dict = field(default_factory=dict, repr=False)
     margin: float | None = None
     margin_certificate: dict = field(default_factory=dict, repr=False)
+    margin_steps: int = 0
     straight: str | None = None
     holds_for: str | None = None
     diameter: float | None = None
@@ -332,6 +335,7 @@ class Certification:
             "symmetry": self.symmetry,
             "passage": self.passage,
             "margin": self.margin,
+            "margin_steps": self.margin_steps,
             "straight": self.straight,
             "holds_for": self.holds_for,
             "diameter": self.diameter,

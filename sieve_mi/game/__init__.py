@@ -21,6 +21,8 @@ scoring
     Raster scores of poses against holes, and B's silhouettes in a mask window.
 exact
     Exact scores and polish of B's poses against the printed polygon H.
+overhang
+    How far each blocked B overhangs H at its best pose (exact polygon) and the proved bound.
 frames
     The raster frames of the holes, and the separate layout (A's holes side by side).
 candidates

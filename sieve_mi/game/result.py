@@ -119,6 +119,9 @@ class BlockAttempt:
     margin : dict or None
         Where it is blocked straight through the exact hole: how far it sticks out of H at best,
         bracketed (:func:`block_margin`); None otherwise.
+    overhang : Overhang or None
+        Where it has a ``margin``: the least overhang found over poses (exact polygon) and the
+        proved lower bound, in a maker's words (:mod:`sieve_mi.game.overhang`); None otherwise.
     """
 
     name: str
@@ -130,6 +133,7 @@ class BlockAttempt:
     certification: object = None
     thin_plate: object = None
     margin: dict | None = None
+    overhang: object = None
 
 
 @dataclass
@@ -208,6 +212,9 @@ class Result:
     #: Per B, its :func:`block_margin` or None (:func:`block_margins`, computed once by the
     #: solver); empty when none were computed.
     margins: list = field(default_factory=list)
+    #: Per B, its :class:`sieve_mi.game.overhang.Overhang` or None
+    #: (:func:`sieve_mi.game.overhang.block_overhangs`); empty when none were computed.
+    overhangs: list = field(default_factory=list)
     #: Peak resident memory per stage (:class:`sieve_mi.backend.MemoryWatch`), or None.
     memory: object = None
     #: The turning window (report.json's ``fabrication.window``, :mod:`sieve_mi.game.window`),
@@ -237,6 +244,7 @@ class Result:
                     certification=c,
                     thin_plate=thin,
                     margin=self.margins[j] if j < len(self.margins) else None,
+                    overhang=self.overhangs[j] if j < len(self.overhangs) else None,
                 )
             )
         return out

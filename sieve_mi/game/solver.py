@@ -17,6 +17,7 @@ from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import AttackMemory
 from sieve_mi.game.frames import hole_frame, union_frame
 from sieve_mi.game.layout import alternative_rotations, merge
+from sieve_mi.game.overhang import block_overhangs
 from sieve_mi.game.placement import PlacementContext
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
@@ -259,10 +260,13 @@ def solve(
     play, window, rng = _window(scene, passes, [b for j, b in enumerate(blocks) if j not in sure],
                                 found, (seed, rng), progress, run)  # fmt: skip
     v, certified = _verdict(play, passes, blocks, sure, found, rng, progress, run)
-    with run.stage("thin", mark=False):  # its memory stage ends after the margins
+    with run.stage("thin", mark=False):  # its memory stage ends after the margins'
         sheet = _sheet(play, passes, blocks, v, certified, seed, progress)
     certified = on_sheet(certified, sheet.thickness)  # a cell proof needs a plate >= B's diameter
-    margins = block_margins(blocks, v.outline, v.attack, certified, scene.fabrication.block_margin)
+    with run.stage("margins", mark=False):  # exact overhangs and their proved bounds
+        grown = scene.fabrication.block_margin
+        margins = block_margins(blocks, v.outline, v.attack, certified, grown)
+        overhangs = _overhangs(blocks, v, margins, certified, progress)
     run.mark("thin")
     run.stop()
     return Result(
@@ -286,6 +290,7 @@ def solve(
         certified=certified,
         sheet=sheet,
         margins=margins,
+        overhangs=overhangs,
         outline=v.outline,
         polish=found.polish,
         started=run.started,
@@ -347,6 +352,21 @@ def _sheet(scene: Scene, passes, blocks, v, certified, seed, progress):
             "turning on the way (thin-plate motion search, verified; motion in report.json): B wins"
         )
     return sheet
+
+
+def _overhangs(blocks, v, margins: list, certified: list, progress: bool) -> list:
+    """Each blocked B's least overhang found and its proved bound
+    (:func:`sieve_mi.game.overhang.block_overhangs`), with a progress bar over the B."""
+    todo = [j for j, m in enumerate(margins) if m is not None]
+    bar = Progress(progress and bool(todo), len(todo), "overhang", unit="B")
+
+    def step(j: int) -> None:
+        if j in todo:
+            bar.update(1, stage=f"{blocks[j].name} measured")
+
+    got = block_overhangs(blocks, v.outline, v.attack, margins, certified, progress=step)
+    bar.close()
+    return got
 
 
 def _unsearched(scene: Scene) -> SearchOutcome:

@@ -20,6 +20,7 @@ if TYPE_CHECKING:
 __all__ = [
     "STAGES",
     "check_summary",
+    "margin_lines",
     "memory_line",
     "merge_hint",
     "section_line",
@@ -58,6 +59,8 @@ def summary_table(report: dict) -> str:
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
+    margins = margin_lines(report)
+    lines += [""] + margins if margins else []
     t = report["timings"]
     lines.append("")
     lines.append(
@@ -82,11 +85,39 @@ def summary_table(report: dict) -> str:
     return "\n".join(lines)
 
 
+def margin_lines(report: dict) -> list[str]:
+    """Per blocked B with an ``overhang`` entry (:mod:`sieve_mi.game.overhang`), a maker's line:
+    ``letter_R: blocked (proved); overhangs the hole by ≥ 0.80 mm in every pose, 1.60 mm at its
+    best pose``. The table's protrusion is at the pose with the least area outside H; these
+    lengths are the least overhang over poses (found on the exact polygon) and its proved bound.
+    """
+    out = []
+    for b in report["block"]:
+        o = b.get("overhang")
+        if o is not None:
+            out.append(f"{b['name']}: blocked ({_blocked_by(b, o)}); {o['text']}")
+    return out
+
+
+def _blocked_by(block: dict, overhang: dict) -> str:
+    """How a blocked B's block rests: ``proved``, ``proved by a ball inside it``, ``proved for
+    straight passage only`` (a plate thinner than B) or ``not proved``."""
+    c = block.get("certification") or {}
+    if block.get("certified") == "proved":
+        return "proved"
+    if overhang.get("proof") == "ball" and (overhang.get("proved_at_least") or 0.0) > 0:
+        return "proved by a ball inside it"
+    if c.get("straight") == "proved":
+        return "proved for straight passage only"
+    return "not proved"
+
+
 #: report.json's stage timings, in the order they run, with the console's labels.
 STAGES = (
     ("startup_s", "startup"), ("init_s", "init"), ("load_s", "load"), ("screen_s", "screen"),
     ("search_s", "search"), ("window_s", "window"),
     ("verdict_s", "verdict"), ("certify_s", "certify"), ("thin_s", "thin plate"),
+    ("margins_s", "margins"),
     ("images_s", "images"),
     ("fabrication_s", "plate"), ("figure_s", "figure"), ("passage_s", "passage"),
     ("animation_s", "gif"), ("page_s", "page"),

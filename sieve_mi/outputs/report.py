@@ -58,6 +58,8 @@ def _block_row(result: Result, j: int, record: BlockAttempt) -> dict:
         row["certification"] = c.to_dict()
     if record.margin is not None:  # blocked straight through the exact hole
         row["margin"] = record.margin
+    if record.overhang is not None:  # the least overhang found and its proved bound
+        row["overhang"] = record.overhang.to_dict(result.scene.units)
     if thin is not None:
         row["thin_plate"] = thin.to_dict()
     if attack.margin_beta is not None:

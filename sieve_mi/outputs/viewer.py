@@ -33,6 +33,7 @@ from importlib import resources
 
 import numpy as np
 
+from sieve_mi.outputs.console import margin_lines
 from sieve_mi.outputs.palette import PALETTE, css_variables
 from sieve_mi.outputs.svg import convergence_svg, hole_svg, outline_svg
 
@@ -224,7 +225,8 @@ def _table(rows: list[list[str]], head: list[str]) -> str:
 
 def result_table(report: dict) -> str:
     """The result per shape: role, name, β, protrusion, result, certification and the plate's
-    thickness verdict ("thin plate": safe by diameter or ball, passage, or none found)."""
+    thickness verdict ("thin plate": safe by diameter or ball, passage, or none found); under it
+    each blocked B's overhang line (:func:`sieve_mi.outputs.console.margin_lines`)."""
     units = report["units"]
     rows = [
         ["pass", p["name"], "-", "-", "passes (part of the hole)", "-", "-"] for p in report["pass"]
@@ -249,7 +251,8 @@ def result_table(report: dict) -> str:
             ]
         )
     head = ["role", "shape", "β", f"protrusion ({units})", "result", "certified", "thin plate"]
-    return _table(rows, head)
+    lines = "".join(f"<li>{html.escape(x)}</li>" for x in margin_lines(report))
+    return _table(rows, head) + (f'<ul class="margins">{lines}</ul>' if lines else "")
 
 
 def timings_table(report: dict) -> str:

@@ -66,6 +66,21 @@ def test_the_margin_is_the_records_computed_once_by_the_game(solved, monkeypatch
     assert rows[0]["margin"] == sphere.margin and "margin" not in rows[1]
 
 
+def test_each_blocked_b_gets_its_overhang_in_words(solved):
+    # the least overhang found (exact polygon) lies inside the margin's bracket, and the console
+    # says it in a maker's words under the table
+    rep = report_dict(solved)
+    sphere, small = rep["block"]
+    o, m = sphere["overhang"], sphere["margin"]
+    assert m["proved_at_least"] <= o["at_best_pose"] <= m["found_at_most"] + 1e-12
+    assert o["proved_at_least"] == m["proved_at_least"] and o["proof"] == "bisection"
+    assert "overhang" not in small  # it passes
+    assert sphere["certification"]["margin_steps"] > 0
+    line = f"sphere: blocked (proved); {o['text']}"
+    assert line in summary_table(rep).splitlines()
+    assert o["text"].startswith(f"overhangs the hole by ≥ {o['proved_at_least']:.2f} mm in every")
+
+
 def test_the_passage_takes_the_saved_plate(solved):
     from sieve_mi.outputs.fabrication import plate, plate_thickness
     from sieve_mi.outputs.passage import build
