@@ -28,14 +28,18 @@ if TYPE_CHECKING:
     from sieve_mi.game.result import Result
 
 __all__ = [
+    "B_HATCH",
     "CHAR_WIDTH",
     "GAME_VALUE",
     "LINE_HEIGHT",
     "MERGED_VALUE",
     "OVERLAY_COLUMNS",
+    "OVERHANG_ALPHA",
     "OVERLAY_PANEL",
     "SCALE_BAR_GID",
     "SCALE_STRIP",
+    "SINGLE_VALUE",
+    "SINGLE_VALUE_GID",
     "convergence_figure",
     "draw_contours",
     "grid_figure",
@@ -264,6 +268,12 @@ GAME_VALUE = "best game value (min beta)"
 MERGED_VALUE = "best min beta, then eq. 14 energy"
 
 
+#: convergence.png of a search with one value (no swarm iterations): the annotation that says why.
+SINGLE_VALUE = "one candidate, no search iterations:\nnothing to converge"
+#: The ``gid`` of that annotation (tests find it by it).
+SINGLE_VALUE_GID = "single-value"
+
+
 def convergence_figure(history: list[float], final: float | None = None, ylabel: str = GAME_VALUE):
     """convergence.png's figure: player A's best game value per search iteration.
 
@@ -273,7 +283,8 @@ def convergence_figure(history: list[float], final: float | None = None, ylabel:
 
     ``final`` (report.json's ``search_value``: the game value of the search's last stage, polish
     or placement) is drawn as a dashed line; what the dashed line is, and a note when the curve
-    is flat, go into a caption under the plot, never onto the curve.
+    is flat, go into a caption under the plot, never onto the curve. A history of one value (the
+    swarm ran no iterations) gets an annotation above its dot, :data:`SINGLE_VALUE`.
 
     Returns
     -------
@@ -282,6 +293,12 @@ def convergence_figure(history: list[float], final: float | None = None, ylabel:
     fig = new_figure(5.0, 3.4, 120)
     ax = fig.subplots()
     notes = []
+    if len(history) == 1:  # a lone dot would say nothing: say why there is one value
+        dashed = final is not None and np.isfinite(final) and final != history[0]
+        ax.text(0.5, 0.5 if dashed else 0.8, SINGLE_VALUE, ha="center", va="center",
+                transform=ax.transAxes, fontsize=9, gid=SINGLE_VALUE_GID)  # fmt: skip
+        ax.set_xticks([0])
+        notes.append(f"the one value: {history[0]:.5g} (the best of A's first candidates)")
     if history:
         ax.plot(range(len(history)), history, marker="o", color=hex_colour("curve"))
         if final is not None and np.isfinite(final) and final != history[-1]:
@@ -307,7 +324,8 @@ def _draw_section(ax, section, **style) -> None:
 
 
 def overlay_figure(result: Result):
-    """overlay.png's figure: the exact hole H, A's projection (dashed) and B's best attempts.
+    """overlay.png's figure: the exact hole H, A's projection (dashed) and B's best attempts
+    (outlined and hatched over the visible hole, :func:`_draw_block`).
 
     One panel per B (at most :data:`OVERLAY_COLUMNS` in a row, a shorter last row centred), all
     to one scale, each with axes and a scale bar in scene units (:func:`plan_view`); each panel's
@@ -329,7 +347,7 @@ def overlay_figure(result: Result):
     titles = [_overlay_title(result, j) for j in range(len(b_sections))] or [""]
     titles = [wrap(t, OVERLAY_PANEL, 9) for t in titles]
     counts = _rows(len(titles), OVERLAY_COLUMNS)
-    title = f"{result.scene.name}: winner {result.winner} (exact hole white, A dashed)"
+    title = f"{result.scene.name}: winner {result.winner} (exact hole white, A dashed, B hatched)"
     title = wrap(title, OVERLAY_PANEL * max(counts) + 0.3, 10)  # the figure's width
     starts = np.cumsum([0, *counts])
     lines = [max(t.count("\n") + 1 for t in titles[a:b]) for a, b in zip(starts, starts[1:])]
@@ -347,11 +365,27 @@ def overlay_figure(result: Result):
                 ax, sec, fill=False, edgecolor=hex_colour("pass"), linewidth=1.0, linestyle="--"
             )
         if j < len(b_sections):
-            colour = hex_colour(block_colour(bool(result.blocks[j].blocked)))
-            _draw_section(ax, b_sections[j], facecolor=colour, alpha=0.55, linewidth=0)
+            _draw_block(ax, b_sections[j], hole, bool(result.blocks[j].blocked))
         ax.set_title(titles[j], fontsize=9)
     fig.suptitle(title, fontsize=10)
     return fig
+
+
+#: overlay.png: a B's hatching (matplotlib's pattern; lines at 45°) and the opacity of the light
+#: fill of its part outside H (where it overhangs the plate).
+B_HATCH = "///"
+OVERHANG_ALPHA = 0.3
+
+
+def _draw_block(ax, section, hole, blocked: bool) -> None:
+    """One B's attempt over the hole: its outline and hatching in its colour (red blocked, orange
+    gets through), never a fill over H, so the hole stays visible under it; its part outside H
+    (what overhangs the plate) gets a light fill of the same colour."""
+    colour = hex_colour(block_colour(blocked))
+    outside = section - hole
+    if not outside.is_empty():
+        _draw_section(ax, outside, facecolor=colour, alpha=OVERHANG_ALPHA, linewidth=0)
+    _draw_section(ax, section, fill=False, hatch=B_HATCH, edgecolor=colour, linewidth=1.4)
 
 
 def _rows(n: int, columns: int) -> list[int]:

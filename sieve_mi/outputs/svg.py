@@ -46,14 +46,15 @@ def outline_svg(
     half: float,
     units: str = "mm",
 ) -> str:
-    """An inline SVG of hole outlines, dashed A outlines and filled B attempts (CrossSections).
+    """An inline SVG of hole outlines, dashed A outlines and outlined, hatched B attempts
+    (CrossSections; the hole stays visible under them).
 
     Parameters
     ----------
     holes, a_sections, b_sections : list of manifold3d.CrossSection
         Scene units, xy; the first hole gets ``data-id="hole"``, the others ``hole<k>``.
     blocked : list of bool
-        Per B: red (blocked) or orange (gets through).
+        Per B: red (blocked) or orange (gets through), its outline and hatching.
     half : float
         Least half-width of the view, scene units (grown to hold every hole and B).
     units : str
@@ -73,11 +74,12 @@ def outline_svg(
             f'stroke="{hex_colour("edge")}" '
             f'stroke-width="{stroke:.3g}" d="{_path_d(hole)}"/>'
         )
+    parts.append(_hatches(stroke))
     for j, sec in enumerate(b_sections):
-        colour = hex_colour(block_colour(blocked[j]))
+        name = block_colour(blocked[j])
         parts.append(
-            f'<path data-id="b{j}" fill="{colour}" fill-opacity="0.5" fill-rule="nonzero" '
-            f'stroke="{colour}" stroke-width="{stroke:.3g}" d="{_path_d(sec)}"/>'
+            f'<path data-id="b{j}" fill="url(#hatch-{name})" fill-rule="nonzero" '
+            f'stroke="{hex_colour(name)}" stroke-width="{2 * stroke:.3g}" d="{_path_d(sec)}"/>'
         )
     for i, sec in enumerate(a_sections):
         parts.append(
@@ -88,6 +90,19 @@ def outline_svg(
     parts.append(scale_bar(lim, units))
     parts.append("</svg>")
     return "\n".join(parts)
+
+
+def _hatches(stroke: float) -> str:
+    """``<defs>`` of the B's hatchings, ``#hatch-blocked`` (red) and ``#hatch-escaped`` (orange):
+    lines at 45°, six strokes apart, so the hole stays visible under a B (no fill over it)."""
+    gap = 6 * stroke
+    pats = "".join(
+        f'<pattern id="hatch-{name}" patternUnits="userSpaceOnUse" width="{gap:.3g}" '
+        f'height="{gap:.3g}" patternTransform="rotate(45)"><line x1="0" y1="0" x2="0" '
+        f'y2="{gap:.3g}" stroke="{hex_colour(name)}" stroke-width="{stroke:.3g}"/></pattern>'
+        for name in ("blocked", "escaped")
+    )
+    return f"<defs>{pats}</defs>"
 
 
 def scale_bar(lim: float, units: str) -> str:
@@ -107,9 +122,13 @@ def scale_bar(lim: float, units: str) -> str:
 
 
 def convergence_svg(history: list[float]) -> str:
-    """The best game value per search iteration as an inline SVG line plot (or a note)."""
+    """The best game value per search iteration as an inline SVG line plot (or a note: no
+    search, or one value and no search iterations)."""
     if not history:
         return "<p>A's rotation was fixed: no search.</p>"
+    if len(history) == 1:  # no curve to draw: say why (as convergence.png does)
+        return (f"<p>One candidate, no search iterations: nothing to converge (the one value, "
+                f"the best of A's first candidates: {history[0]:.5g}).</p>")  # fmt: skip
     w, h, left, pad = 480, 260, 64, 24
     y = np.asarray(history, dtype=np.float64)
     lo, hi = float(y.min()), float(y.max())

@@ -213,3 +213,51 @@ def test_solved_letters_overlay_and_convergence(letters):
     # merged letters: the curve runs through each A's search, then the placement's eq. 14 energy
     fig = convergence_figure(letters.history.best, letters.search_value, MERGED_VALUE)
     assert layout_problems(fig) == []
+
+
+@pytest.mark.parametrize("final", [0.04, 0.2, 0.01, None])
+def test_a_single_value_says_why_it_is_alone(final, tmp_path):
+    # a swarm without iterations gives one value: the plot says why, on no drawn shape
+    from PIL import Image
+
+    from sieve_mi.outputs.plots import SINGLE_VALUE, SINGLE_VALUE_GID
+
+    fig = convergence_figure([0.04], final)
+    assert layout_problems(fig) == []
+    notes = [t for t in fig.axes[0].texts if t.get_gid() == SINGLE_VALUE_GID]
+    assert [t.get_text() for t in notes] == [SINGLE_VALUE]
+    assert "one candidate, no search iterations" in SINGLE_VALUE
+    assert "0.04" in fig.get_supxlabel() and "flat" not in fig.get_supxlabel()
+    save(fig, str(tmp_path / "c.png"))  # the text is in the pixels: dark ink above the dot
+    img = np.asarray(Image.open(tmp_path / "c.png").convert("L"))
+    assert (img < 100).sum() > (_ink_without_note([0.04], final) + 300)
+
+
+def _ink_without_note(history, final) -> int:
+    """Dark pixels of the same plot with the annotation removed."""
+    import io
+
+    from PIL import Image
+
+    fig = convergence_figure(history, final)
+    for t in [t for t in fig.axes[0].texts if t.get_gid()]:
+        t.remove()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return int((np.asarray(Image.open(buf).convert("L")) < 100).sum())
+
+
+def test_the_page_hatches_b_and_says_why_one_value_is_alone():
+    import re
+
+    from sieve_mi.outputs.svg import convergence_svg, outline_svg
+
+    hole = cross_section([np.array([[-5.0, -5], [5, -5], [5, 5], [-5, 5]])])
+    disk = manifold3d.CrossSection.circle(6.0, 64)
+    svg = outline_svg([hole], [], [disk, disk.translate([1.0, 0.0])], [True, False], 8.0)
+    b = re.findall(r'<path data-id="b\d"[^>]*>', svg)
+    assert len(b) == 2 and not any("fill-opacity" in p for p in b)
+    assert 'fill="url(#hatch-blocked)"' in b[0] and 'fill="url(#hatch-escaped)"' in b[1]
+    assert '<pattern id="hatch-blocked"' in svg and '<pattern id="hatch-escaped"' in svg
+    assert "no search iterations" in convergence_svg([0.25]) and "0.25" in convergence_svg([0.25])
+    assert "<svg" in convergence_svg([0.3, 0.25])
