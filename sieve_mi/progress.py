@@ -2,11 +2,17 @@
 
 One idea: how a command shows that it is working, decided once.
 
-* On a terminal: a tqdm bar (``\\r`` frames), with the current stage and numbers after it.
+* On a terminal: a tqdm bar (``\\r`` frames), with the current stage and numbers after it, and
+  tqdm's estimate of the time left.
 * Elsewhere (stderr is a log file or a pipe): no ``\\r`` frames; plain lines instead, one when
-  the stage changes (``search: cube: nlopt``), the lines the caller writes, and with
-  ``done_line`` one at the end (``verdict: done in 12.3 s``).
+  the stage changes (``search: cube: nlopt``), the lines the caller writes, at most one every
+  :data:`PLAIN_EVERY` seconds with the share done and the time left
+  (``verdict: 40 % (24/60 it), about 3 s left``), and with ``done_line`` one at the end
+  (``verdict: done in 12.3 s``).
 * Quiet (not ``enabled``): nothing at all.
+
+:meth:`Progress.left` gives the estimate of the time left for the caller's own lines (certify's
+and the thin-plate searches' line per B, shake's line per shape).
 
 Callers: :mod:`sieve_mi.game.solver` (search and verdict), :mod:`sieve_mi.shake.run` (a bar
 over trials, a line per shape in a log) and :mod:`sieve_mi.cascade.games` (a bar over games
@@ -18,7 +24,10 @@ from __future__ import annotations
 import sys
 import time
 
-__all__ = ["Progress"]
+__all__ = ["PLAIN_EVERY", "Progress"]
+
+#: In a log, the least number of seconds between two lines of the share done and the time left.
+PLAIN_EVERY = 10.0
 
 
 class Progress:
@@ -39,6 +48,9 @@ class Progress:
         round of work nobody could foresee); 0: never.
     done_line : bool
         In plain mode, end with ``<desc>: done in <seconds> s``.
+    every : float, optional
+        In plain mode, the least seconds between two lines of the time left (default
+        :data:`PLAIN_EVERY`; 0: a line at every update).
 
     Attributes
     ----------
@@ -57,10 +69,14 @@ class Progress:
         unit: str = "it",
         grow_by: int = 0,
         done_line: bool = True,
+        every: float | None = None,
     ):
         self.enabled, self.desc, self.grow_by, self.done_line = enabled, desc, grow_by, done_line
         self.bar, self.plain = None, enabled and not sys.stderr.isatty()
         self.stage, self.t0 = None, time.perf_counter()
+        self.done, self.total, self.unit = 0, int(total), unit
+        self.every = PLAIN_EVERY if every is None else float(every)
+        self.said = self.t0  # when the last line of the time left was printed
         if enabled and not self.plain:
             from tqdm import tqdm
 
@@ -75,6 +91,13 @@ class Progress:
         if self.plain and postfix.get("stage", self.stage) != self.stage:
             self.stage = postfix["stage"]
             print(f"{self.desc}: {self.stage}", file=sys.stderr, flush=True)
+        self._count(n)
+        if self.plain and n and time.perf_counter() - self.said >= self.every:
+            self.said = time.perf_counter()
+            share = f"{100 * self.done / self.total:.0f} % ({self.done}/{self.total} {self.unit})"
+            left = self.left()
+            print(f"{self.desc}: {share}" + (f", {left}" if left else ""), file=sys.stderr,
+                  flush=True)  # fmt: skip
         if self.bar is not None:
             if self.bar.total is not None and self.grow_by and self.bar.n + n > self.bar.total:
                 self.bar.total += self.grow_by
@@ -84,8 +107,24 @@ class Progress:
             if n == 0:
                 self.bar.refresh()
 
+    def _count(self, n: int) -> None:
+        """``n`` more steps done; past ``total``, it grows by ``grow_by`` (or to the count)."""
+        self.done += n
+        while self.done > self.total and self.grow_by:
+            self.total += self.grow_by
+        self.total = max(self.total, self.done)
+
+    def left(self) -> str:
+        """``about 12 s left`` (``about 3 min left``): the time the steps still to do take at the
+        rate so far; empty when nothing is done yet, all is done, or progress is quiet."""
+        if not self.enabled or self.done <= 0 or self.done >= self.total:
+            return ""
+        rate = (time.perf_counter() - self.t0) / self.done
+        return f"about {_duration(rate * (self.total - self.done))} left"
+
     def grow(self, n: int) -> None:
         """``n`` more steps to do (work found on the way)."""
+        self.total += n
         if self.bar is not None:
             self.bar.total += n
             self.bar.refresh()
@@ -110,3 +149,18 @@ class Progress:
             print(f"{self.desc}: done in {took:.1f} s", file=sys.stderr, flush=True)
         if self.bar is not None:
             self.bar.close()
+
+
+def _duration(seconds: float) -> str:
+    """``12 s``, ``3 min`` or ``1.5 h``: a time left, as precise as an estimate deserves.
+
+    Examples
+    --------
+    >>> _duration(4.2), _duration(75), _duration(5400)
+    ('4 s', '1 min', '1.5 h')
+    """
+    if seconds < 59.5:
+        return f"{max(1, round(seconds))} s"
+    if seconds < 3570:
+        return f"{round(seconds / 60)} min"
+    return f"{seconds / 3600:.1f} h"

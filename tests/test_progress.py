@@ -105,3 +105,91 @@ def test_sort_writes_a_line_per_game(tmp_path, capsys):
         head + "weakest ball beta 0.2500  1.5 s",
         head + "weakest ball beta 0.2500  reused",
     ]
+
+
+def test_a_log_gets_the_share_done_and_the_time_left(capsys, monkeypatch):
+    import sieve_mi.progress as progress
+
+    now = [0.0]
+    monkeypatch.setattr(progress.time, "perf_counter", lambda: now[0])
+    bar = Progress(True, 4, "verdict", every=0)  # starts at t = 0
+    now[0] = 2.0
+    bar.update(1)  # 1 of 4 in 2 s: 3 more steps take about 6 s
+    assert bar.left() == "about 6 s left"
+    now[0] = 5.0
+    bar.update(3)
+    assert bar.left() == ""  # all done
+    bar.close()
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == ["verdict: 25 % (1/4 it), about 6 s left", "verdict: 100 % (4/4 it)",
+                     "verdict: done in 5.0 s"]  # fmt: skip
+    quiet = Progress(False, 4, "verdict", every=0)
+    quiet.update(2)
+    assert quiet.left() == "" and capsys.readouterr() == ("", "")
+
+
+def test_a_certify_run_says_each_b_and_quiet_says_nothing(tmp_path, capsys):
+    # the solve's certify stage on two blocked B: its bound first, then a line per B with the
+    # share of rotations excluded (and the time left while some are still running); stdout stays
+    # clean; with progress off (--quiet) nothing at all
+    import numpy as np
+    from helpers import REPO
+
+    from sieve_mi.game.attack import Attack
+    from sieve_mi.game.solver import _certify, load_shapes
+    from sieve_mi.scene import load_scene
+    from sieve_mi.testing.settings import TINY_VERDICT, settings_toml
+
+    meshes = f"{REPO}/scenes/meshes"
+    path = tmp_path / "scene.toml"
+    path.write_text(
+        f'name = "certify progress"\n[[pass]]\nmesh = "{meshes}/cube.stl"\n'
+        f'[[block]]\nmesh = "{meshes}/sphere.stl"\n[[block]]\nmesh = "{meshes}/sphere.stl"\n'
+        'scale = 1.03\nname = "big"\n' + settings_toml(verdict=TINY_VERDICT)
+    )
+    scene = load_scene(str(path))
+    passes, blocks = load_shapes(scene)
+    identity = np.array([1.0, 0.0, 0.0, 0.0])
+
+    def certify(progress: bool) -> list:
+        attack = Attack(np.ones((1, 2)), np.ones((1, 2)), np.tile(identity, (1, 2, 1)),
+                        np.zeros((1, 2, 2)), fits=np.zeros((1, 2), int))  # fmt: skip
+        v = SimpleNamespace(attack=attack, trans=np.zeros((1, 2)), warnings=[])
+        return _certify(scene, passes, blocks, identity[None], v, progress)
+
+    proofs = certify(True)
+    out, err = capsys.readouterr()
+    assert out == "" and [c.status for c in proofs] == ["proved", "proved"]
+    lines = err.splitlines()
+    assert lines[0].startswith("certify: 2 B, up to 4 s each (") and "at most about" in lines[0]
+    assert sorted(x.split(":")[0] for x in lines[1:]) == ["certify big", "certify sphere"]
+    assert all("proved (" in x and "100.0 % of rotations excluded" in x for x in lines[1:])
+    assert len(lines) == 3 and lines[1].endswith(" s left")  # one B still to come
+    assert lines[2].endswith("excluded)")  # nothing left after the last
+    assert certify(False) and capsys.readouterr() == ("", "")
+
+
+def test_the_thin_plate_search_says_each_b_only_when_it_searches(capsys, monkeypatch):
+    from sieve_mi.game import sheet
+    from sieve_mi.motion import ThinPlate
+
+    def answers(shapes, outline, thickness, **kw):
+        for j, s in enumerate(shapes):
+            yield j, ThinPlate(s.name, thickness, 30.0, "no passage found", seconds=2.0 + j)
+
+    monkeypatch.setattr(sheet, "each_thin_plate", answers)
+    blocks = [SimpleNamespace(name="R"), SimpleNamespace(name="A")]
+    import numpy as np
+
+    attack = SimpleNamespace(quats=np.zeros((1, 2, 4)), trans=np.zeros((1, 2, 2)))
+    scene = SimpleNamespace(verdict=SimpleNamespace(thin_budget=5.0))
+    searches = sheet._Searches(scene, blocks, [0, 1], None, attack, 0, [None, None], True)
+    got = searches.at(2.0)
+    assert [t.name for t in got] == ["R", "A"]
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0].startswith("thin plate 2: R: no passage found (2.0 s); about ")
+    assert lines[1] == "thin plate 2: A: no passage found (3.0 s)"
+    searches.at(2.0, search=False)  # the proved plate: every B safe at once, nothing to say
+    assert capsys.readouterr() == ("", "")
+    searches._replace(progress=False).at(2.0)
+    assert capsys.readouterr() == ("", "")

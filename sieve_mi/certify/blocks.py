@@ -154,7 +154,8 @@ def certify_blocks(
     blocked : (n,) ndarray of bool
         The verdict's answer per B; only blocked B are certified.
     progress : callable, optional
-        Called with one line per proof as it ends.
+        Called with one line per proof as it ends: its status, seconds and the share of
+        rotations excluded.
     workers : int, optional
         Worker processes (default: the machine's CPU count); 1 runs the proofs here, one by one.
     found : (n,) ndarray, optional
@@ -175,7 +176,8 @@ def certify_blocks(
     for j, c in _proofs([block_shapes[j] for j in todo], contours, budget, workers, tops):
         out[todo[j]] = c
         if progress is not None:
-            progress(f"certify {block_shapes[todo[j]].name}: {c.status} ({c.seconds:.1f} s)")
+            progress(f"certify {block_shapes[todo[j]].name}: {c.status} ({c.seconds:.1f} s, "
+                     f"{c.excluded_percent(1)} % of rotations excluded)")  # fmt: skip
     return out
 
 

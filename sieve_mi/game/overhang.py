@@ -10,7 +10,8 @@ H. This module brackets it:
 * :func:`least_overhang` searches for the pose that sticks out least: the verdict's pose and B's
   canonical views (:func:`sieve_mi.geometry.canonical.canonical_orientations`, each turned in the
   plane to several angles and to the hole's principal axes) are ranked by the outside distance of
-  B's hull vertices, the best few slide to their minimax pose
+  B's hull vertices; the best few whose hull alone does not already stick out further than the
+  best pose so far slide to their minimax pose
   (:func:`sieve_mi.game.exact.polish_margin`), and each is scored on the exact polygon
   (:func:`sieve_mi.game.exact.score`): the least score found is an upper bound on the least
   overhang (a pose that sticks out that much exists). No raster decides it.
@@ -153,16 +154,17 @@ def _major_angle(xy: np.ndarray) -> float:
     return float(np.arctan2(axis[1], axis[0]))
 
 
-def _ranked(shape: Shape, quats, trans, hole) -> np.ndarray:
-    """Indices of the poses, by the largest outside distance of B's hull vertices (at most
-    :data:`RANKED_POINTS` of them; smallest first), on a coarse sampling of H's boundary: only an
-    order for the exact search, never a score."""
+def _ranked(shape: Shape, quats, trans, hole) -> tuple[np.ndarray, np.ndarray]:
+    """The poses' order by the largest outside distance of B's hull vertices (at most
+    :data:`RANKED_POINTS` of them; smallest first), on a coarse sampling of H's boundary, and that
+    distance less the sampling's spacing (K,), scene units: about a lower bound of each start's
+    overhang. Only an order for the exact search, never a score."""
     boundary = Boundary(hole, spacing=Boundary(hole).size / 300)
     pts = shape.hull[np.unique(np.linspace(0, len(shape.hull) - 1, RANKED_POINTS).astype(int))]
     r = np.array([to_matrix(q) for q in quats])  # (K, 3, 3)
     xy = np.einsum("kij,pj->kpi", r, pts)[..., :2] + trans[:, None, :]
     far = boundary.approx_signed(xy.reshape(-1, 2)).reshape(len(quats), -1).max(axis=1)
-    return np.argsort(far, kind="stable")
+    return np.argsort(far, kind="stable"), far - boundary.spacing
 
 
 def least_overhang(
@@ -189,7 +191,9 @@ def least_overhang(
         Ranked starts slid to their minimax pose and scored exactly.
     floor : float, optional
         A proved lower bound of the least overhang (scene units): the search stops once a pose
-        is within :data:`CLOSE_ENOUGH` of it (no pose can do much better).
+        is within :data:`CLOSE_ENOUGH` of it (no pose can do much better). It also stops at the
+        first ranked start whose hull vertices alone stick out further than the best pose's
+        exact overhang (the starts after it stick out further still).
 
     Returns
     -------
@@ -200,11 +204,12 @@ def least_overhang(
     closed = is_closed(shape) if closed is None else closed
     boundary = Boundary(hole)
     quats, trans = _starts(shape, boundary)
-    quats = np.vstack([start.quat[None], quats])
-    trans = np.vstack([start.trans[None], trans])
-    best, tried = start, []
-    for k in _ranked(shape, quats, trans, hole):
-        if len(tried) == polished or best.score.fits or _bracketed(best, floor):
+    ranked, estimate = _ranked(shape, quats, trans, hole)
+    best, tried = start, [(start.quat, start.trans)]  # the verdict already polished its pose
+    for k in ranked:
+        if len(tried) > polished or best.score.fits or _bracketed(best, floor):
+            break
+        if estimate[k] >= best.score.protrusion:  # its hull alone sticks out further: the rest too
             break
         q, t = quats[k], trans[k]
         if any(_close(q, t, p, s, shape.radius) for p, s in tried):

@@ -12,6 +12,7 @@ only the proved thickness is proved).
 
 from __future__ import annotations
 
+import math
 import sys
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -20,7 +21,8 @@ import numpy as np
 
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.plate import safe_thickness
-from sieve_mi.motion import thin_plates
+from sieve_mi.motion import each_thin_plate
+from sieve_mi.progress import Progress
 from sieve_mi.scene import Scene
 
 __all__ = ["Sheet", "passage_bracket", "plate_sheet", "proof_thickness", "proved_thickness"]
@@ -115,8 +117,8 @@ def proved_thickness(blocks: list, blocked, certified: list) -> float:
 
 class _Searches(NamedTuple):
     """What every thin-plate search of one plate shares: the scene, the B, which of them are
-    searched (``todo``), the hole, the verdict's attack (its poses seed the searches), the seed
-    and, per B, its proved section or None (:func:`_sections`)."""
+    searched (``todo``), the hole, the verdict's attack (its poses seed the searches), the seed,
+    per B its proved section or None (:func:`_sections`), and whether to show progress."""
 
     scene: Scene
     blocks: list
@@ -125,26 +127,49 @@ class _Searches(NamedTuple):
     attack: object
     seed: int
     sections: list
+    progress: bool = False
 
-    def at(self, thickness: float) -> list:
-        """ThinPlate per B in ``todo`` (None elsewhere) at ``thickness``, searched in parallel."""
+    def at(self, thickness: float, search: bool = True) -> list:
+        """ThinPlate per B in ``todo`` (None elsewhere) at ``thickness``, searched in parallel;
+        with ``progress`` and a ``search`` (a plate thinner than the proved one: on that one every
+        B is safe at once), a line per B as its answer comes, with the time left."""
         out: list = [None] * len(self.blocks)
-        seeds = [[(self.attack.quats[0, j], self.attack.trans[0, j])] for j in self.todo]
-        found = thin_plates([self.blocks[j] for j in self.todo], self.outline, thickness,
-                            budget_s=self.scene.verdict.thin_budget, seeds=seeds, seed=self.seed,
-                            sections=[self.sections[j] for j in self.todo])  # fmt: skip
-        for j, t in zip(self.todo, found):
+        sections = [self.sections[j] for j in self.todo]
+        for j, t in self._run(self.todo, thickness, sections, search).items():
             out[j] = t
         return out
 
     def at_each(self, tries: dict) -> dict:
         """ThinPlate per B index of ``tries`` at its own thickness (no section proof first)."""
         js = sorted(tries)
+        return self._run(js, [tries[j] for j in js], [None] * len(js), True)
+
+    def _run(self, js: list, thickness, sections: list, show: bool) -> dict:
+        """The searches of the B ``js`` (:func:`sieve_mi.motion.each_thin_plate`): index ->
+        ThinPlate, with a progress line per B as its answer comes (``progress`` and ``show``)."""
         seeds = [[(self.attack.quats[0, j], self.attack.trans[0, j])] for j in js]
-        found = thin_plates([self.blocks[j] for j in js], self.outline, [tries[j] for j in js],
-                            budget_s=self.scene.verdict.thin_budget, seeds=seeds, seed=self.seed,
-                            sections=[None] * len(js))  # fmt: skip
-        return dict(zip(js, found))
+        bar = Progress(self.progress and show and bool(js), len(js), "thin plate", unit="B",
+                       done_line=False, every=math.inf)  # fmt: skip
+        found = each_thin_plate([self.blocks[j] for j in js], self.outline, thickness,
+                                budget_s=self.scene.verdict.thin_budget, seeds=seeds,
+                                seed=self.seed, sections=sections)  # fmt: skip
+        out = {}
+        for k, t in found:
+            out[js[k]] = t
+            bar.update(1)
+            left = bar.left()
+            bar.write(f"thin plate {t.thickness:g}: {t.name}: {_answer(t)}"
+                      + (f"; {left}" if left else ""))  # fmt: skip
+        bar.close()
+        return out
+
+
+def _answer(t) -> str:
+    """A thin-plate answer in a progress line: ``safe (ball)``, ``passage (4.1 s)``,
+    ``no passage found (10.0 s)``."""
+    if t.status == "safe":
+        return f"safe ({t.to_dict().get('by', 'diameter')})"
+    return f"{t.status} ({t.seconds:.1f} s)"
 
 
 def _thinnest(searches: _Searches, safe: float, progress: bool):
@@ -194,7 +219,8 @@ def plate_sheet(
         Per B, its certification (ball and section proofs make the proved plate thinner).
     seed : int
     progress : bool
-        Print a line per search round on stderr.
+        Print a line per search round on stderr, and one per B as its answer comes (with the
+        time left).
 
     Returns
     -------
@@ -204,16 +230,16 @@ def plate_sheet(
     safe = proved_thickness(blocks, blocked, certified or [])
     todo = [j for j in range(len(blocks)) if blocked[j]]
     searches = _Searches(scene, blocks, todo, outline, attack, seed,
-                         _sections(certified, len(blocks)))  # fmt: skip
+                         _sections(certified, len(blocks)), progress)  # fmt: skip
     if given == "thinnest" and todo:
         thickness, per, steps = _thinnest(searches, max(low, safe), progress)
-        per = per or searches.at(max(low, safe))
+        per = per or searches.at(max(low, safe), search=False)
         return Sheet(thickness, safe, "thinnest", per, steps)
     thickness = max(low, safe) if given in (None, "thinnest") else float(given)
     if thickness < safe and todo:
         _say(progress, f"thin plate {thickness:g}: motion search for {len(todo)} B, "
                        f"up to {scene.verdict.thin_budget:g} s each")  # fmt: skip
-    per = searches.at(thickness)
+    per = searches.at(thickness, search=thickness < safe)
     if given is not None:
         return Sheet(thickness, safe, "given", per)
     return Sheet(

@@ -7,7 +7,7 @@ re-runs player B for longer against the chosen hole and declares the winner.
 
 from __future__ import annotations
 
-import sys
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -369,6 +369,18 @@ def _overhangs(blocks, v, margins: list, certified: list, progress: bool) -> lis
     return got
 
 
+def _certify_bar(scene: Scene, n: int, progress: bool) -> Progress:
+    """certify's progress over its ``n`` B (:class:`~sieve_mi.progress.Progress`), opened with
+    the most it can take: each proof's budget, as many at once as there are cores."""
+    bar = Progress(progress and n > 0, n, "certify", unit="B", done_line=False)
+    if n:
+        each = scene.verdict.certify_budget + scene.verdict.section_budget
+        rounds = -(-n // max(1, min(n, os.cpu_count() or 1)))
+        bar.write(f"certify: {n} B, up to {each:g} s each ([verdict] certify_budget + "
+                  f"section_budget): at most about {rounds * each:g} s")  # fmt: skip
+    return bar
+
+
 def _unsearched(scene: Scene) -> SearchOutcome:
     """A's rotations when every B was proved before the game: the scene's fixed ones, else the
     identity (any rotation makes a hole that blocks them all)."""
@@ -418,14 +430,18 @@ def _certify(scene, passes, blocks, quats, v, progress: bool, proved=()) -> list
     """
     from sieve_mi.certify.blocks import certify_blocks, printed_hole
 
-    def say(line: str) -> None:
-        if progress:
-            print(line, file=sys.stderr, flush=True)
-
     todo = v.attack.blocked()[0] & ~np.isin(np.arange(len(blocks)), list(proved))
+    bar = _certify_bar(scene, int(todo.sum()), progress)
+
+    def say(line: str) -> None:
+        bar.update(1)
+        left = bar.left()
+        bar.write(line + (f"; {left}" if left else ""))
+
     found = v.attack.protrusion[0]
     hole = printed_hole(scene, passes, quats, v.trans)
     certified = certify_blocks(scene, hole, blocks, todo, say, found=found)
+    bar.close()
     for shape, c in zip(blocks, certified):
         if c is not None and c.status == "passage":
             v.warnings.append(

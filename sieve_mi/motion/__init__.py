@@ -21,6 +21,6 @@ thin
 
 from __future__ import annotations
 
-from sieve_mi.motion.thin import ThinPlate, thin_plate, thin_plates
+from sieve_mi.motion.thin import ThinPlate, each_thin_plate, thin_plate, thin_plates
 
-__all__ = ["ThinPlate", "thin_plate", "thin_plates"]
+__all__ = ["ThinPlate", "each_thin_plate", "thin_plate", "thin_plates"]

@@ -10,6 +10,8 @@ import math
 import numbers
 import os
 import time
+from collections.abc import Iterator
+from concurrent.futures import as_completed
 from dataclasses import dataclass, field
 
 import manifold3d
@@ -28,6 +30,7 @@ __all__ = [
     "SECTION_ARGUMENT",
     "SECTION_MAX_S",
     "ThinPlate",
+    "each_thin_plate",
     "thin_plate",
     "thin_plates",
 ]
@@ -365,7 +368,29 @@ def thin_plates(
     plate=None,
     sections: list | None = None,
 ) -> list[ThinPlate]:
-    """:func:`thin_plate` for several shapes, searched in parallel worker processes.
+    """:func:`each_thin_plate`'s answers as a list, one :class:`ThinPlate` per shape (parameters,
+    errors and workers as there)."""
+    out: list = [None] * len(shapes)
+    for j, answer in each_thin_plate(shapes, outline, thickness, budget_s=budget_s, seeds=seeds,
+                                     seed=seed, plate=plate, sections=sections):  # fmt: skip
+        out[j] = answer
+    return out
+
+
+def each_thin_plate(
+    shapes: list[Shape],
+    outline: manifold3d.CrossSection,
+    thickness: float | list,
+    *,
+    budget_s: float = 10.0,
+    seeds: list | None = None,
+    seed: int = 0,
+    plate=None,
+    sections: list | None = None,
+) -> Iterator[tuple[int, ThinPlate]]:
+    """:func:`thin_plate` for several shapes, searched in parallel worker processes: yields
+    ``(index, ThinPlate)`` per shape as its answer is known (the safe ones first, then each
+    search as it ends), so a caller can show progress (:func:`thin_plates` collects them).
 
     A shape is ``"safe"`` without a search when a ball certified inside it is wider than every
     disk in the hole (:data:`BALL_ARGUMENT`, on any plate), or when its diameter is at most the
@@ -386,9 +411,9 @@ def thin_plates(
         plate first gets a section proof of its own, with half its ``budget_s`` (at most
         :data:`SECTION_MAX_S`; :data:`SECTION_ARGUMENT`).
 
-    Returns
-    -------
-    list of ThinPlate
+    Yields
+    ------
+    (int, ThinPlate)
 
     Raises
     ------
@@ -400,15 +425,16 @@ def thin_plates(
         _checked(outline, t, budget_s)
     ts = [float(t) for t in ts]
     seeds = seeds or [()] * len(shapes)
-    out = _safe_at_once(shapes, outline, ts, sections)
-    todo = [j for j, o in enumerate(out) if o is None]
+    safe = _safe_at_once(shapes, outline, ts, sections)
+    yield from ((j, o) for j, o in enumerate(safe) if o is not None)
+    todo = [j for j, o in enumerate(safe) if o is None]
     if not todo:
-        return out
+        return
     polygons = _polygons(outline)
     n = max(1, min(len(todo), os.cpu_count() or 1))  # one worker per core, at most one per shape
     with worker_pool(n, what="thin-plate search") as pool:
         jobs = {
-            j: pool.submit(
+            pool.submit(
                 _search,
                 shapes[j],
                 polygons,
@@ -418,9 +444,8 @@ def thin_plates(
                 seed + j,
                 plate,
                 0.0 if sections is not None else min(0.5 * budget_s, SECTION_MAX_S),
-            )  # fmt: skip
+            ): j  # fmt: skip
             for j in todo
         }
-        for j, job in jobs.items():
-            out[j] = job.result()
-    return out
+        for job in as_completed(jobs):
+            yield jobs[job], job.result()

@@ -100,9 +100,10 @@ def shape_entry(part, role, path, plate, settings, unit_m, progress, trials=None
     )
     summary = summarize(outcomes)
     seconds = time.perf_counter() - t0
+    left = progress.left()
     progress.write(
         f"{progress.desc}: {name}: {summary['passed']} of {summary['trials']} passed "
-        f"({100 * summary['fraction']:.1f} %) in {seconds:.1f} s",
+        f"({100 * summary['fraction']:.1f} %) in {seconds:.1f} s" + (f"; {left}" if left else ""),
         terminal=False,
     )
     fidelity, lines = judge(name, fidelity, outcomes)
