@@ -74,6 +74,9 @@ class PlayerA:
         #: clearance loss is 0 exactly when B fits (an island of plate inside H would let a
         #: silhouette's edges all lie in H while the silhouette covers the island).
         self.settle = "hole" if fill_holes else None
+        #: Called with the candidate-steps done (candidates x Adam steps) as player B's attacks
+        #: on this player's holes descend (progress bars); None: nothing reports.
+        self.on_step: Callable[[int], None] | None = None
 
     @classmethod
     def from_settings(
@@ -190,7 +193,10 @@ class PlayerA:
         raster but not on the plate: it gets -1, below every real hole.
         """
         holes = self.holes(quats)
-        attack = player_b.attack(holes, starts, steps, learning_rate, rng, settle=self.settle)
+        step = None if self.on_step is None else _per_candidate(self.on_step, len(holes))
+        attack = player_b.attack(
+            holes, starts, steps, learning_rate, rng, progress=step, settle=self.settle
+        )
         values = attack.value()
         return np.where([h.mask.any() for h in holes], values, -1.0)
 
@@ -303,3 +309,15 @@ class PlayerA:
         moved = float(np.degrees(angle_between(best, start)))
         record = {"before": before, "after": current, "moved": moved, "rounds": done}
         return best, current, record
+
+
+def _per_candidate(on_step: Callable[[int], None], candidates: int) -> Callable[[int], None]:
+    """An attack's ``progress`` (steps done so far) as ``on_step`` increments of candidate-steps:
+    each new step of the descent counts once per candidate hole."""
+    last = [0]
+
+    def report(n: int) -> None:
+        on_step(candidates * (n - last[0]))
+        last[0] = n
+
+    return report

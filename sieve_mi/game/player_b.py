@@ -231,16 +231,18 @@ class PlayerB:
         consecutive poses (:meth:`chunks`, :meth:`~sieve_mi.game.descent.Batch.split`), one
         after another: every pose's descent is its own (Adam is per parameter, the loss a sum of
         per-pose terms), so the poses are the same bit for bit, and the memory no longer grows
-        with shapes x starts x holes x segments.
+        with shapes x starts x holes x segments. ``progress`` then follows every chunk: step n
+        of chunk i of c counts as (i steps + n) / c steps of the whole (:func:`_chunk_progress`).
         """
         parts = self.chunks(batch.pose_shape)
         if len(parts) == 1:
             return self._descend_falling_back(batch, steps, learning_rate, progress)
         quats, trans = np.empty((len(batch), 4)), np.empty((len(batch), 2))
+        reached = [0]  # the steps of the whole descent reported so far
         for i, (part, chunk) in enumerate(zip(parts, batch.split(parts))):
-            last = i == len(parts) - 1  # the progress bar follows the last chunk
+            share = _chunk_progress(progress, i, len(parts), steps, reached)
             quats[part], trans[part] = self._descend_falling_back(
-                chunk, steps, learning_rate, progress if last else None
+                chunk, steps, learning_rate, share
             )
         return quats, trans
 
@@ -366,3 +368,21 @@ class PlayerB:
             trans=ts[idx + (best,)],
             fits=(beta == 0).sum(-1),
         )
+
+
+def _chunk_progress(progress, i: int, count: int, steps: int, reached: list):
+    """``progress`` for chunk ``i`` of ``count`` of a descent of ``steps``: called with the whole
+    descent's steps done, (i steps + n) // count after the chunk's step n, once per new value
+    (``reached[0]`` holds the last one); None without ``progress``."""
+    if progress is None:
+        return None
+    if count == 1:
+        return progress
+
+    def report(n: int) -> None:
+        whole = (i * steps + n) // count
+        if whole > reached[0]:
+            reached[0] = whole
+            progress(whole)
+
+    return report

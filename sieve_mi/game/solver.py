@@ -7,6 +7,7 @@ re-runs player B for longer against the chosen hole and declares the winner.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 
@@ -99,12 +100,11 @@ def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: Pro
     frame = hole_frame(a, fab.tolerance, s.resolution)
     player_a = PlayerA.from_settings(a, frame, fab, s)
     player_b = PlayerB.from_settings(blocks, frame, s)
+    player_a.on_step = bar.update  # each candidate's Adam steps: the bar moves within a stage
 
     def report(it, best):
         step = "swarm" if s.outer == "pso" else s.outer
-        bar.update(
-            s.particles if s.outer == "pso" else 1, best=f"{best:.4f}", stage=f"{label}: {step}"
-        )
+        bar.update(0, best=f"{best:.4f}", stage=f"{label}: {step}")
 
     return player_a.search(
         player_b,
@@ -130,7 +130,8 @@ def search(
     seed : int
         Seed for nlopt's own generator.
     progress : bool
-        Show a progress bar on stderr.
+        Show a progress bar on stderr: over player B's Adam steps on every candidate hole
+        (canonical views and swarm particles, each x ``[solver] steps``), with the time left.
 
     Returns
     -------
@@ -140,9 +141,9 @@ def search(
     m = len(passes)
     fixed = [e.rotation for e in scene.passes]
     merged = m > 1 and lay.mode == "merged"
-    per_stage = s.particles * (s.iterations + 1)
+    per_stage = (s.canonical + s.particles * (s.iterations + 1)) * s.steps  # candidate-steps
     stages_planned = sum(q is None for q in fixed) + (m - 1 if merged else 0)
-    bar = Progress(progress, per_stage * stages_planned, "search", grow_by=per_stage)
+    bar = Progress(progress, per_stage * stages_planned, "search", unit="step", grow_by=per_stage)
     out = _rotate_each(scene, passes, blocks, rng, seed, bar)
     if merged:
         _merge_with_restarts(scene, passes, blocks, out, rng, seed, bar)
@@ -220,7 +221,9 @@ def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: Progress
         quats,
         alternatives,
         context,
-        progress=lambda label, best: bar.update(s.particles, best=f"{best:.3f}", stage=label),
+        progress=lambda label, best: bar.update(
+            s.particles * s.steps, best=f"{best:.3f}", stage=label
+        ),
     )
 
 
@@ -358,7 +361,7 @@ def _overhangs(blocks, v, margins: list, certified: list, progress: bool) -> lis
     """Each blocked B's least overhang found and its proved bound
     (:func:`sieve_mi.game.overhang.block_overhangs`), with a progress bar over the B."""
     todo = [j for j, m in enumerate(margins) if m is not None]
-    bar = Progress(progress and bool(todo), len(todo), "overhang", unit="B")
+    bar = Progress(progress and bool(todo), len(todo), "overhang", unit="B", every=math.inf)
 
     def step(j: int) -> None:
         if j in todo:
@@ -372,7 +375,7 @@ def _overhangs(blocks, v, margins: list, certified: list, progress: bool) -> lis
 def _certify_bar(scene: Scene, n: int, progress: bool) -> Progress:
     """certify's progress over its ``n`` B (:class:`~sieve_mi.progress.Progress`), opened with
     the most it can take: each proof's budget, as many at once as there are cores."""
-    bar = Progress(progress and n > 0, n, "certify", unit="B", done_line=False)
+    bar = Progress(progress and n > 0, n, "certify", unit="B", done_line=False, every=math.inf)
     if n:
         each = scene.verdict.certify_budget + scene.verdict.section_budget
         rounds = -(-n // max(1, min(n, os.cpu_count() or 1)))

@@ -224,3 +224,29 @@ def test_a_start_that_fits_stops_and_still_counts(cube20):
     assert plain.fits.tolist() == alone.fits.tolist() == [[8], [8]]
     assert list(alone.beta[:, 0]) == [0.0, 0.0]
     assert done[-1] == 300 and len(done) < 100
+
+
+def test_each_candidates_steps_move_the_search_bar(cube20):
+    # player A's search reports player B's Adam steps on every candidate hole (candidates x
+    # steps): a long first stage (the canonical views, one batch) moves the bar step by step
+    f, a, _ = _cube_hole(cube20)
+    b = PlayerB([sphere(12.0)], f)
+    done = []
+    a.on_step = done.append
+    quats = np.array(
+        [[1.0, 0, 0, 0], [0.8880738339771153, 0.32505758367186816, -0.325057583671868, 0]]
+    )
+    a.values(b, quats, 2, 7, 0.05, rng(7))
+    assert sum(done) == 2 * 7 and all(n % 2 == 0 and n > 0 for n in done)
+
+
+def test_a_chunked_descent_reports_the_whole_descent_once_per_step():
+    from sieve_mi.game.player_b import _chunk_progress
+
+    seen, reached = [], [0]
+    for i in range(3):  # three chunks of a 4-step descent, one after another
+        share = _chunk_progress(seen.append, i, 3, 4, reached)
+        for n in range(1, 5):
+            share(n)
+    assert seen == [1, 2, 3, 4]  # steps of the whole, each once, the last one "done"
+    assert _chunk_progress(None, 0, 3, 4, [0]) is None
