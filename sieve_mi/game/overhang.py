@@ -79,6 +79,9 @@ class Overhang:
         ``"ball"`` (a ball inside B no disk of H can hold), ``"not bisected"`` (certify proved the
         block, no margin step ran: the bound is the block margin only), ``"bisection failed"``
         (no step of the bisection proved a margin within the budget), or ``"none"``.
+    searched : bool
+        ``at_best_pose`` comes from the least-overhang search; False: it is the verdict's one
+        exact attempt (a B proved blocked before the game by size, not searched).
     """
 
     at_best_pose: float
@@ -86,6 +89,7 @@ class Overhang:
     translation: np.ndarray
     proved_at_least: float | None
     proof: str
+    searched: bool = True
 
     def to_dict(self, units: str = "") -> dict:
         """Plain JSON-ready data, with the console's sentence (:func:`overhang_text`)."""
@@ -97,6 +101,7 @@ class Overhang:
             if self.proved_at_least is None
             else float(self.proved_at_least),
             "proof": self.proof,
+            "searched": self.searched,
         }
         out["text"] = overhang_text(out, units)
         return out
@@ -115,16 +120,18 @@ def overhang_text(entry: dict, units: str) -> str:
     """
     u = f" {units}" if units else ""
     best = entry["at_best_pose"]
+    pose = "at its best pose" if entry.get("searched", True) else "at the one pose tried"
     low, proof = entry.get("proved_at_least"), entry.get("proof", "none")
     if best <= 0.0:
         return "fits the exact hole at the pose in overhang.rotation (found by the overhang search)"
     if low is not None and low > 0.0:
-        return f"overhangs the hole by ≥ {low:.2f}{u} in every pose, {best:.2f}{u} at its best pose"
+        return f"overhangs the hole by ≥ {low:.2f}{u} in every pose, {best:.2f}{u} {pose}"
     why = {
         "not bisected": "the margin was not bisected",
         "bisection failed": "no margin above 0 was proved within the budget",
     }.get(proof, "no lower bound proved")
-    return f"overhangs the hole by {best:.2f}{u} at its best pose found; {why}"
+    found = pose + (" found" if entry.get("searched", True) else "")
+    return f"overhangs the hole by {best:.2f}{u} {found}; {why}"
 
 
 def _starts(shape: Shape, boundary: Boundary) -> tuple[np.ndarray, np.ndarray]:
@@ -234,7 +241,9 @@ def _close(q1, t1, q2, t2, radius: float) -> bool:
     return moved <= 0.05 * radius
 
 
-def overhang(shape: Shape, hole, start: ExactAttempt, margin: dict, certified=None) -> Overhang:
+def overhang(
+    shape: Shape, hole, start: ExactAttempt, margin: dict, certified=None, search: bool = True
+) -> Overhang:
     """One blocked B's :class:`Overhang`: the least overhang found and the proved lower bound.
 
     Parameters
@@ -249,14 +258,17 @@ def overhang(shape: Shape, hole, start: ExactAttempt, margin: dict, certified=No
         computed once by the solver).
     certified : Certification, optional
         certify's answer (against H grown by ``[fabrication] block_margin``).
+    search : bool
+        Search for the least overhang (:func:`least_overhang`); False: ``start`` is the answer.
 
     Returns
     -------
     Overhang
     """
     low = margin.get("proved_at_least")
-    best = least_overhang(shape, hole, start, floor=low)
-    return Overhang(best.score.protrusion, best.quat, best.trans, low, _proof(certified, low))
+    best = least_overhang(shape, hole, start, floor=low) if search else start
+    proof = _proof(certified, low)
+    return Overhang(best.score.protrusion, best.quat, best.trans, low, proof, search)
 
 
 def _proof(certified, low: float | None) -> str:
@@ -269,10 +281,15 @@ def _proof(certified, low: float | None) -> str:
     return "bisection failed" if certified.margin_steps > 0 else "not bisected"
 
 
-def block_overhangs(shapes, hole, attack, margins: list, certified: list, progress=None) -> list:
-    """Per shape of B, its :meth:`Overhang.to_dict`-ready :class:`Overhang` where it has a
-    margin (blocked straight through the exact hole, :func:`sieve_mi.game.result.block_margins`),
-    else None. ``progress(j)`` is called after each shape."""
+def block_overhangs(shapes, hole, attack, margins: list, certified: list, progress=None,
+                    skip=()) -> list:  # fmt: skip
+    """Per shape of B, its :class:`Overhang` where it has a margin (blocked straight through the
+    exact hole, :func:`sieve_mi.game.result.block_margins`), else None.
+
+    ``progress(j)`` is called after each shape. The shapes in ``skip`` (those proved blocked
+    before the game by size, :mod:`sieve_mi.game.screen`: far too big, and possibly many) get no
+    search: their overhang is the verdict's one exact attempt's (:attr:`Overhang.searched` False).
+    """
     out = []
     for j, shape in enumerate(shapes):
         if j >= len(margins) or margins[j] is None:
@@ -281,7 +298,7 @@ def block_overhangs(shapes, hole, attack, margins: list, certified: list, progre
             sc = ExactScore(float(attack.beta[0, j]), float(attack.protrusion[0, j]), np.nan)
             start = ExactAttempt(attack.quats[0, j].copy(), attack.trans[0, j].copy(), sc)
             c = certified[j] if j < len(certified) else None
-            out.append(overhang(shape, hole, start, margins[j], c))
+            out.append(overhang(shape, hole, start, margins[j], c, search=j not in skip))
         if progress is not None:
             progress(j)
     return out

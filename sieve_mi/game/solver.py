@@ -269,7 +269,7 @@ def solve(
     with run.stage("margins", mark=False):  # exact overhangs and their proved bounds
         grown = scene.fabrication.block_margin
         margins = block_margins(blocks, v.outline, v.attack, certified, grown)
-        overhangs = _overhangs(blocks, v, margins, certified, progress)
+        overhangs = _overhangs(blocks, v, margins, certified, progress, skip=set(sure))
     run.mark("thin")
     run.stop()
     return Result(
@@ -357,18 +357,25 @@ def _sheet(scene: Scene, passes, blocks, v, certified, seed, progress):
     return sheet
 
 
-def _overhangs(blocks, v, margins: list, certified: list, progress: bool) -> list:
+def _overhangs(blocks, v, margins: list, certified: list, progress: bool, skip=()) -> list:
     """Each blocked B's least overhang found and its proved bound
-    (:func:`sieve_mi.game.overhang.block_overhangs`), with a progress bar over the B."""
-    todo = [j for j, m in enumerate(margins) if m is not None]
+    (:func:`sieve_mi.game.overhang.block_overhangs`; none searched for the B in ``skip``, proved
+    before the game by size), with a progress bar over the B searched."""
+    todo = [j for j, m in enumerate(margins) if m is not None and j not in skip]
     bar = Progress(progress and bool(todo), len(todo), "overhang", unit="B", every=math.inf)
 
     def step(j: int) -> None:
         if j in todo:
             bar.update(1, stage=f"{blocks[j].name} measured")
 
-    got = block_overhangs(blocks, v.outline, v.attack, margins, certified, progress=step)
+    got = block_overhangs(blocks, v.outline, v.attack, margins, certified, step, skip)
     bar.close()
+    for shape, o in zip(blocks, got):
+        if o is not None and o.at_best_pose <= 0.0:  # not expected: the verdict missed a fit
+            v.warnings.append(
+                f"{shape.name} fits the exact hole in a pose the overhang search found (pose in "
+                "report.json's overhang): the verdict's block is in doubt; certify it"
+            )
     return got
 
 

@@ -81,3 +81,12 @@ def test_a_proved_line_says_why_its_bound_is_zero(status, margin, steps, proof):
     else:  # proved, but no margin: never a bare "≥ 0.00"
         assert "≥" not in line and "blocked (proved)" in line
         assert line.endswith("was not bisected" if steps == 0 else "within the budget")
+
+
+def test_a_b_proved_by_size_is_not_searched_and_says_so(brick):
+    b, hole, boundary = brick
+    tilted = from_axis_angle(np.array([1.0, 0.3, 0.0]), 0.5)
+    start = ExactAttempt(tilted, np.zeros(2), score(b, tilted, np.zeros(2), hole, boundary, True))
+    got = overhang(b, hole, start, {"proved_at_least": 0.4}, search=False).to_dict("mm")
+    assert got["at_best_pose"] == start.score.protrusion and got["searched"] is False
+    assert got["text"].endswith(f"{start.score.protrusion:.2f} mm at the one pose tried")
