@@ -37,6 +37,7 @@ __all__ = [
     "CLOSE_ENOUGH",
     "IN_PLANE",
     "POLISHED",
+    "POLISH_SAMPLES",
     "RANKED_POINTS",
     "Overhang",
     "block_overhangs",
@@ -49,9 +50,12 @@ __all__ = [
 #: principal axes onto the hole's.
 IN_PLANE = 8
 #: Starts slid to their minimax pose and scored exactly, best ranked first.
-POLISHED = 3
+POLISHED = 2
 #: The search stops when its pose overhangs at most this fraction more than the proved bound.
 CLOSE_ENOUGH = 0.05
+#: The polish measures distances to H's boundary sampled this many times per hole size (the
+#: exact score decides; a denser sampling costs seconds on a round part far outside H).
+POLISH_SAMPLES = 400
 #: Most hull vertices used to rank the starts (evenly thinned).
 RANKED_POINTS = 256
 _Z = np.array([0.0, 0.0, 1.0])
@@ -212,6 +216,7 @@ def least_overhang(
     boundary = Boundary(hole)
     quats, trans = _starts(shape, boundary)
     ranked, estimate = _ranked(shape, quats, trans, hole)
+    coarse = Boundary(hole, spacing=boundary.size / POLISH_SAMPLES)  # the polish's distances
     best, tried = start, [(start.quat, start.trans)]  # the verdict already polished its pose
     for k in ranked:
         if len(tried) > polished or best.score.fits or _bracketed(best, floor):
@@ -222,7 +227,7 @@ def least_overhang(
         if any(_close(q, t, p, s, shape.radius) for p, s in tried):
             continue
         tried.append((q, t))
-        qq, tt = polish_margin(shape, q, t, boundary, closed=closed)
+        qq, tt = polish_margin(shape, q, t, coarse, closed=closed)
         for pq, pt in ((qq, tt), (q, t)):
             got = score(shape, pq, pt, hole, boundary, closed)
             if got.protrusion < best.score.protrusion:
