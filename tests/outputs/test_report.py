@@ -79,6 +79,9 @@ def test_each_blocked_b_gets_its_overhang_in_words(solved):
     line = f"sphere: blocked (proved); {o['text']}"
     assert line in summary_table(rep).splitlines()
     assert o["text"].startswith(f"overhangs the hole by ≥ {o['proved_at_least']:.2f} mm in every")
+    from sieve_mi.outputs.viewer import result_table
+
+    assert f"<li>{line}</li>" in result_table(rep)  # the page lists it under its table
 
 
 def test_the_passage_takes_the_saved_plate(solved):
