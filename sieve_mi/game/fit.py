@@ -99,7 +99,9 @@ def _gallop(evaluate, first, rel_tol: float, limit: int, grow) -> tuple[float, l
     fit), one that is blocked runs every start to the end: this search tries few scales above
     the fit scale. Where the attacks find the best pose it ends at the first block."""
     lo, hi, step, v = None, None, rel_tol, first
-    open_ended = limit + math.ceil(math.log2(1.0 / rel_tol))  # tries before a bracket, at most
+    # tries without a bracket, at most: ``limit`` halvings, or as many doublings after the
+    # steps that lead up to a doubling
+    halvings, gallops = limit, limit + math.ceil(math.log2(1.0 / rel_tol))
     while True:
         g = grow(v)
         if g > 0 and (lo is None or g > lo):
@@ -108,11 +110,13 @@ def _gallop(evaluate, first, rel_tol: float, limit: int, grow) -> tuple[float, l
             lo, step = max(lo, v.scale), min(2.0 * step, 1.0)
         else:
             hi, step = (v.scale if hi is None else min(hi, v.scale)), rel_tol
-        if lo is None or hi is None:
-            if open_ended <= 0:
-                break
-            open_ended -= 1
+        if lo is None:
+            halvings -= 1
+        elif hi is None:
+            gallops -= 1
         elif hi <= lo * (1.0 + rel_tol) * (1.0 + 1e-12):
+            break
+        if halvings < 0 or gallops < 0:
             break
         if lo is None:
             v = evaluate(0.5 * hi)
