@@ -36,7 +36,8 @@ def scaled(shape: Shape, s: float) -> Shape:
 def probe_starts(starts: int) -> int:
     """Starts of one fit-scale probe: a quarter of the verdict's ``starts``, at least 8 (at most
     ``starts``). The verdict at scale 1 explored the poses with all of them; a probe, a few
-    percent larger or smaller, begins a third of its starts at the best poses found so far."""
+    percent larger or smaller, begins its first starts at the best pose of each earlier attempt
+    (:class:`~sieve_mi.game.attack.AttackMemory`, up to a third of its starts)."""
     return min(int(starts), max(8, int(starts) // 4))
 
 
