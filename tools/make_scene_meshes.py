@@ -24,7 +24,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if REPO not in sys.path:
     sys.path.insert(0, REPO)
 
-from sieve_mi.testing import shapes  # noqa: E402
+from sieve_mi.testing import catalogue, shapes  # noqa: E402
 
 LETTERS = "SIGRAPH"
 LETTER_HEIGHT = 30.0  # mm, y-extent of each glyph
@@ -60,6 +60,13 @@ SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
         f"letter_{c}.stl": (lambda c=c: shapes.letter(c, height=LETTER_HEIGHT, depth=LETTER_DEPTH))
         for c in LETTERS
     },
+    # toy bricks (solid, with studs) and AAA / AA cells from catalogue sizes (sieve_mi.testing.
+    # catalogue): scenes/bricks.toml, scenes/batteries.toml
+    "brick_1x2.stl": lambda: catalogue.brick(2, 1),
+    "brick_2x2.stl": lambda: catalogue.brick(2, 2),
+    "brick_2x4.stl": lambda: catalogue.brick(4, 2),
+    "cell_aaa.stl": lambda: catalogue.cell(*catalogue.CELLS["AAA"]),
+    "cell_aa.stl": lambda: catalogue.cell(*catalogue.CELLS["AA"]),
 }
 
 

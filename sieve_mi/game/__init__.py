@@ -41,6 +41,8 @@ result
     :class:`~sieve_mi.game.result.Result`: what a solve produced.
 check
     ``sieve-mi check``: do given parts pass a given plate or hole image?
+fit
+    ``check``'s fit scale: the largest scale that passes, grown exactly and probed by attacks.
 check_settings
     The settings of ``sieve-mi check`` (its search, how it reads its inputs), declared once.
 """
@@ -52,6 +54,7 @@ __all__ = [
     "check_settings",
     "descent",
     "exact",
+    "fit",
     "frames",
     "frozen",
     "layout",

@@ -13,15 +13,15 @@ Works on any sieve, not only those sieve-mi made:
 
 Player B then tries to fit the shape through each hole from many random starts (the same batched
 Adam as the verdict of ``solve``); the answer is *passes* when some pose has beta = 0 (binary
-masks). The *fit scale* is the largest uniform scale of the shape that still passes, found by
-bracketing and geometric bisection with the same inner solver: above 1 it says by how much a
-passing shape could grow, below 1 how far a blocked shape must shrink to get through, i.e. how
-much margin a block has.
+masks; on a plate's exact polygons, :mod:`sieve_mi.game.exact`). The pose of that attempt is
+named in words (:func:`pass_pose`: end on, on its side, face down, and how far from a resting
+pose). The *fit scale* is the largest uniform scale of the shape that still passes
+(:mod:`sieve_mi.game.fit`): above 1 it says by how much a passing shape could grow, below 1 how
+far a blocked shape must shrink to get through, i.e. how much margin a block has.
 """
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -31,9 +31,10 @@ import numpy as np
 
 from sieve_mi.backend import ensure_variant
 from sieve_mi.errors import SieveError
-from sieve_mi.game.attack import Starts
+from sieve_mi.game.attack import AttackMemory, Starts
 from sieve_mi.game.check_settings import AXIS_NAMES, CheckInputs, CheckSettings
 from sieve_mi.game.exact import CANDIDATES, exact_rescore
+from sieve_mi.game.fit import fit_scale, grown_scale, probe_starts, scaled
 from sieve_mi.game.verdict import REACH
 from sieve_mi.geometry.hole import Hole
 from sieve_mi.geometry.hole_image import image_size, read_image_holes
@@ -52,7 +53,10 @@ __all__ = [
     "attempt",
     "check",
     "check_part_size",
-    "fit_scale",
+    "fit_scale",  # sieve_mi.game.fit's, imported from here (tests, docs/api.md)
+    "grown_scale",
+    "pass_pose",
+    "probe_starts",
     "scaled",
 ]
 
@@ -85,6 +89,9 @@ class CheckReport:
     holes: list
     pixel_size: float
     result: ShapeCheck
+    #: The pose of ``result`` in words and angles (:func:`pass_pose`): ``of`` ("pass" or "best
+    #: attempt"), ``position``, ``words``, ``tilt_deg``, ``rest_deg``, ``quaternion``, ...
+    pose: dict | None = None
     fit_scale: float | None = None
     fit_bracket: list | None = None
     evaluations: list = field(default_factory=list)
@@ -114,27 +121,41 @@ class CheckReport:
 # ------------------------------------------------------------------------------------------------
 
 
-def scaled(shape: Shape, s: float) -> Shape:
-    """The shape uniformly scaled about its centre by ``s``."""
-    return Shape(
-        name=shape.name,
-        path=shape.path,
-        vertices=shape.vertices * s,
-        faces=shape.faces,
-        centre=shape.centre * s,
-        radius=shape.radius * s,
-        hull=shape.hull * s,
-    )
-
-
 def attempt(
     shape: Shape,
     holes: list[Hole],
     settings: CheckSettings,
     s: float,
     outlines: list[manifold3d.CrossSection] | None = None,
+    *,
+    memory: AttackMemory | None = None,
+    probe: bool = False,
 ) -> ShapeCheck:
-    """Player B's best attempt to pass ``shape`` scaled by ``s`` through any of ``holes``."""
+    """Player B's best attempt to pass ``shape`` scaled by ``s`` through any of ``holes``.
+
+    Parameters
+    ----------
+    shape : Shape
+    holes : list of Hole
+        The sieve's holes on one raster (scene units, centred on the holes).
+    settings : CheckSettings
+        The attack's budget (``starts``, ``steps``, ``learning_rate``, ``seed``).
+    s : float
+        The shape's scale.
+    outlines : list of manifold3d.CrossSection, optional
+        The holes' exact polygons (a plate): they decide. None for a hole image, whose pixels
+        decide.
+    memory : AttackMemory, optional
+        Poses remembered from earlier attempts (the fit-scale probes): the first starts begin
+        there, and the memory is updated.
+    probe : bool
+        A fit-scale probe, which only needs to know whether the shape fits: it runs
+        :func:`probe_starts` starts (the first from ``memory``), they stop descending as soon as
+        one of them fits the raster (``settle="shape"``), and a blocked
+        pose is not slid to where it sticks out least (its protrusion is then not the least).
+        The verdict at scale 1 is no probe: every start runs (their fitting count is reported)
+        and its margin is the least found.
+    """
     from sieve_mi.game.player_b import PlayerB
 
     b = scaled(shape, s)
@@ -143,18 +164,24 @@ def attempt(
     keep = CANDIDATES if outlines is not None else 0
     att = player.attack(
         holes,
-        Starts(settings.starts, centres=_centres(holes)),
+        Starts(
+            probe_starts(settings.starts) if probe else settings.starts,
+            centres=_centres(holes),
+            memory=memory,
+        ),  # fmt: skip
         settings.steps,
         settings.learning_rate,
         rng,
         keep=keep,
+        settle="shape" if probe else None,
     )
     if outlines is None:  # a hole image: its pixels are the truth
         k = int(np.lexsort((att.protrusion[:, 0], att.beta[:, 0]))[0])
         best, row, fits = att, k, int(att.fits[k, 0])
     else:  # the plate's exact holes decide (any of them may let it through)
         hole = union(outlines)
-        best = exact_rescore(att, [b], hole, reach=REACH * holes[0].frame.pixel_size)
+        reach = REACH * holes[0].frame.pixel_size
+        best = exact_rescore(att, [b], hole, reach=reach, least_margin=not probe)
         row, fits = 0, int(att.fits.sum())
         k = _hole_of(best.trans[0, 0], outlines)
     v = ShapeCheck(
@@ -189,56 +216,6 @@ def _hole_of(xy: np.ndarray, outlines: list) -> int:
 
     d = [Boundary(o).signed(np.atleast_2d(xy))[0] for o in outlines]
     return int(np.argmin(d))
-
-
-def fit_scale(evaluate, first: ShapeCheck, rel_tol: float, limit: int = 12) -> tuple[float, list]:
-    """Largest scale that passes, by bracketing (doubling or halving) and geometric bisection.
-
-    Parameters
-    ----------
-    evaluate : callable
-        ``evaluate(s) -> ShapeCheck``.
-    first : ShapeCheck
-        The verdict at scale 1.
-    rel_tol : float
-        Stop when hi / lo - 1 is below this.
-    limit : int
-        Most doublings or halvings before giving up on a bracket.
-
-    Returns
-    -------
-    scale : float
-        The largest scale seen to pass (0 if none passed).
-    bracket : [lo, hi]
-        lo passes, hi is blocked (hi is inf when every tried scale passed).
-    """
-    lo, hi = (1.0, None) if first.passes else (None, 1.0)
-    for _ in range(limit):
-        if lo is not None and hi is not None:
-            break
-        if hi is None:
-            s = 2.0 * lo
-            if evaluate(s).passes:
-                lo = s
-            else:
-                hi = s
-        else:
-            s = 0.5 * hi
-            if evaluate(s).passes:
-                lo = s
-            else:
-                hi = s
-    if lo is None:
-        return 0.0, [0.0, hi]
-    if hi is None:
-        return lo, [lo, math.inf]
-    while hi / lo - 1.0 > rel_tol:
-        s = math.sqrt(lo * hi)
-        if evaluate(s).passes:
-            lo = s
-        else:
-            hi = s
-    return lo, [lo, hi]
 
 
 def check(
@@ -295,32 +272,56 @@ def check(
     holes, outlines, centre = given.holes, given.outlines, given.centre
     # Poses are reported in the sieve's own coordinates.
     evaluations: list[ShapeCheck] = []
+    memory = AttackMemory.for_starts(1, probe_starts(settings.starts))  # the probes start there
 
-    def evaluate(s: float) -> ShapeCheck:
-        v = attempt(shape, holes, settings, s, outlines)
+    def evaluate(s: float, probe: bool = True) -> ShapeCheck:
+        v = attempt(shape, holes, settings, s, outlines, memory=memory, probe=probe)
         v.translation = [v.translation[0] + float(centre[0]), v.translation[1] + float(centre[1])]
         evaluations.append(v)
         if progress:
             progress(v)
         return v
 
-    first = evaluate(1.0)
-    rep = CheckReport(
-        shape=shape.path or shape.name,
-        sieve=given.source,
-        units=units,
-        holes=given.info,
-        pixel_size=given.frame.pixel_size,
-        result=first,
-        sieve_holes=given,
-    )
+    first = evaluate(1.0, probe=False)
+    rep = CheckReport(shape=shape.path or shape.name, sieve=given.source, units=units,
+                      holes=given.info, pixel_size=given.frame.pixel_size, result=first,
+                      pose=pass_pose(shape, first), sieve_holes=given)  # fmt: skip
     if given.plate is not None:
         rep.thin_plate = _thin_plate(shape, given.plate, outlines, centre, first, settings, units)
     if settings.fit:
-        rep.fit_scale, rep.fit_bracket = fit_scale(evaluate, first, settings.fit_tolerance)
+        grow = _grower(shape, outlines, centre, settings)
+        rep.fit_scale, rep.fit_bracket = fit_scale(
+            evaluate, first, settings.fit_tolerance, grow=grow
+        )
     rep.evaluations = evaluations
     rep.seconds = time.perf_counter() - t0
     return rep
+
+
+def _grower(shape: Shape, outlines: list | None, centre: np.ndarray, settings: CheckSettings):
+    """``grow(v)`` for :func:`fit_scale`: :func:`grown_scale` of the pose of ``v`` (reported in
+    the sieve's coordinates, ``centre`` off the holes' own) in the exact holes ``outlines``, to a
+    quarter of the fit tolerance; None for a hole image (no exact holes)."""
+    if outlines is None:
+        return None
+    hole = union(outlines)
+
+    def grow(v: ShapeCheck) -> float:
+        trans = np.asarray(v.translation, dtype=np.float64) - centre[:2]
+        return grown_scale(shape, v.rotation, trans, hole, v.scale, settings.fit_tolerance / 4)
+
+    return grow
+
+
+def pass_pose(shape: Shape, v: ShapeCheck) -> dict:
+    """The pose of the attempt ``v`` in words and angles (:func:`~sieve_mi.geometry.pose_words.
+    describe_pose`), with ``"of"``: "pass" when it passes, else "best attempt"."""
+    from sieve_mi.geometry.pose_words import describe_pose
+
+    return {
+        "of": "pass" if v.passes else "best attempt",
+        **describe_pose(shape, v.rotation).to_dict(),
+    }
 
 
 def _sieve_holes(shape, sieve, image, axis, pixel_size, units, settings) -> SieveHoles:

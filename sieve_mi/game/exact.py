@@ -325,6 +325,7 @@ def best_exact(
     closed: bool = False,
     reach: float = np.inf,
     polished: int = 3,
+    least_margin: bool = True,
 ) -> ExactAttempt:
     """Score every candidate pose exactly, polish the best few, keep the best by (β, protrusion).
 
@@ -343,6 +344,9 @@ def best_exact(
         already resolved larger protrusions, the polish is for what a pixel cannot show.
     polished : int
         Polish at most this many distinct candidates, best exact score first.
+    least_margin : bool
+        Slide a blocked best pose to where it sticks out least (:func:`polish_margin`); off
+        where only whether it fits matters (``check``'s fit-scale probes).
 
     Returns
     -------
@@ -365,7 +369,7 @@ def best_exact(
             best = ExactAttempt(np.asarray(qq, float), np.asarray(tt, float), got)
         if got.fits:
             break
-    if not best.score.fits and best.score.protrusion <= reach:
+    if least_margin and not best.score.fits and best.score.protrusion <= reach:
         qq, tt = polish_margin(shape, best.quat, best.trans, boundary, closed=closed)
         got = score(shape, qq, tt, hole, boundary, closed)
         if got.fits or got.protrusion < best.score.protrusion:
@@ -373,7 +377,9 @@ def best_exact(
     return best
 
 
-def exact_rescore(attack, blocks: list[Shape], target, report_against=None, reach=np.inf):
+def exact_rescore(
+    attack, blocks: list[Shape], target, report_against=None, reach=np.inf, least_margin=True
+):
     """Polish and score every candidate pose of ``attack`` exactly; one row per shape.
 
     Parameters
@@ -386,6 +392,10 @@ def exact_rescore(attack, blocks: list[Shape], target, report_against=None, reac
     report_against : manifold3d.CrossSection, optional
         H itself when ``target`` is grown: the best pose is scored against it too, and the
         target's scores go to ``margin_beta`` / ``margin_protrusion``.
+    reach : float
+        :func:`best_exact`'s ``reach``, scene units.
+    least_margin : bool
+        :func:`best_exact`'s ``least_margin``.
 
     Returns
     -------
@@ -406,6 +416,7 @@ def exact_rescore(attack, blocks: list[Shape], target, report_against=None, reac
             boundary,
             closed=is_closed(shape),
             reach=reach,
+            least_margin=least_margin,
         )
         beta[0, j], prot[0, j] = best.score.beta, best.score.protrusion
         quats[0, j], trans[0, j] = best.quat, best.trans

@@ -26,6 +26,9 @@ sieve
     (the thickness proofs use), for ``check``, ``certify`` and ``shake``.
 hole_image
     Reading a given hole image: its hole pixels, and its holes on a frame (``check --hole``).
+pose_words
+    A pose in a maker's words: which extent stands upright (end on, on its side, face down),
+    its tilt, how far from a resting pose.
 """
 
 __all__ = [
@@ -34,6 +37,7 @@ __all__ = [
     "hole_image",
     "meshes",
     "outline",
+    "pose_words",
     "raster",
     "rotations",
     "sieve",

@@ -234,6 +234,21 @@ def merge_hint(report: dict) -> str | None:
     )
 
 
+def _check_pose_lines(pose: dict, u: str) -> list[str]:
+    """:func:`check_summary`'s two lines on the pose of its result (``CheckReport.pose``): in
+    words (:func:`~sieve_mi.geometry.pose_words.pose_sentence`), then as a rotation (one turn
+    about an axis, and the quaternion; the Euler angles are in ``--json``)."""
+    from sieve_mi.geometry.pose_words import pose_sentence
+
+    head = "pass pose" if pose["of"] == "pass" else "best attempt's pose"
+    axis = ", ".join(f"{a:.3f}" for a in pose["turn_axis"])
+    q = ", ".join(f"{x:.4f}" for x in pose["quaternion"])
+    return [
+        f"{head}: {pose_sentence(pose, u)}",
+        f"  rotation: {pose['turn_deg']:.1f}° about ({axis}); quaternion (w, x, y, z) ({q})",
+    ]
+
+
 def _check_thin_line(t: dict, u: str) -> str:
     """:func:`check_summary`'s line on the thin-plate answer."""
     note = t.get("plate", {}).get("note")
@@ -263,6 +278,8 @@ def check_summary(rep: CheckReport) -> str:
         lines.append(
             f"best pose, exact polygons: {r.exact_outside_area:.4g} {u}² of the shape's outline outside the hole"
         )
+    if rep.pose is not None:
+        lines += _check_pose_lines(rep.pose, u)
     if rep.fit_scale is not None:
         lo, hi = rep.fit_bracket
         if rep.fit_scale == 0:

@@ -365,6 +365,8 @@ SIMPLE = ["cube.stl", "sphere.stl", "small_sphere.stl", "l_rod.stl", "bowtie.stl
           "prism.stl"]  # fmt: skip
 LETTER_FILES = [f"letter_{c}.stl" for c in "SIGRAPH"]
 COIN_FILES = [f"coin_{c}.stl" for c in ("2eur", "1eur", "50c", "20c", "10c", "5c", "2c", "1c")]
+# toy bricks and cells (sieve_mi.testing.catalogue; tests/testing/test_catalogue.py)
+CATALOGUE_FILES = ["brick_1x2.stl", "brick_2x2.stl", "brick_2x4.stl", "cell_aaa.stl", "cell_aa.stl"]
 
 
 @pytest.fixture(scope="module")
@@ -373,10 +375,12 @@ def generated():
 
 
 def test_generator_covers_expected_files(generated):
-    assert set(generated) == set(SIMPLE) | set(LETTER_FILES) | set(COIN_FILES)
+    assert set(generated) == set(SIMPLE) | set(LETTER_FILES) | set(COIN_FILES) | set(
+        CATALOGUE_FILES
+    )
 
 
-@pytest.mark.parametrize("name", SIMPLE + LETTER_FILES + COIN_FILES)
+@pytest.mark.parametrize("name", SIMPLE + LETTER_FILES + COIN_FILES + CATALOGUE_FILES)
 def test_stl_file_loads_and_matches_generator(name, generated):
     path = os.path.join(MESH_DIR, name)
     with open(path, "rb") as f:

@@ -1,0 +1,276 @@
+"""A pose in a maker's words: which way up a part is when it goes through a hole.
+
+The hole lies in the xy plane and a part passes it along z, falling towards -z (the plates
+sieve-mi writes span z in [-thickness, 0] and the shake trials' gravity is -z). A rotation q
+(w, x, y, z, as everywhere in sieve-mi) turns the part about its centre; :func:`describe_pose`
+says
+
+* which of the part's extents stands *upright* (along the passage): its extents are measured
+  along the principal axes of its convex hull (:func:`sieve_mi.geometry.canonical.principal_axes`,
+  the frame of :func:`sieve_mi.cascade.size.canonical_extents`), and the axis that q turns
+  closest to z is the upright one. The shortest extent upright is *face down* (lying flat), the
+  middle one *on its side*, the longest *end on* (standing on its short end); extents within
+  :data:`SAME_EXTENT` of each other count as one (a coin standing up is *on its side*, a cube is
+  *any way up*). The *tilt* is the angle between that axis and z;
+* how far the pose is from a *resting pose*, the way a part lies when it has settled on a flat
+  plate: the angle between the body direction q points down and the nearest stable face's
+  outward normal. The resting poses are trimesh's quasi-static ones
+  (``trimesh.poses.compute_stable_poses``: the hull's faces over which the centre of mass lies,
+  each with the share of random drops that topple onto it), not the principal-axis poses: a
+  part resting on a plate is held by its hull and its centre of mass, and for a box the two
+  agree, while for a wedge or a part with studs only the hull knows which faces it can rest on.
+  With ``sigma=0`` the estimate is deterministic (the centre of mass is not sampled). Only the
+  tilt counts: turning about z keeps a resting part resting.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from sieve_mi.geometry.canonical import principal_axes
+from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.rotations import normalize, to_matrix, to_rotvec
+
+__all__ = [
+    "POSITIONS",
+    "SAME_EXTENT",
+    "PoseWords",
+    "describe_pose",
+    "euler_xyz",
+    "pose_sentence",
+    "resting_poses",
+]
+
+#: Extents within this fraction of the larger one count as equal (a coin's rim polygon is a
+#: fraction of a percent narrower one way than the other).
+SAME_EXTENT = 0.02
+
+#: The named positions: which extent stands upright.
+POSITIONS = ("face down", "on its side", "end on", "any way up")
+
+
+@dataclass
+class PoseWords:
+    """One pose of a part, in words and angles.
+
+    Attributes
+    ----------
+    position : str
+        One of :data:`POSITIONS`: "face down" (shortest extent upright), "on its side" (the
+        middle one, or a rod lying down, or one of a disc's two equal long ones), "end on" (the
+        longest), "any way up" (three equal extents).
+    gloss : str
+        The same in other words, e.g. "standing on its short end".
+    upright : float
+        The extent that stands along the passage, scene units.
+    extents : list of float
+        The part's extents along its principal axes, largest first, scene units.
+    tilt_deg : float
+        Angle between the upright principal axis and the passage (z), degrees, 0 to 90.
+    rest_deg : float or None
+        Angle between this pose's down direction and the nearest resting pose's, degrees
+        (None for a flat part, which has no resting poses).
+    rest_position : str or None
+        The nearest resting pose's position (one of :data:`POSITIONS`).
+    rest_share : float or None
+        The share of random drops that settle in that position, on any of its faces
+        (quasi-static estimate: a brick lands on its side studs up or studs down).
+    quaternion : list of float
+        The rotation (w, x, y, z), w >= 0.
+    euler_xyz_deg : list of float
+        The same rotation as extrinsic angles about x, then y, then z, degrees (as a slicer's
+        rotate tool takes them; near a quarter turn about y the x and z angles are ill-defined).
+    turn_deg : float
+        The same rotation as one turn: its angle, degrees, 0 to 180 ...
+    turn_axis : list of float
+        ... about this unit axis (x, y, z) ([0, 0, 1] for no turn).
+    """
+
+    position: str
+    gloss: str
+    upright: float
+    extents: list
+    tilt_deg: float
+    rest_deg: float | None
+    rest_position: str | None
+    rest_share: float | None
+    quaternion: list
+    euler_xyz_deg: list
+    turn_deg: float
+    turn_axis: list
+
+    @property
+    def words(self) -> str:
+        """The position with its gloss, e.g. "end on (standing on its short end)"."""
+        return f"{self.position} ({self.gloss})"
+
+    def sentence(self, units: str = "mm") -> str:
+        """One line for a maker (:func:`pose_sentence`)."""
+        return pose_sentence(self.to_dict(), units)
+
+    def to_dict(self) -> dict:
+        """The fields and :attr:`words`, JSON-ready."""
+        return {**asdict(self), "words": self.words}
+
+
+def pose_sentence(pose: dict, units: str = "mm") -> str:
+    """One line for a maker from :meth:`PoseWords.to_dict`'s dict (as check's report.json holds
+    it): the position, the upright extent, the tilt and the nearest resting pose.
+
+    Examples
+    --------
+    >>> print(pose_sentence({"words": "end on (standing on its short end)", "upright": 15.8,
+    ...     "tilt_deg": 1.24, "rest_deg": 1.24, "rest_position": "end on", "rest_share": 0.16}))
+    end on (standing on its short end): its 15.8 mm extent upright, tilted 1.2°; 1.2° from resting end on (about 16 % of random drops settle end on)
+    """
+    out = f"{pose['words']}: its {pose['upright']:.4g} {units} extent upright"
+    out += f", tilted {pose['tilt_deg']:.1f}°" if pose["tilt_deg"] >= 0.05 else ""
+    if pose["rest_deg"] is None:
+        return out + "; a flat part has no resting pose"
+    share = f"{100 * pose['rest_share']:.0f} %" if pose["rest_share"] >= 0.005 else "under 1 %"
+    return (
+        f"{out}; {pose['rest_deg']:.1f}° from resting {pose['rest_position']} "
+        f"(about {share} of random drops settle {pose['rest_position']})"
+    )
+
+
+def euler_xyz(quat) -> np.ndarray:
+    """Extrinsic x-y-z Euler angles of a rotation (w, x, y, z), degrees, (3,): the rotation is
+    a turn about x, then about y, then about z (scipy's ``as_euler("xyz")``)."""
+    import warnings
+
+    from scipy.spatial.transform import Rotation
+
+    w, x, y, z = normalize(quat)
+    with warnings.catch_warnings():  # a quarter turn about y: gimbal lock, the z angle set to 0
+        warnings.simplefilter("ignore", UserWarning)
+        return Rotation.from_quat([x, y, z, w]).as_euler("xyz", degrees=True)
+
+
+def _frame(shape: Shape) -> tuple[np.ndarray, np.ndarray]:
+    """Principal axes (3, 3), one per row, and the hull's extent along each (3,), scene units."""
+    axes = principal_axes(shape)
+    proj = shape.hull @ axes.T
+    return axes, proj.max(axis=0) - proj.min(axis=0)
+
+
+def _position(extents: np.ndarray, k: int) -> tuple[str, str]:
+    """The position and its gloss for a part whose extent ``k`` (of ``extents``, any order)
+    stands upright."""
+    big = float(extents.max())
+    same = np.abs(extents - extents[k]) <= SAME_EXTENT * max(big, 1e-300)
+    longer = int(np.sum((extents > extents[k]) & ~same))
+    if same.sum() == 3:
+        return "any way up", "its three extents are equal"
+    if same.sum() == 2 and longer:  # a rod's short extent (or a cylinder's diameter) upright
+        return "on its side", "lying along its length"
+    if same.sum() == 2:  # one of a disc's (a coin's, a square brick's) two long extents upright
+        return "on its side", "one of its two equal long extents upright"
+    glosses = ("standing on its short end", "its middle extent upright", "lying flat")
+    return ("end on", "on its side", "face down")[longer], glosses[longer]
+
+
+def _upright(axes: np.ndarray, extents: np.ndarray, down: np.ndarray) -> tuple[int, float]:
+    """Index of the principal axis closest to ``down`` (body frame, unit) and its angle, degrees.
+
+    Equal extents (within :data:`SAME_EXTENT`) make their axes interchangeable: the angle is then
+    measured from the plane (or all directions) they span.
+    """
+    cos = np.abs(axes @ down)
+    k = int(np.argmax(cos))
+    same = np.abs(extents - extents[k]) <= SAME_EXTENT * max(float(extents.max()), 1e-300)
+    c = min(1.0, float(np.linalg.norm(cos[same])))  # the part of down in the tied axes' span
+    return k, float(np.degrees(np.arccos(c)))
+
+
+def resting_poses(shape: Shape) -> tuple[np.ndarray, np.ndarray] | None:
+    """The part's resting poses on a flat plate: each one's down direction and share of drops.
+
+    Returns
+    -------
+    (normals, shares) or None
+        ``normals`` (R, 3): unit outward normals of the hull faces it rests on, in the shape's
+        frame (the body direction that points down); ``shares`` (R,): the quasi-static share
+        of random drops that settle on each (trimesh ``compute_stable_poses``, sigma 0), summing
+        to 1. None for a flat part, or one whose centre of mass is not inside its hull.
+    """
+    import warnings
+
+    import trimesh
+    from trimesh.poses import compute_stable_poses
+
+    try:
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")  # trimesh warns about flat hulls; checked below
+            hull = trimesh.convex.convex_hull(shape.hull)
+            flat = not hull.volume > 1e-9 * max(shape.radius, 1e-300) ** 3
+    except Exception:  # noqa: BLE001 - a flat or degenerate point set has no 3D hull
+        return None
+    if flat:
+        return None
+    mesh = trimesh.Trimesh(shape.vertices, shape.faces, process=False)
+    com = mesh.center_mass if mesh.is_volume else hull.center_mass
+    if not np.all(np.einsum("ij,ij->i", com - hull.triangles_center, hull.face_normals) < 0):
+        return None  # trimesh would sample for ever
+    tfs, shares = compute_stable_poses(hull, center_mass=com, sigma=0.0, n_samples=1, seed=0)
+    # each transform puts its face down: row 2 of its rotation is minus that face's normal
+    return -np.asarray(tfs)[:, 2, :3], np.asarray(shares, dtype=np.float64)
+
+
+def describe_pose(shape: Shape, quat) -> PoseWords:
+    """Name the pose ``quat`` of ``shape`` (see the module's notes).
+
+    Parameters
+    ----------
+    shape : Shape
+        The part, scene units.
+    quat : (4,) array_like
+        Its rotation (w, x, y, z) about its centre, as check and solve report it.
+
+    Returns
+    -------
+    PoseWords
+
+    Examples
+    --------
+    A 2 x 4 x 8 box turned a quarter turn about y stands its 8 extent along z: end on.
+
+    >>> import numpy as np, trimesh
+    >>> from sieve_mi.geometry.meshes import shape_from_trimesh
+    >>> box = shape_from_trimesh(trimesh.creation.box((8, 4, 2)), name="box")
+    >>> describe_pose(box, [np.cos(np.pi / 4), 0, np.sin(np.pi / 4), 0]).position
+    'end on'
+    """
+    q = normalize(np.asarray(quat, dtype=np.float64))
+    down = to_matrix(q).T @ np.array([0.0, 0.0, -1.0])  # the body direction pointing down
+    axes, extents = _frame(shape)
+    k, tilt = _upright(axes, extents, down)
+    rest_deg = rest_position = rest_share = None
+    rest = resting_poses(shape)
+    if rest is not None:
+        normals, shares = rest
+        i = int(np.argmax(normals @ down))
+        rest_deg = float(np.degrees(np.arccos(np.clip(normals[i] @ down, -1.0, 1.0))))
+        named = [_position(extents, _upright(axes, extents, n)[0])[0] for n in normals]
+        rest_position = named[i]
+        rest_share = float(sum(p for p, n in zip(shares, named) if n == rest_position))
+    position, gloss = _position(extents, k)
+    rotvec = to_rotvec(q)
+    angle = float(np.linalg.norm(rotvec))
+    axis = rotvec / angle if angle > 1e-12 else np.array([0.0, 0.0, 1.0])
+    return PoseWords(
+        position=position,
+        gloss=gloss,
+        upright=float(extents[k]),
+        extents=[float(e) for e in np.sort(extents)[::-1]],
+        tilt_deg=tilt,
+        rest_deg=rest_deg,
+        rest_position=rest_position,
+        rest_share=rest_share,
+        quaternion=[float(x) for x in q],
+        euler_xyz_deg=[float(a) + 0.0 for a in euler_xyz(q)],  # + 0.0: no -0.0
+        turn_deg=float(np.degrees(angle)),
+        turn_axis=[float(a) + 0.0 for a in axis],
+    )

@@ -1,0 +1,128 @@
+"""Poses in words (sieve_mi.geometry.pose_words), with answers worked on paper.
+
+A box of extents 8 (x) x 4 (y) x 2 (z) at rest (identity) lies face down. A quarter turn about
+y stands its 8 extent along z (the passage): end on; about x, its 4 extent: on its side. Its
+resting poses are its six faces, and a quasi-static drop settles on a face with the probability
+of the solid angle the face subtends at the centre: a rectangle a x b seen from distance d on its
+axis subtends 4 arcsin(ab / sqrt((a^2 + 4d^2)(b^2 + 4d^2))).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from sieve_mi.geometry.meshes import shape_from_arrays, shape_from_trimesh
+from sieve_mi.geometry.pose_words import describe_pose, pose_sentence, resting_poses
+from sieve_mi.geometry.rotations import from_axis_angle, quat_multiply
+from sieve_mi.testing.catalogue import brick, cell
+
+X, Y, Z = np.eye(3)
+
+
+def turn(axis, degrees):
+    return from_axis_angle(np.asarray(axis, float), np.radians(degrees))
+
+
+@pytest.fixture(scope="module")
+def box():
+    return shape_from_trimesh(trimesh.creation.box((8.0, 4.0, 2.0)), name="box")
+
+
+def solid_angle(a, b, d):
+    return 4 * np.arcsin(a * b / np.sqrt((a * a + 4 * d * d) * (b * b + 4 * d * d)))
+
+
+@pytest.mark.parametrize(
+    "q, position, upright",
+    [
+        ([1.0, 0, 0, 0], "face down", 2.0),
+        (turn(Y, 90), "end on", 8.0),
+        (turn(X, 90), "on its side", 4.0),
+        (turn(Y, -90), "end on", 8.0),
+        (quat_multiply(turn(Z, 37), turn(Y, 90)), "end on", 8.0),  # turned about z: the same
+        (turn(X, 180), "face down", 2.0),  # upside down
+    ],
+)
+def test_which_extent_of_a_box_is_upright(box, q, position, upright):
+    p = describe_pose(box, q)
+    assert p.position == position
+    assert p.upright == pytest.approx(upright)
+    assert p.extents == pytest.approx([8.0, 4.0, 2.0])
+    assert p.tilt_deg == pytest.approx(0.0, abs=1e-6)
+    assert p.rest_deg == pytest.approx(0.0, abs=1e-6)  # every face of a box is a resting pose
+    assert p.rest_position == position
+
+
+def test_end_on_box_words_angles_and_rotation(box):
+    p = describe_pose(box, turn(Y, 90))
+    assert p.words == "end on (standing on its short end)"
+    assert p.euler_xyz_deg == pytest.approx([0.0, 90.0, 0.0], abs=1e-9)
+    assert p.turn_deg == pytest.approx(90.0) and p.turn_axis == pytest.approx([0, 1, 0])
+    assert p.quaternion == pytest.approx([np.sqrt(0.5), 0, np.sqrt(0.5), 0])
+    d = p.to_dict()
+    assert d["position"] == "end on" and d["words"] == p.words
+    assert pose_sentence(d) == p.sentence() and "standing on its short end" in p.sentence()
+
+
+def test_a_tilted_box_is_named_by_its_nearest_axis_and_its_tilt(box):
+    # 80° about y: the 8 extent is 10° from upright, the end face 10° from flat on the plate
+    p = describe_pose(box, turn(Y, 80))
+    assert p.position == "end on"
+    assert p.tilt_deg == pytest.approx(10.0)
+    assert p.rest_deg == pytest.approx(10.0) and p.rest_position == "end on"
+    assert "tilted 10.0°; 10.0° from resting end on" in p.sentence()
+    # 30° about y: the 2 extent is nearest upright, 30° off; the nearest face is the bottom one
+    p = describe_pose(box, turn(Y, 30))
+    assert p.position == "face down" and p.tilt_deg == pytest.approx(30.0)
+    assert p.rest_deg == pytest.approx(30.0) and p.rest_position == "face down"
+
+
+def test_resting_shares_of_a_box_are_its_faces_solid_angles(box):
+    normals, shares = resting_poses(box)
+    assert len(normals) == 6 and shares.sum() == pytest.approx(1.0)
+    by_axis = {i: shares[np.abs(normals[:, i]) > 0.99].sum() for i in range(3)}
+    four_pi = 4 * np.pi
+    assert by_axis[0] == pytest.approx(2 * solid_angle(4, 2, 4) / four_pi, rel=1e-6)  # ends
+    assert by_axis[1] == pytest.approx(2 * solid_angle(8, 2, 2) / four_pi, rel=1e-6)  # sides
+    assert by_axis[2] == pytest.approx(2 * solid_angle(8, 4, 1) / four_pi, rel=1e-6)  # faces
+    # the share a pose names sums the position's faces: end on is about 6.9 %
+    assert describe_pose(box, turn(Y, 90)).rest_share == pytest.approx(by_axis[0])
+
+
+def test_equal_extents_rods_discs_and_cubes():
+    aaa = shape_from_trimesh(cell(10.5, 44.5), name="AAA")  # axis along z
+    assert describe_pose(aaa, [1.0, 0, 0, 0]).position == "end on"
+    lying = describe_pose(aaa, quat_multiply(turn(Z, 20), turn(X, 90)))
+    assert lying.position == "on its side" and lying.gloss == "lying along its length"
+    # rolled about its own axis it still lies on its side, untilted
+    rolled = describe_pose(aaa, quat_multiply(turn(X, 90), turn(Z, 33)))
+    assert rolled.position == "on its side" and rolled.tilt_deg == pytest.approx(0, abs=1e-6)
+    assert lying.rest_share > 0.9  # a cell dropped at random ends up lying down
+    coin = shape_from_trimesh(cell(25.75, 2.2), name="coin")
+    assert describe_pose(coin, [1.0, 0, 0, 0]).position == "face down"
+    assert describe_pose(coin, turn(X, 90)).position == "on its side"
+    cube = shape_from_trimesh(trimesh.creation.box((3, 3, 3)), name="cube")
+    assert describe_pose(cube, turn([1, 2, 3], 50)).position == "any way up"
+
+
+def test_the_toy_brick_end_on_and_studs_up():
+    b = shape_from_trimesh(brick(2, 1), name="1x2")  # 15.8 x 7.8 x 11.3 with its studs
+    p = describe_pose(b, turn(Y, 90))
+    assert p.position == "end on" and p.upright == pytest.approx(15.8)
+    # studs up, its 11.3 mm height (with the studs) is its middle extent
+    assert describe_pose(b, [1.0, 0, 0, 0]).position == "on its side"
+    assert describe_pose(b, turn(X, 90)).position == "face down"
+
+
+def test_a_flat_part_has_no_resting_pose():
+    square = shape_from_arrays(
+        np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float),
+        np.array([[0, 1, 2], [0, 2, 3]]),
+        name="square",
+    )
+    assert resting_poses(square) is None
+    p = describe_pose(square, [1.0, 0, 0, 0])
+    assert p.rest_deg is None and p.position == "face down"
+    assert p.sentence().endswith("a flat part has no resting pose")
