@@ -26,10 +26,18 @@ sieve
     (the thickness proofs use), for ``check``, ``certify`` and ``shake``.
 hole_image
     Reading a given hole image: its hole pixels, and its holes on a frame (``check --hole``).
+size
+    Size measures: canonical extents, passage and end-first radii (the cascade's order and rules).
+bodies
+    What the exact containment rules need of a shape (hull, axes, inscribed ball, convexity).
+containment
+    The least growth of one shape's hull that holds another (the feasibility test's proof).
 """
 
 __all__ = [
+    "bodies",
     "canonical",
+    "containment",
     "hole",
     "hole_image",
     "meshes",
@@ -38,4 +46,5 @@ __all__ = [
     "rotations",
     "sieve",
     "silhouettes",
+    "size",
 ]
