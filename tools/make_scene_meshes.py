@@ -60,6 +60,12 @@ SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
         f"letter_{c}.stl": (lambda c=c: shapes.letter(c, height=LETTER_HEIGHT, depth=LETTER_DEPTH))
         for c in LETTERS
     },
+    # M3 / M4 hardware, catalogue sizes (mm): scenes/m3-vs-m4.toml
+    # ISO 4032 hex nuts: across flats, thickness (m max), bore = nominal thread diameter
+    "nut_m3.stl": lambda: shapes.hex_nut(across_flats=5.5, thickness=2.4, bore=3.0),
+    "nut_m4.stl": lambda: shapes.hex_nut(across_flats=7.0, thickness=3.2, bore=4.0),
+    # ISO 7089 plain washer, size 3: outer diameter, inner diameter, thickness
+    "washer_m3.stl": lambda: shapes.washer(outer=7.0, inner=3.2, thickness=0.5),
 }
 
 

@@ -210,6 +210,9 @@ class Result:
     margins: list = field(default_factory=list)
     #: Peak resident memory per stage (:class:`sieve_mi.backend.MemoryWatch`), or None.
     memory: object = None
+    #: The feasibility test before the search (:class:`sieve_mi.game.feasible.Feasibility`), or
+    #: None where none ran.
+    feasibility: object = None
     #: :meth:`overlay_sections`' polygons, made on first use (a 500k-face B's projection takes
     #: minutes; the images and the page both draw it).
     _sections: tuple | None = field(default=None, repr=False, compare=False)

@@ -15,6 +15,7 @@ import numpy as np
 from sieve_mi.certify.blocks import on_sheet
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import AttackMemory
+from sieve_mi.game.feasible import decided, feasibility
 from sieve_mi.game.frames import hole_frame, union_frame
 from sieve_mi.game.layout import alternative_rotations, merge
 from sieve_mi.game.placement import PlacementContext
@@ -248,6 +249,10 @@ def solve(
     rng = np.random.default_rng(seed)
     with run.stage("screen"):
         sure = proved_by_size(scene, passes, blocks)
+        feasible = feasibility(scene, passes, blocks)
+    _announce(feasible, progress)
+    if feasible.impossible:  # B wins whatever A does: no search, no attack
+        return _decided(scene, passes, blocks, feasible, variant, seed, rng, run)
     open_blocks = [b for j, b in enumerate(blocks) if j not in sure]
     with run.stage("search"):
         found = (
@@ -287,7 +292,33 @@ def solve(
         polish=found.polish,
         started=run.started,
         memory=run.memory,
+        feasibility=feasible,
     )
+
+
+def _announce(feasible, progress: bool) -> None:
+    """Print the feasibility test's findings on stderr before the search (with ``progress``)."""
+    if progress:
+        for line in feasible.lines():
+            print(f"feasibility: {line}", file=sys.stderr, flush=True)
+
+
+def _decided(scene: Scene, passes, blocks, feasible, variant: str, seed: int, rng, run: Run):
+    """The Result of a game the feasibility test decided (:func:`sieve_mi.game.feasible.decided`):
+    B wins, in seconds; no search, attack, certification or thin-plate search."""
+    found = _unsearched(scene)
+    with run.stage("verdict"):
+        v = decided(scene, passes, blocks, feasible, found.quats, rng)
+    with run.stage("thin"):
+        sheet = plate_sheet(scene, blocks, v.outline, v.attack, np.zeros(len(blocks), dtype=bool),
+                            seed=seed)  # fmt: skip
+    run.stop()
+    return Result(scene=scene, pass_shapes=passes, block_shapes=blocks, pass_quats=found.quats,
+                  pass_trans=v.trans, hole=v.hole, a_masks=v.a_masks, attack=v.attack,
+                  block_masks=v.block_masks, history=found.history, search_value=found.value,
+                  variant=variant, stages=[], warnings=v.warnings, timings=run.timings,
+                  alone=found.alone, seed=seed, certified=[], sheet=sheet, outline=v.outline,
+                  started=run.started, memory=run.memory, feasibility=feasible)  # fmt: skip
 
 
 def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng, progress,
