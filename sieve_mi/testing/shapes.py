@@ -328,7 +328,7 @@ def hex_nut(
     Parameters
     ----------
     across_flats : float
-        Width across the hexagon's flats, mm (two flats parallel to the x axis).
+        Width across the hexagon's flats, mm (two flats parallel to the y axis).
     thickness : float
         Height along z, mm.
     bore : float
