@@ -41,10 +41,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sieve_mi.geometry.bodies import SAFETY, Body, ball_in_facets, body, hull_edges_on_surface
+from sieve_mi.geometry.canonical import principal_axes
 from sieve_mi.geometry.containment import growth_lower_bound, hull_frames, least_growth
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.rotations import align, from_matrix, to_matrix
-from sieve_mi.geometry.size import enclosing_circle, end_first_radius
+from sieve_mi.geometry.size import canonical_extents, enclosing_circle, end_first_radius
 from sieve_mi.scene import Scene
 
 __all__ = [
@@ -179,17 +180,42 @@ def _solid(shape: Shape, fill_holes: bool) -> tuple[Body | None, str | None]:
     return dataclasses.replace(b, convex=True, ball=ball), "filled"
 
 
-def _arguments(x: Body, a: Body, grow: float) -> list[tuple[float, str, dict]]:
-    """Thresholds (scene units, SAFETY included) of both arguments for B ``x`` over A ``a``:
-    (threshold, rule, certificate), those that could hold at ``grow``."""
+def _held(shape: Shape) -> Body:
+    """B's :class:`Body` as the arguments need it: its hull's inscribed ball (``ball``, B need
+    not be convex) and no end-first radius yet (``end_first`` NaN, :func:`_end_first`)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    axes = principal_axes(shape)
+    along = shape.hull @ axes.T
+    try:
+        ball = ball_in_facets(ConvexHull(shape.hull).equations)[1]
+    except (QhullError, ValueError):
+        ball = 0.0
+    return Body(shape.name, np.asarray(shape.hull, dtype=np.float64), axes, float(shape.radius),
+                False, ball, float("nan"), canonical_extents(shape),
+                along.max(axis=0) - along.min(axis=0))  # fmt: skip
+
+
+def _end_first(x: Body, shape: Shape) -> float:
+    """B's end-first radius (:func:`sieve_mi.geometry.size.end_first_radius`), once."""
+    if math.isnan(x.end_first):
+        x.end_first = end_first_radius(shape)[0]
+    return x.end_first
+
+
+def _arguments(x: Body, shape: Shape, a: Body, grow: float) -> list[tuple[float, str, dict]]:
+    """Thresholds (scene units, SAFETY included) of both arguments for B ``x`` (its ``shape``)
+    over A ``a``: (threshold, rule, certificate). End first is skipped where B's ball alone
+    (a lower bound on its end-first radius) is too big at ``grow``, fits inside where
+    :func:`growth_lower_bound` is above ``grow``."""
     need = SAFETY * a.radius
     out = []
-    if a.ball > 0.0:
-        out.append((x.end_first - a.ball + need, "end-first", {"radius": x.end_first,
-                                                              "ball": a.ball}))  # fmt: skip
-    if growth_lower_bound(x.points, a.points) + need <= grow:
+    if a.ball > 0.0 and x.ball - a.ball + need <= grow:
+        r = _end_first(x, shape)
+        out.append((r - a.ball + need, "end-first", {"radius": r, "ball": a.ball}))
+    if growth_lower_bound(x.points, a.points, x.ball) + need <= grow:
         found = least_growth(x.points, a.points, hull_frames(x.points, x.axes),
-                             hull_frames(a.points, a.axes))  # fmt: skip
+                             hull_frames(a.points, a.axes), target=grow)  # fmt: skip
         if found is not None:
             cert = {"rotation": found.quaternion,
                     "translation": [float(v) for v in found.translation]}  # fmt: skip
@@ -243,9 +269,9 @@ def feasibility(scene: Scene, passes: list[Shape], blocks: list[Shape]) -> Feasi
     for shape in blocks:
         rec = BlockFeasibility(shape.name, reason=f"{shape.name}: not ruled out by the tolerance")
         usable = [(a, how) for a, how in solids if a is not None]
-        x = body(shape) if usable else None
+        x = _held(shape) if usable else None
         found = [(thr, rule, cert, a, how) for a, how in usable
-                 for thr, rule, cert in _arguments(x, a, grow)]  # fmt: skip
+                 for thr, rule, cert in _arguments(x, shape, a, grow)]  # fmt: skip
         if found:
             thr, rule, cert, a, how = min(found, key=lambda f: f[0])
             rec.rule, rec.passing, rec.grow, rec.certificate = rule, a.name, thr, cert

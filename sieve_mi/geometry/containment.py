@@ -132,21 +132,24 @@ def _diameter(points: np.ndarray) -> float:
     return float(max(np.linalg.norm(p - q, axis=1).max() for q in p))
 
 
-def growth_lower_bound(held: np.ndarray, passing: np.ndarray, max_edges: int = 400) -> float:
+def growth_lower_bound(
+    held: np.ndarray, passing: np.ndarray, held_ball: float = 0.0, max_edges: int = 400
+) -> float:
     """A lower bound on the growth that ``held``'s hull needs to fit in ``passing``'s (both
     (n, 3) point sets, scene units): X inside K + ball(g) needs min width, diameter and volume
     of X at most those of K + ball(g) (width + 2g, diameter + 2g, and Steiner's volume).
 
-    The held shape's minimum width is exact when its hull has at most ``max_edges`` edges (else
-    that measure is left out).
+    The held shape's minimum width is exact when its hull has at most ``max_edges`` edges, else
+    twice ``held_ball``, the radius of a ball inside its hull (a lower bound on every width).
     """
     hx, hk = _hull(held), _hull(passing)
     dk = _diameter(hk.vertices)
     bound = max(0.0, (_diameter(hx.vertices) - dk) / 2.0)
-    if len(hx.edges_unique) <= max_edges:
-        proj = hk.vertices @ hk.face_normals.T  # any direction's width bounds K's minimum above
-        wk = float((proj.max(axis=0) - proj.min(axis=0)).min())
-        bound = max(bound, (min_width(hx.vertices) - wk) / 2.0)
+    small = len(hx.edges_unique) <= max_edges
+    wx = min_width(hx.vertices) if small else 2.0 * held_ball
+    proj = hk.vertices @ hk.face_normals.T  # any direction's width bounds K's minimum above
+    wk = float((proj.max(axis=0) - proj.min(axis=0)).min())
+    bound = max(bound, (wx - wk) / 2.0)
     return max(bound, _steiner_growth(hk.volume, hk.area, dk, hx.volume))
 
 
@@ -244,6 +247,7 @@ def least_growth(
     frames_held: list[np.ndarray],
     frames_passing: list[np.ndarray],
     polish: int = 2,
+    target: float | None = None,
 ) -> Growth | None:
     """An upper bound on the growth ``held``'s hull needs to fit in ``passing``'s, certified.
 
@@ -255,6 +259,9 @@ def least_growth(
         Their :func:`hull_frames`.
     polish : int
         How many of the best frame-to-frame rotations are polished on the exact distance.
+    target : float, optional
+        The growth that matters: where the best rotation's unpolished distance exceeds 1.5 times
+        it (and 1 % of the held shape's size), that distance is returned unpolished.
 
     Returns
     -------
@@ -268,6 +275,10 @@ def least_growth(
     if not ranked:
         return None
     hull = _hull(passing)
-    best = min((_polish(held, hull, rot, lp.solve(rot)[1], 400) for _, rot in ranked[:polish]),
+    rot, t = ranked[0][1], lp.solve(ranked[0][1])[1]
+    first = float(distance_to_hull(held @ rot.T + t, hull).max())
+    if target is not None and first > 1.5 * target + 0.01 * float(np.ptp(held, axis=0).max()):
+        return Growth(first, rot, np.asarray(t, dtype=np.float64))  # far from target: as is
+    best = min((_polish(held, hull, rot, lp.solve(rot)[1], 300) for _, rot in ranked[:polish]),
                key=lambda found: found[0])  # fmt: skip
     return Growth(best[0], best[1], np.asarray(best[2], dtype=np.float64))
