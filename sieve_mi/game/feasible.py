@@ -52,9 +52,9 @@ __all__ = [
     "BlockFeasibility",
     "Feasibility",
     "certificate_pose",
-    "decided",
     "feasibility",
     "round_up",
+    "with_certificates",
 ]
 
 
@@ -95,7 +95,9 @@ class BlockFeasibility:
         One sentence for people.
     certificate : dict
         fits-inside: ``rotation`` (w, x, y, z) and ``translation`` (3,) of B about A's centre
-        in A's frame; end-first: ``radius`` (r), ``ball`` (rho), ``view`` (3,).
+        in A's frame; end-first: ``radius`` (r), ``ball`` (rho).
+    index : int or None
+        ``passing``'s index among the scene's A (names may repeat).
     """
 
     name: str
@@ -106,6 +108,7 @@ class BlockFeasibility:
     max_tolerance: float | None = None
     reason: str = ""
     certificate: dict = field(default_factory=dict)
+    index: int | None = None
 
     def as_dict(self) -> dict:
         """report.json's entry."""
@@ -268,13 +271,14 @@ def feasibility(scene: Scene, passes: list[Shape], blocks: list[Shape]) -> Feasi
     out = []
     for shape in blocks:
         rec = BlockFeasibility(shape.name, reason=f"{shape.name}: not ruled out by the tolerance")
-        usable = [(a, how) for a, how in solids if a is not None]
+        usable = [(i, s) for i, s in enumerate(solids) if s[0] is not None]
         x = _held(shape) if usable else None
-        found = [(thr, rule, cert, a, how) for a, how in usable
+        found = [(thr, rule, cert, i, how) for i, (a, how) in usable
                  for thr, rule, cert in _arguments(x, shape, a, grow)]  # fmt: skip
         if found:
-            thr, rule, cert, a, how = min(found, key=lambda f: f[0])
-            rec.rule, rec.passing, rec.grow, rec.certificate = rule, a.name, thr, cert
+            thr, rule, cert, i, how = min(found, key=lambda f: f[0])
+            rec.rule, rec.passing, rec.grow, rec.certificate = rule, passes[i].name, thr, cert
+            rec.index = i
             rec.max_tolerance = max(0.0, thr - fab.block_margin)
             if thr <= grow:
                 rec.status = "impossible"
@@ -303,47 +307,41 @@ def certificate_pose(
     return q, (ra @ centre)[:2] + np.asarray(a_trans, dtype=np.float64) - circle
 
 
-def decided(scene: Scene, passes: list[Shape], blocks: list[Shape], feas: Feasibility,
-            quats: np.ndarray, rng):  # fmt: skip
-    """The verdict of a game that the feasibility test decided (B wins): no B is attacked.
+def with_certificates(scene: Scene, passes: list[Shape], blocks: list[Shape], rows: list[int],
+                      feas: Feasibility, quats: np.ndarray, v) -> None:  # fmt: skip
+    """Complete the verdict ``v`` (a :class:`~sieve_mi.game.verdict.Judgement` whose attack has
+    a column per B of ``rows``, or per B already) with the impossible B: each gets one exact
+    attempt in its certificate's pose (:func:`certificate_pose`, where it passes), not an attack.
 
-    The hole is A's at ``quats`` (the scene's fixed rotations, else unrotated). Each impossible
-    B gets one exact attempt in its certificate's pose (where it passes); every other B one
-    exact attempt unrotated at the hole's centre, as the size screen's rows
-    (:func:`sieve_mi.game.screen.with_proved`): not attacked, so its "blocked" says nothing.
-
-    Returns
-    -------
-    Judgement
-        With the warnings naming the cause and the B not attacked.
+    B that are neither in ``rows`` nor impossible (the size screen's, already completed by
+    :func:`sieve_mi.game.screen.with_proved` where there are any) keep their rows. Adds one
+    warning per impossible B, naming the tolerance.
     """
     from sieve_mi.game.exact import score
     from sieve_mi.game.scoring import mask_window
     from sieve_mi.game.screen import with_proved
-    from sieve_mi.game.verdict import judge
     from sieve_mi.geometry.outline import Boundary, dilated, is_closed
     from sieve_mi.geometry.silhouettes import SilhouetteRenderer
 
     fab = scene.fabrication
-    v = judge(scene, passes, [], quats, np.zeros((len(passes), 2)), rng)
     grown = dilated(v.outline, fab.block_margin) if fab.block_margin > 0 else None
-    v.attack = with_proved(v.attack, [], blocks, v.outline, grown, v.trans[0])
-    names = [a.name for a in passes]
+    if v.attack.beta.shape[1] < len(blocks):  # columns for rows only: complete them
+        masks = dict(zip(rows, v.block_masks))
+        v.attack = with_proved(v.attack, rows, blocks, v.outline, grown, v.trans[0])
+        v.block_masks = [masks.get(j) for j in range(len(blocks))]
     for j in feas.impossible:
-        rec, i = feas.blocks[j], names.index(feas.blocks[j].passing)
+        rec, i = feas.blocks[j], feas.blocks[j].index
         q, t = certificate_pose(rec, blocks[j], passes[i], quats[i], v.trans[i])
         closed = is_closed(blocks[j])
         s = score(blocks[j], q, t, v.outline, Boundary(v.outline), closed)
         v.attack.quats[0, j], v.attack.trans[0, j] = q, t
         v.attack.beta[0, j], v.attack.protrusion[0, j] = s.beta, s.protrusion
+        v.attack.fits[0, j] = 0
         if grown is not None:
             g = score(blocks[j], q, t, grown, Boundary(grown), closed)
             v.attack.margin_beta[0, j], v.attack.margin_protrusion[0, j] = g.beta, g.protrusion
-    v.block_masks = [mask_window(SilhouetteRenderer(b), v.hole, v.attack.quats[0, j],
-                                 v.attack.trans[0, j]) for j, b in enumerate(blocks)]  # fmt: skip
-    v.warnings += [f"B wins before any search: {line}" for line in feas.lines()]
-    others = [blocks[j].name for j in range(len(blocks)) if j not in feas.impossible]
-    if others:
-        v.warnings.append("not searched nor attacked (the game was decided before the search; "
-                          "one unrotated attempt each): " + ", ".join(others))  # fmt: skip
-    return v
+        v.block_masks[j] = None
+        v.warnings.append(f"B wins whatever A does: {rec.reason}")
+    v.block_masks = [m if m is not None else mask_window(SilhouetteRenderer(b), v.hole,
+                     v.attack.quats[0, j], v.attack.trans[0, j])
+                     for j, (b, m) in enumerate(zip(blocks, v.block_masks))]  # fmt: skip

@@ -15,7 +15,7 @@ import numpy as np
 from sieve_mi.certify.blocks import on_sheet
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import AttackMemory
-from sieve_mi.game.feasible import decided, feasibility
+from sieve_mi.game.feasible import feasibility, with_certificates
 from sieve_mi.game.frames import hole_frame, union_frame
 from sieve_mi.game.layout import alternative_rotations, merge
 from sieve_mi.game.placement import PlacementContext
@@ -62,6 +62,9 @@ class SearchOutcome:
         Per searched A, other good rotations from its own search.
     merged_blocks : bool
         For a merged hole: every placement blocked all of B (else ``[layout] restarts`` apply).
+    feasibility : Feasibility or None
+        The feasibility test before the search (:mod:`sieve_mi.game.feasible`): its impossible B
+        were left out of the search and the verdict's attack.
     """
 
     quats: np.ndarray
@@ -74,6 +77,7 @@ class SearchOutcome:
     polish: list = field(default_factory=list)
     alternatives: dict = field(default_factory=dict)
     merged_blocks: bool = True
+    feasibility: object = None
 
 
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
@@ -251,15 +255,15 @@ def solve(
         sure = proved_by_size(scene, passes, blocks)
         feasible = feasibility(scene, passes, blocks)
     _announce(feasible, progress)
-    if feasible.impossible:  # B wins whatever A does: no search, no attack
-        return _decided(scene, passes, blocks, feasible, variant, seed, rng, run)
-    open_blocks = [b for j, b in enumerate(blocks) if j not in sure]
+    skip = set(sure) | set(feasible.impossible)  # decided before the game: not searched
+    open_blocks = [b for j, b in enumerate(blocks) if j not in skip]
     with run.stage("search"):
         found = (
             search(scene, passes, open_blocks, rng, seed, progress)
             if open_blocks
             else _unsearched(scene)
         )
+        found.feasibility = feasible
     v, certified = _verdict(scene, passes, blocks, sure, found, rng, progress, run)
     with run.stage("thin", mark=False):  # its memory stage ends after the margins
         sheet = _sheet(scene, passes, blocks, v, certified, seed, progress)
@@ -303,33 +307,16 @@ def _announce(feasible, progress: bool) -> None:
             print(f"feasibility: {line}", file=sys.stderr, flush=True)
 
 
-def _decided(scene: Scene, passes, blocks, feasible, variant: str, seed: int, rng, run: Run):
-    """The Result of a game the feasibility test decided (:func:`sieve_mi.game.feasible.decided`):
-    B wins, in seconds; no search, attack, certification or thin-plate search."""
-    found = _unsearched(scene)
-    with run.stage("verdict"):
-        v = decided(scene, passes, blocks, feasible, found.quats, rng)
-    with run.stage("thin"):
-        sheet = plate_sheet(scene, blocks, v.outline, v.attack, np.zeros(len(blocks), dtype=bool),
-                            seed=seed)  # fmt: skip
-    run.stop()
-    return Result(scene=scene, pass_shapes=passes, block_shapes=blocks, pass_quats=found.quats,
-                  pass_trans=v.trans, hole=v.hole, a_masks=v.a_masks, attack=v.attack,
-                  block_masks=v.block_masks, history=found.history, search_value=found.value,
-                  variant=variant, stages=[], warnings=v.warnings, timings=run.timings,
-                  alone=found.alone, seed=seed, certified=[], sheet=sheet, outline=v.outline,
-                  started=run.started, memory=run.memory, feasibility=feasible)  # fmt: skip
-
-
 def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng, progress,
              run: Run):  # fmt: skip
     """The verdict on the B not proved before the game, completed with those that were, and the
     optional certification: (judgement, certifications or []); ``run`` gets the stages
     "verdict" (and "certify")."""
     certified = [None] * len(blocks)
+    unblockable = found.feasibility.impossible if found.feasibility is not None else []
     with run.stage("verdict"):
         while True:
-            rows = [j for j in range(len(blocks)) if j not in sure]
+            rows = [j for j in range(len(blocks)) if j not in sure and j not in unblockable]
             bar = Progress(progress and bool(rows), scene.verdict.steps, "verdict")
             v = judge(scene, passes, [blocks[j] for j in rows], found.quats, found.trans, rng,
                       progress=lambda n, bar=bar: bar.update(1), memory=found.memory)  # fmt: skip
@@ -338,6 +325,8 @@ def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng
             if not failed:
                 break
             sure = {j: r for j, r in sure.items() if j not in failed}  # play them after all
+        if unblockable:  # their certificates' poses, where they pass
+            with_certificates(scene, passes, blocks, rows, found.feasibility, found.quats, v)
     if scene.verdict.certify:
         with run.stage("certify"):
             proofs = _certify(scene, passes, blocks, found.quats, v, progress, sure)
