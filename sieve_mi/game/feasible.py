@@ -243,7 +243,9 @@ def _reason(scene: Scene, rec: BlockFeasibility, how: str, cert: dict) -> str:
     if how == "filled":
         why += f" ({a}'s through-holes are filled: [fabrication] fill_holes)"
     if rec.max_tolerance <= 0:
-        limit = "no tolerance can work (the block margin alone lets it through)"
+        alone = "the block margin alone lets it through" if fab.block_margin > 0 else (
+            "it passes with no tolerance at all")  # fmt: skip
+        limit = f"no tolerance can work ({alone})"
     else:
         limit = (f"the largest tolerance that could work is below {round_up(rec.max_tolerance)} "
                  f"{u} (an upper bound from this argument)")  # fmt: skip
