@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import tomllib
 
 import numpy as np
 import pytest
@@ -147,15 +148,16 @@ def test_bundled_games_are_not_ruled_out(name):
 
 def test_the_coin_sorter_holds_are_not_ruled_out():
     # scenes/euro-coins.toml's cascade holds the 2 euro coin over the 50, 10 and 1 cent coins,
-    # the 50 cent over the 10 and 1 cent, the 10 cent over the 1 cent (tolerance 0.2 mm)
-    coins = {
-        c: os.path.join(SCENES, "meshes", f"coin_{c}.stl") for c in ("2eur", "50c", "10c", "1c")
-    }
+    # the 50 cent over the 10 and 1 cent, the 10 cent over the 1 cent (its tolerance, 0.2 mm)
+    with open(os.path.join(SCENES, "euro-coins.toml"), "rb") as f:
+        sorter = tomllib.load(f)
+    coins = {e["name"]: os.path.join(SCENES, e["mesh"]) for e in sorter["shape"]}
     order = ["2eur", "50c", "10c", "1c"]
+    assert sorted(coins) == sorted(order)
     for k, held in enumerate(order[:-1]):
         scene = sm.Scene.from_meshes([{"mesh": coins[c], "name": c} for c in order[k + 1 :]],
                                      [{"mesh": coins[held], "name": held}])  # fmt: skip
-        scene.fabrication.tolerance = 0.2
+        scene.fabrication.tolerance = sorter["fabrication"]["tolerance"]
         assert feasibility(scene, *load_shapes(scene)).impossible == [], held
     # the other way round the 1 cent coin fits inside the 2 euro coin: impossible to hold
     scene = sm.Scene.from_meshes([{"mesh": coins["2eur"]}], [{"mesh": coins["1c"]}])
