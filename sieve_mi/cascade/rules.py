@@ -29,7 +29,7 @@ which are as thick), so of the 56 ordered pairs, 27 are ruled out before any gam
 **End first** (:func:`end_first`). If A holds a ball of radius rho, every proj_q(A) holds a disk of
 radius rho (the ball's shadow), so every hole that passes A holds a disk of radius rho + g. If X,
 in one of its canonical views, fits inside a disk of radius r <= rho + g
-(:func:`sieve_mi.cascade.size.end_first_radius`), X goes through end first. A pencil over a big
+(:func:`sieve_mi.geometry.size.end_first_radius`), X goes through end first. A pencil over a big
 ball: hopeless, though the pencil fits inside no ball. rho is the largest ball inside A's hull (a
 linear program on its facets).
 
@@ -47,14 +47,14 @@ from __future__ import annotations
 
 import itertools
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from sieve_mi.cascade.size import canonical_extents, end_first_radius, predicted_margin
-from sieve_mi.geometry.canonical import principal_axes, proper_signed_permutations
-from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.bodies import SAFETY, Body, body
+from sieve_mi.geometry.canonical import proper_signed_permutations
 from sieve_mi.geometry.rotations import from_matrix
+from sieve_mi.geometry.size import predicted_margin
 
 __all__ = [
     "SAFETY",
@@ -66,98 +66,6 @@ __all__ = [
     "fits_inside",
     "grown_hull",
 ]
-
-#: A rule needs this much to spare, as a fraction of the passing shape's radius (round-off and
-#: the 1e-5 of trimesh's convexity test).
-SAFETY = 1e-4
-
-
-@dataclass
-class Body:
-    """What the rules need of one shape (scene units, the shape's centre at the origin).
-
-    Attributes
-    ----------
-    name : str
-    points : (H, 3) ndarray
-        Its convex hull's vertices.
-    axes : (3, 3) ndarray
-        Its principal axes, one per row (:func:`sieve_mi.geometry.canonical.principal_axes`).
-    radius : float
-        Largest distance from the centre to a vertex.
-    convex : bool
-        Its mesh is its hull's solid (closed, one body, convex): only then does it rule out holds.
-    ball : float
-        Radius of the largest ball inside its hull (0 when it is not convex or is flat).
-    end_first : float
-        :func:`sieve_mi.cascade.size.end_first_radius`.
-    extents : (3,) ndarray
-        :func:`sieve_mi.cascade.size.canonical_extents`, largest first.
-    widths : (3,) ndarray
-        Its hull's widths along ``axes``, in their order.
-    """
-
-    name: str
-    points: np.ndarray
-    axes: np.ndarray
-    radius: float
-    convex: bool
-    ball: float
-    end_first: float
-    extents: np.ndarray
-    widths: np.ndarray
-    _grown: dict = field(default_factory=dict, repr=False, compare=False)
-
-
-def body(shape: Shape) -> Body:
-    """The :class:`Body` of a shape."""
-    from scipy.spatial import ConvexHull, QhullError
-
-    convex, ball = _is_convex(shape), 0.0
-    axes = principal_axes(shape)
-    along = shape.hull @ axes.T
-    if convex:
-        try:
-            ball = _inscribed_ball(ConvexHull(shape.hull).equations)
-        except (QhullError, ValueError):
-            convex = False
-    return Body(
-        name=shape.name,
-        points=np.asarray(shape.hull, dtype=np.float64),
-        axes=axes,
-        radius=float(shape.radius),
-        convex=convex,
-        ball=ball,
-        end_first=end_first_radius(shape)[0],
-        extents=canonical_extents(shape),
-        widths=along.max(axis=0) - along.min(axis=0),
-    )
-
-
-def _is_convex(shape: Shape) -> bool:
-    """Watertight (vertices merged), one body, convex at every edge, and its volume equals its
-    hull's (to 1e-6)."""
-    import trimesh
-
-    try:
-        mesh = trimesh.Trimesh(shape.vertices, shape.faces, process=True)
-        if not trimesh.convex.is_convex(mesh):
-            return False
-        hull = mesh.convex_hull.volume
-        return bool(hull > 0 and abs(abs(mesh.volume) - hull) <= 1e-6 * hull)
-    except Exception:  # noqa: BLE001 - a degenerate mesh (flat, empty) is simply not convex
-        return False
-
-
-def _inscribed_ball(equations: np.ndarray) -> float:
-    """Radius of the largest ball inside {x : n . x + d <= 0} (qhull's unit-normal facets)."""
-    from scipy.optimize import linprog
-
-    a = np.column_stack([equations[:, :3], np.ones(len(equations))])
-    res = linprog(
-        [0, 0, 0, -1.0], A_ub=a, b_ub=-equations[:, 3], bounds=[(None, None)] * 3 + [(0, None)]
-    )
-    return float(res.x[3]) if res.success else 0.0
 
 
 def _directions(axes: np.ndarray) -> np.ndarray:

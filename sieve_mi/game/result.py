@@ -220,6 +220,9 @@ class Result:
     #: The turning window (report.json's ``fabrication.window``, :mod:`sieve_mi.game.window`),
     #: or None without one.
     window: dict | None = None
+    #: The feasibility test before the search (:class:`sieve_mi.game.feasible.Feasibility`), or
+    #: None where none ran.
+    feasibility: object = None
     #: :meth:`overlay_sections`' polygons, made on first use (a 500k-face B's projection takes
     #: minutes; the images and the page both draw it).
     _sections: tuple | None = field(default=None, repr=False, compare=False)

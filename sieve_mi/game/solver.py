@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,6 +17,7 @@ import numpy as np
 from sieve_mi.certify.blocks import on_sheet
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import AttackMemory
+from sieve_mi.game.feasible import feasibility, with_certificates
 from sieve_mi.game.frames import hole_frame, union_frame
 from sieve_mi.game.layout import alternative_rotations, merge
 from sieve_mi.game.overhang import block_overhangs
@@ -64,6 +66,9 @@ class SearchOutcome:
         Per searched A, other good rotations from its own search.
     merged_blocks : bool
         For a merged hole: every placement blocked all of B (else ``[layout] restarts`` apply).
+    feasibility : Feasibility or None
+        The feasibility test before the search (:mod:`sieve_mi.game.feasible`): its impossible B
+        were left out of the search and the verdict's attack.
     """
 
     quats: np.ndarray
@@ -76,6 +81,7 @@ class SearchOutcome:
     polish: list = field(default_factory=list)
     alternatives: dict = field(default_factory=dict)
     merged_blocks: bool = True
+    feasibility: object = None
 
 
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
@@ -253,14 +259,18 @@ def solve(
     rng = np.random.default_rng(seed)
     with run.stage("screen"):
         sure = proved_by_size(scene, passes, blocks)
-    open_blocks = [b for j, b in enumerate(blocks) if j not in sure]
+        feasible = feasibility(scene, passes, blocks)
+    _announce(feasible, progress)
+    skip = set(sure) | set(feasible.impossible)  # decided before the game: not searched
+    open_blocks = [b for j, b in enumerate(blocks) if j not in skip]
     with run.stage("search"):
         found = (
             search(scene, passes, open_blocks, rng, seed, progress)
             if open_blocks
             else _unsearched(scene)
         )
-    play, window, rng = _window(scene, passes, [b for j, b in enumerate(blocks) if j not in sure],
+        found.feasibility = feasible
+    play, window, rng = _window(scene, passes, [b for j, b in enumerate(blocks) if j not in skip],
                                 found, (seed, rng), progress, run)  # fmt: skip
     v, certified = _verdict(play, passes, blocks, sure, found, rng, progress, run)
     with run.stage("thin", mark=False):  # its memory stage ends after the margins'
@@ -299,6 +309,7 @@ def solve(
         started=run.started,
         memory=run.memory,
         window=window,
+        feasibility=feasible,
     )
 
 
@@ -317,15 +328,23 @@ def _window(scene: Scene, passes, open_blocks, found, seeds: tuple, progress: bo
     return play, window_record(play, passes, "auto", tries), rng
 
 
+def _announce(feasible, progress: bool) -> None:
+    """Print the feasibility test's findings on stderr before the search (with ``progress``)."""
+    if progress:
+        for line in feasible.lines():
+            print(f"feasibility: {line}", file=sys.stderr, flush=True)
+
+
 def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng, progress,
              run: Run):  # fmt: skip
     """The verdict on the B not proved before the game, completed with those that were, and the
     optional certification: (judgement, certifications or []); ``run`` gets the stages
     "verdict" (and "certify")."""
     certified = [None] * len(blocks)
+    unblockable = found.feasibility.impossible if found.feasibility is not None else []
     with run.stage("verdict"):
         while True:
-            rows = [j for j in range(len(blocks)) if j not in sure]
+            rows = [j for j in range(len(blocks)) if j not in sure and j not in unblockable]
             bar = Progress(progress and bool(rows), scene.verdict.steps, "verdict")
             v = judge(scene, passes, [blocks[j] for j in rows], found.quats, found.trans, rng,
                       progress=lambda n, bar=bar: bar.update(1), memory=found.memory)  # fmt: skip
@@ -334,6 +353,8 @@ def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng
             if not failed:
                 break
             sure = {j: r for j, r in sure.items() if j not in failed}  # play them after all
+        if unblockable:  # their certificates' poses, where they pass
+            with_certificates(scene, passes, blocks, rows, found.feasibility, found.quats, v)
     if scene.verdict.certify:
         with run.stage("certify"):
             proofs = _certify(scene, passes, blocks, found.quats, v, progress, sure)

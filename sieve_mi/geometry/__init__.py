@@ -29,10 +29,18 @@ hole_image
 pose_words
     A pose in a maker's words: which extent stands upright (end on, on its side, face down),
     its tilt, how far from a resting pose.
+size
+    Size measures: canonical extents, passage and end-first radii (the cascade's order and rules).
+bodies
+    What the exact containment rules need of a shape (hull, axes, inscribed ball, convexity).
+containment
+    The least growth of one shape's hull that holds another (the feasibility test's proof).
 """
 
 __all__ = [
+    "bodies",
     "canonical",
+    "containment",
     "hole",
     "hole_image",
     "meshes",
@@ -42,4 +50,5 @@ __all__ = [
     "rotations",
     "sieve",
     "silhouettes",
+    "size",
 ]

@@ -434,7 +434,8 @@ class Boundary:
             return np.full(len(xy), np.inf)
         if self._lines is None:
             rings = [np.vstack([c, c[:1]]) for c in self.contours]
-            self._lines = shapely.multilinestrings(rings)
+            # one LineString per ring: rings of different lengths make no (R, n, 2) array
+            self._lines = shapely.multilinestrings([shapely.linestrings(r) for r in rings])
             shapely.prepare(self._lines)
         return shapely.distance(shapely.points(xy), self._lines)
 

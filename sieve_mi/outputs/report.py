@@ -88,7 +88,7 @@ def report_dict(result: Result) -> dict:
             passes[-1]["alone_loss"] = float(result.alone[i])
     blocks = [_block_row(result, j, b) for j, b in enumerate(result.blocks)]
     hole = result.hole
-    return {
+    out = {
         "name": scene.name,
         "winner": result.winner,
         "pass": passes,
@@ -115,6 +115,9 @@ def report_dict(result: Result) -> dict:
         "given in file units times scale); the silhouette is the projection onto the xy-plane; "
         "translations are in the xy-plane in scene units, relative to the hole's centre",
     }
+    if result.feasibility is not None:  # the feasibility test (sieve_mi.game.feasible)
+        out["feasibility"] = result.feasibility.as_dict()
+    return out
 
 
 def _settings(result: Result) -> dict:

@@ -31,10 +31,12 @@ __all__ = [
     "extrude_polygon",
     "from_manifold",
     "glyph_contours",
+    "hex_nut",
     "l_rod",
     "letter",
     "sphere",
     "to_manifold",
+    "washer",
 ]
 
 
@@ -301,6 +303,73 @@ def sphere(radius: float = 12.0, subdivisions: int = 3) -> trimesh.Trimesh:
     v = mesh.vertices
     mesh.vertices = v * (radius / np.linalg.norm(v, axis=1))[:, None]
     return centred(mesh)
+
+
+# --------------------------------------------------------------------------------------------
+# Hardware from catalogue dimensions: hex nuts (ISO 4032) and flat washers (ISO 7089)
+# --------------------------------------------------------------------------------------------
+
+
+def _ring(radius: float, sections: int, phase: float = 0.0) -> np.ndarray:
+    """A regular polygon (sections, 2) with its vertices on the circle of ``radius``, mm."""
+    angle = phase + 2.0 * np.pi * np.arange(sections) / sections
+    return radius * np.column_stack([np.cos(angle), np.sin(angle)])
+
+
+def hex_nut(
+    across_flats: float, thickness: float, bore: float, sections: int = 48
+) -> trimesh.Trimesh:
+    """A hex nut: a regular hexagonal prism with a round bore along z, centred.
+
+    The thread is left out (the bore is its nominal diameter) and so are the chamfers, which only
+    make a nut smaller: an ISO 4032 M3 nut is ``hex_nut(5.5, 2.4, 3.0)``, M4 ``hex_nut(7.0, 3.2,
+    4.0)`` (maximum across flats and thickness).
+
+    Parameters
+    ----------
+    across_flats : float
+        Width across the hexagon's flats, mm (two flats parallel to the y axis).
+    thickness : float
+        Height along z, mm.
+    bore : float
+        Bore diameter, mm; its polygon of ``sections`` vertices lies on the circle.
+    sections : int
+        Vertices of the bore's polygon.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Closed, volume ``(sqrt(3)/2 across_flats**2 - bore polygon's area) thickness``.
+    """
+    _check_positive(across_flats=across_flats, thickness=thickness, bore=bore)
+    if bore >= across_flats:
+        raise ValueError("the bore must be narrower than the nut across its flats")
+    hexagon = _ring(across_flats / np.sqrt(3.0), 6, np.pi / 6.0)
+    return extrude(cross_section([hexagon, _ring(bore / 2.0, sections)]), thickness)
+
+
+def washer(outer: float, inner: float, thickness: float, sections: int = 96) -> trimesh.Trimesh:
+    """A flat washer: an annulus extruded along z, centred (ISO 7089 M3: ``washer(7.0, 3.2,
+    0.5)``).
+
+    Parameters
+    ----------
+    outer, inner : float
+        Outer and inner diameters, mm; both circles are polygons of ``sections`` vertices on them.
+    thickness : float
+        Height along z, mm.
+    sections : int
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Closed, its silhouettes within the ideal washer's outer cylinder.
+    """
+    _check_positive(outer=outer, inner=inner, thickness=thickness)
+    if inner >= outer:
+        raise ValueError("the inner diameter must be smaller than the outer one")
+    rings = [_ring(outer / 2.0, sections), _ring(inner / 2.0, sections)]
+    return extrude(cross_section(rings), thickness)
 
 
 # --------------------------------------------------------------------------------------------

@@ -342,8 +342,8 @@ def test_cli_bad_input_one_line_exit_2(tmp_path, args, message):
 def test_solve_certifies_its_blocks_and_a_passage_overrules_the_verdict(write_scene, tmp_path):
     # A: a 20 mm cube held face-on, tolerance 1 mm: the printed hole is a 22 mm square with
     # rounded corners. B: the 24 mm ball (no 24 mm disk fits in a 22 mm square: proved) and a
-    # 21 mm cube, which passes face-on and turned by less than about 2.6 degrees in the plane
-    # (21 (|cos a| + |sin a|) <= 22). A verdict of one start and no Adam steps misses that
+    # 21 x 21 x 22 mm box, which passes face-on and turned by less than about 2.6 degrees in the
+    # plane (21 (|cos a| + |sin a|) <= 22). A verdict of one start and no Adam steps misses that
     # passage; certify must find it through the exact hole and hand the win to B.
     from sieve_mi.api import solve
     from sieve_mi.outputs.console import summary_table
@@ -371,10 +371,14 @@ certify_budget = 60
 """
     meshes = {
         "a.stl": trimesh.creation.box((20.0, 20.0, 20.0)),
-        "b.stl": trimesh.creation.box((21.0, 21.0, 21.0)),
+        # 21 x 21 x 22 mm: face-on it passes the 22 mm rounded square, but it fits inside no
+        # 20 mm cube grown by 1 mm (its corners are sqrt(0.5² + 0.5² + 1²) = 1.22 mm out), so the
+        # feasibility test leaves it to the game (a 21 mm cube is unblockable from 0.87 mm)
+        "b.stl": trimesh.creation.box((21.0, 21.0, 22.0)),
         "ball.stl": trimesh.creation.icosphere(4, 12.0),
     }
     r = solve(load_scene(write_scene(body, meshes)), progress=False)
+    assert r.feasibility.impossible == []
     assert r.attack.blocked()[0].all()  # the weak verdict saw no passage
     ball, cube = r.certified
     assert ball.status == "proved" and ball.method == "ball"

@@ -367,6 +367,7 @@ LETTER_FILES = [f"letter_{c}.stl" for c in "SIGRAPH"]
 COIN_FILES = [f"coin_{c}.stl" for c in ("2eur", "1eur", "50c", "20c", "10c", "5c", "2c", "1c")]
 # toy bricks and cells (sieve_mi.testing.catalogue; tests/testing/test_catalogue.py)
 CATALOGUE_FILES = ["brick_1x2.stl", "brick_2x2.stl", "brick_2x4.stl", "cell_aaa.stl", "cell_aa.stl"]
+HARDWARE_FILES = ["nut_m3.stl", "nut_m4.stl", "washer_m3.stl"]  # scenes/m3-vs-m4.toml
 
 
 @pytest.fixture(scope="module")
@@ -377,10 +378,12 @@ def generated():
 def test_generator_covers_expected_files(generated):
     assert set(generated) == set(SIMPLE) | set(LETTER_FILES) | set(COIN_FILES) | set(
         CATALOGUE_FILES
-    )
+    ) | set(HARDWARE_FILES)
 
 
-@pytest.mark.parametrize("name", SIMPLE + LETTER_FILES + COIN_FILES + CATALOGUE_FILES)
+@pytest.mark.parametrize(
+    "name", SIMPLE + LETTER_FILES + COIN_FILES + CATALOGUE_FILES + HARDWARE_FILES
+)
 def test_stl_file_loads_and_matches_generator(name, generated):
     path = os.path.join(MESH_DIR, name)
     with open(path, "rb") as f:
@@ -444,3 +447,21 @@ def test_coin_is_a_regular_prism_with_the_official_sizes():
     assert coin.is_watertight
     with pytest.raises(ValueError):
         shapes.coin(0.0, 1.0)
+
+
+def test_hex_nut_and_washer_have_the_catalogue_sizes():
+    # ISO 4032 M4: 7 mm across flats (corners 7 / cos 30° = 8.083 mm), 3.2 mm thick, a 4 mm bore
+    # (a 48-gon on the circle); ISO 7089 M3 washer: 7 mm outer, 3.2 mm inner, 0.5 mm thick
+    nut = shapes.hex_nut(7.0, 3.2, 4.0)
+    np.testing.assert_allclose(nut.extents, [7.0, 7.0 / np.cos(np.pi / 6), 3.2], atol=1e-9)
+    bore = 0.5 * 48 * 2.0**2 * np.sin(2 * np.pi / 48)
+    assert nut.volume == pytest.approx((np.sqrt(3) / 2 * 7.0**2 - bore) * 3.2, rel=1e-9)
+    assert nut.is_watertight and nut.body_count == 1
+    washer = shapes.washer(7.0, 3.2, 0.5)
+    ring = 0.5 * 96 * (3.5**2 - 1.6**2) * np.sin(2 * np.pi / 96)
+    np.testing.assert_allclose(washer.extents, [7.0, 7.0, 0.5], atol=1e-9)
+    assert washer.volume == pytest.approx(ring * 0.5, rel=1e-9) and washer.is_watertight
+    with pytest.raises(ValueError):
+        shapes.hex_nut(5.5, 2.4, 6.0)  # a bore wider than the flats
+    with pytest.raises(ValueError):
+        shapes.washer(3.0, 3.2, 0.5)
