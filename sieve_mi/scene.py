@@ -23,12 +23,15 @@ import os
 from dataclasses import asdict, dataclass, field, fields
 
 from sieve_mi.errors import SieveError
+from sieve_mi.geometry.pattern import PATTERNS
 from sieve_mi.objectives import OBJECTIVES
 from sieve_mi.optim import NLOPT_METHODS, PSO_COEFFICIENT
 from sieve_mi.parsing import parse_toml
 from sieve_mi.settings import (
+    ANGLES,
     LENGTH_MAX,
     SEED_MAX,
+    SIZE,
     Reader,
     UnknownSettingError,
     checked,
@@ -150,6 +153,37 @@ class Fabrication:
         minimum=0,
         exclusive_min=True,
         maximum=LENGTH_MAX,
+    )
+    pattern: str = setting(
+        "single",
+        "one hole, or copies of it on a square or hexagonal lattice over plate_size",
+        choices=PATTERNS,
+    )
+    plate_size: SIZE | None = setting(
+        None,
+        "the perforated sheet's width and height (a pattern only)",
+        unit="scene units",
+        minimum=0,
+        exclusive_min=True,
+        maximum=LENGTH_MAX,
+        default_doc="a tray: 100 × 100 mm in the scene's units, larger when it would not hold "
+        "3 × 3 holes",
+    )
+    web: float = setting(
+        1.2,
+        "least material between two holes of a pattern",
+        unit="scene units",
+        minimum=0,
+        exclusive_min=True,
+        maximum=LENGTH_MAX,
+    )
+    turns: ANGLES | None = setting(
+        None,
+        "a pattern's copies turned by these angles in turn, one of them 0",
+        unit="degrees",
+        minimum=-360,
+        maximum=360,
+        default_doc="none (every copy as the hole)",
     )
 
 

@@ -19,6 +19,7 @@ from sieve_mi.errors import SieveError
 __all__ = [
     "Segments",
     "Shape",
+    "bodies",
     "edge_length",
     "edge_topology",
     "load_shape",
@@ -217,6 +218,35 @@ def shape_from_arrays(
         radius=radius,
         hull=_hull_vertices(v[used]),
     )
+
+
+def bodies(shape: Shape) -> int:
+    """How many separate bodies a shape's mesh has: groups of triangles joined by shared
+    vertices (welded at identical positions when loaded).
+
+    One body is a connected set, so every projection of it is connected (what a perforated
+    sheet's argument needs, :mod:`sieve_mi.geometry.pattern`). Several bodies may still touch or
+    overlap in space; counting them as separate only makes a claim more cautious.
+
+    Examples
+    --------
+    >>> import trimesh
+    >>> two = trimesh.util.concatenate([trimesh.creation.box((1, 1, 1)),
+    ...                                 trimesh.creation.box((1, 1, 1)).apply_translation((3, 0, 0))])
+    >>> bodies(shape_from_trimesh(two, name="two")), bodies(shape_from_trimesh(
+    ...     trimesh.creation.box((1, 1, 1)), name="one"))
+    (2, 1)
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    f = np.asarray(shape.faces, dtype=np.int64)
+    n = len(shape.vertices)
+    rows = np.concatenate([f[:, 0], f[:, 1]])
+    cols = np.concatenate([f[:, 1], f[:, 2]])
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    return int(len(np.unique(labels[np.unique(f)])))
 
 
 def _hull_vertices(points: np.ndarray) -> np.ndarray:
