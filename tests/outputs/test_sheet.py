@@ -1,0 +1,84 @@
+"""A perforated sheet from a solve: the plate files hold every hole, report.json says how many,
+and the default (one hole) keeps its keys. The cube's hole on a 60 x 60 hex sheet."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import pytest
+import trimesh
+
+from sieve_mi.errors import SieveError
+from sieve_mi.game.solver import solve
+from sieve_mi.geometry.sieve import plate_holes
+from sieve_mi.outputs.fabrication import plate_files
+from sieve_mi.scene import Scene, load_scene
+from sieve_mi.testing.settings import TINY_SOLVER, TINY_VERDICT
+
+#: report.json's ``fabrication`` keys of a one-hole plate (before the perforated sheet).
+SINGLE_KEYS = ["thickness", "required_thickness", "sheet", "border", "plate_size", "outline",
+               "outline_vertices", "files", "warnings"]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def result():
+    scene = Scene.from_meshes(
+        [trimesh.creation.box((10.0, 10.0, 10.0))],
+        [trimesh.creation.icosphere(2, 8.0)],
+        name="sheet",
+    )
+    for key, value in TINY_SOLVER.items():
+        setattr(scene.solver, key, value)
+    for key, value in TINY_VERDICT.items():
+        setattr(scene.verdict, key, value)
+    return solve(scene, seed=0, progress=False)
+
+
+def test_a_pattern_writes_a_sheet_whose_holes_read_back(result, tmp_path):
+    fab = result.scene.fabrication
+    fab.pattern, fab.plate_size = "hex", (60.0, 60.0)
+    try:
+        made, _ = plate_files(result, str(tmp_path))
+    finally:
+        fab.pattern, fab.plate_size = "single", None
+    p = made["pattern"]
+    holes = plate_holes(os.path.join(tmp_path, "sieve.stl"))
+    assert p["count"] == len(holes) > 4 and made["plate_size"][:2] == [60.0, 60.0]
+    area = result.outline.area()
+    assert sum(h.area() for h in holes) == pytest.approx(p["count"] * area, rel=1e-6)
+    assert p["open_fraction"] == pytest.approx(p["count"] * area / 3600.0)
+    assert p["least_gap"] >= 1.2 * (1 - 1e-9) and "sheet.svg" in made["files"]
+    json.dumps(made)
+
+
+def test_the_default_keeps_the_one_hole_keys(result, tmp_path):
+    made, _ = plate_files(result, str(tmp_path))
+    assert list(made) == SINGLE_KEYS
+    assert len(plate_holes(os.path.join(tmp_path, "sieve.stl"))) == 1
+
+
+def test_a_plate_too_small_for_one_hole_names_the_key(result, tmp_path):
+    fab = result.scene.fabrication
+    fab.pattern, fab.plate_size = "square", (12.0, 12.0)
+    try:
+        with pytest.raises(SieveError, match=r"^fabrication\.plate_size: 12 x 12 holds no hole"):
+            plate_files(result, str(tmp_path))
+    finally:
+        fab.pattern, fab.plate_size = "single", None
+
+
+@pytest.mark.parametrize(
+    "line, expected",
+    [
+        ("web = -1", "fabrication.web: must be > 0, got -1"),
+        ('pattern = "triangle"', "fabrication.pattern: 'triangle' is not one of: single, square, hex"),
+        ("plate_size = [100]", "fabrication.plate_size: expected a list of 2 numbers, got [100]"),
+    ],
+)
+def test_bad_values_are_one_line_errors_naming_the_key(tmp_path, line, expected):
+    path = tmp_path / "s.toml"
+    path.write_text(f'[[pass]]\nmesh = "a.stl"\n[[block]]\nmesh = "b.stl"\n[fabrication]\n{line}\n')
+    with pytest.raises(SieveError) as exc:
+        load_scene(str(path))
+    assert str(exc.value) == f"{path}: {expected}"
