@@ -603,6 +603,12 @@ def read_tables(path: str, data: dict) -> dict:
         r = Reader(path, _table(path, data, f.name), f.name + ".")
         r.check_keys({key_of(g) for g in fields(cls)})
         out[f.name] = cls(**r.read(cls))
+    turns = out["fabrication"].turns
+    if turns is not None and not any(t % 360.0 == 0.0 for t in turns):
+        raise SieveError(
+            f"{path}: fabrication.turns: {list(turns)} has no 0; one copy must be the hole "
+            "itself (add 0)"
+        )
     return out
 
 

@@ -405,8 +405,8 @@ def test_lower_bound(tmp_path, table, f, kind, spec):
     n = _LISTS.get(kind)
     one = float if n else kind  # each number of a list is checked as a number
 
-    def value(x):
-        return (x,) * n if n else x
+    def value(x):  # turns hold a 0 (the hole itself) and the value
+        return (0.0, x) if kind is ANGLES else (x,) * n if n else x
 
     on_bound = MINIMAL + f"[{table}]\n{f.name} = {_toml(value(one(low)))}\n"
     below = MINIMAL + f"[{table}]\n{f.name} = {_toml(value(one(low) - step))}\n"

@@ -211,7 +211,9 @@ def sheet_holes(hole, shape: Shape, pattern, found: float | None = None) -> tupl
     iff it fits one copy: :mod:`sieve_mi.geometry.pattern`), a B of several bodies against the
     copies within its reach (:meth:`~sieve_mi.geometry.pattern.Pattern.window` of its diameter,
     plus twice ``found`` for the margin bisection's grown holes), and every slab-section proof
-    against the copies within its diameter (a section of a connected B may fall apart).
+    against the copies within its diameter (a section of a connected B may fall apart), except
+    for a convex solid (:func:`~sieve_mi.geometry.meshes.convex_solid`: its sections are convex,
+    so connected, and one copy decides them). ``section`` is None where it is ``straight``.
 
     Parameters
     ----------
@@ -222,7 +224,7 @@ def sheet_holes(hole, shape: Shape, pattern, found: float | None = None) -> tupl
     found : float, optional
         The protrusion of B's best pose found, scene units.
     """
-    from sieve_mi.geometry.meshes import bodies
+    from sieve_mi.geometry.meshes import bodies, convex_solid
     from sieve_mi.geometry.plate import diameter
 
     def contours(section) -> list:
@@ -231,7 +233,8 @@ def sheet_holes(hole, shape: Shape, pattern, found: float | None = None) -> tupl
     if pattern is None:
         return contours(hole), None
     d = diameter(shape.hull)
-    window = contours(pattern.window(d, hole))
+    # a convex solid's slab sections are convex, hence connected: one copy decides them too
+    window = None if convex_solid(shape) else contours(pattern.window(d, hole))
     if bodies(shape) > 1:
         return contours(pattern.window(d + 2.0 * max(found or 0.0, 0.0), hole)), window
     return contours(hole), window

@@ -408,7 +408,7 @@ class Boundary:
             return np.full(len(xy), np.inf)
         if self._lines is None:
             rings = [np.vstack([c, c[:1]]) for c in self.contours]
-            self._lines = shapely.multilinestrings(rings)
+            self._lines = shapely.MultiLineString(rings)  # rings of any lengths (many holes)
             shapely.prepare(self._lines)
         return shapely.distance(shapely.points(xy), self._lines)
 

@@ -41,8 +41,10 @@ def _least_gap_by_solids(copies: list, within: float) -> float:
 def _inside(p, border: float) -> bool:
     (x0, y0), (x1, y1) = p.plate
     b = np.asarray(p.holes().bounds())
-    return b[0] >= x0 + border - 1e-9 and b[1] >= y0 + border - 1e-9 and (
-        b[2] <= x1 - border + 1e-9 and b[3] <= y1 - border + 1e-9
+    return (
+        b[0] >= x0 + border - 1e-9
+        and b[1] >= y0 + border - 1e-9
+        and (b[2] <= x1 - border + 1e-9 and b[3] <= y1 - border + 1e-9)
     )
 
 
@@ -50,7 +52,9 @@ def test_square_pattern_of_squares_matches_the_paper_count():
     square = manifold3d.CrossSection.square([10.0, 10.0])
     p = lay_out(square, "square", (100.0, 100.0), 5.0, 2.0)
     assert p.count == 49
-    assert np.linalg.norm(p.a1) == pytest.approx(12.0) and np.linalg.norm(p.a2) == pytest.approx(12.0)
+    assert np.linalg.norm(p.a1) == pytest.approx(12.0) and np.linalg.norm(p.a2) == pytest.approx(
+        12.0
+    )
     assert p.open_fraction == pytest.approx(0.49)
     assert p.holes().area() == pytest.approx(4900.0)
     assert _inside(p, 5.0)

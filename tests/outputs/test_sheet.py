@@ -72,13 +72,52 @@ def test_a_plate_too_small_for_one_hole_names_the_key(result, tmp_path):
     "line, expected",
     [
         ("web = -1", "fabrication.web: must be > 0, got -1"),
-        ('pattern = "triangle"', "fabrication.pattern: 'triangle' is not one of: single, square, hex"),
+        (
+            'pattern = "triangle"',
+            "fabrication.pattern: 'triangle' is not one of: single, square, hex",
+        ),
         ("plate_size = [100]", "fabrication.plate_size: expected a list of 2 numbers, got [100]"),
+        (
+            "turns = [30, 60]",
+            "fabrication.turns: [30.0, 60.0] has no 0; one copy must be the hole itself (add 0)",
+        ),
     ],
 )
 def test_bad_values_are_one_line_errors_naming_the_key(tmp_path, line, expected):
+    # read with the scene, before any work (a plate too small is known only once H is)
     path = tmp_path / "s.toml"
     path.write_text(f'[[pass]]\nmesh = "a.stl"\n[[block]]\nmesh = "b.stl"\n[fabrication]\n{line}\n')
     with pytest.raises(SieveError) as exc:
         load_scene(str(path))
     assert str(exc.value) == f"{path}: {expected}"
+
+
+def test_which_holes_each_proof_is_against():
+    import manifold3d
+    import numpy as np
+
+    from sieve_mi.certify.blocks import sheet_holes
+    from sieve_mi.geometry.meshes import shape_from_trimesh
+    from sieve_mi.geometry.pattern import lay_out
+
+    hole = manifold3d.CrossSection.circle(4.5, 32)
+    p = lay_out(hole, "hex", (60.0, 60.0), 5.0, 1.2)
+    box = trimesh.creation.box((8.0, 8.0, 8.0))
+    pair = trimesh.util.concatenate([box, box.copy().apply_translation((12.0, 0.0, 0.0))])
+    ring = trimesh.creation.torus(10.0, 1.0)
+
+    def count(contours) -> int:
+        return 0 if contours is None else len(contours)
+
+    one = sheet_holes(hole, shape_from_trimesh(box, name="box"), p)
+    assert count(one[0]) == 1 and one[1] is None  # convex: its sections are connected
+    ring_holes = sheet_holes(hole, shape_from_trimesh(ring, name="ring"), p)
+    assert count(ring_holes[0]) == 1 and count(ring_holes[1]) > 7  # its sections may fall apart
+    two = sheet_holes(hole, shape_from_trimesh(pair, name="pair"), p, found=5.0)
+    assert count(two[0]) > count(two[1]) > 1  # two bodies: straight against the copies too (and
+    # the margin bisection's grown holes: 2 x 5 mm further)
+    # every copy within reach of H (diameter + 2 x circumradius) is in the section's window
+    d = float(np.linalg.norm(np.ptp(shape_from_trimesh(ring, name="r").hull, axis=0)))
+    assert count(ring_holes[1]) >= sum(
+        1 for i, j in p.sites if np.linalg.norm(p.at(int(i), int(j)) - p.at(0, 0)) <= d
+    )
