@@ -23,7 +23,7 @@ import os
 from dataclasses import asdict, dataclass, field, fields
 
 from sieve_mi.errors import SieveError
-from sieve_mi.geometry.pattern import PATTERNS
+from sieve_mi.geometry.pattern import PATTERNS, check_turns
 from sieve_mi.objectives import OBJECTIVES
 from sieve_mi.optim import NLOPT_METHODS, PSO_COEFFICIENT
 from sieve_mi.parsing import parse_toml
@@ -105,6 +105,10 @@ class ShapeEntry:
     data: object = field(default=None, repr=False, compare=False)
 
 
+#: The bounds of a positive length (a plate's size, border, web).
+_LENGTH = {"unit": "scene units", "minimum": 0, "exclusive_min": True, "maximum": LENGTH_MAX}
+
+
 @checked("fabrication")
 @documented
 @dataclass
@@ -139,21 +143,9 @@ class Fabrication:
         "its diameter where none holds), at least min_thickness",
     )
     min_thickness: float = setting(
-        1.2,
-        "the thinnest plate the default thickness may be (a printable sheet)",
-        unit="scene units",
-        minimum=0,
-        exclusive_min=True,
-        maximum=LENGTH_MAX,
+        1.2, "the thinnest plate the default thickness may be (a printable sheet)", **_LENGTH
     )
-    border: float = setting(
-        5.0,
-        "plate material around the hole",
-        unit="scene units",
-        minimum=0,
-        exclusive_min=True,
-        maximum=LENGTH_MAX,
-    )
+    border: float = setting(5.0, "plate material around the hole", **_LENGTH)
     pattern: str = setting(
         "single",
         "one hole, or copies of it on a square or hexagonal lattice over plate_size",
@@ -162,21 +154,11 @@ class Fabrication:
     plate_size: SIZE | None = setting(
         None,
         "the perforated sheet's width and height (a pattern only)",
-        unit="scene units",
-        minimum=0,
-        exclusive_min=True,
-        maximum=LENGTH_MAX,
         default_doc="a tray: 100 × 100 mm in the scene's units, larger when it would not hold "
         "3 × 3 holes",
+        **_LENGTH,
     )
-    web: float = setting(
-        1.2,
-        "least material between two holes of a pattern",
-        unit="scene units",
-        minimum=0,
-        exclusive_min=True,
-        maximum=LENGTH_MAX,
-    )
+    web: float = setting(1.2, "least material between two holes of a pattern", **_LENGTH)
     turns: ANGLES | None = setting(
         None,
         "a pattern's copies turned by these angles in turn, one of them 0",
@@ -603,12 +585,7 @@ def read_tables(path: str, data: dict) -> dict:
         r = Reader(path, _table(path, data, f.name), f.name + ".")
         r.check_keys({key_of(g) for g in fields(cls)})
         out[f.name] = cls(**r.read(cls))
-    turns = out["fabrication"].turns
-    if turns is not None and not any(t % 360.0 == 0.0 for t in turns):
-        raise SieveError(
-            f"{path}: fabrication.turns: {list(turns)} has no 0; one copy must be the hole "
-            "itself (add 0)"
-        )
+    check_turns(out["fabrication"].turns, path)
     return out
 
 

@@ -133,8 +133,11 @@ def attempt(
     settings: CheckSettings,
     s: float,
     outlines: list[manifold3d.CrossSection] | None = None,
+    indices: list[int] | None = None,
 ) -> ShapeCheck:
-    """Player B's best attempt to pass ``shape`` scaled by ``s`` through any of ``holes``."""
+    """Player B's best attempt to pass ``shape`` scaled by ``s`` through any of ``holes``
+    (``outlines``: their exact polygons; ``indices``: the plate's hole numbers they have, for the
+    report, default their order)."""
     from sieve_mi.game.player_b import PlayerB
 
     b = scaled(shape, s)
@@ -157,6 +160,7 @@ def attempt(
         best = exact_rescore(att, [b], hole, reach=REACH * holes[0].frame.pixel_size)
         row, fits = 0, int(att.fits.sum())
         k = _hole_of(best.trans[0, 0], outlines)
+        k = k if indices is None else int(indices[k])
     v = ShapeCheck(
         scale=float(s),
         passes=bool(best.beta[row, 0] == 0),
@@ -292,12 +296,12 @@ def check(
     ensure_variant()
     t0 = time.perf_counter()
     given = _sieve_holes(shape, sieve, image, axis, pixel_size, units, settings)
-    holes, outlines, centre = given.holes, given.outlines, given.centre
-    # Poses are reported in the sieve's own coordinates.
+    outlines, centre, (played, drawn) = given.outlines, given.centre, _played(given)
     evaluations: list[ShapeCheck] = []
 
     def evaluate(s: float) -> ShapeCheck:
-        v = attempt(shape, holes, settings, s, outlines)
+        v = attempt(shape, given.holes, settings, s, drawn, played)
+        # poses are reported in the sieve's own coordinates
         v.translation = [v.translation[0] + float(centre[0]), v.translation[1] + float(centre[1])]
         evaluations.append(v)
         if progress:
@@ -321,6 +325,15 @@ def check(
     rep.evaluations = evaluations
     rep.seconds = time.perf_counter() - t0
     return rep
+
+
+def _played(given: SieveHoles) -> tuple:
+    """The indices of the plate's holes that are played (one of each group of translates: a
+    sheet's copies, :func:`sieve_mi.geometry.sieve.distinct_holes`) and their outlines (None
+    for an image)."""
+    outlines = given.outlines
+    played = given.played if given.played is not None else list(range(len(outlines or ())))
+    return played, (None if outlines is None else [outlines[k] for k in played])
 
 
 def _sieve_holes(shape, sieve, image, axis, pixel_size, units, settings) -> SieveHoles:

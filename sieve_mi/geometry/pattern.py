@@ -37,6 +37,7 @@ __all__ = [
     "TRAY_MM",
     "from_settings",
     "WEB_SLACK",
+    "check_turns",
     "Pattern",
     "gap",
     "lay_out",
@@ -454,13 +455,21 @@ def placed_gap(pattern: Pattern) -> float:
     return best
 
 
+def check_turns(turns, path: str | None = None) -> None:
+    """Raise a one-line SieveError (naming ``path``, the scene file, if given) unless ``turns``
+    (degrees) is None or holds a 0 (mod 360): one copy must be the hole itself."""
+    if turns is not None and not any(float(t) % 360.0 == 0.0 for t in turns):
+        where = f"{path}: " if path else ""
+        raise SieveError(
+            f"{where}fabrication.turns: {[float(t) for t in turns]} has no 0; one copy must be "
+            "the hole itself (add 0)"
+        )
+
+
 def _turns(turns) -> tuple:
     """The turns as a tuple of floats, 0 first (the site of H itself)."""
+    check_turns(turns)
     turns = tuple(float(t) for t in (turns or (0.0,)))
-    if not any(t % 360.0 == 0.0 for t in turns):
-        raise SieveError(
-            f"fabrication.turns: {list(turns)} has no 0; one copy must be the hole itself (add 0)"
-        )
     k = next(i for i, t in enumerate(turns) if t % 360.0 == 0.0)
     return turns[k:] + turns[:k]
 

@@ -121,3 +121,18 @@ def test_which_holes_each_proof_is_against():
     assert count(ring_holes[1]) >= sum(
         1 for i, j in p.sites if np.linalg.norm(p.at(int(i), int(j)) - p.at(0, 0)) <= d
     )
+
+
+def test_check_plays_one_hole_of_each_kind_of_copy():
+    import manifold3d
+
+    from sieve_mi.geometry.pattern import lay_out
+    from sieve_mi.geometry.sieve import distinct_holes
+    from sieve_mi.outputs.fabrication import sheet
+
+    bar = manifold3d.CrossSection.square([12.0, 4.0], center=True)
+    straight = sheet(lay_out(bar, "square", (60.0, 60.0), 5.0, 1.2), 2.0)
+    turned = sheet(lay_out(bar, "square", (60.0, 60.0), 5.0, 1.2, turns=[0, 90]), 2.0)
+    holes, turned_holes = plate_holes(straight.mesh), plate_holes(turned.mesh)
+    assert len(holes) > 10 and len(distinct_holes(holes)) == 1
+    assert len(turned_holes) > 10 and len(distinct_holes(turned_holes)) == 2
