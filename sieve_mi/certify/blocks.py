@@ -173,7 +173,9 @@ def certify_blocks(
                      scene.fabrication.thickness, scene.fabrication.min_thickness)  # fmt: skip
     out: list[Certification | None] = [None] * len(block_shapes)
     tops = [None if found is None else float(found[j]) for j in todo]
-    holes = [sheet_holes(hole, block_shapes[j], pattern, tops[k]) for k, j in enumerate(todo)]
+    merged = pattern is not None and 2.0 * scene.fabrication.block_margin >= pattern.least_gap
+    holes = [sheet_holes(hole, block_shapes[j], pattern, tops[k], merged)
+             for k, j in enumerate(todo)]  # fmt: skip
     for j, c in _proofs([block_shapes[j] for j in todo], holes, budget, workers, tops):
         out[todo[j]] = c
         if progress is not None:
@@ -203,7 +205,8 @@ class Budgets(NamedTuple):
     low: float
 
 
-def sheet_holes(hole, shape: Shape, pattern, found: float | None = None) -> tuple:
+def sheet_holes(hole, shape: Shape, pattern, found: float | None = None,
+                merged: bool = False) -> tuple:  # fmt: skip
     """The holes one B's proofs are against: (straight, section), each a list of contours.
 
     On a single hole both are ``hole``. On a perforated sheet (``pattern``), a B of one body is
@@ -223,6 +226,9 @@ def sheet_holes(hole, shape: Shape, pattern, found: float | None = None) -> tupl
     pattern : Pattern or None
     found : float, optional
         The protrusion of B's best pose found, scene units.
+    merged : bool
+        Whether ``hole``'s copies may meet (a block margin of at least half the web): then a B
+        of one body is proved straight against the copies within its reach too.
     """
     from sieve_mi.geometry.meshes import bodies, convex_solid
     from sieve_mi.geometry.plate import diameter
@@ -235,7 +241,7 @@ def sheet_holes(hole, shape: Shape, pattern, found: float | None = None) -> tupl
     d = diameter(shape.hull)
     # a convex solid's slab sections are convex, hence connected: one copy decides them too
     window = None if convex_solid(shape) else contours(pattern.window(d, hole))
-    if bodies(shape) > 1:
+    if merged or bodies(shape) > 1:
         return contours(pattern.window(d + 2.0 * max(found or 0.0, 0.0), hole)), window
     return contours(hole), window
 
