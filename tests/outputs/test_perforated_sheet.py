@@ -136,3 +136,16 @@ def test_check_plays_one_hole_of_each_kind_of_copy():
     holes, turned_holes = plate_holes(straight.mesh), plate_holes(turned.mesh)
     assert len(holes) > 10 and len(distinct_holes(holes)) == 1
     assert len(turned_holes) > 10 and len(distinct_holes(turned_holes)) == 2
+
+
+def test_a_b_of_two_bodies_is_named_in_a_warning():
+    from sieve_mi.geometry.meshes import shape_from_trimesh
+    from sieve_mi.outputs.fabrication import sheet_warnings
+
+    box = trimesh.creation.box((4.0, 4.0, 4.0))
+    pair = trimesh.util.concatenate([box, box.copy().apply_translation((9.0, 0.0, 0.0))])
+    shapes = [shape_from_trimesh(box, name="box"), shape_from_trimesh(pair, name="pair")]
+    (line,) = sheet_warnings(shapes)
+    assert (
+        line.startswith("pair has 2 separate bodies: on the perforated sheet") and "\n" not in line
+    )
