@@ -184,6 +184,8 @@ def _thin_cell(block: dict) -> str:
         return "-"
     if t["status"] == "safe":
         return f"safe ({t.get('by', 'diameter')})"
+    if t["status"] == "not covered":  # a B of several bodies on a perforated sheet
+        return "not covered (several bodies)"
     return f"{t['status']} ({t['seconds']:.1f} s)"
 
 

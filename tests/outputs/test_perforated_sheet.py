@@ -149,3 +149,24 @@ def test_a_b_of_two_bodies_is_named_in_a_warning():
     assert (
         line.startswith("pair has 2 separate bodies: on the perforated sheet") and "\n" not in line
     )
+
+
+def test_a_b_of_two_bodies_without_a_sheet_proof_is_not_covered():
+    from types import SimpleNamespace
+
+    from sieve_mi.game.sheet import not_covered
+    from sieve_mi.geometry.meshes import shape_from_trimesh
+    from sieve_mi.motion.thin import ThinPlate
+
+    box = trimesh.creation.box((4.0, 4.0, 4.0))
+    pair = trimesh.util.concatenate([box, box.copy().apply_translation((9.0, 0.0, 0.0))])
+    blocks = [shape_from_trimesh(box, name="box"), shape_from_trimesh(pair, name="pair")]
+    per = [ThinPlate(b.name, 20.0, 15.0, "safe") for b in blocks]  # safe by their diameters
+    scene = Scene.from_meshes([box], [box, pair], name="s")
+    assert [t.status for t in not_covered(scene, blocks, per, None)] == ["safe", "safe"]
+    scene.fabrication.pattern = "hex"
+    got = not_covered(scene, blocks, per, None)
+    assert [t.status for t in got] == ["safe", "not covered"]
+    assert got[1].to_dict()["note"].startswith("pair has 2 separate bodies")
+    proved = [None, SimpleNamespace(straight="proved")]  # proved against the copies in reach
+    assert [t.status for t in not_covered(scene, blocks, per, proved)] == ["safe", "safe"]
