@@ -7,11 +7,7 @@ carries its default, and its :class:`~sieve_mi.settings.Spec` its bounds or acce
 unit and its one-line meaning. The reader (:func:`load_scene`) takes defaults and validation from
 there (:mod:`sieve_mi.settings`), the class docstrings list them, and ``tests/test_scene.py``
 checks that ``docs/scene-format.md`` says the same. Adding a key is one line in its class (and a
-row in the docs, which the test asks for), e.g.::
-
-    certify: bool = setting(False, "prove the winner exactly")
-
-Paths are relative to the scene file. Every problem is reported as one
+row in the docs, which the test asks for). Paths are relative to the scene file. Every problem is reported as one
 :class:`~sieve_mi.errors.SieveError` line naming the file and the key; a name that is not a
 setting, set in code, is an :class:`UnknownSettingError` (defined in :mod:`sieve_mi.settings`).
 """
@@ -23,12 +19,15 @@ import os
 from dataclasses import asdict, dataclass, field, fields
 
 from sieve_mi.errors import SieveError
+from sieve_mi.geometry.pattern import PATTERNS, check_turns
 from sieve_mi.objectives import OBJECTIVES
 from sieve_mi.optim import NLOPT_METHODS, PSO_COEFFICIENT
 from sieve_mi.parsing import parse_toml
 from sieve_mi.settings import (
+    ANGLES,
     LENGTH_MAX,
     SEED_MAX,
+    SIZE,
     Reader,
     UnknownSettingError,
     checked,
@@ -102,6 +101,10 @@ class ShapeEntry:
     data: object = field(default=None, repr=False, compare=False)
 
 
+#: The bounds of a positive length (a plate's size, border, web).
+_LENGTH = {"unit": "scene units", "minimum": 0, "exclusive_min": True, "maximum": LENGTH_MAX}
+
+
 @checked("fabrication")
 @documented
 @dataclass
@@ -136,30 +139,36 @@ class Fabrication:
         "its diameter where none holds), at least min_thickness",
     )
     min_thickness: float = setting(
-        1.2,
-        "the thinnest plate the default thickness may be (a printable sheet)",
-        unit="scene units",
-        minimum=0,
-        exclusive_min=True,
-        maximum=LENGTH_MAX,
+        1.2, "the thinnest plate the default thickness may be (a printable sheet)", **_LENGTH
     )
     window: float | str = setting(
         0.0,
-        "turns about the vertical (degrees, either way) over which every A passes the hole "
-        '(a shaken part need not be turned exactly); "auto" bisects the widest that keeps every '
-        "B blocked (docs/fabrication.md)",
-        unit="degrees",
-        minimum=0,
-        maximum=90,
+        "turns about the vertical (degrees, either way) over which every A passes the hole; "
+        '"auto" bisects the widest that keeps every B blocked (docs/fabrication.md)',
         choices=("auto",),
+        **{"unit": "degrees", "minimum": 0, "maximum": 90},
     )
-    border: float = setting(
-        5.0,
-        "plate material around the hole",
-        unit="scene units",
-        minimum=0,
-        exclusive_min=True,
-        maximum=LENGTH_MAX,
+    border: float = setting(5.0, "plate material around the hole", **_LENGTH)
+    pattern: str = setting(
+        "single",
+        "one hole, or copies of it on a square or hexagonal lattice over plate_size",
+        choices=PATTERNS,
+    )
+    plate_size: SIZE | None = setting(
+        None,
+        "the perforated sheet's width and height (a pattern only)",
+        default_doc="a tray: 100 × 100 mm in the scene's units, larger when it would not hold "
+        "3 × 3 holes",
+        **_LENGTH,
+    )
+    web: float = setting(1.2, "least material between two holes of a pattern", **_LENGTH)
+    turns: ANGLES | None = setting(
+        None,
+        "a pattern's copies turned by these angles in turn, one of them 0",
+        unit="degrees",
+        minimum=-360,
+        maximum=360,
+        default_doc="none (every copy as the hole)",
     )
 
 
@@ -579,6 +588,7 @@ def read_tables(path: str, data: dict) -> dict:
         r = Reader(path, _table(path, data, f.name), f.name + ".")
         r.check_keys({key_of(g) for g in fields(cls)})
         out[f.name] = cls(**r.read(cls))
+    check_turns(out["fabrication"].turns, path)
     return out
 
 

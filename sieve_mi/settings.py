@@ -37,8 +37,10 @@ import numpy as np
 from sieve_mi.errors import SieveError
 
 __all__ = [
+    "ANGLES",
     "LENGTH_MAX",
     "SEED_MAX",
+    "SIZE",
     "Reader",
     "Spec",
     "UnknownSettingError",
@@ -64,6 +66,14 @@ __all__ = [
 LENGTH_MAX = 1_000_000
 #: Largest seed (nlopt's generator takes an unsigned 64-bit seed).
 SEED_MAX = 2**64 - 1
+#: The value type of a setting that is a width and a height (``plate_size = [100, 100]``), each
+#: checked against the setting's bounds; held as a tuple of two floats.
+SIZE = tuple[float, float]
+#: The value type of a setting that is a list of numbers (``turns = [0, 30]``), each checked against
+#: the setting's bounds; held as a tuple of floats, at most :data:`ANGLES_MAX` of them.
+ANGLES = tuple[float, ...]
+#: Most numbers an :data:`ANGLES` setting holds.
+ANGLES_MAX = 24
 #: The largest finite float (an int beyond it cannot be a float setting).
 _FLOAT_MAX = 1.7976931348623157e308
 #: Keys shown as they are in messages; any other key is quoted (``repr``).
@@ -177,7 +187,8 @@ def describe(cls: type, f: dataclasses.Field) -> str:
     The form docs/scene-format.md uses in its type column.
     """
     spec, kind = spec_of(f), value_types(cls)[f.name]
-    words = {bool: "bool", int: "int", float: "number", str: "string", list[float]: "[w, x, y, z]"}
+    words = {bool: "bool", int: "int", float: "number", str: "string", list[float]: "[w, x, y, z]",
+             SIZE: "[w, h]", ANGLES: "[numbers]"}  # fmt: skip
     word = words.get(kind, "tables")
     exclusive = spec.exclusive_min or spec.exclusive_max
     if spec.minimum is not None and spec.maximum is not None and not exclusive:
@@ -459,6 +470,26 @@ class Reader:
             )
         return [float(v) for v in qn / norm]
 
+    def numbers(self, key: str, spec: Spec, count: int | None = None) -> tuple:
+        """A list of numbers (``count`` of them, or 1 to :data:`ANGLES_MAX`), each within the
+        setting's bounds; returned as a tuple of floats."""
+        values = self.table[key]
+        wanted = f"a list of {count} numbers" if count else "a list of numbers"
+        if not isinstance(values, list | tuple) or not values:
+            raise self.error(key, f"expected {wanted}, got {self.shown(values)}")
+        if (count and len(values) != count) or len(values) > ANGLES_MAX:
+            most = f" (at most {ANGLES_MAX})" if not count else ""
+            raise self.error(key, f"expected {wanted}{most}, got {self.shown(values)}")
+        out = []
+        for v in values:
+            item = Reader(self.path, {key: v}, self.where, self.spelling)
+            out.append(item.number(key, dataclasses.replace(spec, choices=None)))
+        return tuple(out)
+
+    def size(self, key: str, spec: Spec) -> tuple:
+        """A width and a height (:data:`SIZE`)."""
+        return self.numbers(key, spec, 2)
+
 
 _READERS = {
     bool: Reader.boolean,
@@ -466,6 +497,8 @@ _READERS = {
     float: Reader.number,
     str: Reader.string,
     list[float]: Reader.quaternion,
+    SIZE: Reader.size,
+    ANGLES: Reader.numbers,
 }
 
 

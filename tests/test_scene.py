@@ -23,6 +23,8 @@ from sieve_mi.game.check_settings import CheckInputs, CheckSettings
 from sieve_mi.options import check_options
 from sieve_mi.scene import Scene, ShapeEntry, load_scene
 from sieve_mi.settings import (
+    ANGLES,
+    SIZE,
     describe,
     field_of,
     key_of,
@@ -96,7 +98,7 @@ def _doc_rows(text: str) -> dict[type, dict[str, dict[str, str]]]:
 
 
 _TYPE = re.compile(
-    r"(number|int|bool|string|tables|\[w, x, y, z\])"
+    r"(number|int|bool|string|tables|\[w, x, y, z\]|\[w, h\]|\[numbers\])"
     r"(?: (≥|>) (-?[\d.]+)(?:, ≤ (-?[\d.]+))?| (-?[\d.]+)–(-?[\d.]+))?"
 )
 _KINDS = {
@@ -106,7 +108,11 @@ _KINDS = {
     "string": str,
     "tables": list[ShapeEntry],
     "[w, x, y, z]": list[float],
+    "[w, h]": SIZE,
+    "[numbers]": ANGLES,
 }
+#: The settings that are lists of numbers, and how many each holds in these tests.
+_LISTS = {SIZE: 2, ANGLES: 1}
 
 
 def _doc_type(cell: str):
@@ -234,6 +240,8 @@ def test_minimal_scene_loads_to_the_documented_defaults(tmp_path):
 
 
 def _toml(value) -> str:
+    if isinstance(value, tuple):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
     if isinstance(value, bool):
         return "true" if value else "false"
     return json.dumps(value) if isinstance(value, str) else repr(value)
@@ -254,6 +262,8 @@ def _other_value(f, kind, spec):
     """A valid value that is not the default."""
     if spec.choices and kind is not float:  # a number field's words are tested on their own
         return next(c for c in spec.choices if c != f.default)
+    if kind in _LISTS:
+        return (0.0, 30.0) if kind is ANGLES else (50.0, 40.0)
     if kind is bool:
         return not f.default
     if kind is int:
@@ -267,7 +277,8 @@ def test_every_key_is_read_into_its_field(tmp_path, table, f, kind, spec):
     value = _other_value(f, kind, spec)
     s = load_scene(_write(tmp_path, MINIMAL + f"[{table}]\n{f.name} = {_toml(value)}\n"))
     read, default = getattr(s, table), value_types(Scene)[table]()
-    assert getattr(read, f.name) == value and type(getattr(read, f.name)) is kind
+    held = tuple if kind in _LISTS else kind  # a list of numbers is held as a tuple of floats
+    assert getattr(read, f.name) == value and type(getattr(read, f.name)) is held
     assert all(
         getattr(read, g.name) == getattr(default, g.name) for g in fields(read) if g is not f
     )
@@ -306,12 +317,14 @@ def test_unknown_top_level_key(tmp_path):
 
 @pytest.mark.parametrize("table, f, kind, spec", _settings_keys())
 def test_wrong_type_is_one_line_naming_the_key(tmp_path, table, f, kind, spec):
-    wrong = {bool: "1", int: '"3"', float: '"1mm"', str: "3"}[kind]
+    wrong = {bool: "1", int: '"3"', float: '"1mm"', str: "3", SIZE: "[1]", ANGLES: '"3"'}[kind]
     expected = {
         bool: "expected true or false, got 1",
         int: "expected a whole number, got '3'",
         float: "expected a number, got '1mm'",
         str: "expected a non-empty string, got 3",
+        SIZE: "expected a list of 2 numbers, got [1]",
+        ANGLES: "expected a list of numbers, got '3'",
     }[kind]
     if spec.choices and kind is float:
         expected = f"expected a number or {' or '.join(map(repr, spec.choices))}, got '1mm'"
@@ -389,15 +402,23 @@ def _step(kind) -> float:
 @pytest.mark.parametrize("table, f, kind, spec", _bounded_keys())
 def test_lower_bound(tmp_path, table, f, kind, spec):
     low, step = spec.minimum, _step(kind)
-    on_bound = MINIMAL + f"[{table}]\n{f.name} = {_toml(kind(low))}\n"
-    below = MINIMAL + f"[{table}]\n{f.name} = {_toml(kind(low) - step)}\n"
-    above = MINIMAL + f"[{table}]\n{f.name} = {_toml(kind(low) + step)}\n"
-    assert getattr(getattr(load_scene(_write(tmp_path, above)), table), f.name) == low + step
+    n = _LISTS.get(kind)
+    one = float if n else kind  # each number of a list is checked as a number
+
+    def value(x):  # turns hold a 0 (the hole itself) and the value
+        return (0.0, x) if kind is ANGLES else (x,) * n if n else x
+
+    on_bound = MINIMAL + f"[{table}]\n{f.name} = {_toml(value(one(low)))}\n"
+    below = MINIMAL + f"[{table}]\n{f.name} = {_toml(value(one(low) - step))}\n"
+    above = MINIMAL + f"[{table}]\n{f.name} = {_toml(value(one(low) + step))}\n"
+    read = getattr(getattr(load_scene(_write(tmp_path, above)), table), f.name)
+    assert read == value(low + step)
     assert _error(tmp_path, below).startswith(f"{table}.{f.name}: must be ")
     if spec.exclusive_min:
-        assert _error(tmp_path, on_bound) == f"{table}.{f.name}: must be > {low}, got {kind(low)!r}"
+        assert _error(tmp_path, on_bound) == f"{table}.{f.name}: must be > {low}, got {one(low)!r}"
     else:
-        assert getattr(getattr(load_scene(_write(tmp_path, on_bound)), table), f.name) == low
+        read = getattr(getattr(load_scene(_write(tmp_path, on_bound)), table), f.name)
+        assert read == value(low)
 
 
 @pytest.mark.parametrize(

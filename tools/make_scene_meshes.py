@@ -69,10 +69,10 @@ SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
     "cell_aa.stl": lambda: catalogue.cell(*catalogue.CELLS["AA"]),
     # M3 / M4 hardware, catalogue sizes (mm): scenes/m3-vs-m4.toml
     # ISO 4032 hex nuts: across flats, thickness (m max), bore = nominal thread diameter
-    "nut_m3.stl": lambda: shapes.hex_nut(across_flats=5.5, thickness=2.4, bore=3.0),
-    "nut_m4.stl": lambda: shapes.hex_nut(across_flats=7.0, thickness=3.2, bore=4.0),
+    "nut_m3.stl": lambda: catalogue.hex_nut(across_flats=5.5, thickness=2.4, bore=3.0),
+    "nut_m4.stl": lambda: catalogue.hex_nut(across_flats=7.0, thickness=3.2, bore=4.0),
     # ISO 7089 plain washer, size 3: outer diameter, inner diameter, thickness
-    "washer_m3.stl": lambda: shapes.washer(outer=7.0, inner=3.2, thickness=0.5),
+    "washer_m3.stl": lambda: catalogue.washer(outer=7.0, inner=3.2, thickness=0.5),
 }
 
 

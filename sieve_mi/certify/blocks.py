@@ -28,6 +28,7 @@ __all__ = [
     "on_sheet",
     "printed_hole",
     "prove_margin",
+    "sheet_holes",
 ]
 
 #: The margin bisection after a proof gets at most this many times the proof's time ...
@@ -137,6 +138,7 @@ def certify_blocks(
     progress: Callable[[str], None] | None = None,
     workers: int | None = None,
     found: np.ndarray | None = None,
+    pattern=None,
 ) -> list[Certification | None]:
     """Try to prove, for every B the verdict found blocked, that it cannot pass in any pose.
 
@@ -161,6 +163,9 @@ def certify_blocks(
     found : (n,) ndarray, optional
         Per B, the protrusion of the best pose found (scene units): the upper end of the margin
         bisection that follows a proof (:func:`prove_margin`, within the same budget).
+    pattern : sieve_mi.geometry.pattern.Pattern, optional
+        The perforated sheet ``hole`` is repeated on (:func:`sheet_holes`): a B of several bodies
+        is proved against the copies within its reach, and every slab-section proof is.
 
     Returns
     -------
@@ -168,12 +173,14 @@ def certify_blocks(
         Per B, its certification, or None where the verdict already let it through.
     """
     todo = [j for j, b in enumerate(blocked) if b]
-    contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
     budget = Budgets(scene.verdict.certify_budget, scene.verdict.section_budget,
                      scene.fabrication.thickness, scene.fabrication.min_thickness)  # fmt: skip
     out: list[Certification | None] = [None] * len(block_shapes)
     tops = [None if found is None else float(found[j]) for j in todo]
-    for j, c in _proofs([block_shapes[j] for j in todo], contours, budget, workers, tops):
+    merged = pattern is not None and 2.0 * scene.fabrication.block_margin >= pattern.least_gap
+    holes = [sheet_holes(hole, block_shapes[j], pattern, tops[k], merged)
+             for k, j in enumerate(todo)]  # fmt: skip
+    for j, c in _proofs([block_shapes[j] for j in todo], holes, budget, workers, tops):
         out[todo[j]] = c
         if progress is not None:
             progress(f"certify {block_shapes[todo[j]].name}: {c.status} ({c.seconds:.1f} s, "
@@ -203,43 +210,109 @@ class Budgets(NamedTuple):
     low: float
 
 
-def _proofs(shapes: list[Shape], contours: list, budget_s: Budgets, workers, tops: list):
+def sheet_holes(hole, shape: Shape, pattern, found: float | None = None,
+                merged: bool = False) -> tuple:  # fmt: skip
+    """The holes one B's proofs are against: (straight, section), each a list of contours.
+
+    On a single hole both are ``hole``. On a perforated sheet (``pattern``), a B of one body is
+    proved straight against ``hole`` (its projection is connected, so it fits the copies' union
+    iff it fits one copy: :mod:`sieve_mi.geometry.pattern`), a B of several bodies against the
+    copies within its reach (:meth:`~sieve_mi.geometry.pattern.Pattern.window` of its diameter,
+    plus twice ``found`` for the margin bisection's grown holes), and every slab-section proof
+    against the copies within its diameter (a section of a connected B may fall apart), except
+    for a convex solid (:func:`~sieve_mi.geometry.meshes.convex_solid`: its sections are convex,
+    so connected, and one copy decides them). ``section`` is None where it is ``straight``.
+
+    Parameters
+    ----------
+    hole : manifold3d.CrossSection
+        :func:`printed_hole` (H grown by the block margin).
+    shape : Shape
+    pattern : Pattern or None
+    found : float, optional
+        The protrusion of B's best pose found, scene units.
+    merged : bool
+        Whether ``hole``'s copies may meet (a block margin of at least half the web): then a B
+        of one body is proved straight against the copies within its reach too.
+    """
+    from sieve_mi.geometry.meshes import bodies, convex_solid
+    from sieve_mi.geometry.plate import diameter
+
+    def contours(section) -> list:
+        return [np.asarray(c, dtype=np.float64) for c in section.to_polygons()]
+
+    if pattern is None:
+        return contours(hole), None
+    d = diameter(shape.hull)
+    # a convex solid's slab sections are convex, hence connected: one copy decides them too
+    window = None if convex_solid(shape) else contours(pattern.window(d, hole))
+    if merged or bodies(shape) > 1:
+        return contours(pattern.window(d + 2.0 * max(found or 0.0, 0.0), hole)), window
+    return contours(hole), window
+
+
+def _proofs(shapes: list[Shape], holes: list, budget_s: Budgets, workers, tops: list):
     """Yield ``(index, Certification)`` for each shape as its proof ends (forked workers)."""
     n = max(1, min(len(shapes), workers or os.cpu_count() or 1))
     if n == 1:
         for j, shape in enumerate(shapes):
-            yield j, _prove(shape, contours, budget_s, tops[j])
+            yield j, _prove(shape, holes[j], budget_s, tops[j])
         return
     with worker_pool(n, what="certify") as pool:
         jobs = {
-            pool.submit(_prove, shape, contours, budget_s, tops[j]): j
+            pool.submit(_prove, shape, holes[j], budget_s, tops[j]): j
             for j, shape in enumerate(shapes)
         }
         for job in as_completed(jobs):
             yield jobs[job], job.result()
 
 
-def _prove(shape: Shape, contours: list, budget: Budgets, found: float | None) -> Certification:
+def _prove(shape: Shape, holes: tuple, budget: Budgets, found: float | None) -> Certification:
     """Worker: certify one shape against the hole given by its contours, then bracket its
     margin (:func:`prove_margin`) with what is left of the budget, but at most
     :data:`MARGIN_FACTOR` times the proof's own time (at least :data:`MARGIN_MIN_S`): a step
     that takes much longer than the proof is near the true margin and would mostly end
     undecided. A proof by cells then gets the slab-section proofs of the plate
     (:func:`sieve_mi.certify.thinnest_proved`, or :func:`~sieve_mi.certify.thin_plate_proof` at a
-    given thickness)."""
-    from sieve_mi.certify import certify, thin_plate_proof, thinnest_proved
+    given thickness). ``holes``: the straight proof's and the section proofs' contours
+    (:func:`sieve_mi.certify.blocks.sheet_holes`; None: the same)."""
+    from sieve_mi.certify import thin_plate_proof, thinnest_proved
 
-    hole = manifold3d.CrossSection(contours)
+    hole = manifold3d.CrossSection(holes[0])
+    section = hole if holes[1] is None else manifold3d.CrossSection(holes[1])
+    c = _straight(shape, hole, budget, found)
+    if c.status != "proved" or c.method != "cells":
+        return c
+    if budget.thickness in (None, "thinnest"):
+        c = thinnest_proved(c, shape, [section], budget.low, budget.section_s)
+    elif isinstance(budget.thickness, float | int) and budget.thickness < (c.diameter or 0.0):
+        c = thin_plate_proof(c, shape, [section], float(budget.thickness), budget.section_s)
+    return c if holes[1] is None else _against_sheet(c, holes[1])
+
+
+def _against_sheet(c: Certification, contours: list) -> Certification:
+    """A certification whose section proofs were against a sheet's copies: its certificate's
+    ``section`` carries them as ``hole`` (the replay re-proves it against them), and report.json's
+    ``section`` says how many contours they have."""
+    if c.section is not None:
+        c.section = {**c.section, "sheet_contours": len(contours)}
+    entry = (c.certificate or {}).get("section")
+    if entry is not None:
+        c.certificate = {
+            **c.certificate,
+            "section": {**entry, "hole": [x.tolist() for x in contours]},
+        }
+    return c
+
+
+def _straight(shape: Shape, hole, budget: Budgets, found: float | None) -> Certification:
+    """The straight proof against ``hole`` and its margin bisection (:func:`_prove`)."""
+    from sieve_mi.certify import certify
+
     c = certify(shape, [hole], budget_s=budget.proof_s)
     if c.status == "proved":
         spare = min(budget.proof_s - c.seconds, max(MARGIN_MIN_S, MARGIN_FACTOR * c.seconds))
         c.margin, c.margin_certificate, c.margin_steps = prove_margin(shape, hole, found, spare)
-    if c.status != "proved" or c.method != "cells":
-        return c
-    if budget.thickness in (None, "thinnest"):
-        return thinnest_proved(c, shape, [hole], budget.low, budget.section_s)
-    if isinstance(budget.thickness, float | int) and budget.thickness < (c.diameter or 0.0):
-        return thin_plate_proof(c, shape, [hole], float(budget.thickness), budget.section_s)
     return c
 
 

@@ -23,15 +23,8 @@ Certificate format (``"format": "sieve-mi-certificate/1"``; lengths in scene uni
   only; certificates without ``bound`` were written before the first-order bound and mean this).
 * ``status`` and ``passage`` (quaternion, translation) as found: the answer for *straight*
   passage (the shape translated along the hole's axis), the paper's model.
-* ``plate`` (certificates written since "Thin plates, proved"; older ones have none): what that
-  answer covers. ``diameter``: the stored mesh's diameter; ``holds_for``: ``"any plate"`` (a
-  ball proof, or a straight passage, which passes a plate of any thickness),
-  ``"plates at least the diameter thick"`` (a cell-tree proof: a plate at least that thick holds
-  the whole shape inside the hole's prism at some moment, so its projection would have to fit;
-  on a thinner plate a tilted passage is not excluded) or null (undecided: nothing is claimed);
-  ``thickness``: the plate's thickness the run was asked about (scene units), or null (an outline
-  without a plate, or a plate whose thickness could not be measured). The replay recomputes the
-  diameter and rejects a ``holds_for`` that the evidence does not give.
+* ``plate``: what that answer covers: ``diameter``, ``holds_for`` (:data:`ANY_PLATE`,
+  :data:`THICK_PLATES`, :data:`SECTION_PLATES` or null), the asked ``thickness``; the replay recomputes the diameter and rejects a ``holds_for`` the evidence does not give.
 """
 
 from __future__ import annotations

@@ -385,7 +385,10 @@ def _run_checks(cert: dict) -> Replay:
     if cert.get("section") is not None:
         from sieve_mi.certify.replay_section import SectionReplay
 
-        s = SectionReplay(cert["section"], r.vertices, r.faces, r.hole)
+        own = cert["section"].get("hole")  # a perforated sheet's copies within reach
+        s = SectionReplay(
+            cert["section"], r.vertices, r.faces, r.hole if own is None else Hole(own)
+        )
         r.section = s.thickness if s.run() else None
         r.errors += s.errors
         if r.section is None and not s.errors:

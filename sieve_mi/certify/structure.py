@@ -145,6 +145,11 @@ def _check_section(section, n_vertices: int, where: str) -> None:
     if not isinstance(refs, list) or len(refs) != len(section["points"]):
         raise SieveError(f"{where}: section.on_edge must be a list, one entry per point")
     _check_on_edge(refs, n_vertices, where, "section.on_edge")
+    for i, c in enumerate(section.get("hole") or []):  # a sheet's copies (absent: the hole)
+        if len(_numbers(c, f"section.hole[{i}]", (-1, 2), where)) < 3:
+            raise SieveError(f"{where}: section.hole[{i}]: a contour needs at least 3 points")
+    if "hole" in section and not section["hole"]:
+        raise SieveError(f"{where}: section.hole: no contour")
     if not isinstance(section.get("tree"), list) or len(section["tree"]) != 6:
         raise SieveError(f"{where}: section.tree must be a list of 6 nodes (the cube's faces)")
 

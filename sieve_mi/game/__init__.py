@@ -45,6 +45,10 @@ fit
     ``check``'s fit scale: the largest scale that passes, grown exactly and probed by attacks.
 check_settings
     The settings of ``sieve-mi check`` (its search, how it reads its inputs), declared once.
+feasible
+    Feasibility before the search: a B that fits inside a grown A cannot be blocked (proved).
+window
+    The turning window: ``[fabrication] window``, given or bisected against the verdict.
 """
 
 __all__ = [

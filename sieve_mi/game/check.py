@@ -127,6 +127,7 @@ def attempt(
     settings: CheckSettings,
     s: float,
     outlines: list[manifold3d.CrossSection] | None = None,
+    indices: list[int] | None = None,
     *,
     memory: AttackMemory | None = None,
     probe: bool = False,
@@ -143,8 +144,9 @@ def attempt(
     s : float
         The shape's scale.
     outlines : list of manifold3d.CrossSection, optional
-        The holes' exact polygons (a plate): they decide. None for a hole image, whose pixels
-        decide.
+        The holes' exact polygons (a plate): they decide. None for a hole image (pixels decide).
+    indices : list of int, optional
+        The plate's hole numbers ``outlines`` have, for the report (default their order).
     memory : AttackMemory, optional
         Poses remembered from earlier attempts (the fit-scale probes): the first starts begin
         there, and the memory is updated.
@@ -184,6 +186,7 @@ def attempt(
         best = exact_rescore(att, [b], hole, reach=reach, least_margin=not probe)
         row, fits = 0, int(att.fits.sum())
         k = _hole_of(best.trans[0, 0], outlines)
+        k = k if indices is None else int(indices[k])
     v = ShapeCheck(
         scale=float(s),
         passes=bool(best.beta[row, 0] == 0),
@@ -270,12 +273,13 @@ def check(
     t0 = time.perf_counter()
     given = _sieve_holes(shape, sieve, image, axis, pixel_size, units, settings)
     holes, outlines, centre = given.holes, given.outlines, given.centre
+    played, drawn = _played(given)
     # Poses are reported in the sieve's own coordinates.
     evaluations: list[ShapeCheck] = []
     memory = AttackMemory.for_starts(1, probe_starts(settings.starts))  # the probes start there
 
     def evaluate(s: float, probe: bool = True) -> ShapeCheck:
-        v = attempt(shape, holes, settings, s, outlines, memory=memory, probe=probe)
+        v = attempt(shape, holes, settings, s, drawn, played, memory=memory, probe=probe)
         v.translation = [v.translation[0] + float(centre[0]), v.translation[1] + float(centre[1])]
         evaluations.append(v)
         if progress:
@@ -478,3 +482,12 @@ def as_shape(part) -> Shape:
         )
     name = part.metadata.get("name") if isinstance(part.metadata, dict) else None
     return shape_from_trimesh(part, name=name if isinstance(name, str) and name else "part")
+
+
+def _played(given: SieveHoles) -> tuple:
+    """The indices of the plate's holes that are played (one of each group of translates: a
+    sheet's copies, :func:`sieve_mi.geometry.sieve.distinct_holes`) and their outlines (None
+    for an image)."""
+    outlines = given.outlines
+    played = given.played if given.played is not None else list(range(len(outlines or ())))
+    return played, (None if outlines is None else [outlines[k] for k in played])

@@ -14,18 +14,26 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
 
-from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.meshes import Shape, bodies
 from sieve_mi.geometry.plate import safe_thickness
 from sieve_mi.motion import each_thin_plate
+from sieve_mi.motion.thin import SAFE_ARGUMENT
 from sieve_mi.progress import Progress
 from sieve_mi.scene import Scene
 
-__all__ = ["Sheet", "passage_bracket", "plate_sheet", "proof_thickness", "proved_thickness"]
+__all__ = [
+    "Sheet",
+    "not_covered",
+    "passage_bracket",
+    "plate_sheet",
+    "proof_thickness",
+    "proved_thickness",
+]
 
 #: Bisection steps of ``thickness = "thinnest"`` (the bracket shrinks 2^-steps of the safe value).
 THINNEST_STEPS = 6
@@ -233,18 +241,41 @@ def plate_sheet(
                          _sections(certified, len(blocks)), progress)  # fmt: skip
     if given == "thinnest" and todo:
         thickness, per, steps = _thinnest(searches, max(low, safe), progress)
-        per = per or searches.at(max(low, safe), search=False)
+        per = not_covered(
+            scene, blocks, per or searches.at(max(low, safe), search=False), certified
+        )
         return Sheet(thickness, safe, "thinnest", per, steps)
     thickness = max(low, safe) if given in (None, "thinnest") else float(given)
     if thickness < safe and todo:
         _say(progress, f"thin plate {thickness:g}: motion search for {len(todo)} B, "
                        f"up to {scene.verdict.thin_budget:g} s each")  # fmt: skip
-    per = searches.at(thickness, search=thickness < safe)
+    per = not_covered(scene, blocks, searches.at(thickness, search=thickness < safe), certified)
     if given is not None:
         return Sheet(thickness, safe, "given", per)
     return Sheet(
         thickness, safe, "safe", per, bracket=passage_bracket(searches, certified, low, progress)
     )
+
+
+def not_covered(scene: Scene, blocks: list, per: list, certified: list | None) -> list:
+    """``per`` with "safe by its diameter" made "not covered" for each B of several bodies on a
+    perforated sheet (``[fabrication] pattern``) whose straight proof (against the copies within
+    its reach, :func:`sieve_mi.certify.blocks.sheet_holes`) is missing: the diameter argument
+    rests on the straight verdict, and that is against one hole, which such a B's bodies need
+    not share (docs/fabrication.md, "A perforated sheet")."""
+    if scene.fabrication.pattern == "single":
+        return per
+    proofs = certified or [None] * len(blocks)
+    out = list(per)
+    for j, t in enumerate(per):
+        proved = proofs[j] is not None and proofs[j].straight == "proved"
+        if t is None or t.status != "safe" or t.argument != SAFE_ARGUMENT or proved:
+            continue
+        if bodies(blocks[j]) > 1:
+            out[j] = replace(t, status="not covered", note=(
+                f"{blocks[j].name} has {bodies(blocks[j])} separate bodies and no proof against "
+                "the sheet's holes within its reach: its verdict is against one hole"))  # fmt: skip
+    return out
 
 
 def _gaps(searches: _Searches, certified: list | None, low: float) -> dict:

@@ -460,6 +460,7 @@ def _certify(scene, passes, blocks, quats, v, progress: bool, proved=()) -> list
     A passage found through the exact hole overrules the verdict: it is added to ``v.warnings``.
     """
     from sieve_mi.certify.blocks import certify_blocks, printed_hole
+    from sieve_mi.geometry.pattern import from_settings
 
     todo = v.attack.blocked()[0] & ~np.isin(np.arange(len(blocks)), list(proved))
     bar = _certify_bar(scene, int(todo.sum()), progress)
@@ -471,7 +472,8 @@ def _certify(scene, passes, blocks, quats, v, progress: bool, proved=()) -> list
 
     found = v.attack.protrusion[0]
     hole = printed_hole(scene, passes, quats, v.trans)
-    certified = certify_blocks(scene, hole, blocks, todo, say, found=found)
+    sheet = from_settings(v.outline, scene.fabrication, scene.units)  # None: one hole
+    certified = certify_blocks(scene, hole, blocks, todo, say, found=found, pattern=sheet)
     bar.close()
     for shape, c in zip(blocks, certified):
         if c is not None and c.status == "passage":

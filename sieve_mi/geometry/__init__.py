@@ -8,6 +8,9 @@ meshes
     Reading meshes into :class:`~sieve_mi.geometry.meshes.Shape` (vertices, faces, radius).
 plate
     The plate as solid geometry: B's diameter (the safe thickness), an exact convex decomposition.
+pattern
+    A perforated sheet: copies of the hole on a square or hexagonal lattice, the web between
+    them checked exactly, and the copies within a shape's reach for the proofs.
 pixels
     A raster image's physical pixel size: PNG's ``pHYs`` chunk, written and read.
 raster
@@ -35,6 +38,8 @@ bodies
     What the exact containment rules need of a shape (hull, axes, inscribed ball, convexity).
 containment
     The least growth of one shape's hull that holds another (the feasibility test's proof).
+window
+    The turning window's hole: every A at each turn within ±δ, with a chord bound.
 """
 
 __all__ = [

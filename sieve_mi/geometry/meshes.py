@@ -17,8 +17,11 @@ import numpy as np
 from sieve_mi.errors import SieveError
 
 __all__ = [
+    "CONVEX_SLACK",
     "Segments",
     "Shape",
+    "bodies",
+    "convex_solid",
     "edge_length",
     "edge_topology",
     "load_shape",
@@ -217,6 +220,75 @@ def shape_from_arrays(
         radius=radius,
         hull=_hull_vertices(v[used]),
     )
+
+
+def bodies(shape: Shape) -> int:
+    """How many separate bodies a shape's mesh has: groups of triangles joined by shared
+    vertices (welded at identical positions when loaded).
+
+    One body is a connected set, so every projection of it is connected (what a perforated
+    sheet's argument needs, :mod:`sieve_mi.geometry.pattern`). Several bodies may still touch or
+    overlap in space; counting them as separate only makes a claim more cautious.
+
+    Examples
+    --------
+    >>> import trimesh
+    >>> two = trimesh.util.concatenate([trimesh.creation.box((1, 1, 1)),
+    ...                                 trimesh.creation.box((1, 1, 1)).apply_translation((3, 0, 0))])
+    >>> bodies(shape_from_trimesh(two, name="two")), bodies(shape_from_trimesh(
+    ...     trimesh.creation.box((1, 1, 1)), name="one"))
+    (2, 1)
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    f = np.asarray(shape.faces, dtype=np.int64)
+    n = len(shape.vertices)
+    rows = np.concatenate([f[:, 0], f[:, 1]])
+    cols = np.concatenate([f[:, 1], f[:, 2]])
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    return int(len(np.unique(labels[np.unique(f)])))
+
+
+#: :func:`convex_solid`'s tolerance: distances to the hull's planes within this fraction of the
+#: shape's radius, and areas within this fraction, count as equal (float rounding of a mesh).
+CONVEX_SLACK = 1e-9
+
+
+def convex_solid(shape: Shape) -> bool:
+    """Whether the shape's surface is the boundary of its convex hull (so the solid is convex).
+
+    Every triangle must lie in the hull's boundary (its corners and centroid on a hull facet's
+    plane, within :data:`CONVEX_SLACK` of the radius) and the triangles' area must be the hull's:
+    a surface inside the boundary of a convex body with all of its area is that boundary. Then
+    every slab section of the solid is convex, hence connected (what a perforated sheet's section
+    proofs need, :mod:`sieve_mi.geometry.pattern`). A flat or degenerate shape is not.
+
+    Examples
+    --------
+    >>> import trimesh
+    >>> convex_solid(shape_from_trimesh(trimesh.creation.box((1, 2, 3)), name="box"))
+    True
+    >>> convex_solid(shape_from_trimesh(trimesh.creation.torus(10, 1), name="ring"))
+    False
+    """
+    from scipy.spatial import ConvexHull
+
+    try:
+        hull = ConvexHull(shape.vertices)
+    except Exception:  # flat or degenerate: no solid hull
+        return False
+    eps = CONVEX_SLACK * max(shape.radius, 1e-300)
+    tri = shape.vertices[shape.faces]
+    points = np.concatenate([tri.reshape(-1, 3), tri.mean(axis=1)])
+    plane = hull.equations[:, :3] @ points.T + hull.equations[:, 3:4]  # (facets, points), <= 0
+    if not np.all(np.abs(plane.max(axis=0)) <= eps):
+        return False
+    area = (
+        0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    )
+    return bool(abs(area - hull.area) <= CONVEX_SLACK * hull.area)
 
 
 def _hull_vertices(points: np.ndarray) -> np.ndarray:

@@ -47,9 +47,11 @@ from sieve_mi.geometry.raster import Frame
 __all__ = [
     "AREA_TOLERANCE",
     "AXIS_INDEX",
+    "SAME_HOLE",
     "PlateReading",
     "SieveHoles",
     "axis_frame",
+    "distinct_holes",
     "frame_for_polygons",
     "full_slab",
     "plate_holes",
@@ -460,6 +462,9 @@ class SieveHoles:
         The plate's slab and mesh; None for an image.
     mask : (N, N) bool ndarray or None
         An image's hole pixels on :attr:`frame`; None for a plate.
+    played : list of int or None
+        A plate's holes that :attr:`holes` draws, one per group of translates
+        (:func:`distinct_holes`); None: every hole (an image).
     """
 
     source: str
@@ -470,6 +475,7 @@ class SieveHoles:
     outlines: list | None = None
     plate: PlateReading | None = None
     mask: np.ndarray | None = None
+    played: list | None = None
 
 
 def frame_for_polygons(
@@ -512,11 +518,60 @@ def read_plate_holes(path: str, axis: str, resolution: int) -> SieveHoles:
         A plate with no through-hole, or whose thickness cannot be measured (:func:`read_plate`).
     """
     plate = read_plate(path, axis)  # the plate's holes and thickness, read once
-    frame, centre = frame_for_polygons(plate.holes, resolution)
+    played = distinct_holes(plate.holes)
+    frame, centre = frame_for_polygons([plate.holes[k] for k in played], resolution)
     info = []
     for o in plate.holes:
         lo, hi = np.asarray(o.bounds()[:2]), np.asarray(o.bounds()[2:])
         info.append({"area": float(o.area()), "centre": [float(c) for c in (lo + hi) / 2]})
     outlines = [o.translate([-centre[0], -centre[1]]) for o in plate.holes]
-    holes = [Hole.from_outline(o, frame) for o in outlines]
-    return SieveHoles(path, holes, frame, centre, info, outlines=outlines, plate=plate)
+    holes = [Hole.from_outline(outlines[k], frame) for k in played]
+    return SieveHoles(path, holes, frame, centre, info, outlines=outlines, plate=plate,
+                      played=played)  # fmt: skip
+
+
+#: Relative difference (areas, sizes, symmetric difference) within which two holes of a plate
+#: count as translates of each other (:func:`distinct_holes`).
+SAME_HOLE = 1e-4
+
+
+def distinct_holes(holes: list) -> list[int]:
+    """The index of one hole of each group of holes that are translates of one another (the
+    first of each group, in the order given).
+
+    A perforated sheet's copies of one hole are: a part of one body fits their union iff it fits
+    one of them (its projection is connected; :mod:`sieve_mi.geometry.pattern`), so ``check``
+    plays one per group, on a frame around those alone (finer pixels than one around the sheet).
+    Two holes are translates when their areas and bounding-box sizes agree and, moved onto each
+    other's bounding-box corner, their symmetric difference is at most :data:`SAME_HOLE` of the
+    area (a plate file's float32 coordinates round a copy by about 1e-7 of the plate's size).
+
+    Parameters
+    ----------
+    holes : list of manifold3d.CrossSection
+
+    Returns
+    -------
+    list of int
+    """
+    kept: list[int] = []
+    for k, h in enumerate(holes):
+        b = np.asarray(h.bounds(), dtype=np.float64)
+        if not any(_translate_of(h, b, holes[j]) for j in kept):
+            kept.append(k)
+    return kept
+
+
+def _translate_of(
+    h: manifold3d.CrossSection, b: np.ndarray, other: manifold3d.CrossSection
+) -> bool:
+    """Whether ``other`` is ``h`` (bounds ``b``) moved, up to :data:`SAME_HOLE`."""
+    c = np.asarray(other.bounds(), dtype=np.float64)
+    area = float(h.area())
+    size = max(float(np.ptp(b.reshape(2, 2), axis=0).max()), 1e-300)
+    if abs(area - other.area()) > SAME_HOLE * area:
+        return False
+    if np.abs((b[2:] - b[:2]) - (c[2:] - c[:2])).max() > SAME_HOLE * size:
+        return False
+    moved = other.translate([float(b[0] - c[0]), float(b[1] - c[1])])
+    return (h - moved).area() + (moved - h).area() <= SAME_HOLE * area

@@ -76,7 +76,9 @@ class ThinPlate:
     name : str
     thickness, diameter : float
         Scene units.
-    status : {"safe", "passage", "no passage found"}
+    status : {"safe", "passage", "no passage found", "not covered"}
+        ``"not covered"``: the argument behind "safe" does not reach this plate (a B of several
+        bodies on a perforated sheet, its verdict against one hole; ``note`` says why).
     poses : (k, 7) float
         A found motion: rows (w, x, y, z, tx, ty, tz), the shape's rotation about its centre and
         the centre's position (plate top at z = 0, hole in the xy-plane); empty otherwise.
@@ -126,6 +128,9 @@ class ThinPlate:
             "status": self.status,
             "diameter": self.diameter,
         }
+        if self.status == "not covered":
+            out["note"] = self.note
+            return out
         if self.status == "safe":
             by = {BALL_ARGUMENT: "ball", SECTION_ARGUMENT: "section"}
             out["by"] = by.get(self.argument, "diameter")

@@ -23,6 +23,7 @@ __all__ = [
     "margin_lines",
     "memory_line",
     "merge_hint",
+    "pattern_line",
     "section_line",
     "sheet_line",
     "stage_line",
@@ -79,6 +80,9 @@ def summary_table(report: dict) -> str:
     plate = sheet_line(report)
     if plate:
         lines.append(plate)
+    perforated = pattern_line(report)
+    if perforated:
+        lines.append(perforated)
     hint = merge_hint(report)
     if hint:
         lines.append(hint)
@@ -137,6 +141,22 @@ def stage_line(timings: dict) -> str:
     """``time: 12.3 s = search 4.1 + verdict 3.2 + ...`` from report.json's timings."""
     parts = [f"{label} {timings[key]:.1f}" for key, label in STAGES if timings.get(key, 0) >= 0.05]
     return f"time: {timings['total_s']:.1f} s = " + " + ".join(parts) + " s"
+
+
+def pattern_line(report: dict) -> str | None:
+    """``sheet: hex, 68 holes on 100 x 100 mm (pitch 11.2 mm, web >= 1.2 mm), 53.3 % open`` from
+    report.json's ``fabrication.pattern``; None for a single hole."""
+    p = report.get("fabrication", {}).get("pattern")
+    if p is None:
+        return None
+    u = report["units"]
+    w, h = p["plate_size"]
+    turns = (
+        "" if len(p["turns"]) < 2 else ", turned " + "/".join(f"{t:g}" for t in p["turns"]) + "°"
+    )
+    return (f"sheet: {p['kind']}, {p['count']} holes on {w:g} x {h:g} {u} (pitch "
+            f"{p['pitch'][0]:.4g} {u}, web >= {p['web']:g} {u}{turns}), "
+            f"{100 * p['open_fraction']:.1f} % open")  # fmt: skip
 
 
 def sheet_line(report: dict) -> str | None:
@@ -199,6 +219,8 @@ def _thin_cell(block: dict) -> str:
         return "-"
     if t["status"] == "safe":
         return f"safe ({t.get('by', 'diameter')})"
+    if t["status"] == "not covered":  # a B of several bodies on a perforated sheet
+        return "not covered (several bodies)"
     return f"{t['status']} ({t['seconds']:.1f} s)"
 
 

@@ -21,6 +21,7 @@ import trimesh
 
 from sieve_mi.geometry.meshes import Shape
 from sieve_mi.geometry.outline import placed_vertices, raster_agreement
+from sieve_mi.geometry.pattern import Pattern, from_settings
 from sieve_mi.geometry.plate import safe_thickness
 
 __all__ = [
@@ -34,6 +35,8 @@ __all__ = [
     "plate_files",
     "plate_thickness",
     "shape_mesh",
+    "sheet",
+    "sheet_warnings",
     "to_trimesh",
     "write_3mf",
     "write_objects_3mf",
@@ -115,20 +118,74 @@ def plate(
         [0.0, 0.0, -thickness - 1.0]
     )
     body = block - cut
-    warnings = []
-    if required_thickness is not None and thickness < required_thickness - 1e-9:
-        warnings.append(
-            f"plate thickness {thickness:g} is less than the thinnest proved plate "
-            f"{required_thickness:g}: blocks on it rest on a motion search (thin_plate in "
-            "report.json), not on a proof; use at least that thickness for a guaranteed block"
-        )
     return Plate(
         mesh=to_trimesh(body),
         outline=outline,
         thickness=float(thickness),
         border=float(border),
-        warnings=warnings,
+        warnings=_thin_warnings(thickness, required_thickness),
     )
+
+
+def _thin_warnings(thickness: float, required_thickness: float | None) -> list[str]:
+    """The warning of a plate thinner than the thinnest proved one (none otherwise)."""
+    if required_thickness is None or thickness >= required_thickness - 1e-9:
+        return []
+    return [
+        f"plate thickness {thickness:g} is less than the thinnest proved plate "
+        f"{required_thickness:g}: blocks on it rest on a motion search (thin_plate in "
+        "report.json), not on a proof; use at least that thickness for a guaranteed block"
+    ]
+
+
+def sheet(pattern: Pattern, thickness: float, *, required_thickness: float | None = None) -> Plate:
+    """A perforated sheet: the plate of ``pattern`` (its size) with every copy of H cut through.
+
+    Parameters
+    ----------
+    pattern : Pattern
+        From :func:`sieve_mi.geometry.pattern.lay_out`: the copies and the plate's corners.
+    thickness : float
+        Scene units (z from -thickness to 0).
+    required_thickness : float, optional
+        As :func:`plate`.
+
+    Returns
+    -------
+    Plate
+        ``outline`` is H (one copy, the one at H's own place); ``border`` the least material
+        between a copy and the plate's edge.
+    """
+    if thickness <= 0:
+        raise ValueError("thickness must be positive")
+    (x0, y0), (x1, y1) = pattern.plate
+    holes = pattern.holes()
+    block = manifold3d.Manifold.cube([x1 - x0, y1 - y0, thickness]).translate([x0, y0, -thickness])
+    cut = manifold3d.Manifold.extrude(holes, thickness + 2.0).translate(
+        [0.0, 0.0, -thickness - 1.0]
+    )
+    (h0, g0), (h1, g1) = _bounds(holes)
+    border = min(h0 - x0, g0 - y0, x1 - h1, y1 - g1)
+    return Plate(to_trimesh(block - cut), pattern.outline, float(thickness), float(border),
+                 _thin_warnings(thickness, required_thickness))  # fmt: skip
+
+
+def sheet_warnings(shapes: list[Shape]) -> list[str]:
+    """One warning per B of several bodies (:func:`sieve_mi.geometry.meshes.bodies`) on a sheet:
+    its verdict is against one hole, and only a certificate against the copies within its reach
+    covers the sheet (docs/fabrication.md, "A perforated sheet")."""
+    from sieve_mi.geometry.meshes import bodies
+
+    out = []
+    for s in shapes:
+        n = bodies(s)
+        if n > 1:
+            out.append(
+                f"{s.name} has {n} separate bodies: on the perforated sheet they could use "
+                "different holes; its verdict is against one hole, and only its certificate "
+                "(against the union of the holes within its reach) covers the sheet"
+            )
+    return out
 
 
 def _bounds(section: manifold3d.CrossSection) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -277,12 +334,20 @@ def plate_files(result, out_dir: str) -> tuple[dict, tuple]:
     fab = scene.fabrication
     outline = result.outline
     thickness, required = plate_thickness(result)
-    sieve = plate(outline, thickness, fab.border, required_thickness=required)
+    pattern = from_settings(outline, fab, scene.units)
+    if pattern is None:
+        sieve = plate(outline, thickness, fab.border, required_thickness=required)
+    else:
+        sieve = sheet(pattern, thickness, required_thickness=required)
+        sieve.warnings += sheet_warnings(result.block_shapes)
     sieve.mesh.export(os.path.join(out_dir, "sieve.stl"))
     write_3mf(
         os.path.join(out_dir, "sieve.3mf"), sieve.mesh, UNIT_NAMES.get(scene.units, "millimeter")
     )
     write_svg(os.path.join(out_dir, "hole.svg"), outline, scene.units)
+    if pattern is not None:
+        write_svg(os.path.join(out_dir, "sheet.svg"), pattern.holes(), scene.units,
+                  plate=pattern.plate)  # fmt: skip
     lift = 0.25 * thickness
     passes = []
     for i, shape in enumerate(result.pass_shapes):
@@ -296,6 +361,7 @@ def plate_files(result, out_dir: str) -> tuple[dict, tuple]:
         blocks.append(m)
     files = (
         ["sieve.stl", "sieve.3mf", "hole.svg"]
+        + (["sheet.svg"] if pattern is not None else [])
         + [f"pass_{i}.stl" for i in range(len(passes))]
         + [f"block_{j}.stl" for j in range(len(blocks))]
     )
@@ -306,6 +372,7 @@ def plate_files(result, out_dir: str) -> tuple[dict, tuple]:
         **({"sheet": result.sheet.to_dict()} if getattr(result, "sheet", None) is not None else {}),
         **({"window": result.window} if getattr(result, "window", None) else {}),
         "border": sieve.border,
+        **({"pattern": pattern.to_dict()} if pattern is not None else {}),
         "plate_size": [float(x1 - x0), float(y1 - y0), float(z1 - z0)],
         "outline": raster_agreement(outline, result.hole.mask, result.hole.frame),
         "outline_vertices": int(outline.num_vert()),
@@ -385,11 +452,21 @@ def beside_plate(
     return out
 
 
-def write_svg(path: str, outline: manifold3d.CrossSection, units: str = "mm") -> None:
-    """The outline as an SVG path (even-odd fill), 1 user unit = 1 scene unit, +y up."""
-    (x0, y0), (x1, y1) = _bounds(outline)
+def write_svg(
+    path: str, outline: manifold3d.CrossSection, units: str = "mm", *, plate=None
+) -> None:
+    """The outline as an SVG path (even-odd fill), 1 user unit = 1 scene unit, +y up.
+
+    ``plate`` (corners ``[[x0, y0], [x1, y1]]``, scene units), if given, is drawn as a second
+    path, its outline unfilled (a sheet's cutting file: the plate's edge and its holes).
+    """
+    (x0, y0), (x1, y1) = _bounds(outline) if plate is None else np.asarray(plate, float)
     pad = 0.05 * max(x1 - x0, y1 - y0)
     w, h = x1 - x0 + 2 * pad, y1 - y0 + 2 * pad
+    edge = "" if plate is None else (
+        f'<path fill="none" stroke="black" stroke-width="{0.002 * max(w, h):.6g}" '
+        f'd="M {x0:.6g} {-y0:.6g} L {x1:.6g} {-y0:.6g} L {x1:.6g} {-y1:.6g} L {x0:.6g} {-y1:.6g} Z"/>\n'
+    )  # fmt: skip
     d = []
     for c in outline.to_polygons():
         pts = " L ".join(f"{x:.6g} {-y:.6g}" for x, y in np.asarray(c))
@@ -399,5 +476,5 @@ def write_svg(path: str, outline: manifold3d.CrossSection, units: str = "mm") ->
         fh.write(
             f'<svg xmlns="http://www.w3.org/2000/svg" width="{w:.6g}{svg_units}" height="{h:.6g}{svg_units}" '
             f'viewBox="{x0 - pad:.6g} {-(y1 + pad):.6g} {w:.6g} {h:.6g}">\n'
-            f'<path fill="black" fill-rule="evenodd" d="{" ".join(d)}"/>\n</svg>\n'
+            f'<path fill="black" fill-rule="evenodd" d="{" ".join(d)}"/>\n{edge}</svg>\n'
         )

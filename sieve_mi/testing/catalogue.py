@@ -18,9 +18,9 @@ import manifold3d
 import numpy as np
 import trimesh
 
-from sieve_mi.testing.shapes import centred, from_manifold
+from sieve_mi.testing.shapes import centred, check_positive, cross_section, extrude, from_manifold
 
-__all__ = ["BRICK", "CELLS", "brick", "cell"]
+__all__ = ["BRICK", "CELLS", "brick", "cell", "hex_nut", "washer"]
 
 #: LEGO-compatible sizes, mm: stud pitch, the play taken off each body side's length (a 1 x 2
 #: brick is 2 x 8.0 - 0.2 = 15.8 long), the brick body's height, the stud's diameter and height.
@@ -79,3 +79,65 @@ def cell(diameter: float, length: float, sections: int = 96) -> trimesh.Trimesh:
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive finite number (mm), got {value!r}")
     return trimesh.creation.cylinder(radius=diameter / 2.0, height=length, sections=sections)
+
+
+def _ring(radius: float, sections: int, phase: float = 0.0) -> np.ndarray:
+    """A regular polygon (sections, 2) with its vertices on the circle of ``radius``, mm."""
+    angle = phase + 2.0 * np.pi * np.arange(sections) / sections
+    return radius * np.column_stack([np.cos(angle), np.sin(angle)])
+
+
+def hex_nut(
+    across_flats: float, thickness: float, bore: float, sections: int = 48
+) -> trimesh.Trimesh:
+    """A hex nut: a regular hexagonal prism with a round bore along z, centred.
+
+    The thread is left out (the bore is its nominal diameter) and so are the chamfers, which only
+    make a nut smaller: an ISO 4032 M3 nut is ``hex_nut(5.5, 2.4, 3.0)``, M4 ``hex_nut(7.0, 3.2,
+    4.0)`` (maximum across flats and thickness).
+
+    Parameters
+    ----------
+    across_flats : float
+        Width across the hexagon's flats, mm (two flats parallel to the y axis).
+    thickness : float
+        Height along z, mm.
+    bore : float
+        Bore diameter, mm; its polygon of ``sections`` vertices lies on the circle.
+    sections : int
+        Vertices of the bore's polygon.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Closed, volume ``(sqrt(3)/2 across_flats**2 - bore polygon's area) thickness``.
+    """
+    check_positive(across_flats=across_flats, thickness=thickness, bore=bore)
+    if bore >= across_flats:
+        raise ValueError("the bore must be narrower than the nut across its flats")
+    hexagon = _ring(across_flats / np.sqrt(3.0), 6, np.pi / 6.0)
+    return extrude(cross_section([hexagon, _ring(bore / 2.0, sections)]), thickness)
+
+
+def washer(outer: float, inner: float, thickness: float, sections: int = 96) -> trimesh.Trimesh:
+    """A flat washer: an annulus extruded along z, centred (ISO 7089 M3: ``washer(7.0, 3.2,
+    0.5)``).
+
+    Parameters
+    ----------
+    outer, inner : float
+        Outer and inner diameters, mm; both circles are polygons of ``sections`` vertices on them.
+    thickness : float
+        Height along z, mm.
+    sections : int
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Closed, its silhouettes within the ideal washer's outer cylinder.
+    """
+    check_positive(outer=outer, inner=inner, thickness=thickness)
+    if inner >= outer:
+        raise ValueError("the inner diameter must be smaller than the outer one")
+    rings = [_ring(outer / 2.0, sections), _ring(inner / 2.0, sections)]
+    return extrude(cross_section(rings), thickness)

@@ -25,18 +25,17 @@ __all__ = [
     "bowtie_polygon",
     "box",
     "centred",
+    "check_positive",
     "cross_section",
     "cube",
     "extrude",
     "extrude_polygon",
     "from_manifold",
     "glyph_contours",
-    "hex_nut",
     "l_rod",
     "letter",
     "sphere",
     "to_manifold",
-    "washer",
 ]
 
 
@@ -119,7 +118,7 @@ def centred(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     return mesh
 
 
-def _check_positive(**values: float) -> None:
+def check_positive(**values: float) -> None:
     for name, value in values.items():
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive finite number (mm), got {value!r}")
@@ -172,7 +171,7 @@ def extrude(section: manifold3d.CrossSection, depth: float) -> trimesh.Trimesh:
     ValueError
         If ``depth`` is not positive or the region is empty.
     """
-    _check_positive(depth=depth)
+    check_positive(depth=depth)
     if section.is_empty() or section.area() <= 0:
         raise ValueError("cross-section is empty (degenerate or cancelling contours)")
     return centred(from_manifold(manifold3d.Manifold.extrude(section, depth)))
@@ -214,7 +213,7 @@ def box(x: float, y: float, z: float) -> trimesh.Trimesh:
     trimesh.Trimesh
         The box spanning ``[-x/2, x/2] x [-y/2, y/2] x [-z/2, z/2]``.
     """
-    _check_positive(x=x, y=y, z=z)
+    check_positive(x=x, y=y, z=z)
     return centred(from_manifold(manifold3d.Manifold.cube((x, y, z), center=True)))
 
 
@@ -249,7 +248,7 @@ def l_rod(arm: float = 20.0, side: float = 2.0) -> trimesh.Trimesh:
     trimesh.Trimesh
         A closed solid of volume ``(2 arm - side) side²`` (the corner cube counted once).
     """
-    _check_positive(arm=arm, side=side)
+    check_positive(arm=arm, side=side)
     if side >= arm:
         raise ValueError("the arms must be longer than the section's side")
     cube = manifold3d.Manifold.cube
@@ -270,7 +269,7 @@ def coin(diameter: float, thickness: float, sections: int = 96) -> trimesh.Trime
     trimesh.Trimesh
         Closed, with vertices on the circle (so its silhouettes lie within the ideal coin's).
     """
-    _check_positive(diameter=diameter, thickness=thickness)
+    check_positive(diameter=diameter, thickness=thickness)
     return trimesh.creation.cylinder(radius=diameter / 2.0, height=thickness, sections=sections)
 
 
@@ -294,7 +293,7 @@ def sphere(radius: float = 12.0, subdivisions: int = 3) -> trimesh.Trimesh:
     trimesh.Trimesh
         Watertight icosphere centred at the origin.
     """
-    _check_positive(radius=radius)
+    check_positive(radius=radius)
     if int(subdivisions) != subdivisions or subdivisions < 0:
         raise ValueError(f"subdivisions must be a non-negative integer, got {subdivisions!r}")
     mesh = trimesh.creation.icosphere(subdivisions=int(subdivisions), radius=radius)
@@ -308,68 +307,6 @@ def sphere(radius: float = 12.0, subdivisions: int = 3) -> trimesh.Trimesh:
 # --------------------------------------------------------------------------------------------
 # Hardware from catalogue dimensions: hex nuts (ISO 4032) and flat washers (ISO 7089)
 # --------------------------------------------------------------------------------------------
-
-
-def _ring(radius: float, sections: int, phase: float = 0.0) -> np.ndarray:
-    """A regular polygon (sections, 2) with its vertices on the circle of ``radius``, mm."""
-    angle = phase + 2.0 * np.pi * np.arange(sections) / sections
-    return radius * np.column_stack([np.cos(angle), np.sin(angle)])
-
-
-def hex_nut(
-    across_flats: float, thickness: float, bore: float, sections: int = 48
-) -> trimesh.Trimesh:
-    """A hex nut: a regular hexagonal prism with a round bore along z, centred.
-
-    The thread is left out (the bore is its nominal diameter) and so are the chamfers, which only
-    make a nut smaller: an ISO 4032 M3 nut is ``hex_nut(5.5, 2.4, 3.0)``, M4 ``hex_nut(7.0, 3.2,
-    4.0)`` (maximum across flats and thickness).
-
-    Parameters
-    ----------
-    across_flats : float
-        Width across the hexagon's flats, mm (two flats parallel to the y axis).
-    thickness : float
-        Height along z, mm.
-    bore : float
-        Bore diameter, mm; its polygon of ``sections`` vertices lies on the circle.
-    sections : int
-        Vertices of the bore's polygon.
-
-    Returns
-    -------
-    trimesh.Trimesh
-        Closed, volume ``(sqrt(3)/2 across_flats**2 - bore polygon's area) thickness``.
-    """
-    _check_positive(across_flats=across_flats, thickness=thickness, bore=bore)
-    if bore >= across_flats:
-        raise ValueError("the bore must be narrower than the nut across its flats")
-    hexagon = _ring(across_flats / np.sqrt(3.0), 6, np.pi / 6.0)
-    return extrude(cross_section([hexagon, _ring(bore / 2.0, sections)]), thickness)
-
-
-def washer(outer: float, inner: float, thickness: float, sections: int = 96) -> trimesh.Trimesh:
-    """A flat washer: an annulus extruded along z, centred (ISO 7089 M3: ``washer(7.0, 3.2,
-    0.5)``).
-
-    Parameters
-    ----------
-    outer, inner : float
-        Outer and inner diameters, mm; both circles are polygons of ``sections`` vertices on them.
-    thickness : float
-        Height along z, mm.
-    sections : int
-
-    Returns
-    -------
-    trimesh.Trimesh
-        Closed, its silhouettes within the ideal washer's outer cylinder.
-    """
-    _check_positive(outer=outer, inner=inner, thickness=thickness)
-    if inner >= outer:
-        raise ValueError("the inner diameter must be smaller than the outer one")
-    rings = [_ring(outer / 2.0, sections), _ring(inner / 2.0, sections)]
-    return extrude(cross_section(rings), thickness)
 
 
 # --------------------------------------------------------------------------------------------
@@ -394,7 +331,7 @@ def bowtie_polygon(width: float, height: float, waist: float) -> np.ndarray:
     (6, 2) ndarray
         Counter-clockwise vertices; area ``width * (height + waist) / 2``.
     """
-    _check_positive(width=width, height=height, waist=waist)
+    check_positive(width=width, height=height, waist=waist)
     if waist >= height:
         raise ValueError(f"waist ({waist}) must be smaller than height ({height})")
     w, h, s = width / 2, height / 2, waist / 2
@@ -449,7 +386,7 @@ def arch_polygon(width: float, height: float, thickness: float, segments: int = 
     (segments + 5, 2) ndarray
         Counter-clockwise vertices, bottom edge at ``y = 0``.
     """
-    _check_positive(width=width, height=height, thickness=thickness)
+    check_positive(width=width, height=height, thickness=thickness)
     r = width / 2 - thickness
     if r <= 0:
         raise ValueError(
@@ -628,7 +565,7 @@ def letter(
     trimesh.Trimesh
         Watertight solid, bounding-box centred; its genus equals the number of holes of the glyph.
     """
-    _check_positive(height=height, depth=depth)
+    check_positive(height=height, depth=depth)
     contours = glyph_contours(char, font=font, weight=weight, curve_segments=curve_segments)
     lo = min(c[:, 1].min() for c in contours)
     hi = max(c[:, 1].max() for c in contours)

@@ -24,7 +24,7 @@ from sieve_mi.geometry.containment import distance_to_hull, least_growth
 from sieve_mi.geometry.meshes import shape_from_trimesh
 from sieve_mi.outputs.report import report_dict
 from sieve_mi.scene import load_scene
-from sieve_mi.testing import shapes
+from sieve_mi.testing import catalogue, shapes
 from sieve_mi.testing.settings import tiny_solver
 
 SCENES = os.path.join(os.path.dirname(__file__), "..", "..", "scenes")
@@ -120,8 +120,8 @@ def test_end_first_a_square_rod_through_a_cube():
 
 
 def test_only_a_solid_hull_stands_for_a():
-    nut = shape_from_trimesh(shapes.hex_nut(5.5, 2.4, 3.0), name="nut")
-    washer = shape_from_trimesh(shapes.washer(7.0, 3.2, 0.5), name="washer")
+    nut = shape_from_trimesh(catalogue.hex_nut(5.5, 2.4, 3.0), name="nut")
+    washer = shape_from_trimesh(catalogue.washer(7.0, 3.2, 0.5), name="washer")
     rod = shape_from_trimesh(shapes.l_rod(20.0, 2.0), name="L")  # the hull edge across the L
     assert hull_edges_on_surface(nut) and hull_edges_on_surface(washer)
     assert not hull_edges_on_surface(rod)
@@ -130,7 +130,7 @@ def test_only_a_solid_hull_stands_for_a():
 
 
 def test_least_growth_of_a_shape_in_itself_is_zero():
-    nut = shapes.hex_nut(7.0, 3.2, 4.0)
+    nut = catalogue.hex_nut(7.0, 3.2, 4.0)
     pts = np.asarray(trimesh.convex.convex_hull(nut.vertices).vertices)
     frames = [np.eye(3)]
     assert least_growth(pts, pts, frames, frames).grow == pytest.approx(0.0, abs=1e-6)

@@ -16,7 +16,7 @@ import trimesh
 from helpers import REPO
 from scipy.spatial import cKDTree
 
-from sieve_mi.testing import shapes
+from sieve_mi.testing import catalogue, shapes
 
 REPO = REPO
 MESH_DIR = os.path.join(REPO, "scenes", "meshes")
@@ -452,16 +452,16 @@ def test_coin_is_a_regular_prism_with_the_official_sizes():
 def test_hex_nut_and_washer_have_the_catalogue_sizes():
     # ISO 4032 M4: 7 mm across flats (corners 7 / cos 30° = 8.083 mm), 3.2 mm thick, a 4 mm bore
     # (a 48-gon on the circle); ISO 7089 M3 washer: 7 mm outer, 3.2 mm inner, 0.5 mm thick
-    nut = shapes.hex_nut(7.0, 3.2, 4.0)
+    nut = catalogue.hex_nut(7.0, 3.2, 4.0)
     np.testing.assert_allclose(nut.extents, [7.0, 7.0 / np.cos(np.pi / 6), 3.2], atol=1e-9)
     bore = 0.5 * 48 * 2.0**2 * np.sin(2 * np.pi / 48)
     assert nut.volume == pytest.approx((np.sqrt(3) / 2 * 7.0**2 - bore) * 3.2, rel=1e-9)
     assert nut.is_watertight and nut.body_count == 1
-    washer = shapes.washer(7.0, 3.2, 0.5)
+    washer = catalogue.washer(7.0, 3.2, 0.5)
     ring = 0.5 * 96 * (3.5**2 - 1.6**2) * np.sin(2 * np.pi / 96)
     np.testing.assert_allclose(washer.extents, [7.0, 7.0, 0.5], atol=1e-9)
     assert washer.volume == pytest.approx(ring * 0.5, rel=1e-9) and washer.is_watertight
     with pytest.raises(ValueError):
-        shapes.hex_nut(5.5, 2.4, 6.0)  # a bore wider than the flats
+        catalogue.hex_nut(5.5, 2.4, 6.0)  # a bore wider than the flats
     with pytest.raises(ValueError):
-        shapes.washer(3.0, 3.2, 0.5)
+        catalogue.washer(3.0, 3.2, 0.5)
