@@ -154,7 +154,7 @@ def test_a_certify_run_says_each_b_and_quiet_says_nothing(tmp_path, capsys):
     def certify(progress: bool) -> list:
         attack = Attack(np.ones((1, 2)), np.ones((1, 2)), np.tile(identity, (1, 2, 1)),
                         np.zeros((1, 2, 2)), fits=np.zeros((1, 2), int))  # fmt: skip
-        v = SimpleNamespace(attack=attack, trans=np.zeros((1, 2)), warnings=[])
+        v = SimpleNamespace(attack=attack, trans=np.zeros((1, 2)), warnings=[], outline=None)
         return _certify(scene, passes, blocks, identity[None], v, progress)
 
     proofs = certify(True)

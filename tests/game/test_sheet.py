@@ -58,6 +58,16 @@ def test_default_plate_is_the_thinnest_proved(tmp_path):
     assert [b["thin_plate"]["status"] for b in report["block"]] == ["safe", "safe"]
     plate = trimesh.load(str(tmp_path / "out" / "sieve.stl"))
     assert plate.extents[2] == pytest.approx(proof["thickness"], rel=1e-6)
+    # the bracket's other side: motion searches below the rod's proof, at its unproved thickness,
+    # then at the printable minimum (1.2 mm), then halfway up when only the minimum passed
+    (gap,) = sheet.bracket
+    assert gap["name"] == "rod" and gap["proved"] == pytest.approx(proof["thickness"])
+    assert gap["unproved"] == proof["bracket"]["unproved"] and gap["unproved"] < gap["proved"]
+    tried = gap["no_passage_found"] + ([gap["passage"]] if gap["passage"] is not None else [])
+    assert gap["unproved"] in tried and 1 <= len(tried) <= 3
+    if gap["passage"] is not None:  # the thickest passage lies below every plate without one
+        assert all(t > gap["passage"] for t in gap["no_passage_found"])
+    assert report["fabrication"]["sheet"]["bracket"] == [gap]
 
 
 def test_a_2_mm_sheet_leaks_the_rod(tmp_path):
@@ -105,21 +115,3 @@ def test_thinnest_bisects_and_says_it_is_not_proved(tmp_path):
     assert report["fabrication"]["sheet"]["bisection"] == steps
     plate = trimesh.load(str(tmp_path / "out" / "sieve.stl"))
     assert math.isclose(plate.extents[2], sheet.thickness, rel_tol=1e-6)
-
-
-def test_the_bracket_gives_the_thickest_plate_where_a_passage_was_found(tmp_path):
-    """Below the rod's proved plate: a motion search at its unproved thickness, then at the
-    printable minimum (1.2 mm, where the L threads the 10 mm hole: the 2 mm sheet test above),
-    then halfway up when only the minimum passed. Every passage reported was verified."""
-    result = sieve_mi.solve(_scene(None, 4.0), progress=False)
-    (gap,) = result.sheet.bracket
-    section = result.certified[0].section
-    assert gap["name"] == "rod" and gap["proved"] == pytest.approx(section["thickness"])
-    assert gap["unproved"] == section["bracket"]["unproved"] and gap["unproved"] < gap["proved"]
-    tried = gap["no_passage_found"] + ([gap["passage"]] if gap["passage"] is not None else [])
-    assert gap["unproved"] in tried and 1 <= len(tried) <= 3
-    if gap["passage"] is not None:  # the thickest passage lies below every plate without one
-        assert all(t > gap["passage"] for t in gap["no_passage_found"])
-    result.save(str(tmp_path / "out"), figure=False, animation=False)
-    report = json.loads((tmp_path / "out" / "report.json").read_text())
-    assert report["fabrication"]["sheet"]["bracket"] == [gap]
