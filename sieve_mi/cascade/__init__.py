@@ -14,8 +14,6 @@ Modules
 -------
 mixture
     The mixture file (``[[shape]]`` tables and the usual settings tables).
-size
-    The size measures: the base order (coarsest first) and the guesses that rank candidates.
 rules
     Exact rules that rule out hopeless holds before any game (with certificates).
 stages
@@ -46,7 +44,6 @@ __all__ = [
     "plan",
     "purity",
     "rules",
-    "size",
     "sort",
     "stages",
     "sweep",

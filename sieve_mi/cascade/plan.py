@@ -8,7 +8,7 @@ it. Going down, each sieve is decided in three steps, the cheap ones first:
    The units left are the *candidates*; often there is one (eight euro coins: at every sieve
    but one). With none, the remaining units are split pairwise (step 4).
 2. **Ranking** (no game). The candidates are ordered by a guess of their margin from all three
-   canonical extents (:func:`sieve_mi.cascade.size.predicted_margin`): the 5 cent coin (1.5 mm
+   canonical extents (:func:`sieve_mi.geometry.size.predicted_margin`): the 5 cent coin (1.5 mm
    wider) before the 10 cent coin (0.26 mm thicker) over the 10, 2 and 1 cent coins. Ties keep
    the base order (passage radius, coarsest first).
 3. **Screening games**. Where several candidates remain, each is played in that order at

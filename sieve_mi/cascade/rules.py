@@ -239,7 +239,7 @@ class Rules:
         return None
 
     def margin(self, holds: list, passes: list) -> float:
-        """The smallest :func:`sieve_mi.cascade.size.predicted_margin` of a held shape over a
+        """The smallest :func:`sieve_mi.geometry.size.predicted_margin` of a held shape over a
         passing one (scene units; larger is more promising)."""
         b = self.bodies
         return min(

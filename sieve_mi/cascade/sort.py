@@ -25,8 +25,8 @@ from sieve_mi.cascade.outputs import (
 )
 from sieve_mi.cascade.plan import plan_cascade
 from sieve_mi.cascade.rules import Body, Rules, body
-from sieve_mi.cascade.size import passage_radius
 from sieve_mi.cascade.stages import FULL, SCREEN, screening_tables, worth_screening
+from sieve_mi.geometry.size import passage_radius
 from sieve_mi.outputs import outdir
 from sieve_mi.outputs.provenance import sha256
 from sieve_mi.shake.settings import ShakeSettings

@@ -7,7 +7,7 @@ says
 
 * which of the part's extents stands *upright* (along the passage): its extents are measured
   along the principal axes of its convex hull (:func:`sieve_mi.geometry.canonical.principal_axes`,
-  the frame of :func:`sieve_mi.cascade.size.canonical_extents`), and the axis that q turns
+  the frame of :func:`sieve_mi.geometry.size.canonical_extents`), and the axis that q turns
   closest to z is the upright one. The shortest extent upright is *face down* (lying flat), the
   middle one *on its side*, the longest *end on* (standing on its short end); extents within
   :data:`SAME_EXTENT` of each other count as one (a coin standing up is *on its side*, a cube is

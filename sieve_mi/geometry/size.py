@@ -1,5 +1,5 @@
 """Size measures of a mixture's shapes: the base order (coarsest first) and the guesses that rank
-the candidates of a cascade's sieves (:mod:`sieve_mi.cascade.size` re-exports them); the exact
+the candidates of a cascade's sieves; the exact
 rules of :mod:`sieve_mi.cascade.rules` and the solver's feasibility test
 (:mod:`sieve_mi.game.feasible`) use :func:`end_first_radius` and :func:`canonical_extents`.
 

@@ -15,10 +15,10 @@ import trimesh
 from sieve_mi.cascade import games as games_mod
 from sieve_mi.cascade.games import EngineSettings
 from sieve_mi.cascade.mixture import load_mixture
-from sieve_mi.cascade.size import inscribed_radius, passage_radius
 from sieve_mi.cascade.sort import sort_mixture
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.size import inscribed_radius, passage_radius
 from sieve_mi.testing.settings import CASCADE_SOLVER, TINY_LAYOUT, settings_toml
 
 SMALL = settings_toml(

@@ -19,17 +19,17 @@ from sieve_mi.cascade.games import EngineSettings, label_text
 from sieve_mi.cascade.mixture import load_mixture
 from sieve_mi.cascade.plan import plan_cascade
 from sieve_mi.cascade.rules import Rules, body, end_first, fits_inside
-from sieve_mi.cascade.size import (
+from sieve_mi.cascade.sort import sort_mixture
+from sieve_mi.cascade.stages import screening_tables, worth_screening
+from sieve_mi.geometry.meshes import load_trimesh, shape_from_trimesh
+from sieve_mi.geometry.rotations import to_matrix
+from sieve_mi.geometry.size import (
     canonical_extents,
     enclosing_circle,
     end_first_radius,
     predicted_margin,
     rectangle_fits,
 )
-from sieve_mi.cascade.sort import sort_mixture
-from sieve_mi.cascade.stages import screening_tables, worth_screening
-from sieve_mi.geometry.meshes import load_trimesh, shape_from_trimesh
-from sieve_mi.geometry.rotations import to_matrix
 from sieve_mi.scene import Layout, Solver, Verdict
 from sieve_mi.testing import shapes
 from sieve_mi.testing.settings import CASCADE_SOLVER, TINY_LAYOUT, TINY_VERDICT, settings_toml
