@@ -77,22 +77,42 @@ def _hull(points: np.ndarray) -> trimesh.Trimesh:
     return trimesh.convex.convex_hull(np.asarray(points, dtype=np.float64))
 
 
+@dataclass(frozen=True)
+class _Faces:
+    """A convex hull's triangles (f, 3, 3), unit normals (f, 3) and plane offsets (f,), read
+    from the trimesh once (its cached properties re-hash the mesh on every read)."""
+
+    triangles: np.ndarray
+    normals: np.ndarray
+    offsets: np.ndarray
+
+    @classmethod
+    def of(cls, hull) -> _Faces:
+        tri, n = np.asarray(hull.triangles), np.asarray(hull.face_normals)
+        return cls(tri, n, np.sum(n * tri[:, 0], axis=1))
+
+
 def distance_to_hull(points: np.ndarray, hull) -> np.ndarray:
     """Exact distance (n,) from each point (n, 3) to the solid convex hull ``hull`` (a trimesh):
-    0 inside, else the distance to the nearest of its triangles."""
+    0 inside, else the distance to the nearest of its triangles.
+
+    Only the triangles a point sees (its plane's signed distance > 0) are tested: the nearest
+    point q of a convex body to an outside point p has p - q in the normal cone at q, a
+    non-negative sum of the normals of the faces through q, so (p - q)·(p - q) > 0 makes
+    n·(p - q) > 0 for one of those faces, which p therefore sees.
+    """
+    faces = hull if isinstance(hull, _Faces) else _Faces.of(hull)
     pts = np.asarray(points, dtype=np.float64)
-    eq = (
-        hull.face_normals @ pts.T
-        - np.sum(hull.face_normals * hull.triangles[:, 0], axis=1)[:, None]
-    )
+    eq = pts @ faces.normals.T - faces.offsets[None, :]
     out = np.zeros(len(pts))
-    outside = np.flatnonzero(eq.max(axis=0) > 0.0)
+    outside = np.flatnonzero(eq.max(axis=1) > 0.0)
     if len(outside):
-        tri = np.repeat(hull.triangles[None], len(outside), axis=0).reshape(-1, 3, 3)
-        q = np.repeat(pts[outside], len(hull.triangles), axis=0)
-        near = trimesh.triangles.closest_point(tri, q)
-        d = np.linalg.norm(near - q, axis=1).reshape(len(outside), -1)
-        out[outside] = d.min(axis=1)
+        rows, seen = np.nonzero(eq[outside] > 0.0)
+        q = pts[outside][rows]
+        near = trimesh.triangles.closest_point(faces.triangles[seen], q)
+        best = np.full(len(outside), np.inf)
+        np.minimum.at(best, rows, np.linalg.norm(near - q, axis=1))
+        out[outside] = best
     return out
 
 
@@ -274,7 +294,7 @@ def least_growth(
     ranked = [c for c in _candidates(lp, frames_held, frames_passing) if np.isfinite(c[0])]
     if not ranked:
         return None
-    hull = _hull(passing)
+    hull = _Faces.of(_hull(passing))
     rot, t = ranked[0][1], lp.solve(ranked[0][1])[1]
     first = float(distance_to_hull(held @ rot.T + t, hull).max())
     if target is not None and first > 1.5 * target + 0.01 * float(np.ptp(held, axis=0).max()):

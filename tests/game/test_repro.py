@@ -151,6 +151,8 @@ def test_two_solve_processes_give_identical_outputs(write_scene, tmp_path, body)
     first = _solve(scene, tmp_path / "a")
     _solve(scene, tmp_path / "b")
     _same_outputs(tmp_path / "a", tmp_path / "b")
+    if "two-pass" in body:
+        return  # the default scene checks that another seed is another search
     # Another seed is another search: its trajectory (A's search and B's attempts) differs. Only
     # report.json is compared: solved in this process, without the pictures.
     from sieve_mi.cli import main
