@@ -216,9 +216,10 @@ def _arguments(x: Body, shape: Shape, a: Body, grow: float) -> list[tuple[float,
     if a.ball > 0.0 and x.ball - a.ball + need <= grow:
         r = _end_first(x, shape)
         out.append((r - a.ball + need, "end-first", {"radius": r, "ball": a.ball}))
-    if growth_lower_bound(x.points, a.points, x.ball) + need <= grow:
+    floor = growth_lower_bound(x.points, a.points, x.ball)
+    if floor + need <= grow:
         found = least_growth(x.points, a.points, hull_frames(x.points, x.axes),
-                             hull_frames(a.points, a.axes), target=grow)  # fmt: skip
+                             hull_frames(a.points, a.axes), target=grow, floor=floor)  # fmt: skip
         if found is not None:
             cert = {"rotation": found.quaternion,
                     "translation": [float(v) for v in found.translation]}  # fmt: skip

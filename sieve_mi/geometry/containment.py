@@ -243,21 +243,40 @@ def _candidates(lp: _Program, frames_x, frames_k) -> list[tuple[float, np.ndarra
     return out
 
 
-def _polish(held: np.ndarray, hull, rot: np.ndarray, t: np.ndarray, evaluations: int):
+class _Reached(Exception):
+    """Raised inside the polish when a containment reaches the lower bound (nothing to gain)."""
+
+    def __init__(self, x: np.ndarray):
+        super().__init__()
+        self.x = x
+
+
+def _polish(held: np.ndarray, hull, rot: np.ndarray, t: np.ndarray, evaluations: int,
+            floor: float = -np.inf):  # fmt: skip
     """Nelder-Mead on (rotation vector, t) from (``rot``, ``t``) for the exact largest distance
-    of R X + t to K: (distance, rotation, t)."""
+    of R X + t to K: (distance, rotation, t). It stops at once where the distance is within
+    1e-9 of ``floor`` (a lower bound on every containment's growth: none can do better)."""
     from scipy.optimize import minimize
 
     def worst(x: np.ndarray) -> float:
         return float(distance_to_hull(held @ _turned(rot, x[:3]).T + x[3:], hull).max())
 
+    def watched(x: np.ndarray) -> float:
+        value = worst(x)
+        if value <= floor + 1e-9:
+            raise _Reached(np.array(x, dtype=np.float64))
+        return value
+
     x0 = np.concatenate([np.zeros(3), t])
     step = max(1e-3, 0.02 * float(np.ptp(held, axis=0).max()))
     simplex = np.vstack([x0, x0 + np.diag([0.03] * 3 + [step] * 3)])
-    res = minimize(worst, x0, method="Nelder-Mead",
-                   options={"maxfev": evaluations, "initial_simplex": simplex, "xatol": 1e-7,
-                            "fatol": 1e-9})  # fmt: skip
-    x = res.x if res.fun <= worst(x0) else x0
+    try:
+        res = minimize(watched, x0, method="Nelder-Mead",
+                       options={"maxfev": evaluations, "initial_simplex": simplex,
+                                "xatol": 1e-7, "fatol": 1e-9})  # fmt: skip
+        x = res.x if res.fun <= worst(x0) else x0
+    except _Reached as reached:
+        x = reached.x
     return worst(x), _turned(rot, x[:3]), x[3:]
 
 
@@ -268,6 +287,7 @@ def least_growth(
     frames_passing: list[np.ndarray],
     polish: int = 2,
     target: float | None = None,
+    floor: float = -np.inf,
 ) -> Growth | None:
     """An upper bound on the growth ``held``'s hull needs to fit in ``passing``'s, certified.
 
@@ -282,6 +302,9 @@ def least_growth(
     target : float, optional
         The growth that matters: where the best rotation's unpolished distance exceeds 1.5 times
         it (and 1 % of the held shape's size), that distance is returned unpolished.
+    floor : float, optional
+        A lower bound on the growth (:func:`growth_lower_bound`): a containment within 1e-9 of
+        it is the best there is, so the search stops there.
 
     Returns
     -------
@@ -297,8 +320,15 @@ def least_growth(
     hull = _Faces.of(_hull(passing))
     rot, t = ranked[0][1], lp.solve(ranked[0][1])[1]
     first = float(distance_to_hull(held @ rot.T + t, hull).max())
+    if first <= floor + 1e-9:
+        return Growth(first, rot, np.asarray(t, dtype=np.float64))  # the lower bound: optimal
     if target is not None and first > 1.5 * target + 0.01 * float(np.ptp(held, axis=0).max()):
         return Growth(first, rot, np.asarray(t, dtype=np.float64))  # far from target: as is
-    best = min((_polish(held, hull, rot, lp.solve(rot)[1], 300) for _, rot in ranked[:polish]),
-               key=lambda found: found[0])  # fmt: skip
+    best = (np.inf, rot, t)
+    for _, turn in ranked[:polish]:
+        best = min(
+            best, _polish(held, hull, turn, lp.solve(turn)[1], 300, floor), key=lambda f: f[0]
+        )
+        if best[0] <= floor + 1e-9:
+            break
     return Growth(best[0], best[1], np.asarray(best[2], dtype=np.float64))

@@ -10,8 +10,9 @@ A, a "wheel on an axle", every part of wire thickness d = 7 mm (all units mm):
 
 B1, a ball of diameter s = 20 (icosphere: vertices on the sphere, inscribed ball 19.91).
 B2, a thin coin of diameter P = 50 and thickness t = 2 (64-gon: inscribed disk 49.94).
-Tolerance 0, holes filled. A's bounding radius is 30.2, so a pixel is 0.495 at the search
-resolution (128) and 0.325 at the verdict resolution (192).
+Tolerance 0, holes filled, a 70 mm plate (thicker than every shape: no thin-plate stage).
+A's bounding radius is 30.2, so a pixel is 0.495 at the search resolution (128) and 0.325 at
+the verdict resolution (192).
 
 A's holes
 ---------
@@ -89,6 +90,7 @@ COIN_BLOCKED, CROSSOVER, BALL_BLOCKED = 40.0, 62.0, 75.0
 SETTINGS = """
 [fabrication]
 tolerance = 0.0
+thickness = 70.0
 [solver]
 resolution = 128
 particles = 12

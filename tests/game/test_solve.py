@@ -59,6 +59,7 @@ def test_prince_ruperts_cube(write_scene, scale, winner):
     body = (
         f'name = "t"\n[[pass]]\nmesh = "{_mesh_path("cube.stl")}"\nrotation = {q}\n'
         f'[[block]]\nmesh = "{_mesh_path("cube.stl")}"\nscale = {scale}\n[fabrication]\ntolerance = 0.0\n'
+        "thickness = 40.0\n"  # above both cubes' diameters (38.1 mm): no thin-plate searches
     )
     settings = "[verdict]\nstarts = 100\nsteps = 400\nresolution = 256\n"
     r = solve(_scene(write_scene, body, settings), progress=False)

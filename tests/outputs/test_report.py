@@ -35,6 +35,14 @@ def solved(tmp_path_factory):
     return solve(load_scene(str(path)), progress=False)
 
 
+@pytest.fixture(scope="module")
+def written(solved, tmp_path_factory):
+    """The solved scene's outputs without the plate, written once for the tests that read them:
+    (folder, the report dict write_outputs returned)."""
+    out = tmp_path_factory.mktemp("written") / "out"
+    return out, write_outputs(solved, str(out), fabricate=False)
+
+
 def test_report_numbers_are_the_results(solved):
     r = solved
     rep = report_dict(r)
@@ -117,11 +125,10 @@ def test_summary_table_has_one_row_per_shape(solved):
     assert f"winner: {rep['winner']}" in text
 
 
-def test_written_images_are_the_hole(solved, tmp_path):
+def test_written_images_are_the_hole(solved, written):
     from PIL import Image
 
-    out = tmp_path / "out"
-    rep = write_outputs(solved, str(out), fabricate=False)
+    out, rep = written
     on_disk = json.loads((out / "report.json").read_text())
     assert on_disk["winner"] == rep["winner"] and on_disk["block"] == rep["block"]
     # hole.png and hole.exr: the printed polygon's pixel centres (not the conservative cover)
@@ -138,13 +145,12 @@ def test_written_images_are_the_hole(solved, tmp_path):
     }
 
 
-def test_layered_exr_has_every_layer_on_one_lattice(solved, tmp_path):
+def test_layered_exr_has_every_layer_on_one_lattice(solved, written):
     import manifold3d
 
     from sieve_mi.geometry.outline import Boundary, silhouette
 
-    out = tmp_path / "out"
-    write_outputs(solved, str(out), fabricate=False)
+    out = written[0]
     bitmap = exr_bitmap(out / "masks.exr")
     names = [f.name for f in bitmap.struct_()]
     data = np.array(bitmap)
@@ -254,13 +260,12 @@ def _channels(path) -> list[str]:
     return names
 
 
-def test_every_exr_carries_pixel_size_units_and_version(solved, tmp_path):
+def test_every_exr_carries_pixel_size_units_and_version(solved, written):
     import struct
 
     from sieve_mi import __version__
 
-    out = tmp_path / "out"
-    write_outputs(solved, str(out), fabricate=False)
+    out = written[0]
     frame = solved.hole.frame
     exrs = sorted(out.rglob("*.exr"))
     assert {p.name for p in exrs} >= {
@@ -301,13 +306,12 @@ def _png_chunks(path) -> dict:
     return chunks
 
 
-def test_hole_png_records_its_pixel_size(solved, tmp_path):
+def test_hole_png_records_its_pixel_size(solved, written):
     import struct
 
     from sieve_mi.geometry.pixels import image_pixel_size
 
-    out = tmp_path / "out"
-    write_outputs(solved, str(out), fabricate=False)
+    out = written[0]
     h = solved.hole.frame.pixel_size  # mm
     chunks = _png_chunks(out / "hole.png")
     (phys,) = chunks["pHYs"]
@@ -333,15 +337,14 @@ def test_a_png_with_only_phys_gives_its_pixel_size(tmp_path):
     assert image_pixel_size(str(tmp_path / "missing.png"), "mm") is None
 
 
-def test_overlay_draws_blocked_red_escaping_orange_and_a_green(solved, tmp_path):
+def test_overlay_draws_blocked_red_escaping_orange_and_a_green(solved, written):
     # Panel 0: the sphere, blocked; panel 1: the small sphere, which gets through. Each B is an
     # outline with hatching in its colour over the hole, which stays visible under it.
     from PIL import Image
 
     from sieve_mi.outputs.palette import PALETTE
 
-    out = tmp_path / "out"
-    write_outputs(solved, str(out), fabricate=False)
+    out = written[0]
     img = np.asarray(Image.open(out / "overlay.png").convert("RGB"), dtype=np.float64)
     halves = img[:, : img.shape[1] // 2], img[:, img.shape[1] // 2 :]
 
