@@ -198,7 +198,8 @@ def _climb(start: tuple[np.ndarray, float], tri: np.ndarray, step: float):
     """Compass search from ``start`` (centre, exact distance) for a larger exact distance to the
     triangles ``tri`` (F, 3, 3), first step ``step``, over the 26 lattice directions at once; a
     move is kept only where the centre stays enclosed (winding number), so the result is a ball
-    inside the solid. Each round tests only the triangles that can be nearest to a moved centre:
+    inside the solid. A move must gain a relative 1e-6: on a plateau (a coin's mid-plane) the
+    centre stays where it is (the section proofs pin it). Each round tests only the triangles that can be nearest to a moved centre:
     the distance is 1-Lipschitz, so none is nearer than rho + step, and a triangle whose bounding
     sphere is further than that from every move (rho + 2 step from the centre) is skipped."""
     centre, rho = start
@@ -213,7 +214,7 @@ def _climb(start: tuple[np.ndarray, float], tri: np.ndarray, step: float):
         d = _triangle_distance(pts, near).min(axis=1)
         evaluations += len(pts)
         k = int(np.argmax(d))
-        if d[k] > rho and abs(round(_winding_number(pts[k], tri))) >= 1:
+        if d[k] > rho * (1.0 + 1e-6) and abs(round(_winding_number(pts[k], tri))) >= 1:
             centre, rho = pts[k], float(d[k])
         else:
             step *= 0.5
