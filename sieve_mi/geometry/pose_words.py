@@ -20,7 +20,10 @@ says
   part resting on a plate is held by its hull and its centre of mass, and for a box the two
   agree, while for a wedge or a part with studs only the hull knows which faces it can rest on.
   With ``sigma=0`` the estimate is deterministic (the centre of mass is not sampled). Only the
-  tilt counts: turning about z keeps a resting part resting.
+  tilt counts: turning about z keeps a resting part resting. trimesh's estimate grows faster
+  than the square of the hull's size (a 642-vertex sphere 0.6 s, a 2,562-vertex one over 10 s),
+  so a hull of more than :data:`REST_VERTICES` vertices is first thinned to one vertex per cell
+  of a grid (:func:`rest_points`): a hull inside the part's, within a cell's diagonal of it.
 """
 
 from __future__ import annotations
@@ -35,17 +38,22 @@ from sieve_mi.geometry.rotations import normalize, to_matrix, to_rotvec
 
 __all__ = [
     "POSITIONS",
+    "REST_VERTICES",
     "SAME_EXTENT",
     "PoseWords",
     "describe_pose",
     "euler_xyz",
     "pose_sentence",
+    "rest_points",
     "resting_poses",
 ]
 
 #: Extents within this fraction of the larger one count as equal (a coin's rim polygon is a
 #: fraction of a percent narrower one way than the other).
 SAME_EXTENT = 0.02
+
+#: The most hull vertices the resting poses are computed on (:func:`rest_points`).
+REST_VERTICES = 256
 
 #: The named positions: which extent stands upright.
 POSITIONS = ("face down", "on its side", "end on", "any way up")
@@ -185,6 +193,36 @@ def _upright(axes: np.ndarray, extents: np.ndarray, down: np.ndarray) -> tuple[i
     return k, float(np.degrees(np.arccos(c)))
 
 
+def rest_points(points: np.ndarray, limit: int = REST_VERTICES) -> np.ndarray:
+    """At most ``limit`` of the hull's vertices for the resting-pose estimate.
+
+    Parameters
+    ----------
+    points : (N, 3) ndarray
+        The hull's vertices, scene units.
+    limit : int
+        The most points returned.
+
+    Returns
+    -------
+    (M, 3) ndarray
+        ``points`` itself when N <= limit; else one point per occupied cell of the finest grid
+        of cubes (side: the bounding box's longest side over 64, 48, ... 4) that keeps at most
+        ``limit``, else of the coarsest. Their hull lies inside the points' hull, and every
+        point is within a cell's diagonal of a kept one.
+    """
+    if len(points) <= limit:
+        return points
+    lo = points.min(axis=0)
+    size = max(float(np.ptp(points, axis=0).max()), 1e-300)
+    for k in (64, 48, 32, 24, 16, 12, 8, 6, 4):
+        keys = np.floor((points - lo) / (size / k)).astype(np.int64)
+        kept = points[np.sort(np.unique(keys, axis=0, return_index=True)[1])]
+        if len(kept) <= limit:
+            break
+    return kept
+
+
 def resting_poses(shape: Shape) -> tuple[np.ndarray, np.ndarray] | None:
     """The part's resting poses on a flat plate: each one's down direction and share of drops.
 
@@ -194,7 +232,8 @@ def resting_poses(shape: Shape) -> tuple[np.ndarray, np.ndarray] | None:
         ``normals`` (R, 3): unit outward normals of the hull faces it rests on, in the shape's
         frame (the body direction that points down); ``shares`` (R,): the quasi-static share
         of random drops that settle on each (trimesh ``compute_stable_poses``, sigma 0), summing
-        to 1. None for a flat part, or one whose centre of mass is not inside its hull.
+        to 1. None for a flat part, or one whose centre of mass is not inside its hull. A hull
+        of more than :data:`REST_VERTICES` vertices is thinned first (:func:`rest_points`).
     """
     import warnings
 
@@ -204,7 +243,7 @@ def resting_poses(shape: Shape) -> tuple[np.ndarray, np.ndarray] | None:
     try:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")  # trimesh warns about flat hulls; checked below
-            hull = trimesh.convex.convex_hull(shape.hull)
+            hull = trimesh.convex.convex_hull(rest_points(shape.hull))
             flat = not hull.volume > 1e-9 * max(shape.radius, 1e-300) ** 3
     except Exception:  # noqa: BLE001 - a flat or degenerate point set has no 3D hull
         return None
