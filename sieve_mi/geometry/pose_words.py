@@ -81,7 +81,10 @@ class PoseWords:
         Angle between this pose's down direction and the nearest resting pose's, degrees
         (None for a flat part, which has no resting poses).
     rest_position : str or None
-        The nearest resting pose's position (one of :data:`POSITIONS`).
+        The nearest resting pose's position (one of :data:`POSITIONS`): named by the part's
+        width along the face's normal, the extent it stands on that face (a hex nut resting
+        on one of its flats is *on its side*, its across-flats width upright, whichever
+        principal axis that flat's normal is nearest).
     rest_share : float or None
         The share of random drops that settle in that position, on any of its faces
         (quasi-static estimate: a brick lands on its side studs up or studs down).
@@ -258,6 +261,15 @@ def resting_poses(shape: Shape) -> tuple[np.ndarray, np.ndarray] | None:
     return -np.asarray(tfs)[:, 2, :3], np.asarray(shares, dtype=np.float64)
 
 
+def _rest_positions(shape: Shape, extents: np.ndarray, normals: np.ndarray) -> list[str]:
+    """The position of each resting pose (``normals`` (R, 3), unit, body frame): the part's
+    width along the normal (its hull's, scene units) matched to the nearest of ``extents``."""
+    proj = shape.hull @ normals.T
+    widths = proj.max(axis=0) - proj.min(axis=0)
+    nearest = np.argmin(np.abs(widths[:, None] - extents[None, :]), axis=1)
+    return [_position(extents, int(k))[0] for k in nearest]
+
+
 def describe_pose(shape: Shape, quat) -> PoseWords:
     """Name the pose ``quat`` of ``shape`` (see the module's notes).
 
@@ -292,7 +304,7 @@ def describe_pose(shape: Shape, quat) -> PoseWords:
         normals, shares = rest
         i = int(np.argmax(normals @ down))
         rest_deg = float(np.degrees(np.arccos(np.clip(normals[i] @ down, -1.0, 1.0))))
-        named = [_position(extents, _upright(axes, extents, n)[0])[0] for n in normals]
+        named = _rest_positions(shape, extents, normals)
         rest_position = named[i]
         rest_share = float(sum(p for p, n in zip(shares, named) if n == rest_position))
     position, gloss = _position(extents, k)
