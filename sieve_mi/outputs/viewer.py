@@ -445,7 +445,8 @@ def check_holes(given) -> list:
 
 
 def check_table(rep: dict) -> str:
-    """The check's result: verdict, β, protrusion, fit scale and every evaluation."""
+    """The check's result: verdict, β, protrusion, the pose in words, fit scale and every
+    evaluation."""
     r, u = rep["result"], rep["units"]
     rows = [
         ["result", "PASSES" if r["passes"] else "blocked"],
@@ -454,6 +455,12 @@ def check_table(rep: dict) -> str:
         ["hole", str(r["hole"])],
         ["pixel size", f"{rep['pixel_size']:.4g} {u}"],
     ]
+    pose = rep.get("pose")
+    if pose is not None:  # in words, as the console says it (check_summary)
+        from sieve_mi.geometry.pose_words import pose_sentence
+
+        head = "pass pose" if pose["of"] == "pass" else "best attempt's pose"
+        rows.append([head, pose_sentence(pose, u)])
     if rep.get("fit_scale") is not None:
         lo, hi = rep["fit_bracket"]
         rows.append(

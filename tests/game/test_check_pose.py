@@ -60,6 +60,9 @@ def test_the_1x2_brick_passes_end_on_and_check_says_so(end_on_check):
     assert "pass pose: end on (standing on its short end): its 15.8 mm extent upright" in text
     assert "from resting end on" in text and "rotation: " in text
     assert json.loads(json.dumps(rep.to_dict()))["pose"]["words"].startswith("end on")
+    from sieve_mi.outputs.viewer import check_table
+
+    assert "<td>pass pose</td><td>end on (standing on its short end)" in check_table(rep.to_dict())
 
 
 def test_check_json_has_the_pose_and_a_blocked_part_names_its_best_attempt(end_on_plate, capsys):
