@@ -2,6 +2,8 @@
 
 Each shape's search runs in a forked worker process (in parallel over shapes): the planner's
 bindings stay out of the calling process, and a worker ends without the interpreter's teardown.
+A single shape (:func:`thin_plate`, as ``check`` asks) gets its slab-section proof in the calling
+process first, so a shape that proof makes safe starts no worker.
 """
 
 from __future__ import annotations
@@ -358,8 +360,16 @@ def thin_plate(
     >>> thin_plate(cube, hole, 2.0, budget_s=5).status
     'passage'
     """
-    return thin_plates([shape], outline, thickness, budget_s=budget_s, seeds=[seeds], seed=seed,
-                       plate=plate)[0]  # fmt: skip
+    _checked(outline, thickness, budget_s)
+    t0, t = time.perf_counter(), float(thickness)
+    safe = _safe_at_once([shape], outline, [t], None)[0]
+    if safe is None and budget_s > 0:  # its section proof here: no worker to start when it holds
+        safe = _section_first(shape, outline, t, min(0.5 * budget_s, SECTION_MAX_S))
+    if safe is not None:
+        return safe
+    left = max(0.0, budget_s - (time.perf_counter() - t0))
+    return thin_plates([shape], outline, t, budget_s=left, seeds=[seeds], seed=seed,
+                       plate=plate, sections=[None])[0]  # fmt: skip
 
 
 def thin_plates(

@@ -2,7 +2,8 @@
 
 One idea: plain text for a person reading a terminal, built from what the run wrote (report.json's
 dict for ``solve``, :class:`~sieve_mi.game.check.CheckReport` for ``check``), never computed anew.
-``solve`` prints :func:`summary_table` (one row per shape, then the winner, the time per stage
+``solve`` prints :func:`summary_table` (one row per shape, each A's pass pose in words
+(:func:`pose_lines`) and each B's margins (:func:`margin_lines`), then the winner, the time per stage
 (:func:`stage_line`), the memory (:func:`memory_line`), a thin plate's caveat
 (:func:`sheet_line`) and advice for merged holes (:func:`merge_hint`)); ``check`` prints
 :func:`check_summary`. ``shake`` prints its own table (:func:`sieve_mi.shake.outputs.summary`):
@@ -24,6 +25,7 @@ __all__ = [
     "memory_line",
     "merge_hint",
     "pattern_line",
+    "pose_lines",
     "section_line",
     "sheet_line",
     "stage_line",
@@ -60,8 +62,8 @@ def summary_table(report: dict) -> str:
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
-    margins = margin_lines(report)
-    lines += [""] + margins if margins else []
+    below = pose_lines(report) + margin_lines(report)
+    lines += [""] + below if below else []
     t = report["timings"]
     lines.append("")
     lines.append(
@@ -87,6 +89,19 @@ def summary_table(report: dict) -> str:
     if hint:
         lines.append(hint)
     return "\n".join(lines)
+
+
+def pose_lines(report: dict) -> list[str]:
+    """Per A with a ``pose`` entry (report.json's ``pass[i].pose``), its pass pose in words
+    (:func:`~sieve_mi.geometry.pose_words.pose_sentence`): ``1x2: passes end on (standing on its
+    short end): its 15.8 mm extent upright; 0.0° from resting end on (about 16 % of random drops
+    settle end on)``."""
+    from sieve_mi.geometry.pose_words import pose_sentence
+
+    u = report["units"]
+    return [
+        f"{p['name']}: passes {pose_sentence(p['pose'], u)}" for p in report["pass"] if "pose" in p
+    ]
 
 
 def margin_lines(report: dict) -> list[str]:

@@ -29,6 +29,7 @@ from sieve_mi.outputs.provenance import provenance
 __all__ = [
     "input_paths",
     "memory_dict",
+    "pass_pose",
     "report_dict",
     "write_outputs",
 ]
@@ -69,6 +70,22 @@ def _block_row(result: Result, j: int, record: BlockAttempt) -> dict:
     return row
 
 
+def pass_pose(shape, quat) -> dict:
+    """An A's pass pose in words and angles, the dict ``check --json`` writes under ``pose``
+    (``"of": "pass"`` and :meth:`~sieve_mi.geometry.pose_words.PoseWords.to_dict`).
+
+    Parameters
+    ----------
+    shape : Shape
+        The pass shape, scene units.
+    quat : (4,) array_like
+        Its rotation (w, x, y, z) in the hole.
+    """
+    from sieve_mi.geometry.pose_words import describe_pose
+
+    return {"of": "pass", **describe_pose(shape, quat).to_dict()}
+
+
 def report_dict(result: Result) -> dict:
     """The content of ``report.json``."""
     scene = result.scene
@@ -82,6 +99,7 @@ def report_dict(result: Result) -> dict:
                 "translation": [float(x) for x in result.pass_trans[i]],
                 "centre": [float(x) for x in shape.centre],
                 "faces": shape.face_count,
+                "pose": pass_pose(shape, result.pass_quats[i]),
             }
         )
         if i < len(result.alone) and result.alone[i] is not None:

@@ -27,15 +27,17 @@ def _path_d(section) -> str:
     return " ".join(d)
 
 
-def hole_svg(result, blocked: list[bool]) -> str:
+def hole_svg(result, blocked: list[bool], a_titles: list[str] | None = None) -> str:
     """The 2D view: the exact hole (white, even-odd), every A's outline and every B's best attempt.
 
     Coordinates are scene units with y flipped; elements carry ``data-id`` (``hole``, ``a<i>``,
-    ``b<j>``) so the page's toggles can hide them.
+    ``b<j>``) so the page's toggles can hide them; ``a_titles`` (per A, e.g. its pass pose in
+    words) become each A outline's ``<title>`` (a browser shows it on hover).
     """
     hole, a_sections, b_sections = result.overlay_sections()
     half = result.hole.frame.half_extent
-    return outline_svg([hole], a_sections, b_sections, blocked, half, result.scene.units)
+    units = result.scene.units
+    return outline_svg([hole], a_sections, b_sections, blocked, half, units, a_titles)
 
 
 def outline_svg(
@@ -45,6 +47,7 @@ def outline_svg(
     blocked: list[bool],
     half: float,
     units: str = "mm",
+    a_titles: list[str] | None = None,
 ) -> str:
     """An inline SVG of hole outlines, dashed A outlines and outlined, hatched B attempts
     (CrossSections; the hole stays visible under them).
@@ -59,6 +62,8 @@ def outline_svg(
         Least half-width of the view, scene units (grown to hold every hole and B).
     units : str
         The scale bar's label.
+    a_titles : list of str, optional
+        Per A, the text of its outline's ``<title>`` (escaped here); none without it.
     """
     boxes = [np.asarray(s.bounds(), dtype=float) for s in [*holes, *b_sections] if not s.is_empty()]
     lim = max([half] + [float(np.abs(b).max()) for b in boxes]) * 1.05
@@ -82,10 +87,11 @@ def outline_svg(
             f'stroke="{hex_colour(name)}" stroke-width="{2 * stroke:.3g}" d="{_path_d(sec)}"/>'
         )
     for i, sec in enumerate(a_sections):
+        title = f"<title>{html.escape(a_titles[i])}</title>" if a_titles else ""
         parts.append(
             f'<path data-id="a{i}" fill="none" stroke="{hex_colour("pass")}" '
             f'stroke-width="{2 * stroke:.3g}" stroke-dasharray="{6 * stroke:.3g} {3 * stroke:.3g}" '
-            f'd="{_path_d(sec)}"/>'
+            f'd="{_path_d(sec)}"' + (f">{title}</path>" if title else "/>")
         )
     parts.append(scale_bar(lim, units))
     parts.append("</svg>")

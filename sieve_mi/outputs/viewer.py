@@ -12,7 +12,8 @@ with :func:`insert_card` (``shake`` its "Shake trials" card), never by editing t
 
 What it shows: a 3D view (orbit, zoom, touch) of the plate with every A sliding down through the
 hole and every B's best attempt coming to rest on the plate, with per-shape toggles; the exact
-hole with every A's outline and every B's best attempt (zoomable); the result table (β,
+hole with every A's outline (titled, and captioned under the view, with its pass pose in words)
+and every B's best attempt (zoomable); the result table (β,
 protrusion, certification), warnings, timings, settings and the convergence of A's search.
 
 Page options after ``#`` in the address (``report.html#view=top&t=0&show=plate,a0``):
@@ -33,7 +34,7 @@ from importlib import resources
 
 import numpy as np
 
-from sieve_mi.outputs.console import margin_lines
+from sieve_mi.outputs.console import margin_lines, pose_lines
 from sieve_mi.outputs.palette import PALETTE, css_variables
 from sieve_mi.outputs.svg import convergence_svg, hole_svg, outline_svg
 
@@ -48,6 +49,7 @@ __all__ = [
     "image_outline",
     "insert_card",
     "page_files",
+    "pose_caption",
     "render_check_page",
     "render_page",
     "result_table",
@@ -255,6 +257,18 @@ def result_table(report: dict) -> str:
     return _table(rows, head) + (f'<ul class="margins">{lines}</ul>' if lines else "")
 
 
+def pose_caption(report: dict) -> tuple[list[str] | None, str]:
+    """Each A's pass pose in words (:func:`sieve_mi.outputs.console.pose_lines`): the ``<title>``
+    of each A outline in the hole view (None when some A has no ``pose``) and the caption under
+    it (``<ul class="poses">``, one item per A; empty without poses)."""
+    lines = pose_lines(report)
+    if not lines:
+        return None, ""
+    titles = lines if len(lines) == len(report["pass"]) else None
+    items = "".join(f"<li>{html.escape(x)}</li>" for x in lines)
+    return titles, f'<ul class="poses hint">{items}</ul>'
+
+
 def timings_table(report: dict) -> str:
     """Seconds per stage."""
     return _table([[k, f"{v:.3f}"] for k, v in report.get("timings", {}).items()], ["stage", "s"])
@@ -308,6 +322,7 @@ def render_page(result, report: dict, passage, files: list[str]) -> str:
     """
     data = scene_data(passage, report)
     blocked = [bool(b["blocked"]) for b in report["block"]]
+    titles, caption = pose_caption(report)
     payload = script_json(data)
     gif = (
         '<figure><img src="passage.gif" alt="Mitsuba-rendered passage animation" '
@@ -327,7 +342,8 @@ def render_page(result, report: dict, passage, files: list[str]) -> str:
         "VERDICT": html.escape(verdict),
         "UNITS": html.escape(report["units"]),
         "TOGGLES": _toggles(data),
-        "HOLE_SVG": hole_svg(result, blocked),
+        "HOLE_SVG": hole_svg(result, blocked, titles),
+        "HOLE_CAPTION": caption,
         "RESULT_TABLE": result_table(report),
         "WARNINGS": f"<ul class=warnings>{warn}</ul>" if warn else "",
         "TIMINGS": timings_table(report),
@@ -429,7 +445,8 @@ def check_holes(given) -> list:
 
 
 def check_table(rep: dict) -> str:
-    """The check's result: verdict, β, protrusion, fit scale and every evaluation."""
+    """The check's result: verdict, β, protrusion, the pose in words, fit scale and every
+    evaluation."""
     r, u = rep["result"], rep["units"]
     rows = [
         ["result", "PASSES" if r["passes"] else "blocked"],
@@ -438,6 +455,12 @@ def check_table(rep: dict) -> str:
         ["hole", str(r["hole"])],
         ["pixel size", f"{rep['pixel_size']:.4g} {u}"],
     ]
+    pose = rep.get("pose")
+    if pose is not None:  # in words, as the console says it (check_summary)
+        from sieve_mi.geometry.pose_words import pose_sentence
+
+        head = "pass pose" if pose["of"] == "pass" else "best attempt's pose"
+        rows.append([head, pose_sentence(pose, u)])
     if rep.get("fit_scale") is not None:
         lo, hi = rep["fit_bracket"]
         rows.append(

@@ -4,6 +4,8 @@
   makes (grown by 0.4 mm) passes only end on: every other view is at least 11.3 x 15.8 mm.
 * A 2 x 2 brick (15.8 x 15.8 x 11.3) does not pass that hole: its smallest view is 15.8 wide.
 * A 10 mm cube held face-on in a 15 mm square hole fits up to scale 1.5 exactly.
+* ``solve`` with the 1 x 2 brick's rotation fixed end on names its pass pose as ``check`` does:
+  in report.json (``pass[0].pose``), on the console and on the page's hole view.
 """
 
 from __future__ import annotations
@@ -39,9 +41,14 @@ def end_on_plate(tmp_path_factory):
     return folder
 
 
-def test_the_1x2_brick_passes_end_on_and_check_says_so(end_on_plate):
-    rep = check(str(end_on_plate / "brick_1x2.stl"), sieve=str(end_on_plate / "plate.stl"),
-                settings=FAST)  # fmt: skip
+@pytest.fixture(scope="module")
+def end_on_check(end_on_plate):
+    return check(str(end_on_plate / "brick_1x2.stl"), sieve=str(end_on_plate / "plate.stl"),
+                 settings=FAST)  # fmt: skip
+
+
+def test_the_1x2_brick_passes_end_on_and_check_says_so(end_on_check):
+    rep = end_on_check
     assert rep.result.passes
     pose = rep.pose
     assert pose["of"] == "pass" and pose["position"] == "end on"
@@ -53,6 +60,9 @@ def test_the_1x2_brick_passes_end_on_and_check_says_so(end_on_plate):
     assert "pass pose: end on (standing on its short end): its 15.8 mm extent upright" in text
     assert "from resting end on" in text and "rotation: " in text
     assert json.loads(json.dumps(rep.to_dict()))["pose"]["words"].startswith("end on")
+    from sieve_mi.outputs.viewer import check_table
+
+    assert "<td>pass pose</td><td>end on (standing on its short end)" in check_table(rep.to_dict())
 
 
 def test_check_json_has_the_pose_and_a_blocked_part_names_its_best_attempt(end_on_plate, capsys):
@@ -70,6 +80,43 @@ def test_check_json_has_the_pose_and_a_blocked_part_names_its_best_attempt(end_o
     assert pose["upright"] == pytest.approx(15.8, abs=1e-4)
     assert set(pose) >= {"words", "tilt_deg", "rest_deg", "quaternion", "euler_xyz_deg",
                          "turn_deg", "turn_axis", "rest_share"}  # fmt: skip
+
+
+def test_solve_names_the_pass_pose_as_check_does(end_on_plate, end_on_check):
+    """The 1 x 2 brick fixed end on (no search), the 2 x 2 blocked on a plate thicker than it is
+    across (no proof, no thin-plate search): the A's pose in report.json, console and page."""
+    from sieve_mi.api import solve
+    from sieve_mi.outputs.console import summary_table
+    from sieve_mi.outputs.report import report_dict
+    from sieve_mi.outputs.svg import hole_svg
+    from sieve_mi.outputs.viewer import pose_caption
+    from sieve_mi.scene import load_scene
+    from sieve_mi.testing.settings import TINY_SOLVER, TINY_VERDICT, settings_toml
+
+    q = ", ".join(repr(float(x)) for x in END_ON)
+    text = (f'name = "end on"\n[[pass]]\nmesh = "brick_1x2.stl"\nname = "1x2"\nrotation = [{q}]\n'
+            '[[block]]\nmesh = "brick_2x2.stl"\nname = "2x2"\n'
+            + settings_toml(solver=TINY_SOLVER, verdict={**TINY_VERDICT, "certify": False},
+                            fabrication={"tolerance": 0.4, "thickness": 25.0}))  # fmt: skip
+    (end_on_plate / "end_on.toml").write_text(text)
+    result = solve(load_scene(str(end_on_plate / "end_on.toml")), progress=False)
+    report = report_dict(result)
+    assert report["winner"] == "A"  # every view of the 2 x 2 is at least 15.8 wide
+    pose = json.loads(json.dumps(report["pass"][0]["pose"]))
+    want = end_on_check.pose
+    assert pose["of"] == "pass" and pose["words"] == want["words"]
+    assert pose["words"] == "end on (standing on its short end)"
+    assert pose["position"] == want["position"] and pose["rest_position"] == want["rest_position"]
+    assert set(pose) == set(want)  # the same shape of dict as check --json
+    # fixed exactly end on: upright 15.8 mm, untilted, on a resting face
+    assert pose["upright"] == pytest.approx(15.8, abs=1e-4)
+    assert pose["tilt_deg"] < 1e-4 and pose["rest_deg"] < 1e-4
+    line = "1x2: passes end on (standing on its short end): its 15.8 mm extent upright; 0.0° "
+    assert line + "from resting end on" in summary_table(report)
+    titles, caption = pose_caption(report)
+    assert titles[0].startswith(line) and "<li>1x2: passes end on (standing" in caption
+    svg = hole_svg(result, [True], titles)
+    assert "<title>1x2: passes end on (standing on its short end)" in svg
 
 
 def test_grown_scale_of_a_face_on_cube_in_a_square_hole():

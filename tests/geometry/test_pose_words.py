@@ -16,7 +16,7 @@ import trimesh
 from sieve_mi.geometry.meshes import shape_from_arrays, shape_from_trimesh
 from sieve_mi.geometry.pose_words import describe_pose, pose_sentence, resting_poses
 from sieve_mi.geometry.rotations import from_axis_angle, quat_multiply
-from sieve_mi.testing.catalogue import brick, cell
+from sieve_mi.testing.catalogue import brick, cell, hex_nut
 
 X, Y, Z = np.eye(3)
 
@@ -114,6 +114,23 @@ def test_the_toy_brick_end_on_and_studs_up():
     # studs up, its 11.3 mm height (with the studs) is its middle extent
     assert describe_pose(b, [1.0, 0, 0, 0]).position == "on its side"
     assert describe_pose(b, turn(X, 90)).position == "face down"
+
+
+def test_a_hex_nut_rests_on_its_flats_named_by_its_width_across_them():
+    # ISO 4032 M3: 5.5 mm across flats (normals along x and at 60° to it), 6.35 across corners
+    # (along y), 2.4 thick. On a flat its 5.5 mm width stands upright: on its side, a resting
+    # pose; on a corner, 30° from the nearest flat's normal, still resting on its side.
+    nut = shape_from_trimesh(hex_nut(5.5, 2.4, 3.0), name="M3")
+    on_flat = describe_pose(nut, turn(Y, 90))  # body +x points down
+    assert on_flat.rest_deg == pytest.approx(0.0, abs=1e-6)
+    assert on_flat.rest_position == "on its side"
+    on_corner = describe_pose(nut, turn(X, 90))  # body -y (a corner) points down
+    assert on_corner.position == "end on" and on_corner.upright == pytest.approx(
+        5.5 / np.cos(np.pi / 6)
+    )
+    assert on_corner.rest_deg == pytest.approx(30.0, abs=1e-6)
+    assert on_corner.rest_position == "on its side"  # the flat 30° off, not its corner axis
+    assert describe_pose(nut, [1.0, 0, 0, 0]).rest_position == "face down"
 
 
 def test_a_flat_part_has_no_resting_pose():
