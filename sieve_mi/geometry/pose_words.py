@@ -40,6 +40,7 @@ __all__ = [
     "describe_pose",
     "euler_xyz",
     "pose_sentence",
+    "positions_of",
     "resting_poses",
 ]
 
@@ -185,6 +186,13 @@ def _upright(axes: np.ndarray, extents: np.ndarray, down: np.ndarray) -> tuple[i
     return k, float(np.degrees(np.arccos(c)))
 
 
+def positions_of(shape: Shape, downs: np.ndarray) -> list[str]:
+    """The position (one of :data:`POSITIONS`) of the poses whose down directions (body frame,
+    unit, (K, 3)) are ``downs``: which of the part's extents each stands upright."""
+    axes, extents = _frame(shape)
+    return [_position(extents, _upright(axes, extents, d)[0])[0] for d in np.atleast_2d(downs)]
+
+
 def resting_poses(shape: Shape) -> tuple[np.ndarray, np.ndarray] | None:
     """The part's resting poses on a flat plate: each one's down direction and share of drops.
 
@@ -253,7 +261,7 @@ def describe_pose(shape: Shape, quat) -> PoseWords:
         normals, shares = rest
         i = int(np.argmax(normals @ down))
         rest_deg = float(np.degrees(np.arccos(np.clip(normals[i] @ down, -1.0, 1.0))))
-        named = [_position(extents, _upright(axes, extents, n)[0])[0] for n in normals]
+        named = positions_of(shape, normals)
         rest_position = named[i]
         rest_share = float(sum(p for p, n in zip(shares, named) if n == rest_position))
     position, gloss = _position(extents, k)
