@@ -224,7 +224,7 @@ class Result:
     #: None where none ran.
     feasibility: object = None
     #: Per A, its pass pose's nearest resting pose (:func:`sieve_mi.game.rest.nearest_rest`, with
-    #: ``preferred`` under ``[solver] rest_poses``), None for a flat part; empty when not made.
+    #: ``preferred``), None for a flat part; empty without ``[solver] rest_poses``.
     rest: list = field(default_factory=list)
     #: :meth:`overlay_sections`' polygons, made on first use (a 500k-face B's projection takes
     #: minutes; the images and the page both draw it).

@@ -337,7 +337,9 @@ def solve(
         memory=run.memory,
         window=window,
         feasibility=feasible,
-        rest=rest_records(passes, found.quats, found.rest_choice),
+        rest=rest_records(passes, found.quats, found.rest_choice)
+        if scene.solver.rest_poses
+        else [],
     )
 
 
