@@ -86,6 +86,7 @@ def test_prefer_skips_a_rest_pose_the_strong_attack_lets_through():
     assert record["search"]["position"] == "end on"
 
 
+@pytest.mark.slow
 def test_the_preference_lays_the_box_on_its_large_blocking_face():
     scene = Scene.from_meshes(
         [trimesh.creation.box((16, 8, 11))], [trimesh.creation.box((12, 9.5, 9.5))], name="rest"
@@ -101,3 +102,21 @@ def test_the_preference_lays_the_box_on_its_large_blocking_face():
     assert abs(rest["down"][2]) == 1.0 and rest["angle_deg"] < 1.0  # lying on its 16 x 8 face
     assert rest["share"] == pytest.approx(0.16, abs=0.03)
     assert out.rest_choice[0]["cost"] == pytest.approx(1 / rest["share"], rel=1e-6)
+
+
+def test_the_console_names_the_rest_pose_chosen():
+    from sieve_mi.outputs.console import rest_lines
+
+    search = {"position": "end on", "angle_deg": 0.0, "share": 0.074, "value": 0.42, "cost": 13.5}
+    rest = {"position": "on its side", "angle_deg": 0.0, "share": 0.171,
+            "preferred": {"chosen": "rest pose", "cost": 5.8, "search": search, "tried": []}}  # fmt: skip
+    report = {"pass": [{"name": "1x2", "rest": rest}, {"name": "fixed", "rest": None}]}
+    assert rest_lines(report) == [
+        "1x2: passes on its side, 0.0° from a resting pose (17 % of drops settle on that face), "
+        "chosen over the search's end on (7 %) by [solver] rest_poses"
+    ]
+    rest["preferred"]["chosen"] = "search"
+    assert rest_lines(report)[0].endswith(
+        "the search's own; no likelier resting pose blocks every B"
+    )
+    assert rest_lines({"pass": [{"name": "1x2"}]}) == []  # no rest_poses: no line
