@@ -34,6 +34,7 @@ from sieve_mi.geometry.rotations import align, normalize, to_matrix
 __all__ = [
     "EXACT_DEG",
     "LIKELY_SHARE",
+    "SAME_COST",
     "Rests",
     "likely_rests",
     "nearest_rest",
@@ -45,6 +46,9 @@ __all__ = [
 #: A rest pose is *likely* when at least this share of random drops settles on it (5 %: a
 #: brick's six faces are likely, its tilted rests on a stud's edge, under 1 % each, are not).
 LIKELY_SHARE = 0.05
+#: Costs within this fraction of each other are equal (the search's exact face-on rotation and
+#: the same rest pose's differ by rounding).
+SAME_COST = 1e-6
 #: Degrees added to the angle in :func:`rest_cost`, so that exact rest poses are ranked by share
 #: (a pose within about a degree of a rest pose is, for a part on a plate, that rest pose).
 EXACT_DEG = 1.0
@@ -187,7 +191,7 @@ def prefer(
         (rest_cost(rests, q)[0], i) for i, q in enumerate(rest_quats) if rest_values[i] > 0
     )
     for cost, i in options:
-        if cost >= cost0 and f0 > 0:
+        if cost >= cost0 * (1 - SAME_COST) and f0 > 0:  # no better than the search's own
             break
         checked = float(verify(rest_quats[i]))
         k = rest_cost(rests, rest_quats[i])[1]

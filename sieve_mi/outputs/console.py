@@ -164,8 +164,8 @@ def pattern_line(report: dict) -> str | None:
 def rest_lines(report: dict) -> list[str]:
     """Per A that ``[solver] rest_poses`` chose for (report.json's ``pass[i].rest.preferred``,
     :mod:`sieve_mi.game.rest`), one line: ``1x2: passes on its side, 0.0° from a resting pose
-    (17 % of drops settle on that face), chosen over the search's end on (7 %) by [solver]
-    rest_poses``; empty without the setting."""
+    (17 % of drops settle on that face), chosen over the search's end on, 0.0° from resting
+    (7 %) by [solver] rest_poses``; empty without the setting."""
     out = []
     for p in report["pass"]:
         rest = p.get("rest") or {}
@@ -176,8 +176,9 @@ def rest_lines(report: dict) -> list[str]:
                 f"pose ({100 * rest['share']:.0f} % of drops settle on that face)")  # fmt: skip
         search = pref["search"]
         if pref["chosen"] == "rest pose":
-            out.append(f"{head}, chosen over the search's {search['position']} "
-                       f"({100 * search['share']:.0f} %) by [solver] rest_poses")  # fmt: skip
+            out.append(f"{head}, chosen over the search's {search['position']}, "
+                       f"{search['angle_deg']:.1f}° from resting ({100 * search['share']:.0f} %) "
+                       "by [solver] rest_poses")  # fmt: skip
         else:
             out.append(f"{head}: the search's own; no likelier resting pose blocks every B")
     return out

@@ -113,10 +113,23 @@ def test_the_console_names_the_rest_pose_chosen():
     report = {"pass": [{"name": "1x2", "rest": rest}, {"name": "fixed", "rest": None}]}
     assert rest_lines(report) == [
         "1x2: passes on its side, 0.0° from a resting pose (17 % of drops settle on that face), "
-        "chosen over the search's end on (7 %) by [solver] rest_poses"
+        "chosen over the search's end on, 0.0° from resting (7 %) by [solver] rest_poses"
     ]
     rest["preferred"]["chosen"] = "search"
     assert rest_lines(report)[0].endswith(
         "the search's own; no likelier resting pose blocks every B"
     )
     assert rest_lines({"pass": [{"name": "1x2"}]}) == []  # no rest_poses: no line
+
+
+def test_the_search_keeps_its_own_exact_rest_pose():
+    cube = _box(20, 20, 20)
+    rests, quats = likely_rests(cube)
+
+    def verify(q):  # a tie (every face 1/6, the search face-on) needs no strong attack
+        raise AssertionError("verified a rest pose no better than the search's own")
+
+    q, value, record = prefer(
+        rests, (np.array([1.0, 0, 0, 0]), 0.05), quats, np.full(6, 0.06), verify
+    )
+    assert record["chosen"] == "search" and value == 0.05 and np.allclose(q, [1, 0, 0, 0])
