@@ -106,7 +106,9 @@ def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
 
 
 def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: Progress, label: str):
-    """Player A's rotation for one shape alone against all of B (Secs. 5.1, 5.2)."""
+    """Player A's rotation for one shape alone against all of B (Secs. 5.1, 5.2): (rotation,
+    game value, SwarmHistory, the record of :func:`sieve_mi.game.rest.prefer` with ``[solver]
+    rest_poses``, else None)."""
     s, fab = scene.solver, scene.fabrication
     frame = hole_frame(a, fab.tolerance, s.resolution)
     player_a = PlayerA.from_settings(a, frame, fab, s)
@@ -337,10 +339,16 @@ def solve(
         memory=run.memory,
         window=window,
         feasibility=feasible,
-        rest=rest_records(passes, found.quats, found.rest_choice)
-        if scene.solver.rest_poses
-        else [],
+        rest=_rest(scene, passes, found),
     )
+
+
+def _rest(scene: Scene, passes: list, found: SearchOutcome) -> list:
+    """report.json's ``rest`` per A (:func:`sieve_mi.game.rest.rest_records`) with ``[solver]
+    rest_poses``; empty without (a round part's resting poses take seconds)."""
+    if not scene.solver.rest_poses:
+        return []
+    return rest_records(passes, found.quats, found.rest_choice)
 
 
 def _window(scene: Scene, passes, open_blocks, found, seeds: tuple, progress: bool, run: Run):
