@@ -118,6 +118,9 @@ class SwarmHistory:
     polish: dict | None = None
     #: The iteration a swarm's patience stopped it at (None: it ran every iteration).
     stopped: int | None = None
+    #: Game values of extra candidates evaluated with the canonical views (player A's rest
+    #: poses, :mod:`sieve_mi.game.rest`), in the order given; empty when none were.
+    extra: list = field(default_factory=list)
 
     def extend(self, other: SwarmHistory) -> None:
         """Append a later stage's values and evaluations (its finalists are not kept)."""

@@ -223,6 +223,12 @@ class Solver:
         minimum=0,
         maximum=1000,
     )
+    rest_poses: bool = setting(
+        False,
+        "player A also tries each A's likely resting poses on a flat plate and, among the "
+        "rotations that block every B, prefers the one nearest a frequent resting pose (a "
+        "shaken part already lies in it)",
+    )
     freeze: bool = setting(
         True,
         "record player B's Adam step once and replay it (drjit.freeze; same results)",

@@ -49,6 +49,8 @@ feasible
     Feasibility before the search: a B that fits inside a grown A cannot be blocked (proved).
 window
     The turning window: ``[fabrication] window``, given or bisected against the verdict.
+rest
+    A's likely resting poses as candidates, and the preference for one (``[solver] rest_poses``).
 """
 
 __all__ = [

@@ -130,6 +130,7 @@ class PlayerA:
         seed: int | None = None,
         progress: Callable[[int, float], None] | None = None,
         stage: Callable[[str], None] | None = None,
+        extra: np.ndarray | None = None,
     ):
         """Global search over A's rotation: canonical views, then the swarm, then a local polish.
 
@@ -153,6 +154,10 @@ class PlayerA:
             Called as ``progress(iteration, best)`` by the global method.
         stage : callable, optional
             Called with "canonical", "swarm" and "polish" as each stage starts (progress bars).
+        extra : (E, 4) ndarray, optional
+            More rotations evaluated with the canonical views (A's rest poses,
+            :mod:`sieve_mi.game.rest`), seeding the swarm like them; their values are returned
+            in ``history.extra``.
 
         Returns
         -------
@@ -175,12 +180,16 @@ class PlayerA:
             if stage is not None:
                 stage(name)
 
-        if s.canonical > 0:
+        extra = np.zeros((0, 4)) if extra is None else np.atleast_2d(extra)
+        if s.canonical > 0 or len(extra):
             say("canonical")
-        seeds, evaluated = self._canonical_seeds(evaluate, s.canonical, max(1, s.particles // 2))
+        seeds, evaluated, extra_values = self._canonical_seeds(
+            evaluate, s.canonical, max(1, s.particles // 2), extra
+        )
         say("swarm" if s.outer == "pso" else s.outer)
         q, f, history = self._global(evaluate, seeds, s, rng, seed, progress)
         history.evaluations += evaluated
+        history.extra = [float(v) for v in extra_values]
         if s.polish > 0:
             say("polish")
             q, f, history.polish = self.polish(player_b, q, s, seed=seed)
@@ -200,16 +209,20 @@ class PlayerA:
         values = attack.value()
         return np.where([h.mask.any() for h in holes], values, -1.0)
 
-    def _canonical_seeds(self, evaluate, count: int, keep: int) -> tuple[np.ndarray, int]:
-        """The ``keep`` best of ``count`` canonical orientations (k, 4), evaluated in one batch,
-        and how many were evaluated."""
+    def _canonical_seeds(
+        self, evaluate, count: int, keep: int, extra: np.ndarray
+    ) -> tuple[np.ndarray, int, np.ndarray]:
+        """The ``keep`` best of ``count`` canonical orientations and the ``extra`` ones (k, 4),
+        evaluated in one batch, how many were evaluated, and the ``extra`` ones' values."""
         from sieve_mi.geometry.canonical import canonical_orientations
 
-        if count <= 0:
-            return np.zeros((0, 4)), 0
-        views = canonical_orientations(self.shape, count)
+        views = canonical_orientations(self.shape, count) if count > 0 else np.zeros((0, 4))
+        views = np.concatenate([views, extra]) if len(extra) else views
+        if not len(views):
+            return np.zeros((0, 4)), 0, np.zeros(0)
         values = evaluate(views)
-        return views[np.argsort(-values, kind="stable")[:keep]], len(views)
+        best = views[np.argsort(-values, kind="stable")[:keep]]
+        return best, len(views), values[len(views) - len(extra) :]
 
     def _global(self, evaluate, seeds, solver: Solver, rng, seed: int, progress):
         """The swarm (or nlopt) of ``solver`` over A's rotation, started from ``seeds`` where given."""

@@ -24,6 +24,7 @@ from sieve_mi.game.overhang import block_overhangs
 from sieve_mi.game.placement import PlacementContext
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
+from sieve_mi.game.rest import likely_rests, prefer, rest_records
 from sieve_mi.game.result import Result, block_margins, is_blocked
 from sieve_mi.game.scoring import mask_window
 from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved
@@ -69,6 +70,9 @@ class SearchOutcome:
     feasibility : Feasibility or None
         The feasibility test before the search (:mod:`sieve_mi.game.feasible`): its impossible B
         were left out of the search and the verdict's attack.
+    rest_choice : dict of int to dict
+        Per searched A, with ``[solver] rest_poses``: the record of
+        :func:`sieve_mi.game.rest.prefer` (search's rotation or a rest pose, and why).
     """
 
     quats: np.ndarray
@@ -82,6 +86,7 @@ class SearchOutcome:
     alternatives: dict = field(default_factory=dict)
     merged_blocks: bool = True
     feasibility: object = None
+    rest_choice: dict = field(default_factory=dict)
 
 
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
@@ -101,25 +106,41 @@ def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
 
 
 def _search_one(a: Shape, blocks: list[Shape], scene: Scene, rng, seed, bar: Progress, label: str):
-    """Player A's rotation for one shape alone against all of B (Secs. 5.1, 5.2)."""
+    """Player A's rotation for one shape alone against all of B (Secs. 5.1, 5.2): (rotation,
+    game value, SwarmHistory, the record of :func:`sieve_mi.game.rest.prefer` with ``[solver]
+    rest_poses``, else None)."""
     s, fab = scene.solver, scene.fabrication
     frame = hole_frame(a, fab.tolerance, s.resolution)
     player_a = PlayerA.from_settings(a, frame, fab, s)
     player_b = PlayerB.from_settings(blocks, frame, s)
     player_a.on_step = bar.update  # each candidate's Adam steps: the bar moves within a stage
+    rests, rest_quats = likely_rests(a) if s.rest_poses else (None, np.zeros((0, 4)))
 
     def report(it, best):
         step = "swarm" if s.outer == "pso" else s.outer
         bar.update(0, best=f"{best:.4f}", stage=f"{label}: {step}")
 
-    return player_a.search(
+    q, f, h = player_a.search(
         player_b,
         s,
         rng=rng,
         seed=seed,
         progress=report,
         stage=lambda name: bar.update(0, stage=f"{label}: {name}"),
+        extra=rest_quats,
     )
+    if rests is None:
+        return q, f, h, None
+    bar.update(0, stage=f"{label}: rest poses")
+    player_a.on_step = None  # the rest poses' check is not in the bar's plan
+
+    def verify(quat):  # an attack as strong as the verdict's, on the rest pose's hole
+        got = player_a.values(player_b, quat[None], scene.verdict.starts, scene.verdict.steps,
+                              s.learning_rate, np.random.default_rng([seed, 0x8E57]))  # fmt: skip
+        return float(got[0])
+
+    q, f, choice = prefer(rests, (q, f), rest_quats, np.asarray(h.extra), verify)
+    return q, f, h, choice
 
 
 def search(
@@ -149,7 +170,12 @@ def search(
     merged = m > 1 and lay.mode == "merged"
     per_stage = (s.canonical + s.particles * (s.iterations + 1)) * s.steps  # candidate-steps
     stages_planned = sum(q is None for q in fixed) + (m - 1 if merged else 0)
-    bar = Progress(progress, per_stage * stages_planned, "search", unit="step", grow_by=per_stage)
+    planned = per_stage * stages_planned
+    if s.rest_poses:  # each searched A's likely rest poses join its canonical views
+        planned += s.steps * sum(
+            len(likely_rests(p)[1]) for p, q in zip(passes, fixed) if q is None
+        )
+    bar = Progress(progress, planned, "search", unit="step", grow_by=per_stage)
     out = _rotate_each(scene, passes, blocks, rng, seed, bar)
     if merged:
         _merge_with_restarts(scene, passes, blocks, out, rng, seed, bar)
@@ -186,6 +212,7 @@ def _merge_with_restarts(
                 got.memory,
             )
             out.alone, out.merged_blocks = rotations.alone, got.blocks
+            out.rest_choice = rotations.rest_choice
         if got.blocks or not searchable:
             return
 
@@ -202,9 +229,11 @@ def _rotate_each(
         if entry.rotation is not None:
             out.quats[i] = normalize(np.asarray(entry.rotation))
             continue
-        out.quats[i], out.value, h = _search_one(
+        out.quats[i], out.value, h, choice = _search_one(
             passes[i], blocks, scene, rng, seed, bar, passes[i].name
         )
+        if choice is not None:
+            out.rest_choice[i] = choice
         out.alone[i] = float(out.value)
         out.alternatives[i] = alternative_rotations(h.finalists, out.quats[i], lay.alternatives)
         out.history.extend(h)
@@ -310,7 +339,16 @@ def solve(
         memory=run.memory,
         window=window,
         feasibility=feasible,
+        rest=_rest(scene, passes, found),
     )
+
+
+def _rest(scene: Scene, passes: list, found: SearchOutcome) -> list:
+    """report.json's ``rest`` per A (:func:`sieve_mi.game.rest.rest_records`) with ``[solver]
+    rest_poses``; empty without (a round part's resting poses take seconds)."""
+    if not scene.solver.rest_poses:
+        return []
+    return rest_records(passes, found.quats, found.rest_choice)
 
 
 def _window(scene: Scene, passes, open_blocks, found, seeds: tuple, progress: bool, run: Run):

@@ -44,6 +44,7 @@ __all__ = [
     "describe_pose",
     "euler_xyz",
     "pose_sentence",
+    "positions_of",
     "rest_points",
     "resting_poses",
 ]
@@ -224,6 +225,14 @@ def rest_points(points: np.ndarray, limit: int = REST_VERTICES) -> np.ndarray:
         if len(kept) <= limit:
             break
     return kept
+
+
+def positions_of(shape: Shape, downs: np.ndarray) -> list[str]:
+    """The position (one of :data:`POSITIONS`) of the resting poses whose down directions (body
+    frame, unit, (K, 3)) are ``downs``, named as :func:`describe_pose` names them (the part's
+    width along each)."""
+    extents = _frame(shape)[1]
+    return _rest_positions(shape, extents, np.atleast_2d(downs))
 
 
 def resting_poses(shape: Shape) -> tuple[np.ndarray, np.ndarray] | None:

@@ -26,6 +26,7 @@ __all__ = [
     "merge_hint",
     "pattern_line",
     "pose_lines",
+    "rest_lines",
     "section_line",
     "sheet_line",
     "stage_line",
@@ -85,6 +86,7 @@ def summary_table(report: dict) -> str:
     perforated = pattern_line(report)
     if perforated:
         lines.append(perforated)
+    lines += rest_lines(report)
     hint = merge_hint(report)
     if hint:
         lines.append(hint)
@@ -172,6 +174,29 @@ def pattern_line(report: dict) -> str | None:
     return (f"sheet: {p['kind']}, {p['count']} holes on {w:g} x {h:g} {u} (pitch "
             f"{p['pitch'][0]:.4g} {u}, web >= {p['web']:g} {u}{turns}), "
             f"{100 * p['open_fraction']:.1f} % open")  # fmt: skip
+
+
+def rest_lines(report: dict) -> list[str]:
+    """Per A that ``[solver] rest_poses`` chose for (report.json's ``pass[i].rest.preferred``,
+    :mod:`sieve_mi.game.rest`), one line: ``1x2: passes on its side, 0.0° from a resting pose
+    (17 % of drops settle on that face), chosen over the search's end on, 0.0° from resting
+    (7 %) by [solver] rest_poses``; empty without the setting."""
+    out = []
+    for p in report["pass"]:
+        rest = p.get("rest") or {}
+        pref = rest.get("preferred")
+        if pref is None:
+            continue
+        head = (f"{p['name']}: passes {rest['position']}, {rest['angle_deg']:.1f}° from a resting "
+                f"pose ({100 * rest['share']:.0f} % of drops settle on that face)")  # fmt: skip
+        search = pref["search"]
+        if pref["chosen"] == "rest pose":
+            out.append(f"{head}, chosen over the search's {search['position']}, "
+                       f"{search['angle_deg']:.1f}° from resting ({100 * search['share']:.0f} %) "
+                       "by [solver] rest_poses")  # fmt: skip
+        else:
+            out.append(f"{head}: the search's own; no likelier resting pose blocks every B")
+    return out
 
 
 def sheet_line(report: dict) -> str | None:

@@ -104,6 +104,9 @@ def report_dict(result: Result) -> dict:
         )
         if i < len(result.alone) and result.alone[i] is not None:
             passes[-1]["alone_loss"] = float(result.alone[i])
+        rest = getattr(result, "rest", None) or []
+        if i < len(rest):  # the nearest resting pose (sieve_mi.game.rest)
+            passes[-1]["rest"] = rest[i]
     blocks = [_block_row(result, j, b) for j, b in enumerate(result.blocks)]
     hole = result.hole
     out = {
