@@ -23,7 +23,7 @@ demo: setup
 	$(VENV)/bin/sieve-mi solve $(SCENE)
 
 test: setup
-	$(PY) -m pytest -q -n 2 --durations=15 tests
+	$(PY) -m pytest -q -n 2 --dist worksteal --durations=15 tests
 
 lint: setup
 	$(VENV)/bin/ruff check .
