@@ -22,6 +22,7 @@ from sieve_mi.workers import worker_pool
 __all__ = [
     "Budgets",
     "MARGIN_FACTOR",
+    "BALL_STEPS",
     "MARGIN_MIN_S",
     "ball_margin",
     "certify_blocks",
@@ -35,9 +36,11 @@ __all__ = [
 MARGIN_FACTOR = 4.0
 #: ... and at least this many seconds (when the budget has them left).
 MARGIN_MIN_S = 2.0
+#: Bisection steps of a ball-proved block's margin (within found / 2^steps of the ball's best).
+BALL_STEPS = 8
 
 
-def ball_margin(radius: float, hole, *, steps: int = 24) -> float:
+def ball_margin(radius: float, hole, *, steps: int = 24, upper: float | None = None) -> float:
     """A proved lower bound on how far a shape holding a ball of ``radius`` sticks out of ``hole``.
 
     If no disk of that radius fits in H grown by m, every pose sticks out by more than m (a pose
@@ -53,7 +56,10 @@ def ball_margin(radius: float, hole, *, steps: int = 24) -> float:
     hole : manifold3d.CrossSection
         The exact hole H.
     steps : int
-        Bisection steps (the bound is within radius / 2^steps of the best this test can prove).
+        Bisection steps (the bound is within upper / 2^steps of the best this test can prove).
+    upper : float, optional
+        Upper end of the bisection (default ``radius``), e.g. the overhang of a pose found: no
+        proof goes past it.
 
     Returns
     -------
@@ -69,7 +75,7 @@ def ball_margin(radius: float, hole, *, steps: int = 24) -> float:
 
     if not holds(0.0):
         return 0.0
-    lo, hi = 0.0, float(radius)
+    lo, hi = 0.0, float(radius if upper is None else min(radius, upper))
     for _ in range(steps):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if holds(mid) else (lo, mid)
@@ -310,10 +316,29 @@ def _straight(shape: Shape, hole, budget: Budgets, found: float | None) -> Certi
     from sieve_mi.certify import certify
 
     c = certify(shape, [hole], budget_s=budget.proof_s)
-    if c.status == "proved":
+    if c.status == "proved" and c.method == "ball":
+        c.margin, c.margin_certificate, c.margin_steps = _ball_margin(shape, c, hole, found)
+    elif c.status == "proved":
         spare = min(budget.proof_s - c.seconds, max(MARGIN_MIN_S, MARGIN_FACTOR * c.seconds))
         c.margin, c.margin_certificate, c.margin_steps = prove_margin(shape, hole, found, spare)
     return c
+
+
+def _ball_margin(shape: Shape, c, hole, found: float | None) -> tuple[float, dict, int]:
+    """The margin of a block proved by its ball (:func:`prove_margin`'s answer, without its
+    bisection of whole proofs): :func:`ball_margin` of that ball, capped by ``found`` (no proof
+    can go past a pose that sticks out that much), proved again by one certify call against H
+    grown by it, which gives the margin's certificate (the same ball test)."""
+    from sieve_mi.certify import certify
+
+    radius = float(c.certificate["root"]["radius"])
+    if not found or found <= 0.0:
+        return 0.0, {}, 0
+    m = ball_margin(radius, hole, steps=BALL_STEPS, upper=float(found))
+    if m <= 0.0:
+        return 0.0, {}, 0
+    again = certify(shape, [dilated(hole, m)], budget_s=1.0)
+    return (m, again.certificate, 1) if again.status == "proved" else (0.0, {}, 1)
 
 
 def prove_margin(

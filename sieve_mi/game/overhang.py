@@ -212,6 +212,8 @@ def least_overhang(
         Its ``score.protrusion`` (scene units) is the exact overhang at its pose; 0 means the pose
         fits H.
     """
+    if start.score.fits or _bracketed(start, floor):
+        return start  # nothing to find: it fits, or no pose can do much better
     closed = is_closed(shape) if closed is None else closed
     boundary = Boundary(hole)
     quats, trans = _starts(shape, boundary)
