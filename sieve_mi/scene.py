@@ -2,7 +2,7 @@
 
 Every key of a scene file is declared once, as a field of one of the dataclasses below (the
 scene's tables: :class:`ShapeEntry`, :class:`Fabrication`, :class:`Solver`, :class:`Verdict`,
-:class:`Layout`, and :class:`Scene` itself), made by :func:`sieve_mi.settings.setting`: the field
+:class:`Layout`, :class:`~sieve_mi.shaker.Shake`, and :class:`Scene` itself), made by :func:`sieve_mi.settings.setting`: the field
 carries its default, and its :class:`~sieve_mi.settings.Spec` its bounds or accepted values, its
 unit and its one-line meaning. The reader (:func:`load_scene`) takes defaults and validation from
 there (:mod:`sieve_mi.settings`), the class docstrings list them, and ``tests/test_scene.py``
@@ -40,6 +40,7 @@ from sieve_mi.settings import (
     spec_of,
     value_types,
 )
+from sieve_mi.shaker import Shake
 
 __all__ = [
     "LAYOUT_MODES",
@@ -330,6 +331,7 @@ class Scene:
     solver: Solver = field(default_factory=Solver)
     verdict: Verdict = field(default_factory=Verdict)
     layout: Layout = field(default_factory=Layout)
+    shake: Shake = field(default_factory=Shake)
     #: The scene file's folder, absolute, fixed at load time (a later ``chdir`` does not move it).
     directory: str = field(init=False, repr=False, compare=False)
 
@@ -361,9 +363,8 @@ class Scene:
         directory : str, optional
             Folder that relative paths refer to (default: the working directory).
 
-        An entry may also be a mesh file's path (relative to ``directory``). Everything is checked
-        as in a scene file, with the same one-line :class:`~sieve_mi.errors.SieveError`; settings
-        are attributes afterwards (``scene.fabrication.tolerance = 0.5``), checked when set.
+        Everything is checked as in a scene file, with the same one-line SieveError; settings are
+        attributes afterwards (``scene.fabrication.tolerance = 0.5``), checked when set.
 
         Examples
         --------
@@ -395,8 +396,9 @@ class Scene:
         return mesh if os.path.isabs(mesh) else os.path.normpath(os.path.join(self.directory, mesh))
 
     def settings(self) -> dict:
-        """The search and fabrication settings, as stored in ``report.json``."""
-        return {"units": self.units, **{key: asdict(t) for key, t in self.tables().items()}}
+        """The settings as stored in ``report.json`` (``shake`` only where it is not the default)."""
+        kept = {key: asdict(t) for key, t in self.tables().items() if t != Shake()}
+        return {"units": self.units, **kept}
 
     def tables(self) -> dict:
         """The settings tables by TOML key: ``{"fabrication": Fabrication(...), ...}``."""
@@ -579,8 +581,7 @@ def read_tables(path: str, data: dict) -> dict:
     Returns
     -------
     dict
-        ``{"fabrication": Fabrication(...), "solver": Solver(...), ...}``, one per
-        :func:`table_fields` entry (absent tables at their defaults).
+        ``{"fabrication": Fabrication(...), ...}``, every table (absent ones at their defaults).
     """
     out = {}
     for f in table_fields():
