@@ -38,6 +38,7 @@ from sieve_mi.errors import SieveError
 
 __all__ = [
     "ANGLES",
+    "ANGLES_MAX",
     "LENGTH_MAX",
     "SEED_MAX",
     "SIZE",
