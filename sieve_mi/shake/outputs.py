@@ -316,7 +316,7 @@ def tradeoff_plot(tries: list[dict], target: float, units: str) -> bytes:
     for k, t in enumerate(tries):
         a = min(t["pass"], key=lambda s: s["fraction"])
         x = k if t["b_margin"] is None else t["b_margin"]
-        err = [[a["fraction"] - a["ci95"][0]], [a["ci95"][1] - a["fraction"]]]
+        err = [[max(0.0, a["fraction"] - a["ci95"][0])], [max(0.0, a["ci95"][1] - a["fraction"])]]
         ax.errorbar([x], [a["fraction"]], yerr=err, fmt="o", color="#1a9850" if t["blocked"]
                     else "#d73027", capsize=3)  # fmt: skip
         ax.annotate(f"{k}: {t['step']}", (x, a["fraction"]), fontsize=7, xytext=(4, 4),
