@@ -178,8 +178,9 @@ def reach_target(scene, result, out_dir: str, settings, flags: dict) -> dict:
     Returns
     -------
     dict
-        report.json's ``shake`` entry (:func:`~sieve_mi.shake.outputs.report_entry`) with
-        ``target``: ``fraction``, ``met``, ``chosen`` (the try in the folder), ``tries``.
+        ``run`` (the chosen try's shake run, with the B certify did not prove), ``report`` (its
+        report.json), ``met``, ``chosen`` (the try the folder holds) and ``tries`` (each try's
+        :func:`try_row`); the folder holds the chosen try, its shake.json and shake.png.
     """
     from sieve_mi import api
     from sieve_mi.shake.inputs import read_report
