@@ -162,9 +162,9 @@ def cmd_solve(args) -> int:
     out_dir = args.out or os.path.join("out", scene.name)
     validate(out_dir, inputs=input_paths(scene))  # again just before the swap
     sm.check_seed(args.seed, "--seed")
-    from sieve_mi.shake.commands import shake_after_solve, solve_shake_settings
+    from sieve_mi.shake.commands import after_solve, solve_shake_settings
 
-    shake = solve_shake_settings(args.shake)
+    shake = solve_shake_settings(args.shake, scene)
     # sm.solve's game, with a record whose times count from the process's start (Python, the
     # imports and reading the scene are "startup"); sm.solve's checks of the arguments ran above.
     run = Run.from_process_start()
@@ -183,7 +183,7 @@ def cmd_solve(args) -> int:
     print(f"outputs: {out_dir}/", file=sys.stderr if args.json else sys.stdout)
     if shake is not None:
         try:
-            shake_after_solve(out_dir, shake, args.quiet, args.json)
+            after_solve(scene, result, out_dir, shake, args)
         except KeyboardInterrupt:
             print(f"sieve-mi: the solve's outputs in {out_dir}/ are complete; stopped during "
                   "the shake trials: shake.json, shake.png and shake.gif were not made",

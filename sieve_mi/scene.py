@@ -1,15 +1,13 @@
 """Scene files (TOML): what must pass, what must be blocked, and how to search.
 
-Every key of a scene file is declared once, as a field of one of the dataclasses below (the
-scene's tables: :class:`ShapeEntry`, :class:`Fabrication`, :class:`Solver`, :class:`Verdict`,
-:class:`Layout`, and :class:`Scene` itself), made by :func:`sieve_mi.settings.setting`: the field
-carries its default, and its :class:`~sieve_mi.settings.Spec` its bounds or accepted values, its
-unit and its one-line meaning. The reader (:func:`load_scene`) takes defaults and validation from
-there (:mod:`sieve_mi.settings`), the class docstrings list them, and ``tests/test_scene.py``
-checks that ``docs/scene-format.md`` says the same. Adding a key is one line in its class (and a
-row in the docs, which the test asks for). Paths are relative to the scene file. Every problem is reported as one
-:class:`~sieve_mi.errors.SieveError` line naming the file and the key; a name that is not a
-setting, set in code, is an :class:`UnknownSettingError` (defined in :mod:`sieve_mi.settings`).
+Every key is declared once, as a field of a table's dataclass (:class:`ShapeEntry`,
+:class:`Fabrication`, :class:`Solver`, :class:`Verdict`, :class:`Layout`,
+:class:`~sieve_mi.shaker.Shake`, :class:`Scene`) made by :func:`sieve_mi.settings.setting`, with
+its default, bounds or accepted values, unit and one-line meaning. :func:`load_scene` takes
+defaults and validation from there; ``tests/test_scene.py`` checks that
+``docs/scene-format.md`` has a row for each. Paths are relative to the scene file. Every problem
+is one :class:`~sieve_mi.errors.SieveError` line naming the file and the key; a name that is not
+a setting, set in code, is an :class:`UnknownSettingError` (:mod:`sieve_mi.settings`).
 """
 
 from __future__ import annotations
@@ -40,6 +38,7 @@ from sieve_mi.settings import (
     spec_of,
     value_types,
 )
+from sieve_mi.shaker import Shake
 
 __all__ = [
     "LAYOUT_MODES",
@@ -336,6 +335,7 @@ class Scene:
     solver: Solver = field(default_factory=Solver)
     verdict: Verdict = field(default_factory=Verdict)
     layout: Layout = field(default_factory=Layout)
+    shake: Shake = field(default_factory=Shake)
     #: The scene file's folder, absolute, fixed at load time (a later ``chdir`` does not move it).
     directory: str = field(init=False, repr=False, compare=False)
 
@@ -367,9 +367,8 @@ class Scene:
         directory : str, optional
             Folder that relative paths refer to (default: the working directory).
 
-        An entry may also be a mesh file's path (relative to ``directory``). Everything is checked
-        as in a scene file, with the same one-line :class:`~sieve_mi.errors.SieveError`; settings
-        are attributes afterwards (``scene.fabrication.tolerance = 0.5``), checked when set.
+        Everything is checked as in a scene file, with the same one-line SieveError; settings are
+        attributes afterwards (``scene.fabrication.tolerance = 0.5``), checked when set.
 
         Examples
         --------
@@ -382,18 +381,13 @@ class Scene:
         >>> [e.name for e in scene.passes + scene.blocks]
         ['pass_0', 'ball']
         """
-
         where = "Scene.from_meshes"
         if not isinstance(name, str):
             raise SieveError(f"{where}: name: expected a string, got {name!r:.40}")
         check_folder_name(where, name)
         path = os.path.join(os.path.abspath(directory or os.getcwd()), f"{name}.toml")
-        passes = [
-            _entry(item, f"pass[{i}]", "pass") for i, item in enumerate(_items(passes, "passes"))
-        ]
-        blocks = [
-            _entry(item, f"block[{i}]", "block") for i, item in enumerate(_items(blocks, "blocks"))
-        ]
+        passes = [_entry(x, f"pass[{i}]", "pass") for i, x in enumerate(_items(passes, "passes"))]
+        blocks = [_entry(x, f"block[{i}]", "block") for i, x in enumerate(_items(blocks, "blocks"))]
         return cls(path=path, name=name, passes=passes, blocks=blocks)
 
     def resolve(self, mesh: str) -> str:
@@ -401,8 +395,9 @@ class Scene:
         return mesh if os.path.isabs(mesh) else os.path.normpath(os.path.join(self.directory, mesh))
 
     def settings(self) -> dict:
-        """The search and fabrication settings, as stored in ``report.json``."""
-        return {"units": self.units, **{key: asdict(t) for key, t in self.tables().items()}}
+        """The settings as stored in ``report.json`` (``shake`` only where it is not the default)."""
+        kept = {key: asdict(t) for key, t in self.tables().items() if t != Shake()}
+        return {"units": self.units, **kept}
 
     def tables(self) -> dict:
         """The settings tables by TOML key: ``{"fabrication": Fabrication(...), ...}``."""
@@ -585,8 +580,7 @@ def read_tables(path: str, data: dict) -> dict:
     Returns
     -------
     dict
-        ``{"fabrication": Fabrication(...), "solver": Solver(...), ...}``, one per
-        :func:`table_fields` entry (absent tables at their defaults).
+        ``{"fabrication": Fabrication(...), ...}``, every table (absent ones at their defaults).
     """
     out = {}
     for f in table_fields():

@@ -38,6 +38,7 @@ from sieve_mi.errors import SieveError
 
 __all__ = [
     "ANGLES",
+    "ANGLES_MAX",
     "LENGTH_MAX",
     "SEED_MAX",
     "SIZE",
@@ -145,11 +146,13 @@ def field_of(cls: type, name: str) -> dataclasses.Field:
     return next(f for f in fields(cls) if f.name == name)
 
 
-def like(cls: type, name: str, **changes):
+def like(cls: type, name: str, *, default=MISSING, **changes):
     """A field declared as ``cls``'s field ``name`` (its default and :class:`Spec`), with
-    ``changes`` to the Spec: one setting's default and meaning, used by a second class."""
+    ``changes`` to the Spec: one setting's default and meaning, used by a second class
+    (``default``, if given, replaces the default)."""
     f = field_of(cls, name)
-    return field(default=f.default, metadata={"spec": dataclasses.replace(spec_of(f), **changes)})
+    default = f.default if default is MISSING else default
+    return field(default=default, metadata={"spec": dataclasses.replace(spec_of(f), **changes)})
 
 
 def key_of(f: dataclasses.Field) -> str:

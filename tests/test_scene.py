@@ -230,7 +230,7 @@ def test_minimal_scene_loads_to_the_documented_defaults(tmp_path):
         assert entry == ShapeEntry(mesh=mesh, scale=1.0, rotation=None, name=None)
     assert s.settings() == {
         "units": s.units,
-        **{f.name: vars(getattr(s, f.name)) for f in scene.table_fields()},
+        **{f.name: vars(getattr(s, f.name)) for f in scene.table_fields() if f.name != "shake"},
     }
     assert list(s.settings()) == ["units", "fabrication", "solver", "verdict", "layout"]
     json.dumps(s.settings())  # report.json must be able to hold it
@@ -267,9 +267,10 @@ def _other_value(f, kind, spec):
     if kind is bool:
         return not f.default
     if kind is int:
-        value = f.default + 1
+        value = (spec.minimum if f.default is None else f.default) + 1
         return value if spec.maximum is None or value <= spec.maximum else spec.minimum
-    return (f.default or 1.0) * 1.5 + 0.25
+    value = (f.default or 1.0) * 1.5 + 0.25
+    return value if spec.maximum is None or value <= spec.maximum else spec.maximum / 2
 
 
 @pytest.mark.parametrize("table, f, kind, spec", _settings_keys())
@@ -311,7 +312,7 @@ def test_unknown_top_level_key(tmp_path):
     message = _error(tmp_path, MINIMAL.replace("[[pass]]", "colour = 1\n[[pass]]", 1))
     assert message == (
         "colour: unknown key; known keys here: "
-        "block, fabrication, layout, name, pass, solver, units, verdict"
+        "block, fabrication, layout, name, pass, shake, solver, units, verdict"
     )
 
 

@@ -6,7 +6,7 @@ Every import counts, at module level or inside a function. The units of the floo
 to top (a unit may import only units below it, or modules of its own):
 
     _version < errors < settings < options < parsing < backend < telemetry < workers < progress < optim
-    < geometry < objectives < scene < authors_config
+    < geometry < objectives < shaker < scene < authors_config
     < certify < motion < game < outputs < api < shake < cascade < testing < cli < __main__
     < __init__
 
@@ -41,6 +41,7 @@ UNITS = (
     "optim",
     "geometry",
     "objectives",
+    "shaker",
     "scene",
     "authors_config",
     "certify",

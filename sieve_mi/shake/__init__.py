@@ -36,6 +36,8 @@ clip
     ``shake.gif``: a short Mitsuba-rendered clip of one trial per shape.
 commands
     The ``shake`` subcommand of the command line.
+target
+    A pass-rate target (``[shake] target``): widen the window, add turned copies, until met.
 """
 
 import os

@@ -11,6 +11,7 @@ from sieve_mi.shake.settings import ShakeSettings, check_workers, metres_per_uni
 
 __all__ = [
     "add_parser",
+    "after_solve",
     "cmd_shake",
     "need_engine",
     "settings_from_args",
@@ -196,23 +197,61 @@ def trials_option(
     return replace(base or ShakeSettings(), trials=trials)
 
 
-def solve_shake_settings(text: str | None) -> ShakeSettings | None:
-    """``solve --shake N``'s settings (checked before the solve starts, as is the engine:
-    :func:`need_engine`), None without it."""
-    settings = trials_option(text, "solve")
+def solve_shake_settings(text: str | None, scene=None) -> ShakeSettings | None:
+    """``solve``'s shake settings, checked before the solve starts (as is the engine:
+    :func:`need_engine`): the scene's ``[shake]`` table (its ``duration`` and ``seed``; its
+    ``trials``, 200 where it gives a target alone) with ``--shake N`` trials; None where neither
+    asks for trials."""
+    table = None if scene is None else scene.shake
+    base = None
+    if table is not None and (text is not None or table.trials or table.target):
+        base = ShakeSettings(trials=table.trials or ShakeSettings.trials,
+                             duration=table.duration, seed=table.seed)  # fmt: skip
+    settings = trials_option(text, "solve", base=base) if text is not None else base
     if settings is not None:
-        need_engine("sieve-mi solve --shake")
+        need_engine("sieve-mi solve --shake" if text is not None else "a scene's [shake] table")
     return settings
 
 
-def shake_after_solve(out_dir: str, settings: ShakeSettings, quiet: bool, to_stderr: bool) -> None:
-    """Shake a fresh solve's folder; the table goes to stdout (stderr when solve prints JSON).
-
-    A solve that found no hole wrote no plate: then it says so in one warning line."""
-    from sieve_mi.shake.outputs import summary
+def after_solve(scene, result, out_dir: str, settings: ShakeSettings, args) -> None:
+    """Shake a fresh solve's folder (``solve --shake N`` or the scene's ``[shake]`` table), or
+    reach the scene's ``[shake] target`` (:func:`sieve_mi.shake.target.reach_target`); then put
+    the ``shake`` entry into report.json and print one line per shape (stdout; stderr when
+    solve prints JSON). A solve that wrote no plate says so in one warning line."""
+    from sieve_mi.shake.inputs import read_report
+    from sieve_mi.shake.outputs import record, report_entry, shape_lines, target_card
 
     if not os.path.isfile(os.path.join(out_dir, "sieve.stl")):
         print("sieve-mi: warning: no sieve.stl to shake (no hole was found)", file=sys.stderr)
         return
+    out = sys.stderr if args.json else sys.stdout
+    card = None
+    if scene.shake.target is None:
+        run = shake_after_solve(out_dir, settings, args.quiet, args.json)
+        entry = report_entry(run, read_report(out_dir)[1])
+    else:
+        from sieve_mi.shake.target import reach_target
+
+        flags = {"variant": args.variant, "seed": args.seed, "quiet": args.quiet,
+                 "to_stderr": args.json, "figure": not args.no_figure,
+                 "animation": not args.no_animation}  # fmt: skip
+        got = reach_target(scene, result, out_dir, settings, flags)
+        entry = report_entry(got["run"], got["report"])
+        entry["target"] = {"fraction": scene.shake.target, "met": got["met"],
+                           "chosen": got["chosen"], "tries": got["tries"]}  # fmt: skip
+        card = target_card(entry["target"], scene.units)
+        word = "met" if got["met"] else "not met; the folder holds the best try"
+        print(f"target {100 * scene.shake.target:g} %: {word} (try {got['chosen']})", file=out)
+    record(out_dir, entry, card)
+    for line in shape_lines(entry):
+        print(line, file=out)
+
+
+def shake_after_solve(out_dir: str, settings: ShakeSettings, quiet: bool, to_stderr: bool) -> dict:
+    """Shake a fresh solve's folder; the table goes to stdout (stderr when solve prints JSON);
+    returns the run (:func:`~sieve_mi.shake.run.shake`)."""
+    from sieve_mi.shake.outputs import summary
+
     report = shake_folder(out_dir, settings, progress=not quiet)
     print(summary(report), file=sys.stderr if to_stderr else sys.stdout)
+    return report

@@ -22,6 +22,7 @@ __all__ = [
     "from_files",
     "from_folder",
     "only_names",
+    "read_report",
     "report_shapes",
     "report_units",
     "select",
@@ -76,7 +77,7 @@ def from_files(plate: str, parts: list[str], units: str = "mm") -> ShakeInput:
 REPORT_MAX = 64 * 2**20
 
 
-def _read_report(folder: str) -> tuple[str, dict]:
+def read_report(folder: str) -> tuple[str, dict]:
     """The solve's ``report.json`` in ``folder``, parsed with every number and nesting checked
     (:func:`~sieve_mi.parsing.parse_json`): its path and the object."""
     path = os.path.join(folder, "report.json")
@@ -199,7 +200,7 @@ def from_folder(folder: str, only: list[str] | None = None) -> ShakeInput:
     """
     if not os.path.isdir(folder):
         raise SieveError(f"{folder}: no such folder; give a solve's output folder")
-    path, report = _read_report(folder)
+    path, report = read_report(folder)
     shapes = report_shapes(report, path)
     units = report_units(report, path)
     plate = os.path.join(folder, "sieve.stl")

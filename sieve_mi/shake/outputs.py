@@ -25,12 +25,18 @@ __all__ = [
     "CARD",
     "FILES",
     "ROLE_COLOURS",
+    "TARGET_CARD",
     "add_to_folder",
     "check_folder",
     "html_section",
     "plot",
+    "record",
+    "report_entry",
+    "shape_lines",
     "summary",
+    "target_card",
     "to_json",
+    "tradeoff_plot",
     "write_new_folder",
 ]
 
@@ -224,3 +230,127 @@ def html_section(report: dict, png: bytes) -> str:
 def _twist_words(twist: float) -> str:
     """The twist in the card's sentence: nothing when the plate does not twist."""
     return f" with a {twist:g} degree twist" if twist else ""
+
+
+def report_entry(run: dict, report: dict) -> dict:
+    """report.json's ``shake`` entry after a solve: per shape its trials, or a B's proof.
+
+    Parameters
+    ----------
+    run : dict
+        The shake run (:func:`~sieve_mi.shake.run.shake`); a B certify proved may be absent
+        from it (its 0 is the proof's, not the trials').
+    report : dict
+        The solve's report.json.
+
+    Returns
+    -------
+    dict
+        ``trials``, ``duration_s``, ``seed``, ``fidelity_ok``, ``file`` (``shake.json``) and
+        ``shapes`` (per A and B of report.json: ``name``, ``role``, ``evidence`` (``"trials"``,
+        or ``"proof"`` for a B not shaken), ``trials``, ``passed``, ``fraction``, ``ci95``,
+        ``median_time_s``; for a B also ``proof``, its ``certified`` status or None).
+    """
+    shaken = {s["name"]: s for s in run["shapes"]}
+    keys = ("trials", "passed", "fraction", "ci95", "median_time_s")
+    shapes = []
+    for role, key in (("A", "pass"), ("B", "block")):
+        for e in report[key]:
+            s = shaken.get(e["name"])
+            row = {"name": e["name"], "role": role, "evidence": "trials" if s else "proof"}
+            row.update({k: s[k] for k in keys} if s else dict(zip(keys, (0, 0, 0.0, None, None))))
+            if role == "B":
+                row["proof"] = e.get("certified")
+            shapes.append(row)
+    st = run["settings"]
+    return {"trials": st["trials"], "duration_s": st["duration"], "seed": st["seed"],
+            "fidelity_ok": run["fidelity_ok"], "file": "shake.json", "shapes": shapes}  # fmt: skip
+
+
+def shape_lines(entry: dict) -> list[str]:
+    """One console line per shape of a :func:`report_entry`: an A's pass count, fraction, 95 %
+    interval and median time to pass; a B's count and its proof."""
+    out = []
+    for s in entry["shapes"]:
+        head = f"shake: {s['name']} ({s['role']}): "
+        if s["evidence"] == "proof":
+            out.append(head + "0 passed: proved blocked (certify), not shaken")
+            continue
+        lo, hi = s["ci95"]
+        text = (f"{s['passed']} of {s['trials']} passed ({100 * s['fraction']:.1f} %, 95 % "
+                f"interval {100 * lo:.1f}–{100 * hi:.1f} %)")  # fmt: skip
+        if s["median_time_s"] is not None:
+            text += f", median {s['median_time_s']:.2f} s to pass"
+        if s["role"] == "B":
+            text += f"; certify: {s['proof'] or 'not run'}"
+        out.append(head + text)
+    return out
+
+
+def record(folder: str, entry: dict, card: str | None = None) -> None:
+    """Put ``entry`` into the solve folder's report.json as ``shake`` (and ``card``, the target's,
+    into its report.html), through :func:`~sieve_mi.outputs.outdir.add_files`."""
+    from sieve_mi.shake.inputs import read_report
+
+    report = read_report(folder)[1]
+    report["shake"] = entry
+    contents = {"report.json": (json.dumps(report, indent=2) + "\n").encode("utf-8")}
+    if card is not None:
+        page = insert_card(folder, TARGET_CARD, card)[0]
+        if page is not None:
+            contents["report.html"] = page.encode("utf-8")
+    add_files(folder, contents, hint=_HINT)
+
+
+#: The name of the pass-rate target's card in report.html.
+TARGET_CARD = "target"
+
+
+def tradeoff_plot(tries: list[dict], target: float, units: str) -> bytes:
+    """A small PNG: each try's least A pass fraction (with its 95 % interval) against the least
+    B margin found (scene units; the try's number where no B has one), the target dashed."""
+    from sieve_mi.outputs.plots import new_figure
+
+    fig = new_figure(4.8, 3.2, 110)
+    ax = fig.add_subplot()
+    for k, t in enumerate(tries):
+        a = min(t["pass"], key=lambda s: s["fraction"])
+        x = k if t["b_margin"] is None else t["b_margin"]
+        err = [[max(0.0, a["fraction"] - a["ci95"][0])], [max(0.0, a["ci95"][1] - a["fraction"])]]
+        ax.errorbar([x], [a["fraction"]], yerr=err, fmt="o", color="#1a9850" if t["blocked"]
+                    else "#d73027", capsize=3)  # fmt: skip
+        ax.annotate(f"{k}: {t['step']}", (x, a["fraction"]), fontsize=7, xytext=(4, 4),
+                    textcoords="offset points")  # fmt: skip
+    ax.axhline(target, ls="--", color="grey", lw=1)
+    ax.set_ylim(-0.02, 1.05)
+    ax.set_xlabel(f"least B margin found ({units})")
+    ax.set_ylabel("least A pass fraction")
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
+
+
+def target_card(target: dict, units: str) -> str:
+    """report.html's pass-rate target card: one row per try and :func:`tradeoff_plot`."""
+    import base64
+    from html import escape
+
+    rows = ""
+    for k, t in enumerate(target["tries"]):
+        rate = ", ".join(f"{escape(a['name'])} {a['passed']}/{a['trials']} [{a['ci95'][0]:.3f}, "
+                         f"{a['ci95'][1]:.3f}]" for a in t["pass"])  # fmt: skip
+        margin = "-" if t["b_margin"] is None else f"{t['b_margin']:.3f}"
+        mark = " (in this folder)" if k == target["chosen"] else ""
+        rows += (f"<tr><td>{k}{mark}</td><td>{escape(t['step'])}</td><td>±{t['window_deg']:g}°"
+                 f"</td><td>{t['holes']}</td><td>{rate}</td><td>{margin}</td>"
+                 f"<td>{'yes' if t['b_proved'] else 'no'}</td></tr>")  # fmt: skip
+    png = base64.b64encode(tradeoff_plot(target["tries"], target["fraction"], units))
+    met = "met" if target["met"] else "not met: the best trade-off is kept"
+    return (
+        f'<section class="card wide" id="{TARGET_CARD}"><h2>Pass-rate target</h2>'
+        f"<p>Target {100 * target['fraction']:g} % of each A within the shaking time: {met}.</p>"
+        f'<img alt="pass rate against B margin" src="data:image/png;base64,{png.decode()}">'
+        "<table><thead><tr><th>try</th><th>step</th><th>window</th><th>holes</th>"
+        f"<th>A passed [95 %]</th><th>B margin ({escape(units)})</th><th>B proved</th></tr>"
+        f"</thead><tbody>{rows}</tbody></table></section>"
+    )

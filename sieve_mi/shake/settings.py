@@ -2,7 +2,8 @@
 
 Every setting is declared once, as a field of :class:`ShakeSettings` made by
 :func:`sieve_mi.settings.setting` (its default, meaning, unit and bounds), the way the scene's tables
-and ``check``'s options are: the ``sieve-mi shake`` options, the ``[shake]`` table of a mixture
+and ``check``'s options are (``trials``, ``duration`` and ``seed`` as the scene's ``[shake]`` keys,
+:class:`sieve_mi.shaker.Shake`): the ``sieve-mi shake`` options, the ``[shake]`` table of a mixture
 file and values given in code are all checked by :func:`sieve_mi.settings.read_value` against that
 declaration, with the one-line error a bad scene key gets (``shake: --trials: must be >= 1,
 got 0``).
@@ -19,7 +20,8 @@ import os
 from dataclasses import asdict, dataclass, fields
 
 from sieve_mi.errors import SieveError
-from sieve_mi.settings import documented, known_names, read_value, setting, spec_of
+from sieve_mi.settings import documented, known_names, like, read_value, setting, spec_of
+from sieve_mi.shaker import Shake
 
 __all__ = [
     "CONTACT",
@@ -95,12 +97,8 @@ class ShakeSettings:
     >= 1, got 0``).
     """
 
-    trials: int = setting(
-        200, "independent trials per shape (one drop, then shaking)", minimum=1, maximum=1_000_000
-    )
-    duration: float = setting(
-        10.0, "shaking time per trial", unit="s", minimum=0.01, maximum=3600.0
-    )
+    trials: int = like(Shake, "trials", default=200, default_doc=None)
+    duration: float = like(Shake, "duration")
     amplitude: float = setting(
         1.0,
         "peak vertical displacement of the plate, z = amplitude sin(2 pi f t); "
@@ -144,9 +142,7 @@ class ShakeSettings:
         minimum=0.01,
         maximum=TIMESTEP_MAX_MS,
     )
-    seed: int = setting(
-        0, "seed of the random drops (same seed, same numbers)", minimum=0, maximum=2**63 - 1
-    )
+    seed: int = like(Shake, "seed")
     coacd_threshold: float = setting(
         0.05,
         "CoACD's concavity threshold for non-convex parts (smaller: more, tighter pieces)",

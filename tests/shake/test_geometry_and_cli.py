@@ -225,7 +225,8 @@ def test_shake_settings_are_checked_as_scene_keys_are():
 
 @pytest.mark.slow
 def test_solve_shake_adds_shake_outputs(tmp_path, monkeypatch, capsys):
-    """``solve --shake N`` shakes the fresh folder: shake.json, shake.png, a report.html card.
+    """``solve --shake N`` shakes the fresh folder: shake.json, shake.png, a report.html card,
+    report.json's ``shake`` entry and one line per shape.
     In-process (``sieve_mi.cli.main``), with the shaking cut to 0.3 s on one worker and no
     shake.gif (the default 10 s on every core and the rendered clip, which
     test_shake_dir_writes_json_png_and_clip_and_lists_them checks, would only make the same
@@ -258,7 +259,14 @@ def test_solve_shake_adds_shake_outputs(tmp_path, monkeypatch, capsys):
     assert [s["role"] for s in report["shapes"]] == ["A", "B"] and report["settings"]["trials"] == 2
     assert 'id="shake"' in (out / "report.html").read_text()
     assert "shake.json" in json.loads((out / ".sieve-mi").read_text())["files"]
-    assert "fidelity: resting sink under" in capsys.readouterr().out  # the shake table printed
+    printed = capsys.readouterr().out
+    assert "fidelity: resting sink under" in printed  # the shake table printed
+    entry = json.loads((out / "report.json").read_text())["shake"]  # and report.json's entry
+    a, b = entry["shapes"]
+    assert (a["role"], a["trials"], b["role"], b["trials"], entry["duration_s"]) == (
+        "A", 2, "B", 2, 0.3)  # fmt: skip
+    assert "proof" in b and "proof" not in a and b["passed"] == 0  # the sphere never passes
+    assert f"shake: {b['name']} (B): 0 of 2 passed" in printed  # one line per shape
 
 
 def test_the_letters_g_decomposes_within_a_millimetre():

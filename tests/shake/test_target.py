@@ -1,0 +1,158 @@
+"""A pass-rate target (``[shake] target``): the scene's keys, and the loop's decisions on stubbed
+trial outcomes (no MuJoCo, no solve)."""
+
+from __future__ import annotations
+
+import pytest
+
+from sieve_mi.errors import SieveError
+from sieve_mi.scene import load_scene
+from sieve_mi.shake import commands
+from sieve_mi.shake.outputs import report_entry, shape_lines, target_card
+from sieve_mi.shake.settings import ShakeSettings
+from sieve_mi.shake.target import best_try, next_step, sheet_turns, try_row
+from sieve_mi.shaker import Shake
+
+SCENE = '[[pass]]\nmesh = "a.stl"\n[[block]]\nmesh = "b.stl"\n'
+
+
+def _scene(tmp_path, shake: str = ""):
+    path = tmp_path / "scene.toml"
+    path.write_text(SCENE + (f"[shake]\n{shake}\n" if shake else ""))
+    return load_scene(str(path))
+
+
+@pytest.mark.parametrize(
+    "key, expected",
+    [
+        ("target = 1.5", "shake.target: must be <= 1, got 1.5"),
+        ("target = 0", "shake.target: must be > 0, got 0"),
+        ("trials = 0", "shake.trials: must be >= 1, got 0"),
+        ('duration = "long"', "shake.duration: expected a number, got 'long'"),
+        (
+            "amplitude = 2",
+            "shake.amplitude: unknown key; known keys here: duration, seed, target, trials",
+        ),  # fmt: skip
+    ],
+)
+def test_a_bad_shake_key_is_one_line_naming_it(tmp_path, key, expected):
+    with pytest.raises(SieveError) as e:
+        _scene(tmp_path, key)
+    assert str(e.value) == f"{tmp_path / 'scene.toml'}: {expected}"
+
+
+def test_the_shake_table_is_read_and_recorded_only_when_given(tmp_path):
+    s = _scene(tmp_path, "target = 0.9\nduration = 10\nseed = 3")
+    assert s.shake == Shake(trials=None, duration=10.0, seed=3, target=0.9)
+    assert s.settings()["shake"] == {"trials": None, "duration": 10.0, "seed": 3, "target": 0.9}
+    assert "shake" not in _scene(tmp_path).settings()  # the bundled scenes' report.json as before
+
+
+def test_solve_takes_its_trials_from_the_scene_or_shake_n(tmp_path, monkeypatch):
+    monkeypatch.setattr(commands, "need_engine", lambda command: None)
+    target = _scene(tmp_path, "target = 0.9\nduration = 4\nseed = 7")
+    got = commands.solve_shake_settings(None, target)
+    assert (got.trials, got.duration, got.seed) == (200, 4.0, 7)  # a target alone: 200 trials
+    assert commands.solve_shake_settings("12", target).trials == 12
+    assert commands.solve_shake_settings(None, _scene(tmp_path, "duration = 4")) is None
+    assert commands.solve_shake_settings(None, _scene(tmp_path)) is None
+    assert commands.solve_shake_settings("5", _scene(tmp_path)) == ShakeSettings(trials=5)
+
+
+def _try(step: str, *passed: int, trials: int = 20, blocked: bool = True, margin=0.5) -> dict:
+    """A stubbed try: each A's pass count of ``trials``."""
+    a = [{"name": f"a{i}", "passed": p, "trials": trials, "fraction": p / trials,
+          "ci95": [0.0, 1.0], "median_time_s": None} for i, p in enumerate(passed)]  # fmt: skip
+    return {"step": step, "blocked": blocked, "pass": a, "b_margin": margin,
+            "window_deg": 0.0, "holes": 1, "b_proved": True}  # fmt: skip
+
+
+def test_the_loop_widens_then_adds_copies_then_stops():
+    tries = [_try("solved", 20, 10)]  # the second A is under 90 %
+    assert next_step(tries, 0.9) == "window"
+    tries.append(_try("window", 20, 15))
+    assert next_step(tries, 0.9) == "sheet"
+    tries.append(_try("sheet", 20, 17))
+    assert next_step(tries, 0.9) == "stop"
+    assert best_try(tries) == 2  # the least A pass fraction is highest there
+
+
+def test_the_loop_stops_at_the_target_and_skips_a_window_already_auto():
+    assert next_step([_try("solved", 18)], 0.9) == "met"  # 18 of 20 is 90 %
+    assert next_step([_try("solved", 17)], 0.9) == "window"
+    assert next_step([_try("solved", 17)], 0.9, skip=("window",)) == "sheet"
+    assert next_step([_try("solved", 17), _try("window", 19)], 0.9) == "met"
+
+
+def test_a_try_that_lets_b_through_never_meets_the_target_nor_is_chosen():
+    assert next_step([_try("solved", 20, blocked=False)], 0.9) == "stop"  # B wins from the start
+    tries = [_try("solved", 5), _try("window", 9), _try("sheet", 20, blocked=False)]
+    assert next_step(tries, 0.9) == "stop"
+    assert best_try(tries) == 1
+    # equal pass rates: the wider B margin is the better trade-off
+    assert best_try([_try("solved", 9, margin=0.8), _try("window", 9, margin=0.2)]) == 0
+
+
+@pytest.mark.parametrize(
+    "degrees, turns",
+    [
+        (90.0, (0.0, 180.0)),
+        (30.0, tuple(60.0 * i for i in range(6))),
+        (180.0, None),
+        (0.0, tuple(15.0 * i for i in range(24))),
+    ],  # fmt: skip
+)
+def test_a_sheet_turns_its_copies_so_every_turn_is_within_the_window_of_one(degrees, turns):
+    assert sheet_turns(degrees) == turns
+
+
+def _report(certified: str | None = "proved") -> dict:
+    block = {"name": "b", "margin": {"found_at_most": 0.75, "proved_at_least": None}}
+    if certified:
+        block["certified"] = certified
+    return {"winner": "A", "pass": [{"name": "a"}], "block": [block],
+            "fabrication": {"window": {"degrees": 21.1},
+                            "pattern": {"count": 16, "turns": [0.0, 180.0], "open_fraction": 0.5}}}  # fmt: skip
+
+
+def _shape(name: str, role: str, passed: int, trials: int = 200, median=None) -> dict:
+    return {"name": name, "role": role, "trials": trials, "passed": passed,
+            "fraction": passed / trials, "ci95": [0.845, 0.930] if passed else [0.0, 0.0188],
+            "median_time_s": median}  # fmt: skip
+
+
+def _run(*shapes) -> dict:
+    return {"shapes": list(shapes), "fidelity_ok": True,
+            "settings": {"trials": 200, "duration": 10.0, "seed": 0}}  # fmt: skip
+
+
+def test_a_try_row_holds_the_pass_counts_and_b_margin():
+    row = try_row("sheet", _report(), _run(_shape("a", "A", 179, median=1.234)))
+    assert row["pass"] == [{"name": "a", "passed": 179, "trials": 200, "fraction": 0.895,
+                            "ci95": [0.845, 0.930], "median_time_s": 1.234}]  # fmt: skip
+    assert (row["window_deg"], row["holes"], row["turns"]) == (21.1, 16, [0.0, 180.0])
+    assert (row["blocked"], row["b_margin"], row["b_margin_proved"], row["b_proved"]) == (
+        True, 0.75, None, True)  # fmt: skip
+
+
+def test_each_shape_is_one_line_a_b_with_its_proof():
+    run = _run(_shape("a", "A", 179, median=1.234))
+    entry = report_entry(run, _report())  # b proved: not shaken
+    assert [s["evidence"] for s in entry["shapes"]] == ["trials", "proof"]
+    assert shape_lines(entry) == [
+        "shake: a (A): 179 of 200 passed (89.5 %, 95 % interval 84.5–93.0 %), median 1.23 s "
+        "to pass",
+        "shake: b (B): 0 passed: proved blocked (certify), not shaken",
+    ]
+    entry = report_entry(_run(*run["shapes"], _shape("b", "B", 0)), _report("undecided"))
+    assert shape_lines(entry)[1] == (
+        "shake: b (B): 0 of 200 passed (0.0 %, 95 % interval 0.0–1.9 %); certify: undecided"
+    )
+
+
+def test_the_target_card_lists_every_try():
+    tries = [try_row("solved", _report(), _run(_shape("a", "A", 150))),
+             try_row("window", _report(), _run(_shape("a", "A", 179)))]  # fmt: skip
+    card = target_card({"fraction": 0.9, "met": False, "chosen": 1, "tries": tries}, "mm")
+    assert card.count("<tr><td>") == 2 and "1 (in this folder)" in card
+    assert "not met: the best trade-off is kept" in card and "data:image/png;base64," in card
