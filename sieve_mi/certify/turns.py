@@ -35,12 +35,15 @@ import numpy as np
 
 from sieve_mi.certify import bounds
 
-__all__ = ["EXACT_FROM", "FIRST_LEVEL", "QUADTREE_STEPS", "TurnTest", "quadtree"]
+__all__ = ["EXACT_FROM", "FIRST_LEVEL", "GROUP", "QUADTREE_STEPS", "TurnTest", "quadtree"]
 
 #: Level of the turn tree from which intervals the quadtree leaves get the exact test.
 EXACT_FROM = 6
 #: First level of the turn tree that is tested (coarser intervals turn the points too far).
 FIRST_LEVEL = 3
+#: Cells whose trees of turns are built together, and intervals per quadtree call / 16 (memory:
+#: intervals x points x squares).
+GROUP = 128
 #: Refinements of the quadtree over translations per interval.
 QUADTREE_STEPS = 6
 #: Relative margin on the turn's displacement bound (rounding).
@@ -85,6 +88,13 @@ class TurnTest:
         list of dict or None
             ``{"roots": [8 nodes]}`` per item.
         """
+        out = []
+        for s in range(0, len(items), GROUP):
+            out += self._group(items[s : s + GROUP], deadline)
+        return out
+
+    def _group(self, items: list, deadline: float) -> list:
+        """:meth:`run` for at most :data:`GROUP` items."""
         if not items:
             return []
         x, r = _padded(items)
@@ -122,7 +132,11 @@ class TurnTest:
         placed = _turned(x[cell], mid)
         grow = 2.0 * math.sin(0.5 * half) * np.linalg.norm(x[cell], axis=-1) * (1 + MARGIN)
         radii = r[cell] + grow
-        left, witness = quadtree(self.lower, self.region, placed, radii)
+        left = np.empty(len(cell), dtype=bool)
+        witness = np.empty((len(cell), 2))
+        for s in range(0, len(cell), GROUP * 16):
+            sl = slice(s, s + GROUP * 16)
+            left[sl], witness[sl] = quadtree(self.lower, self.region, placed[sl], radii[sl])
         self.stats["quadtree"] += int((~left).sum())
         fit = np.unique(cell[np.isfinite(witness[:, 0])])
         self.stats["fits"] += int((~failed[fit]).sum())
