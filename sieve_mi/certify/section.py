@@ -412,9 +412,7 @@ class SectionSearch:
         out = SectionOutcome("undecided", pin, float(thickness), list(nodes))
         while len(level):
             out.depth += 1
-            verdicts = self._level(level, v, lengths, band, t0, budget_s)
-            if verdicts is None:
-                break
+            verdicts, done = self._level(level, v, lengths, band, t0, budget_s)
             split = []
             for i, (node, ev) in enumerate(zip(nodes, verdicts)):
                 out.examined += 1
@@ -424,6 +422,8 @@ class SectionSearch:
                     out.points.update(_evidence_points(ev))
                 elif 0.5 * float(np.max(level.hi[i] - level.lo[i])) > min_angle:
                     split.append(i)
+            if not done and split:  # the budget ran out: what this level proved is kept
+                break
             level, nodes = self._split(level, nodes, split)
         out.open_cells = sum(_count_open(n) for n in out.roots)
         out.status = "proved" if out.open_cells == 0 and len(level) == 0 else "undecided"
@@ -442,17 +442,17 @@ class SectionSearch:
         return kids, out
 
     def _level(self, level: SphereCells, v, lengths, band, t0, budget_s):
-        """Evidence (or None) for every cell of a level; None for the whole level when the
-        budget ran out."""
+        """Evidence (or None) for every cell of a level, and whether the level was finished
+        (False when the budget ran out: the cells not reached get None)."""
         centre, alpha = caps(level)
         out = []
         for s in range(0, len(level), CHUNK):
             if time.perf_counter() - t0 > budget_s:
-                return None
+                return out + [None] * (len(level) - len(out)), False
             sl = slice(s, s + CHUNK)
             out += self._chunk(Plane(centre[sl], alpha[sl], v, lengths, band, self.eta), t0,
                                budget_s)  # fmt: skip
-        return out
+        return out, time.perf_counter() - t0 <= budget_s
 
     def _chunk(self, plane: Plane, t0: float, budget_s: float) -> list:
         """Per cell of a chunk: the diameter test batched, the width test one by one, then the
