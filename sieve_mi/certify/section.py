@@ -32,7 +32,10 @@ plates"):
 ``turns``
     a one-dimensional branch and bound over the turn psi: each interval of turns is excluded when
     no offset puts every chosen point within its bound (r plus the turn's displacement
-    2 sin(delta / 2) |x|) of H (:func:`~sieve_mi.certify.bounds.translations_left`).
+    2 sin(delta / 2) |x|) of H; batched over the cells of a chunk and their intervals
+    (:mod:`sieve_mi.certify.turns`: a quadtree on proved distance bounds, the exact test
+    :func:`~sieve_mi.certify.bounds.translations_left` only where it leaves an interval at the
+    last level).
 
 The certificate's ``section`` entry records the pin, thickness, band, points and the tree; the
 replay (:mod:`sieve_mi.certify.replay_section`) re-proves every leaf with its own geometry.
@@ -48,6 +51,8 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.certify import bounds
+from sieve_mi.certify.search import EvenOdd
+from sieve_mi.certify.turns import TurnTest
 from sieve_mi.geometry.meshes import Shape
 
 __all__ = [
@@ -78,6 +83,8 @@ DIAMETER_DIRECTIONS = 16
 EXTREME_DIRECTIONS = 12
 #: Levels of the turn search: intervals of 2 pi / 8 halved this many times at most.
 TURN_DEPTH = 6
+#: Nodes across the hole of the turn test's grid of lower bounds on the distance to H.
+LOWER_PIXELS = 800
 #: Most candidate points of a section search (vertices first, then points on edges).
 SECTION_CANDIDATES = 6000
 #: Cells of one batched level processed at once (memory: cells x points x 16 floats).
@@ -279,40 +286,51 @@ class Plane:
       by beta <= alpha about an axis a normal to n_c, and the part of S v - v in the plane is
       (cos beta - 1) P v + sin beta (n_c . v) (a x n_c) + (1 - cos beta)(a . v) a; docs/certify.md).
 
+    The band test is made for every (cell, point) pair at once; plane coordinates and bounds are
+    computed per cell when asked (:meth:`cell`), or for a few chosen points (:meth:`widest`).
+
     Attributes
     ----------
     centre : (n, 3) ndarray
     chord : (n,) ndarray
         2 sin(alpha / 2) per cell.
-    rows, cols : (P,) int ndarray
-        The (cell, point) pairs in the band, by cell.
-    x : (P, 2) ndarray
-    r : (P,) ndarray
+    usable : (n, k) bool ndarray
+        The band points of each cell, over the candidates.
     """
 
     def __init__(self, centre, alpha, v, lengths, band: float, eta: float):
-        self.centre, self.chord = centre, 2.0 * np.sin(0.5 * alpha)
-        z = centre @ v.T
-        usable = np.abs(z) + self.chord[:, None] * lengths[None] * (1 + RELATIVE_MARGIN) < (
-            band * (1 - RELATIVE_MARGIN) - eta
+        self.centre, self.alpha, self.chord = centre, alpha, 2.0 * np.sin(0.5 * alpha)
+        self.v, self.lengths, self.eta = v, lengths, eta
+        self.z = centre @ v.T
+        self.usable = np.abs(self.z) + self.chord[:, None] * lengths[None] * (
+            1 + RELATIVE_MARGIN
+        ) < (band * (1 - RELATIVE_MARGIN) - eta)
+        self.e1, self.e2 = plane_frames(centre)
+
+    def bound(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """The displacement bounds r of points ``cols`` in cells ``rows`` (same shape)."""
+        a = self.alpha[rows]
+        second = 2.0 * (1.0 - np.cos(a)) * self.lengths[cols] + np.sin(a) * np.abs(
+            self.z[rows, cols]
         )
-        self.rows, self.cols = np.nonzero(usable)
-        e1, e2 = plane_frames(centre)
-        vk, zk = v[self.cols], z[self.rows, self.cols]
-        self.x = np.column_stack([(e1[self.rows] * vk).sum(1), (e2[self.rows] * vk).sum(1)])
-        a = alpha[self.rows]
-        second = 2.0 * (1.0 - np.cos(a)) * lengths[self.cols] + np.sin(a) * np.abs(zk)
-        self.r = second * (1 + RELATIVE_MARGIN) + eta
-        self.starts = np.searchsorted(self.rows, np.arange(len(centre) + 1))
+        return second * (1 + RELATIVE_MARGIN) + self.eta
+
+    def coords(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Plane coordinates x (..., 2) of points ``cols`` in cells ``rows`` (same shape)."""
+        vk = self.v[cols]
+        return np.stack([(self.e1[rows] * vk).sum(-1), (self.e2[rows] * vk).sum(-1)], axis=-1)
 
     def cell(self, c: int):
         """Cell ``c``'s band points: candidate indices, x (k, 2), r (k,)."""
-        sl = slice(self.starts[c], self.starts[c + 1])
-        return self.cols[sl], self.x[sl], self.r[sl]
+        cols = np.flatnonzero(self.usable[c])
+        rows = np.full(len(cols), c)
+        return cols, self.coords(rows, cols), self.bound(rows, cols)
 
-    def widest(self, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def widest(self, dirs: np.ndarray, block: int = 32) -> tuple[np.ndarray, np.ndarray]:
         """Per cell, the pair of band points furthest apart along one of ``dirs`` (m, 2) after
         their bounds, and its proved gap |x_i - x_j| - r_i - r_j (-inf without two points).
+
+        The pair is chosen in single precision (a choice only); its gap is computed in double.
 
         Returns
         -------
@@ -320,29 +338,29 @@ class Plane:
             Candidate indices.
         gap : (n,) ndarray
         """
-        n = len(self.centre)
+        n, m = len(self.centre), len(dirs)
         pair, gap = np.zeros((n, 2), dtype=np.int64), np.full(n, -np.inf)
-        have = np.flatnonzero(np.diff(self.starts) >= 2)
-        if not len(have):
-            return pair, gap
-        s = self.x @ dirs.T
-        hi = _segment_arg(s - self.r[:, None], self.starts, have, np.argmax)
-        lo = _segment_arg(s + self.r[:, None], self.starts, have, np.argmin)
-        d = np.linalg.norm(self.x[hi] - self.x[lo], axis=-1) - self.r[hi] - self.r[lo]
-        best = d.argmax(axis=1)
-        k = np.arange(len(have))
-        pair[have] = np.column_stack([self.cols[hi[k, best]], self.cols[lo[k, best]]])
-        gap[have] = d[k, best]
+        have = np.flatnonzero(self.usable.sum(axis=1) >= 2)
+        for s in range(0, len(have), block):
+            c = have[s : s + block]
+            cols = np.flatnonzero(self.usable[c].any(axis=0))  # in the band of some cell
+            w = (
+                dirs[None, :, 0, None] * self.e1[c, None]
+                + dirs[None, :, 1, None] * self.e2[c, None]
+            )
+            proj = w.astype(np.float32) @ self.v[cols].T.astype(np.float32)  # (b, m, k)
+            r = self.bound(c[:, None], cols[None]).astype(np.float32)
+            off = ~self.usable[np.ix_(c, cols)][:, None, :]
+            hi = cols[np.where(off, -np.inf, proj - r[:, None]).argmax(axis=2)]
+            lo = cols[np.where(off, np.inf, proj + r[:, None]).argmin(axis=2)]
+            rows = np.repeat(c, m).reshape(-1, m)
+            d = np.linalg.norm(self.coords(rows, hi) - self.coords(rows, lo), axis=-1)
+            d -= self.bound(rows, hi) + self.bound(rows, lo)
+            best = d.argmax(axis=1)
+            k = np.arange(len(c))
+            pair[c] = np.column_stack([hi[k, best], lo[k, best]])
+            gap[c] = d[k, best]
         return pair, gap
-
-
-def _segment_arg(values: np.ndarray, starts: np.ndarray, cells: np.ndarray, arg) -> np.ndarray:
-    """Per cell in ``cells`` and column, the row index (into ``values``) of ``arg`` over the
-    cell's rows ``starts[c]:starts[c + 1]``; (len(cells), m) int."""
-    out = np.empty((len(cells), values.shape[1]), dtype=np.int64)
-    for k, c in enumerate(cells):
-        out[k] = starts[c] + arg(values[starts[c] : starts[c + 1]], axis=0)
-    return out
 
 
 class SectionSearch:
@@ -369,6 +387,9 @@ class SectionSearch:
         segs = bounds.contour_segments(contours)
         self.eta = 1e-6 * max(float(np.abs(segs).max()), self.radius)
         self.cache = bounds.OffsetCache(hole, self.eta, r_min=self.eta)
+        region = EvenOdd(contours)
+        self.turn_test = TurnTest(self.cache, bounds.LowerDistance(segs, region, LOWER_PIXELS),
+                                  region, TURN_DEPTH)  # fmt: skip
         a = np.pi * np.arange(DIAMETER_DIRECTIONS) / DIAMETER_DIRECTIONS
         self.dirs = np.column_stack([np.cos(a), np.sin(a)])
         b = 2 * np.pi * np.arange(EXTREME_DIRECTIONS) / EXTREME_DIRECTIONS
@@ -391,9 +412,7 @@ class SectionSearch:
         out = SectionOutcome("undecided", pin, float(thickness), list(nodes))
         while len(level):
             out.depth += 1
-            verdicts = self._level(level, v, lengths, band, t0, budget_s)
-            if verdicts is None:
-                break
+            verdicts, done = self._level(level, v, lengths, band, t0, budget_s)
             split = []
             for i, (node, ev) in enumerate(zip(nodes, verdicts)):
                 out.examined += 1
@@ -403,6 +422,8 @@ class SectionSearch:
                     out.points.update(_evidence_points(ev))
                 elif 0.5 * float(np.max(level.hi[i] - level.lo[i])) > min_angle:
                     split.append(i)
+            if not done and split:  # the budget ran out: what this level proved is kept
+                break
             level, nodes = self._split(level, nodes, split)
         out.open_cells = sum(_count_open(n) for n in out.roots)
         out.status = "proved" if out.open_cells == 0 and len(level) == 0 else "undecided"
@@ -421,36 +442,47 @@ class SectionSearch:
         return kids, out
 
     def _level(self, level: SphereCells, v, lengths, band, t0, budget_s):
-        """Evidence (or None) for every cell of a level; None for the whole level when the
-        budget ran out."""
+        """Evidence (or None) for every cell of a level, and whether the level was finished
+        (False when the budget ran out: the cells not reached get None)."""
         centre, alpha = caps(level)
         out = []
         for s in range(0, len(level), CHUNK):
             if time.perf_counter() - t0 > budget_s:
-                return None
+                return out + [None] * (len(level) - len(out)), False
             sl = slice(s, s + CHUNK)
             out += self._chunk(Plane(centre[sl], alpha[sl], v, lengths, band, self.eta), t0,
                                budget_s)  # fmt: skip
-        return out
+        return out, time.perf_counter() - t0 <= budget_s
 
     def _chunk(self, plane: Plane, t0: float, budget_s: float) -> list:
-        """Per cell of a chunk: the diameter test batched, then width and turns one by one."""
+        """Per cell of a chunk: the diameter test batched, the width test one by one, then the
+        turn test batched over the cells left (:class:`~sieve_mi.certify.turns.TurnTest`)."""
         pair, gap = plane.widest(self.dirs)
-        out = []
+        out, todo = [], []
         for c in range(len(plane.centre)):
             if gap[c] > self.diameter * (1 + RELATIVE_MARGIN) + self.eta:
                 out.append({"kind": "diameter", "pair": pair[c].tolist()})
-            elif time.perf_counter() - t0 > budget_s:
-                out.append(None)
-            else:
-                pts, x, r = plane.cell(c)
-                near = gap[c] > self.diameter - 8.0 * float(r.max(initial=0.0))
-                out.append(None if near else self._narrow(pts, x, r, plane.chord[c]))
+                continue
+            out.append(None)
+            if time.perf_counter() - t0 > budget_s:
+                continue
+            pts, x, r = plane.cell(c)
+            if gap[c] > self.diameter - 8.0 * float(r.max(initial=0.0)):
+                continue  # nearly excluded by the diameter: smaller cells will be
+            out[c] = self._narrow(pts, x, r, plane.chord[c])
+            if isinstance(out[c], tuple):
+                todo.append(c)
+        turns = self.turn_test.run([out[c][1] for c in todo], t0 + budget_s)
+        for c, tree in zip(todo, turns):
+            pts, slack = out[c][0]
+            out[c] = None if tree is None else {"kind": "turns", "points": pts, "slack": slack,
+                                                "turns": tree}  # fmt: skip
         return out
 
-    def _narrow(self, pts, x, r, chord: float) -> dict | None:
-        """The width test, then the turn search, on the cell's band points extreme along
-        :data:`EXTREME_DIRECTIONS` directions (``pts`` their indices, ``x`` (k, 2), ``r`` (k,))."""
+    def _narrow(self, pts, x, r, chord: float):
+        """The width test on the cell's band points extreme along :data:`EXTREME_DIRECTIONS`
+        directions (``pts`` their indices, ``x`` (k, 2), ``r`` (k,)): its evidence, or what the
+        turn test needs: ((points, slack), (x, r + slack)); None with fewer than 2 points."""
         if len(pts) < 2:
             return None
         keep = np.unique((x @ self.extreme_dirs.T - r[:, None]).argmax(axis=0))
@@ -459,36 +491,7 @@ class SectionSearch:
         if w > self.width * (1 + RELATIVE_MARGIN) + self.eta:
             return {"kind": "width", "points": pts.tolist()}
         slack = self.kappa * self.radius * chord
-        turns = self._turns(x, r + slack)
-        if turns is None:
-            return None
-        return {"kind": "turns", "points": pts.tolist(), "slack": slack, "turns": turns}
-
-    def _turns(self, x, r) -> dict | None:
-        """The turn tree: intervals of psi (eight of 2 pi / 8 at the root, halved), each excluded
-        by the translation test; None when an interval is left at :data:`TURN_DEPTH`."""
-        lengths = np.linalg.norm(x, axis=1)
-
-        def decide(lo: float, hi: float, depth: int):
-            mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-            c, s = math.cos(mid), math.sin(mid)
-            placed = x @ np.array([[c, s], [-s, c]])
-            grow = 2.0 * math.sin(0.5 * half) * lengths * (1 + RELATIVE_MARGIN)
-            if bounds.translations_left(self.cache, placed, r + grow).is_empty():
-                return {"e": True}
-            if depth >= TURN_DEPTH:
-                return None
-            first = decide(lo, mid, depth + 1)
-            second = None if first is None else decide(mid, hi, depth + 1)
-            return None if second is None else {"c": [first, second]}
-
-        step = 2.0 * math.pi / 8
-        roots = []
-        for k in range(8):
-            roots.append(decide(k * step, (k + 1) * step, 0))
-            if roots[-1] is None:
-                return None
-        return {"roots": roots}
+        return (pts.tolist(), slack), (x, r + slack)
 
 
 def _evidence_points(ev: dict) -> list:
