@@ -39,6 +39,8 @@ replay_geometry
     The replay's own exact geometry.
 section
     The slab-section proof: no rigid motion passes a plate of a given thickness.
+turns
+    The section proof's batched turn test: a quadtree of proved bounds over in-plane turns.
 replay_section
     The independent replay of a slab-section proof.
 svg

@@ -180,9 +180,10 @@ def _answer(t) -> str:
     return f"{t.status} ({t.seconds:.1f} s)"
 
 
-def _thinnest(searches: _Searches, safe: float, progress: bool):
-    """Bisect (0, safe] for the thinnest plate where no B of ``todo`` was found to pass."""
-    lo, hi, best, steps = 0.0, safe, None, []
+def _thinnest(searches: _Searches, safe: float, progress: bool, low: float = 0.0):
+    """Bisect (low, safe] for the thinnest plate where no B of ``todo`` was found to pass
+    (``low``: ``[fabrication] min_thickness``, the thinnest printable sheet)."""
+    lo, hi, best, steps = min(low, safe), safe, None, []
     for _ in range(THINNEST_STEPS):
         mid = round(0.5 * (lo + hi), 3)
         if not lo < mid < hi:
@@ -240,7 +241,7 @@ def plate_sheet(
     searches = _Searches(scene, blocks, todo, outline, attack, seed,
                          _sections(certified, len(blocks)), progress)  # fmt: skip
     if given == "thinnest" and todo:
-        thickness, per, steps = _thinnest(searches, max(low, safe), progress)
+        thickness, per, steps = _thinnest(searches, max(low, safe), progress, low)
         per = not_covered(
             scene, blocks, per or searches.at(max(low, safe), search=False), certified
         )

@@ -98,7 +98,7 @@ def test_thinnest_bisects_and_says_it_is_not_proved(tmp_path):
     scene.verdict.section_budget = 2.0  # the section proofs are the previous test's subject
     result = sieve_mi.solve(scene, progress=False)
     sheet = result.sheet
-    assert sheet.mode == "thinnest" and 2.0 < sheet.safe < 28.4
+    assert sheet.mode == "thinnest" and 2.0 < sheet.safe <= 28.4  # proved, or its diameter
     steps = sheet.bisection
     assert 1 <= len(steps) <= 6
     # a bracket: every thickness where some B passed is below every one where none did
@@ -107,8 +107,11 @@ def test_thinnest_bisects_and_says_it_is_not_proved(tmp_path):
     assert not passed or not held or max(passed) < min(held)
     assert sheet.thickness == pytest.approx(min(held + [sheet.safe]))
     assert sheet.proved == (sheet.thickness >= sheet.safe)
-    # the first step halves the proved value
-    assert steps[0]["thickness"] == pytest.approx(round(0.5 * sheet.safe, 3))
+    # the first step is halfway from the printable minimum to the proved value, and no step
+    # goes below that minimum
+    low = result.scene.fabrication.min_thickness
+    assert steps[0]["thickness"] == pytest.approx(round(0.5 * (low + sheet.safe), 3))
+    assert all(s["thickness"] > low for s in steps) and sheet.thickness > low
     # no B passes the plate that is written
     assert all(t.status != "passage" for t in sheet.per_block if t is not None)
     assert result.winner == "A"
