@@ -15,7 +15,12 @@ from helpers import REPO
 from shake_helpers import ball, plate_mesh, round_hole, square_hole
 
 from sieve_mi.errors import SieveError
-from sieve_mi.shake.geometry import part_from_mesh, plate_from_mesh
+from sieve_mi.shake.geometry import (
+    collision_pieces,
+    part_from_mesh,
+    plate_from_mesh,
+    plate_from_outline,
+)
 from sieve_mi.testing.shapes import letter
 
 
@@ -40,6 +45,33 @@ def test_plate_from_mesh_recovers_holes_and_thickness():
 
     total = sum(area(p) for p in plate.pieces)
     assert total == pytest.approx(42.0 * 42.0 - plate.hole_area, rel=1e-9)
+
+
+def test_collision_pieces_merge_a_256_gon_hole_within_the_tolerance():
+    """A 22 mm hole cut as a 256-gon needs one convex piece per segment (256). Dropping the
+    vertices within 0.05 mm of their neighbours' chord keeps every 4th (a chord over four
+    segments of radius 11 strays by 11 (1 - cos(4 pi / 256)) = 0.013 mm, over eight 0.053 mm):
+    64 pieces, the outer square kept, the hole only shrunk (chords lie inside a convex hole) and
+    by less than its perimeter times the sagitta."""
+    import manifold3d
+
+    plate = plate_from_outline(manifold3d.CrossSection.circle(11.0, 256), 14.0, 2.0)
+    merged = collision_pieces(plate.pieces, 0.05)
+    assert len(plate.pieces) == 256 and len(merged) == 64
+
+    def area(p):
+        q = np.roll(p, -1, axis=0)
+        return 0.5 * float(np.sum(p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]))
+
+    pts = np.concatenate(merged)
+    r = np.linalg.norm(pts, axis=1)
+    inner = r[r < 12.0]
+    assert len(inner) == 2 * 64 and np.allclose(inner, 11.0, atol=1e-6)  # kept corners, 2 each
+    assert np.abs(pts).max() == pytest.approx(25.0)
+    grown = sum(area(p) for p in merged) - sum(area(p) for p in plate.pieces)
+    assert 0.0 < grown < 2 * math.pi * 11.0 * 11.0 * (1 - math.cos(4 * math.pi / 256))
+    assert all(area(p) > 0 for p in merged)
+    assert collision_pieces(plate.pieces, 0.0) == plate.pieces
 
 
 def test_plate_mesh_without_a_hole_is_one_line_error():
