@@ -288,13 +288,17 @@ def part_from_mesh(mesh, name: str, role: str | None, threshold: float, seed: in
 
 
 def _coacd_pieces(mesh, threshold: float, seed: int) -> list[np.ndarray]:
-    """CoACD's convex pieces of a mesh, vertices (n, 3) float each."""
-    import coacd
+    """CoACD's convex pieces of a mesh, vertices (n, 3) float each (cached on disk:
+    :mod:`sieve_mi.shake.decompose`)."""
+    from sieve_mi.shake.decompose import coacd_pieces
 
-    coacd.set_log_level("error")
-    m = coacd.Mesh(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))
-    parts = coacd.run_coacd(m, threshold=threshold, seed=seed, pca=COACD_PCA)
-    return [np.asarray(v, dtype=np.float64) for v, _ in parts if len(v) >= 4]
+    return coacd_pieces(
+        np.asarray(mesh.vertices, np.float64),
+        np.asarray(mesh.faces, np.int64),
+        threshold=float(threshold),
+        seed=int(seed),
+        pca=COACD_PCA,
+    )
 
 
 def hausdorff(mesh, hulls: list[np.ndarray], com: np.ndarray, samples: int = HAUSDORFF_SAMPLES):

@@ -15,6 +15,7 @@ from helpers import REPO
 from shake_helpers import ball, plate_mesh, round_hole, square_hole
 
 from sieve_mi.errors import SieveError
+from sieve_mi.shake import decompose
 from sieve_mi.shake.geometry import (
     collision_pieces,
     part_from_mesh,
@@ -85,15 +86,26 @@ def test_flat_part_is_one_line_error():
         part_from_mesh(flat, "sheet", None, 0.05)
 
 
-def test_convex_part_goes_in_whole_and_a_letter_through_coacd():
+def test_convex_part_goes_in_whole_and_a_letter_through_coacd(coacd_cache, monkeypatch):
     """A cube is one convex piece (Hausdorff 0); an L is decomposed by CoACD into a few pieces
-    whose union is within a millimetre of it (reported with the sample spacing)."""
+    whose union is within a millimetre of it (reported with the sample spacing). The
+    decomposition is kept in the cache folder under the mesh's hash: the same L again reads it
+    (CoACD is not called) and gets the same bits; a damaged file is a miss."""
     cube = part_from_mesh(trimesh.creation.box((20.0, 20.0, 20.0)), "cube", "A", 0.05)
     assert cube.convex and len(cube.hulls) == 1 and cube.hausdorff == 0.0
     assert cube.volume == pytest.approx(8000.0) and cube.radius == pytest.approx(math.sqrt(300))
     ell = part_from_mesh(letter("L", height=30.0, depth=6.0), "L", "B", 0.05)
     assert not ell.convex and len(ell.hulls) >= 2
     assert ell.hausdorff < 1.0 + ell.hausdorff_resolution
+    (stored,) = coacd_cache.glob("*.npz")
+    import coacd
+
+    monkeypatch.setattr(coacd, "run_coacd", lambda *a, **k: pytest.fail("not from the cache"))
+    again = part_from_mesh(letter("L", height=30.0, depth=6.0), "L", "B", 0.05)
+    assert all(np.array_equal(a, b) for a, b in zip(again.hulls, ell.hulls, strict=True))
+    assert again.hausdorff == ell.hausdorff
+    stored.write_bytes(b"damaged")
+    assert decompose._load(stored) is None  # a miss: decomposed again and stored anew
 
 
 def _solve_like_folder(tmp_path):
