@@ -8,14 +8,6 @@ from shake_helpers import round_hole
 from sieve_mi.shake.geometry import part_from_mesh, plate_from_outline
 
 
-@pytest.fixture(autouse=True)
-def coacd_cache(tmp_path, monkeypatch):
-    """Every shake test keeps CoACD's decompositions in its own folder, not the user's cache."""
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("SIEVE_MI_CACHE", str(folder))
-    return folder / "coacd"
-
-
 @pytest.fixture
 def ball_plate():
     """A 2 mm plate with a 22 mm round hole and 14 mm of material around it."""
