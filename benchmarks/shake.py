@@ -1,7 +1,7 @@
 """Shake trials: the known answers of issue 30 at full size, and the time per 1,000 trials.
 
 Usage: ``python -m benchmarks.shake [--trials N] [--duration S] [--workers W] [--only NAME,...]
-[--exact-plate]``
+[--exact-plate] [--timestep MS]``
 
 Runs each case (a 22 mm round hole with a 24 mm and a 20 mm ball, 2 mm plate with 14 mm of
 material around it; a 22 mm square hole with a 20 mm cube, 2 mm plate, 5 mm border) with the
@@ -47,6 +47,7 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--workers", type=int, default=0)
     ap.add_argument("--only", default="")
+    ap.add_argument("--timestep", type=float, default=0.25, help="ms (the default 0.25)")
     ap.add_argument("--exact-plate", action="store_true", help="no merge of the plate's pieces")
     ap.add_argument(
         "--seat",
@@ -65,7 +66,9 @@ def main() -> None:
         if args.workers != 1:
             ap.error("--exact-plate patches this process only: give --workers 1")
         model.PLATE_SIMPLIFY_M = 0.0
-    settings = ShakeSettings(trials=args.trials, duration=args.duration, workers=args.workers)
+    settings = ShakeSettings(
+        trials=args.trials, duration=args.duration, workers=args.workers, timestep=args.timestep
+    )
     print("| case | trials | passed | fraction [95 % CI] | median s | sink mm | s / 1,000 trials |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for name, (kind, margin, mesh) in CASES.items():
