@@ -1,10 +1,13 @@
 """Shake trials: the known answers of issue 30 at full size, and the time per 1,000 trials.
 
-Usage: ``python -m benchmarks.shake [--trials N] [--duration S] [--workers W] [--only NAME,...]``
+Usage: ``python -m benchmarks.shake [--trials N] [--duration S] [--workers W] [--only NAME,...]
+[--exact-plate] [--timestep MS]``
 
 Runs each case (a 22 mm round hole with a 24 mm and a 20 mm ball, 2 mm plate with 14 mm of
 material around it; a 22 mm square hole with a 20 mm cube, 2 mm plate, 5 mm border) with the
-default shaker settings and prints one Markdown row per case: trials, passed, fraction with its
+default shaker settings (and the issue-45 pair: a 23 mm and a 21 mm ball on a 22 mm hole cut as
+a 256-gon; ``--exact-plate`` collides with the plate's exact convex pieces, as before the merge of
+:data:`sieve_mi.shake.model.PLATE_SIMPLIFY_M`) and prints one Markdown row per case: trials, passed, fraction with its
 95 % Wilson interval, median time to pass, the resting sink and the wall-clock seconds per
 1,000 trials.
 """
@@ -27,12 +30,14 @@ CASES = {
     "ball24-round22": ("round", 14.0, lambda: trimesh.creation.icosphere(3, 12.0)),
     "ball20-round22": ("round", 14.0, lambda: trimesh.creation.icosphere(3, 10.0)),
     "cube20-square22": ("square", 5.0, lambda: trimesh.creation.box((20.0, 20.0, 20.0))),
+    "ball23-round22x256": ("round256", 14.0, lambda: trimesh.creation.icosphere(3, 11.5)),
+    "ball21-round22x256": ("round256", 14.0, lambda: trimesh.creation.icosphere(3, 10.5)),
 }
 
 
 def _hole(kind: str) -> manifold3d.CrossSection:
-    if kind == "round":
-        return manifold3d.CrossSection.circle(11.0, 96)
+    if kind.startswith("round"):
+        return manifold3d.CrossSection.circle(11.0, 256 if kind == "round256" else 96)
     return manifold3d.CrossSection.square([22.0, 22.0], center=True)
 
 
@@ -42,6 +47,8 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--workers", type=int, default=0)
     ap.add_argument("--only", default="")
+    ap.add_argument("--timestep", type=float, default=0.25, help="ms (the default 0.25)")
+    ap.add_argument("--exact-plate", action="store_true", help="no merge of the plate's pieces")
     ap.add_argument(
         "--seat",
         metavar="DIR",
@@ -53,7 +60,15 @@ def main() -> None:
         for name in args.only.split(","):
             print(seating(args.seat, name, args.trials), flush=True)
         return
-    settings = ShakeSettings(trials=args.trials, duration=args.duration, workers=args.workers)
+    if args.exact_plate:
+        from sieve_mi.shake import model
+
+        if args.workers != 1:
+            ap.error("--exact-plate patches this process only: give --workers 1")
+        model.PLATE_SIMPLIFY_M = 0.0
+    settings = ShakeSettings(
+        trials=args.trials, duration=args.duration, workers=args.workers, timestep=args.timestep
+    )
     print("| case | trials | passed | fraction [95 % CI] | median s | sink mm | s / 1,000 trials |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for name, (kind, margin, mesh) in CASES.items():

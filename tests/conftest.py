@@ -29,6 +29,15 @@ _XDIST_WORKERS = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
 _THREADS = max(1, (os.cpu_count() or 1) // _XDIST_WORKERS) if _XDIST_WORKERS > 1 else None
 
 
+@pytest.fixture(autouse=True)
+def coacd_cache(tmp_path_factory, monkeypatch):
+    """Every test keeps CoACD's decompositions in a folder of its own (beside its ``tmp_path``,
+    whose listing some tests check), not in the user's cache."""
+    folder = tmp_path_factory.mktemp("cache")
+    monkeypatch.setenv("SIEVE_MI_CACHE", str(folder))
+    return folder / "coacd"
+
+
 @pytest.fixture(scope="session", autouse=True)
 def mi():
     """Mitsuba on the default variant for every test: CPU unless ``SIEVE_MI_VARIANT=cuda_ad_mono``.

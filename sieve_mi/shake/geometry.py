@@ -21,6 +21,7 @@ from sieve_mi.geometry.sieve import plate_holes, read_plate
 __all__ = [
     "Part",
     "Plate",
+    "collision_pieces",
     "hausdorff",
     "part_from_mesh",
     "plate_from_mesh",
@@ -144,6 +145,35 @@ def plate_from_mesh(mesh, path: str = "plate", units: str = "scene units") -> Pl
     return out
 
 
+def collision_pieces(pieces: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
+    """The plate's convex pieces with every vertex that lies within ``tolerance`` of the line
+    through its neighbours dropped first (Ramer-Douglas-Peucker, ``CrossSection.simplify``).
+
+    A round hole cut as a 256-gon is one convex piece per segment, since each piece of material
+    can hold only one of the hole's (concave, seen from the material) edges; hundreds of pieces
+    all touching a part seated on the rim make hundreds of contacts. Merging the segments that
+    stay within ``tolerance`` of the exact outline (a 256-gon of 22 mm: 64 pieces at 0.05 mm)
+    moves every point of the plate's outline by at most ``tolerance``; on a convex hole the
+    chords lie inside it, so the hole only shrinks.
+
+    Parameters
+    ----------
+    pieces : list of (k, 2) float
+        Convex polygons (CCW) tiling the plate's top face, as :attr:`Plate.pieces`.
+    tolerance : float
+        Largest move of the outline, the pieces' units; 0 keeps ``pieces``.
+
+    Returns
+    -------
+    list of (k, 2) float
+        Convex polygons (CCW) tiling the simplified face.
+    """
+    if tolerance <= 0 or not pieces:
+        return list(pieces)
+    region = manifold3d.CrossSection([np.asarray(p, dtype=np.float64) for p in pieces])
+    return convex_pieces(region.simplify(tolerance))
+
+
 def section_holes(mesh, path: str = "plate") -> list[np.ndarray]:
     """The holes of a plate mesh straight through along z, as (k, 2) loops (scene units).
 
@@ -258,13 +288,17 @@ def part_from_mesh(mesh, name: str, role: str | None, threshold: float, seed: in
 
 
 def _coacd_pieces(mesh, threshold: float, seed: int) -> list[np.ndarray]:
-    """CoACD's convex pieces of a mesh, vertices (n, 3) float each."""
-    import coacd
+    """CoACD's convex pieces of a mesh, vertices (n, 3) float each (cached on disk:
+    :mod:`sieve_mi.shake.decompose`)."""
+    from sieve_mi.shake.decompose import coacd_pieces
 
-    coacd.set_log_level("error")
-    m = coacd.Mesh(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))
-    parts = coacd.run_coacd(m, threshold=threshold, seed=seed, pca=COACD_PCA)
-    return [np.asarray(v, dtype=np.float64) for v, _ in parts if len(v) >= 4]
+    return coacd_pieces(
+        np.asarray(mesh.vertices, np.float64),
+        np.asarray(mesh.faces, np.int64),
+        threshold=float(threshold),
+        seed=int(seed),
+        pca=COACD_PCA,
+    )
 
 
 def hausdorff(mesh, hulls: list[np.ndarray], com: np.ndarray, samples: int = HAUSDORFF_SAMPLES):

@@ -14,11 +14,12 @@ import mujoco
 import numpy as np
 
 from sieve_mi.geometry.plate import prism_vertices
-from sieve_mi.shake.geometry import Part, Plate
+from sieve_mi.shake.geometry import Part, Plate, collision_pieces
 from sieve_mi.shake.settings import CONTACT, ShakeSettings
 
 __all__ = [
     "PLATE_MASS_RATIO",
+    "PLATE_SIMPLIFY_M",
     "WALL_THICKNESS_MM",
     "WARNINGS",
     "build_model",
@@ -29,6 +30,11 @@ __all__ = [
 
 #: The plate's mass as a multiple of the part's.
 PLATE_MASS_RATIO = 1e6
+#: How far the plate's collision outline may stray from the exact one, metres: the width of the
+#: contacts' soft layer (``solimp``), the depth the engine lets a resting part sink anyway. A
+#: 256-gon 22 mm hole in 256 convex pieces becomes 64 pieces, and 100 ten-second trials of a
+#: 23 mm ball seated on its rim cost a third of the CPU time (docs/performance.md, "Shake trials").
+PLATE_SIMPLIFY_M = CONTACT["solimp"][2]
 #: Least thickness of the frame wall, millimetres; it is at least the part's diameter too, so no
 #: fast part can tunnel through it in one step.
 WALL_THICKNESS_MM = 2.0
@@ -152,7 +158,7 @@ def _add_plate(spec, plate: Plate, settings, unit_m: float, mass_wall, flat: boo
         slab = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]) / unit_m
         pieces = [slab]
     else:
-        pieces = plate.pieces
+        pieces = collision_pieces(plate.pieces, PLATE_SIMPLIFY_M / unit_m)
     for i, poly in enumerate(pieces):
         mesh = spec.add_mesh(name=f"plate{i}")
         mesh.uservert = (prism_vertices(poly * unit_m, -th, 0.0)).ravel().tolist()

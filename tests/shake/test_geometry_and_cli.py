@@ -15,7 +15,13 @@ from helpers import REPO
 from shake_helpers import ball, plate_mesh, round_hole, square_hole
 
 from sieve_mi.errors import SieveError
-from sieve_mi.shake.geometry import part_from_mesh, plate_from_mesh
+from sieve_mi.shake import decompose
+from sieve_mi.shake.geometry import (
+    collision_pieces,
+    part_from_mesh,
+    plate_from_mesh,
+    plate_from_outline,
+)
 from sieve_mi.testing.shapes import letter
 
 
@@ -42,6 +48,33 @@ def test_plate_from_mesh_recovers_holes_and_thickness():
     assert total == pytest.approx(42.0 * 42.0 - plate.hole_area, rel=1e-9)
 
 
+def test_collision_pieces_merge_a_256_gon_hole_within_the_tolerance():
+    """A 22 mm hole cut as a 256-gon needs one convex piece per segment (256). Dropping the
+    vertices within 0.05 mm of their neighbours' chord keeps every 4th (a chord over four
+    segments of radius 11 strays by 11 (1 - cos(4 pi / 256)) = 0.013 mm, over eight 0.053 mm):
+    64 pieces, the outer square kept, the hole only shrunk (chords lie inside a convex hole) and
+    by less than its perimeter times the sagitta."""
+    import manifold3d
+
+    plate = plate_from_outline(manifold3d.CrossSection.circle(11.0, 256), 14.0, 2.0)
+    merged = collision_pieces(plate.pieces, 0.05)
+    assert len(plate.pieces) == 256 and len(merged) == 64
+
+    def area(p):
+        q = np.roll(p, -1, axis=0)
+        return 0.5 * float(np.sum(p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]))
+
+    pts = np.concatenate(merged)
+    r = np.linalg.norm(pts, axis=1)
+    inner = r[r < 12.0]
+    assert len(inner) == 2 * 64 and np.allclose(inner, 11.0, atol=1e-6)  # kept corners, 2 each
+    assert np.abs(pts).max() == pytest.approx(25.0)
+    grown = sum(area(p) for p in merged) - sum(area(p) for p in plate.pieces)
+    assert 0.0 < grown < 2 * math.pi * 11.0 * 11.0 * (1 - math.cos(4 * math.pi / 256))
+    assert all(area(p) > 0 for p in merged)
+    assert collision_pieces(plate.pieces, 0.0) == plate.pieces
+
+
 def test_plate_mesh_without_a_hole_is_one_line_error():
     with pytest.raises(SieveError, match="no through-hole"):
         plate_from_mesh(trimesh.creation.box((40.0, 40.0, 2.0)))
@@ -53,15 +86,26 @@ def test_flat_part_is_one_line_error():
         part_from_mesh(flat, "sheet", None, 0.05)
 
 
-def test_convex_part_goes_in_whole_and_a_letter_through_coacd():
+def test_convex_part_goes_in_whole_and_a_letter_through_coacd(coacd_cache, monkeypatch):
     """A cube is one convex piece (Hausdorff 0); an L is decomposed by CoACD into a few pieces
-    whose union is within a millimetre of it (reported with the sample spacing)."""
+    whose union is within a millimetre of it (reported with the sample spacing). The
+    decomposition is kept in the cache folder under the mesh's hash: the same L again reads it
+    (CoACD is not called) and gets the same bits; a damaged file is a miss."""
     cube = part_from_mesh(trimesh.creation.box((20.0, 20.0, 20.0)), "cube", "A", 0.05)
     assert cube.convex and len(cube.hulls) == 1 and cube.hausdorff == 0.0
     assert cube.volume == pytest.approx(8000.0) and cube.radius == pytest.approx(math.sqrt(300))
     ell = part_from_mesh(letter("L", height=30.0, depth=6.0), "L", "B", 0.05)
     assert not ell.convex and len(ell.hulls) >= 2
     assert ell.hausdorff < 1.0 + ell.hausdorff_resolution
+    (stored,) = coacd_cache.glob("*.npz")
+    import coacd
+
+    monkeypatch.setattr(coacd, "run_coacd", lambda *a, **k: pytest.fail("not from the cache"))
+    again = part_from_mesh(letter("L", height=30.0, depth=6.0), "L", "B", 0.05)
+    assert all(np.array_equal(a, b) for a, b in zip(again.hulls, ell.hulls, strict=True))
+    assert again.hausdorff == ell.hausdorff
+    stored.write_bytes(b"damaged")
+    assert decompose._load(stored) is None  # a miss: decomposed again and stored anew
 
 
 def _solve_like_folder(tmp_path):

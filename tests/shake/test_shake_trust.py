@@ -270,8 +270,10 @@ def test_a_trial_the_engine_resets_ends_there_and_says_so(capfd, tmp_path, monke
 
 def test_a_rod_shaken_at_43_g_is_not_called_faithful(tmp_path, capsys):
     """A 30 x 1 x 1 mm rod on a 2 mm plate at 3 mm and 60 Hz (43 g, the strongest lab motion)
-    goes 2.5 mm into the plate (and on this build MuJoCo finds one trial unstable): shake.json
-    says fidelity_ok false, with the reasons in ``warnings``; the table says so too."""
+    goes deeper into the plate than the 0.5 mm bound (0.8 mm in these two trials, 1.6 mm in
+    eight; 4.0 mm, with one trial MuJoCo found unstable, against the plate's 96 exact pieces
+    before they were merged): shake.json says fidelity_ok false, with the reasons in
+    ``warnings``; the table says so too."""
     plate, rod = tmp_path / "plate.stl", tmp_path / "rod.stl"
     plate_mesh(round_hole(22.0), 14.0, 2.0).export(str(plate))
     trimesh.creation.box((30.0, 1.0, 1.0)).export(str(rod))
@@ -282,7 +284,7 @@ def test_a_rod_shaken_at_43_g_is_not_called_faithful(tmp_path, capsys):
     report = json.loads(out)
     fidelity = report["shapes"][0]["fidelity"]
     assert report["fidelity_ok"] is False and not fidelity["within_bound"]
-    assert max(fidelity["shaken_penetration_mm"], fidelity["trial_penetration_mm"]) > 1.0
+    assert max(fidelity["shaken_penetration_mm"], fidelity["trial_penetration_mm"]) > 0.5
     assert any("penetration while shaken" in w for w in report["warnings"])
     assert fidelity["unstable_trials"] == sum("mjWARN" in w for w in report["warnings"]) <= 2
     assert report["warnings"] == report["shapes"][0]["warnings"] and "WARNING" not in err
