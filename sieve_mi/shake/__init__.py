@@ -20,6 +20,8 @@ inputs
     What a run reads: a solve's output folder, or a plate mesh and part meshes.
 geometry
     Solids for the engine: the plate as exact convex prisms, each part as convex pieces.
+decompose
+    A part's convex pieces (CoACD), cached on disk by the mesh's hash.
 model
     The MuJoCo model of one trial: a plate driven along a shaker motion, a frame, a part.
 fidelity
