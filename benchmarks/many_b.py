@@ -38,6 +38,7 @@ RADIUS, WIDER = 10.0, 0.5
 
 
 def _path(name: str) -> str:
+    """The mesh file ``name`` in the first of :data:`MESH_DIRS` that holds it."""
     for folder in MESH_DIRS:
         if os.path.exists(os.path.join(folder, name)):
             return os.path.join(folder, name)
@@ -47,7 +48,6 @@ def _path(name: str) -> str:
 def blocks(count: int, target: float) -> list[dict]:
     """``count`` B entries (mesh, name, scale), each scaled so its inscribed ball's radius is
     ``target`` (mm)."""
-    import numpy as np
     import trimesh
     from scipy.spatial.transform import Rotation
 
@@ -59,9 +59,8 @@ def blocks(count: int, target: float) -> list[dict]:
         name = MESHES[j % len(MESHES)]
         mesh = load_trimesh(_path(name))
         if j >= len(MESHES):
-            turn = np.eye(4)
-            turn[:3, :3] = Rotation.random(random_state=j).as_matrix()
-            mesh = trimesh.Trimesh(mesh.vertices @ turn[:3, :3].T, mesh.faces, process=False)
+            turn = Rotation.random(random_state=j).as_matrix()
+            mesh = trimesh.Trimesh(mesh.vertices @ turn.T, mesh.faces, process=False)
         ball = inscribed_ball(shape_from_trimesh(mesh, name="probe"))
         if ball is None:
             raise RuntimeError(f"{name}: not closed, no inscribed ball")
@@ -115,34 +114,31 @@ def run_one(count: int, variant: str, screen: bool = True) -> dict:
 
 
 def plot(rows: list[dict], out: str) -> None:
-    """Wall time and peak RSS against the number of B (PNG at ``out``)."""
+    """Wall time and peak RSS against the number of B, with the screen and without (PNG)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 3.6))
-    ax2 = ax.twinx()
-    for screen, mark in ((True, "o"), (False, "^")):
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(8, 3.4))
+    for screen, mark in ((True, "o-"), (False, "^-")):
         got = [r for r in rows if r["screen"] == screen]
-        if not got:
-            continue
-        label = "size screen" if screen else "screen = false"
-        n = [r["count"] for r in got]
-        ax.plot(n, [r["wall_s"] for r in got], mark + "-", label=f"solve s ({label})")
-        ax2.plot(n, [r["peak_gb"] for r in got], mark + "--", color="tab:red",
-                 label=f"peak GB ({label})")  # fmt: skip
-    ax.axhline(300, color="grey", lw=0.8, ls=":")
-    ax.set_xlabel("number of B (real meshes, 5.8k-13k faces each)")
+        if got:
+            label = "size screen" if screen else "screen = false"
+            n = [r["count"] for r in got]
+            ax.plot(n, [r["wall_s"] for r in got], mark, label=label)
+            ax2.plot(n, [r["peak_gb"] for r in got], mark, label=label)
+    ax.axhline(300, color="grey", lw=0.8, ls=":", label="5 minutes")
     ax.set_ylabel("solve wall time (s)")
     ax2.set_ylabel("peak RSS (GB)")
-    ax.set_ylim(bottom=0)
-    ax2.set_ylim(bottom=0)
-    ax.legend(loc="upper left", fontsize=8)
-    ax2.legend(loc="lower right", fontsize=8)
-    ax.set_title("one 20 mm ball against n real meshes (2 CPU cores)")
+    for a in (ax, ax2):
+        a.set_xlabel("number of B (real meshes, 5.8k-13k faces)")
+        a.set_ylim(bottom=0)
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8)
+    fig.suptitle("one 20 mm ball against n real meshes (2 shared CPU cores)")
     fig.tight_layout()
-    fig.savefig(out, dpi=120)
+    fig.savefig(out, dpi=110)
 
 
 def _child(count: int, args) -> dict | None:
