@@ -139,7 +139,9 @@ def inscribed_ball(shape: Shape, grid: int = 12, exact: int = 4) -> tuple[np.nda
     enclosed, and every line through it meets the surface. Candidate centres are the shape's
     centre and a ``grid`` x ``grid`` x ``grid`` lattice over its bounding box, ranked by their
     distance to the nearest vertex, face centre or surface sample (a k-d tree, only to choose);
-    the ``exact`` best inside ones (winding test) get the exact distance to the nearest triangle.
+    the ``exact`` best inside ones (winding test; a candidate that a parity count of crossings
+    puts outside is not tested, :func:`_parity_inside`) get the exact distance to the nearest
+    triangle.
     The best then climbs the exact distance by a compass search (:data:`BALL_STEPS` evaluations),
     so a ball between lattice points is found to within a small fraction of its radius. The
     radius is the exact distance at the final centre (checked inside again) lowered by a relative
@@ -174,17 +176,21 @@ def _inscribed(shape: Shape, grid: int, exact: int) -> tuple[np.ndarray, float] 
     candidates = np.vstack([np.zeros((1, 3)), lattice])
     samples = trimesh.sample.sample_surface(mesh, BALL_SAMPLES, seed=0)[0]
     near = cKDTree(np.vstack([shape.vertices, tri.mean(1), samples])).query(candidates)[0]
+    maybe = np.concatenate([[True], _parity_inside(axes, tri)])
     best = None
     tried = 0
     for k in np.concatenate([[0], 1 + np.argsort(-near[1:], kind="stable")]):
         if tried >= exact:
             break
+        if not maybe[k]:
+            continue  # outside by the parity filter: not tried (the winding number decides)
         centre = candidates[k]
-        if k and abs(round(_winding_number(centre, tri))) < 1:
+        enclosed = abs(round(_winding_number(centre, tri))) >= 1
+        if k and not enclosed:
             continue  # outside: not a candidate (only inside points count towards ``exact``)
         tried += 1
         rho = float(_triangle_distance(centre, tri).min())
-        if rho <= 1e-9 * shape.radius or abs(round(_winding_number(centre, tri))) < 1:
+        if rho <= 1e-9 * shape.radius or not enclosed:
             continue
         if best is None or rho > best[1]:
             best = (np.array(centre, dtype=np.float64), rho)
@@ -192,6 +198,35 @@ def _inscribed(shape: Shape, grid: int, exact: int) -> tuple[np.ndarray, float] 
         return None
     best = _climb(best, tri, float(np.max(hi - lo)) / grid)
     return best[0], best[1] * (1.0 - 1e-9)
+
+
+def _parity_inside(axes: list[np.ndarray], tri: np.ndarray) -> np.ndarray:
+    """Which points of the lattice ``axes`` (x, y, z values; ``meshgrid`` "ij" order, flattened)
+    the triangles ``tri`` (F, 3, 3) enclose, by the parity of the crossings of the line parallel
+    to z through each (x, y) below each point, (N,) bool; every point of a line that touches an
+    edge or a vertex is kept. Only a filter (rounding may miscount a crossing): a point it keeps
+    is tested by its winding number."""
+    xs, ys, zs = axes
+    px, py = (g.ravel()[:, None] for g in np.meshgrid(xs, ys, indexing="ij"))  # (C, 1)
+    a, b, c = (tri[None, :, i] for i in range(3))  # (1, F, 3)
+
+    def edge(u, v):  # z of (v - u) x (p - u): which side of the edge u -> v the line passes
+        du, dv = px - u[..., 0], py - u[..., 1]
+        return (v[..., 0] - u[..., 0]) * dv - (v[..., 1] - u[..., 1]) * du
+
+    e0, e1, e2 = edge(a, b), edge(b, c), edge(c, a)
+    hit = ((e0 > 0) & (e1 > 0) & (e2 > 0)) | ((e0 < 0) & (e1 < 0) & (e2 < 0))
+    touch = ((e0 >= 0) & (e1 >= 0) & (e2 >= 0)) | ((e0 <= 0) & (e1 <= 0) & (e2 <= 0))
+    unsure = (touch & ~hit).any(axis=1)  # a line through an edge or vertex: its points all kept
+    col, face = np.nonzero(hit)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[face]
+    o = tri[face, 0]
+    z = o[:, 2] - (n[:, 0] * (px[col, 0] - o[:, 0]) + n[:, 1] * (py[col, 0] - o[:, 1])) / n[:, 2]
+    below = np.zeros((len(px), len(zs) + 1), dtype=np.int64)
+    # a crossing at z lies below zs[i] for i >= searchsorted(zs, z, "right")
+    np.add.at(below, (col, np.searchsorted(zs, z, side="right")), 1)
+    odd = np.cumsum(below, axis=1)[:, : len(zs)] % 2 == 1
+    return (odd | unsure[:, None]).ravel()
 
 
 def _climb(start: tuple[np.ndarray, float], tri: np.ndarray, step: float):

@@ -7,7 +7,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from sieve_mi.certify.bounds import _triangle_distance, _winding_number, inscribed_ball
+from sieve_mi.certify.bounds import (
+    _parity_inside,
+    _triangle_distance,
+    _winding_number,
+    inscribed_ball,
+)
 from sieve_mi.geometry.meshes import shape_from_trimesh
 
 
@@ -50,3 +55,26 @@ def test_a_box_holds_half_its_thinnest_side_and_an_open_mesh_none():
     open_box = trimesh.creation.box((20.0, 30.0, 8.0))
     open_box.update_faces(np.arange(len(open_box.faces)) != 0)
     assert inscribed_ball(shape_from_trimesh(open_box, name="open")) is None
+
+
+def test_the_parity_filter_keeps_every_enclosed_lattice_point_of_a_torus():
+    # A torus (major radius 10, minor 4) turned off the axes, on the 12^3 lattice of its bounding
+    # box: a point is enclosed iff its distance to the core circle is below 4 (the hole at the
+    # centre is outside). The filter that spares the winding numbers of outside candidates must
+    # keep every enclosed point (the lattice of a box, whose lines touch the diagonals of its
+    # faces, keeps those lines whole) and drop the points well outside.
+    torus = trimesh.creation.torus(10.0, 4.0, major_sections=48, minor_sections=24)
+    torus.apply_transform(trimesh.transformations.rotation_matrix(0.7, [1.0, 2.0, 0.5]))
+    tri = torus.vertices[torus.faces]
+    lo, hi = torus.vertices.min(0), torus.vertices.max(0)
+    axes = [lo[i] + (hi[i] - lo[i]) * (np.arange(12) + 0.5) / 12 for i in range(3)]
+    points = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    kept = _parity_inside(axes, tri)
+    local = points @ trimesh.transformations.rotation_matrix(0.7, [1.0, 2.0, 0.5])[:3, :3]
+    core = np.hypot(np.hypot(local[:, 0], local[:, 1]) - 10.0, local[:, 2])
+    assert np.all(kept[core < 3.8]) and not np.any(kept[core > 4.2])
+    assert abs(round(_winding_number(np.zeros(3), tri))) == 0  # the hole: outside
+    box = trimesh.creation.box((20.0, 30.0, 8.0))
+    grid = [np.linspace(-10, 10, 13)[:-1] + 20 / 24, np.linspace(-15, 15, 13)[:-1] + 1.25,
+            np.linspace(-4, 4, 13)[:-1] + 1 / 3]  # fmt: skip
+    assert _parity_inside(grid, box.vertices[box.faces]).all()  # every lattice point is inside
