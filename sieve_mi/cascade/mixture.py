@@ -127,7 +127,9 @@ def load_mixture(path: str) -> Mixture:
                 "give every shape its own name"
             )
         seen[s.name] = i
-    tables, shake = read_tables(path, data), _shake_table(path, data)
+    # a mixture's [shake] is the shaker's whole table (below), not a scene's trials and target
+    scene_tables = {k: v for k, v in data.items() if k != "shake"}
+    tables, shake = read_tables(path, scene_tables), _shake_table(path, data)
     mixture = Mixture(path=path, name=name, shapes=shapes, units=units, tables=tables, shake=shake)
     for i, s in enumerate(shapes):
         if not os.path.isfile(mixture.resolve(s.mesh)):
