@@ -22,6 +22,7 @@ from sieve_mi.workers import worker_pool
 __all__ = [
     "Budgets",
     "MARGIN_FACTOR",
+    "BALL_BOXES",
     "BALL_STEPS",
     "MARGIN_MIN_S",
     "ball_margin",
@@ -36,11 +37,15 @@ __all__ = [
 MARGIN_FACTOR = 4.0
 #: ... and at least this many seconds (when the budget has them left).
 MARGIN_MIN_S = 2.0
-#: Bisection steps of a ball-proved block's margin (within found / 2^steps of the ball's best).
+#: Bisection steps of a ball-proved block's margin (within found / 2^steps of the ball's best) ...
 BALL_STEPS = 8
+#: ... each giving up (not proved) past this many boxes of the disk test.
+BALL_BOXES = 20_000
 
 
-def ball_margin(radius: float, hole, *, steps: int = 24, upper: float | None = None) -> float:
+def ball_margin(
+    radius: float, hole, *, steps: int = 24, upper: float | None = None, max_boxes: int = 200_000
+) -> float:
     """A proved lower bound on how far a shape holding a ball of ``radius`` sticks out of ``hole``.
 
     If no disk of that radius fits in H grown by m, every pose sticks out by more than m (a pose
@@ -60,6 +65,9 @@ def ball_margin(radius: float, hole, *, steps: int = 24, upper: float | None = N
     upper : float, optional
         Upper end of the bisection (default ``radius``), e.g. the overhang of a pose found: no
         proof goes past it.
+    max_boxes : int
+        Boxes the disk test may refine before it gives up on a step (counted as not proved:
+        near the bound the test needs ever smaller boxes).
 
     Returns
     -------
@@ -71,7 +79,7 @@ def ball_margin(radius: float, hole, *, steps: int = 24, upper: float | None = N
     def holds(m: float) -> bool:
         grown = dilated(hole, m) if m > 0 else hole
         segs = contour_segments([np.asarray(c, float) for c in grown.to_polygons()])
-        return no_disk_fits(segs, radius)
+        return no_disk_fits(segs, radius, max_boxes=max_boxes)
 
     if not holds(0.0):
         return 0.0
@@ -334,7 +342,7 @@ def _ball_margin(shape: Shape, c, hole, found: float | None) -> tuple[float, dic
     radius = float(c.certificate["root"]["radius"])
     if not found or found <= 0.0:
         return 0.0, {}, 0
-    m = ball_margin(radius, hole, steps=BALL_STEPS, upper=float(found))
+    m = ball_margin(radius, hole, steps=BALL_STEPS, upper=float(found), max_boxes=BALL_BOXES)
     if m <= 0.0:
         return 0.0, {}, 0
     again = certify(shape, [dilated(hole, m)], budget_s=1.0)

@@ -69,7 +69,7 @@ def block_margin(shape, hole, found: float, certified=None, grown: float = 0.0) 
     one, from a ball certified inside B, the largest m for which no disk of its radius fits H
     grown by m (:func:`sieve_mi.certify.blocks.ball_margin`). None when nothing proves it.
     """
-    from sieve_mi.certify.blocks import BALL_STEPS, ball_margin
+    from sieve_mi.certify.blocks import BALL_BOXES, BALL_STEPS, ball_margin
     from sieve_mi.certify.bounds import inscribed_ball
 
     if certified is not None and certified.status == "proved":
@@ -77,7 +77,8 @@ def block_margin(shape, hole, found: float, certified=None, grown: float = 0.0) 
     else:
         ball = inscribed_ball(shape)
         up = float(found)  # no pose sticks out less than a proved margin
-        m = ball_margin(ball[1], hole, steps=BALL_STEPS, upper=up) if ball and up > 0 else 0.0
+        steps = {"steps": BALL_STEPS, "upper": up, "max_boxes": BALL_BOXES}
+        m = ball_margin(ball[1], hole, **steps) if ball and up > 0 else 0.0
         proved = m or None
     return {"proved_at_least": proved, "found_at_most": float(found)}
 
