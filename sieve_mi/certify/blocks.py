@@ -27,6 +27,7 @@ __all__ = [
     "MARGIN_MIN_S",
     "ball_margin",
     "certify_blocks",
+    "margin_by_ball",
     "on_sheet",
     "printed_hole",
     "prove_margin",
@@ -332,6 +333,15 @@ def _straight(shape: Shape, hole, budget: Budgets, found: float | None) -> Certi
     return c
 
 
+def margin_by_ball(radius: float, hole, found: float | None) -> float:
+    """:func:`ball_margin` of a ball of ``radius`` up to ``found``, the overhang of a pose found
+    (no proof goes past it), in :data:`BALL_STEPS` steps of at most :data:`BALL_BOXES` boxes;
+    0 when nothing sticks out (``found`` None or <= 0)."""
+    if not found or found <= 0.0:
+        return 0.0
+    return ball_margin(radius, hole, steps=BALL_STEPS, upper=float(found), max_boxes=BALL_BOXES)
+
+
 def _ball_margin(shape: Shape, c, hole, found: float | None) -> tuple[float, dict, int]:
     """The margin of a block proved by its ball (:func:`prove_margin`'s answer, without its
     bisection of whole proofs): :func:`ball_margin` of that ball, capped by ``found`` (no proof
@@ -339,10 +349,7 @@ def _ball_margin(shape: Shape, c, hole, found: float | None) -> tuple[float, dic
     grown by it, which gives the margin's certificate (the same ball test)."""
     from sieve_mi.certify import certify
 
-    radius = float(c.certificate["root"]["radius"])
-    if not found or found <= 0.0:
-        return 0.0, {}, 0
-    m = ball_margin(radius, hole, steps=BALL_STEPS, upper=float(found), max_boxes=BALL_BOXES)
+    m = margin_by_ball(float(c.certificate["root"]["radius"]), hole, found)
     if m <= 0.0:
         return 0.0, {}, 0
     again = certify(shape, [dilated(hole, m)], budget_s=1.0)

@@ -127,7 +127,7 @@ def _winding_number(p: np.ndarray, tri: np.ndarray) -> float:
 #: Surface samples (besides vertices and face centres) that rank candidate centres.
 BALL_SAMPLES = 2048
 #: Exact distance evaluations of the compass search that moves the best centre uphill.
-BALL_STEPS = 400
+BALL_CLIMB = 400
 _BALLS: dict = {}
 
 
@@ -142,7 +142,7 @@ def inscribed_ball(shape: Shape, grid: int = 12, exact: int = 4) -> tuple[np.nda
     the ``exact`` best inside ones (winding test; a candidate that a parity count of crossings
     puts outside is not tested, :func:`_parity_inside`) get the exact distance to the nearest
     triangle.
-    The best then climbs the exact distance by a compass search (:data:`BALL_STEPS` evaluations),
+    The best then climbs the exact distance by a compass search (:data:`BALL_CLIMB` evaluations),
     so a ball between lattice points is found to within a small fraction of its radius. The
     radius is the exact distance at the final centre (checked inside again) lowered by a relative
     1e-9 for rounding, so the ball is rigorous whichever centre is chosen (a CAD part's
@@ -234,16 +234,17 @@ def _climb(start: tuple[np.ndarray, float], tri: np.ndarray, step: float):
     triangles ``tri`` (F, 3, 3), first step ``step``, over the 26 lattice directions at once; a
     move is kept only where the centre stays enclosed (winding number), so the result is a ball
     inside the solid. A move must gain a relative 1e-6: on a plateau (a coin's mid-plane) the
-    centre stays where it is (the section proofs pin it). Each round tests only the triangles that can be nearest to a moved centre:
-    the distance is 1-Lipschitz, so none is nearer than rho + step, and a triangle whose bounding
-    sphere is further than that from every move (rho + 2 step from the centre) is skipped."""
+    centre stays where it is (the section proofs pin it). Each round tests only the triangles
+    that can be nearest to a moved centre: the distance is 1-Lipschitz, so none is nearer than
+    rho + step, and a triangle whose bounding sphere is further than that from every move
+    (rho + 2 step from the centre) is skipped."""
     centre, rho = start
     moves = np.array([m for m in np.ndindex(3, 3, 3) if m != (1, 1, 1)], dtype=np.float64) - 1.0
     moves /= np.linalg.norm(moves, axis=1, keepdims=True)  # the 26 lattice directions
     mid = tri.mean(axis=1)
     reach = np.linalg.norm(tri - mid[:, None, :], axis=2).max(axis=1)
     evaluations = 0
-    while evaluations < BALL_STEPS and step > 1e-3 * rho:
+    while evaluations < BALL_CLIMB and step > 1e-3 * rho:
         near = tri[np.linalg.norm(mid - centre, axis=1) - reach <= rho + 2.0 * step]
         pts = centre + step * moves
         d = _triangle_distance(pts, near).min(axis=1)

@@ -67,19 +67,16 @@ def block_margin(shape, hole, found: float, certified=None, grown: float = 0.0) 
     ``block_margin``), ``grown`` plus its margin bisection's m
     (:func:`sieve_mi.certify.blocks.prove_margin`, whose steps try the ball test first); without
     one, from a ball certified inside B, the largest m for which no disk of its radius fits H
-    grown by m (:func:`sieve_mi.certify.blocks.ball_margin`). None when nothing proves it.
+    grown by m (:func:`sieve_mi.certify.blocks.margin_by_ball`). None when nothing proves it.
     """
-    from sieve_mi.certify.blocks import BALL_BOXES, BALL_STEPS, ball_margin
+    from sieve_mi.certify.blocks import margin_by_ball
     from sieve_mi.certify.bounds import inscribed_ball
 
     if certified is not None and certified.status == "proved":
         proved = grown + (certified.margin or 0.0)
     else:
         ball = inscribed_ball(shape)
-        up = float(found)  # no pose sticks out less than a proved margin
-        steps = {"steps": BALL_STEPS, "upper": up, "max_boxes": BALL_BOXES}
-        m = ball_margin(ball[1], hole, **steps) if ball and up > 0 else 0.0
-        proved = m or None
+        proved = (margin_by_ball(ball[1], hole, found) if ball is not None else 0.0) or None
     return {"proved_at_least": proved, "found_at_most": float(found)}
 
 
