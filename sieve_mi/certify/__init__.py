@@ -31,6 +31,8 @@ symmetry
     Rotational symmetries of a shape that shrink the search's domain.
 certificate
     The result of a certification and its certificate file (JSON).
+record
+    A certificate's dictionary, assembled from what a search found.
 structure
     A certificate's form, checked before any geometry.
 replay
@@ -58,7 +60,8 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.certify import bounds, cells, symmetry
-from sieve_mi.certify.certificate import Certification, Evidence, build, scope
+from sieve_mi.certify.certificate import Certification, scope
+from sieve_mi.certify.record import Evidence, build
 from sieve_mi.certify.replay import replay
 from sieve_mi.certify.search import CellSearch, Settings
 from sieve_mi.certify.svg import read_svg_hole
