@@ -94,3 +94,17 @@ def test_the_thinnest_plate_tries_the_printable_minimum_first():
     c, _ = _certified(None, low=2.0)
     assert c.status == "proved" and c.straight == "undecided"
     assert c.section["bracket"] == {"proved": 2.0, "unproved": None}
+
+
+def test_the_plate_and_the_reports_rest_on_the_section(on_2_mm):
+    from sieve_mi.game.sheet import proof_thickness
+    from sieve_mi.motion import each_thin_plate
+    from sieve_mi.outputs.console import certified_word
+
+    c, coin = on_2_mm[0], _coin()
+    assert proof_thickness(coin, c) == 2.0  # not the coin's 22.35 mm diameter
+    ((_, thin),) = each_thin_plate([coin], HOLE, 2.0, budget_s=0.0, sections=[c.proved_section])
+    assert thin.status == "safe" and thin.to_dict()["by"] == "section"
+    assert certified_word({"certified": "proved", "certification": c.to_dict()}) == (
+        "proved by section"
+    )
