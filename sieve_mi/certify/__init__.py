@@ -218,7 +218,7 @@ def thin_plate_proof(result: Certification, shape: Shape, holes: list, thickness
 #: :func:`thinnest_proved` tries this fraction of the diameter first after a straight proof.
 TOP_TRY = 0.95
 #: After a straight search that left cells open, :func:`thinnest_proved` tries ``low`` first,
-#: with this share of its budget.
+#: with this share of its budget, then the diameter with this share of what is left.
 LOW_SHARE = 0.5
 
 
@@ -232,9 +232,9 @@ def thinnest_proved(result: Certification, shape: Shape, holes: list, low: float
     ``low`` (a printable minimum), then the bisection, each step with an equal share of the
     budget left. After a straight search that left cells open, nothing is proved yet, and a
     section proof is a complete proof (:attr:`Certification.proved_section`): ``low`` is tried
-    first with :data:`LOW_SHARE` of the budget (most shapes a section proves are proved there,
-    and a thin band has few points), then the diameter itself (when that fails, nothing
-    thinner is tried), then the bisection. A section proof at t holds on every thicker plate
+    first with :data:`LOW_SHARE` of the budget (a shape a section proves is often proved
+    there), then the diameter itself with that share of what is left (when that fails,
+    nothing thinner is tried), then the bisection. A section proof at t holds on every thicker plate
     (its band holds more of the shape), so the bracket is sound.
 
     Parameters
@@ -276,7 +276,7 @@ def thinnest_proved(result: Certification, shape: Shape, holes: list, low: float
         if left < 0.5 or narrow or not _worth(t, lo, hi, straight or best):
             break
         t = t if t is not None else round(0.5 * (lo + hi), 4)
-        share = LOW_SHARE if (k == 0 and not straight) else 1.0 / (len(tries) - k)
+        share = LOW_SHARE if (k <= 1 and not straight) else 1.0 / (len(tries) - k)
         c = thin_plate_proof(result, shape, holes, t, left * share)
         if c.section["status"] == "proved":
             best, hi = c, t
