@@ -31,6 +31,7 @@ __all__ = [
     "BATCH_MIN",
     "DistanceField",
     "EvenOdd",
+    "LEVEL_CHUNK",
     "Node",
     "Outcome",
     "PASSAGE_PROBES",
@@ -45,6 +46,9 @@ __all__ = [
 
 #: A level's batched quadtree test runs once the width test leaves at least this many cells.
 BATCH_MIN = 256
+#: Cells of a level whose batched tests run at once: the clock is read between such chunks, so
+#: a deep level's tests do not run past the budget.
+LEVEL_CHUNK = 4096
 #: A candidate passage's points are tested inside H first at this many of them, those furthest
 #: out by the distance grid (the same answer as testing all: all of them are tested if these are in).
 PASSAGE_PROBES = 64
@@ -331,6 +335,11 @@ class DistanceField:
         return self.flat[i * (self.top[1] + 1) + j]
 
 
+def _none(level: cells.Cells) -> cells.Cells:
+    """No cells (``level``'s arrays, emptied)."""
+    return cells.Cells(level.face[:0], level.lo[:0], level.hi[:0])
+
+
 def count_open(node: Node) -> int:
     """Leaves of the subtree without evidence (not excluded)."""
     if node.children:
@@ -358,6 +367,8 @@ class CellSearch:
         self.region = EvenOdd([np.asarray(c) for c in hole.to_polygons()])
         self.field = DistanceField(self.region, self.segs, 2.0 * shape.radius)
         self.lower: bounds.LowerDistance | None = None
+        #: The clock the budget is read on (seconds; a test may put a fake one here).
+        self.clock = time.perf_counter
 
     def _hull_indices(self) -> np.ndarray:
         hull = {tuple(p) for p in self.shape.hull}
@@ -393,9 +404,10 @@ class CellSearch:
         slack = 2.0 * np.sin(theta)[:, None] * self.settings.kappa * self.shape.radius
         return proj, iso + slack + self.eta
 
-    def run(self, roots: cells.Cells) -> Outcome:
-        """Branch and bound from ``roots`` until every cell is decided, a passage or the budget."""
-        t0 = time.perf_counter()
+    def run(self, roots: cells.Cells, started: float | None = None) -> Outcome:
+        """Branch and bound from ``roots`` until every cell is decided, a passage or the budget
+        (``budget_s`` counted from ``started``, a :attr:`clock` value; default now)."""
+        t0 = self.clock() if started is None else started
         nodes = [Node(int(f), lo, hi) for f, lo, hi in zip(roots.face, roots.lo, roots.hi)]
         out = Outcome(roots=nodes, points=set(self.start), candidates=self.vertices)
         out.on_edge = self.on_edge
@@ -407,35 +419,56 @@ class CellSearch:
         return out
 
     def _level(self, level, nodes, points, out: Outcome, t0: float):
-        """Decide or split every cell of one level; returns the next level's cells."""
+        """Decide or split every cell of one level, :data:`LEVEL_CHUNK` cells' batched tests at a
+        time; returns the next level's cells (none once a passage is found or the clock passed
+        the budget: the clock is read before every chunk's batched tests and every cell)."""
         theta = cells.covering_angles(level)
         fr = cells.frames(level)
-        excluded, direction, boxed = self._pretest(fr, theta, points)
-        split_idx, split_pts = [], []
-        for i, node in enumerate(nodes):
-            if out.passage is not None or time.perf_counter() - t0 > self.settings.budget_s:
-                return cells.Cells(level.face[:0], level.lo[:0], level.hi[:0]), [], []
-            out.examined += 1
-            if excluded[i]:
-                node.evidence = {"kind": "width", "direction": int(direction[i])}
-                node.evidence["points"] = list(points[i])
-            elif boxed[i]:
-                node.evidence = {"kind": "translations", "points": list(points[i])}
-            else:
-                own = self._inherited(points[i])
-                verdict, pts = self._examine(fr.take([i]), theta[i : i + 1], own, out)
-                if verdict == "excluded":
-                    node.evidence = {"kind": "translations", "points": pts}
-                elif verdict == "passage" or theta[i] < self.settings.min_angle:
+        batched = len(level) > LEVEL_CHUNK  # every chunk of a large level gets the quadtree
+        split = ([], [])
+        for s in range(0, len(nodes), LEVEL_CHUNK):
+            if out.passage is not None or self._late(t0):
+                return _none(level), [], []
+            sl = slice(s, s + LEVEL_CHUNK)
+            excluded, direction, boxed = self._pretest(fr.take(sl), theta[sl], points[sl], batched)
+            for k in range(len(excluded)):
+                i = s + k
+                if out.passage is not None or self._late(t0):
+                    return _none(level), [], []
+                out.examined += 1
+                if excluded[k]:
+                    ev = {
+                        "kind": "width",
+                        "direction": int(direction[k]),
+                        "points": list(points[i]),
+                    }
+                elif boxed[k]:
+                    ev = {"kind": "translations", "points": list(points[i])}
+                elif (ev := self._exact(fr.take([i]), theta[i : i + 1], points[i], out)) is None:
                     continue
-                else:
-                    split_idx.append(i)
-                    split_pts.append(pts)
+                elif isinstance(ev, list):
+                    split[0].append(i)
+                    split[1].append(ev)
                     continue
-            out.excluded += 1
-            out.excluded_volume += float(cells.volumes(level.take([i]))[0])
-            out.points.update(node.evidence["points"])
-        return self._split(level, nodes, split_idx, split_pts)
+                nodes[i].evidence = ev
+                out.excluded += 1
+                out.excluded_volume += float(cells.volumes(level.take([i]))[0])
+                out.points.update(ev["points"])
+        return self._split(level, nodes, split[0], split[1])
+
+    def _late(self, t0: float) -> bool:
+        """Whether the clock (:attr:`clock`) passed the budget counted from ``t0``."""
+        return self.clock() - t0 > self.settings.budget_s
+
+    def _exact(self, fr: cells.Frames, theta: np.ndarray, points: list, out: Outcome):
+        """One cell's exact test (:meth:`_examine`): its evidence when excluded, the points to
+        split it with (a list), or None (a passage, or a cell below ``min_angle``: left open)."""
+        verdict, pts = self._examine(fr, theta, self._inherited(points), out)
+        if verdict == "excluded":
+            return {"kind": "translations", "points": pts}
+        if verdict == "passage" or theta[0] < self.settings.min_angle:
+            return None
+        return pts
 
     def _split(self, level, nodes, split_idx, split_pts):
         parents = level.take(np.asarray(split_idx, dtype=np.int64))
@@ -459,10 +492,11 @@ class CellSearch:
         added = [p for p in pts if p not in start]
         return start + (added[-room:] if room else [])
 
-    def _pretest(self, fr: cells.Frames, theta: np.ndarray, points: list):
-        """The batched tests of all cells of a level, each with the points it inherited: the
-        width test, then, on the cells it leaves, the quadtree over translations on H's lower
-        distance grid (built once at least :data:`BATCH_MIN` cells are left).
+    def _pretest(self, fr: cells.Frames, theta: np.ndarray, points: list, batched: bool = False):
+        """The batched tests of a chunk of a level's cells, each with the points it inherited:
+        the width test, then, on the cells it leaves, the quadtree over translations on H's lower
+        distance grid (built once at least :data:`BATCH_MIN` cells are left, or any are in a
+        ``batched`` chunk).
 
         Returns the width test's ``(excluded, direction)`` and the cells the quadtree excluded.
         """
@@ -481,7 +515,7 @@ class CellSearch:
         excluded, direction = bounds.width_test(proj, radii, self.support, self.dirs, self.eta)
         boxed = np.zeros(len(excluded), dtype=bool)
         rest = np.flatnonzero(~excluded)
-        if len(rest) >= BATCH_MIN:
+        if len(rest) >= BATCH_MIN or (batched and len(rest)):
             if self.lower is None:
                 self.lower = bounds.LowerDistance(self.segs, self.region)
             boxed[rest] = bounds.translation_quadtree(self.lower, proj[rest], radii[rest])

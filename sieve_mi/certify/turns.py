@@ -73,6 +73,8 @@ class TurnTest:
         #: Counts, for progress and measurement: intervals excluded by the quadtree and by the
         #: exact test, cells given up on a fit, on an interval left at the last level, or on time.
         self.stats = dict.fromkeys(("quadtree", "exact", "fits", "last", "time"), 0)
+        #: The :func:`time.perf_counter` value past which cells are given up (:meth:`run`'s).
+        self.deadline = math.inf
 
     def run(self, items: list, deadline: float) -> list:
         """The tree of turns for each item, or None where an interval is left (or the clock
@@ -88,7 +90,7 @@ class TurnTest:
         list of dict or None
             ``{"roots": [8 nodes]}`` per item.
         """
-        out = []
+        out, self.deadline = [], deadline
         for s in range(0, len(items), GROUP):
             out += self._group(items[s : s + GROUP], deadline)
         return out
@@ -135,6 +137,10 @@ class TurnTest:
         left = np.empty(len(cell), dtype=bool)
         witness = np.empty((len(cell), 2))
         for s in range(0, len(cell), GROUP * 16):
+            if time.perf_counter() > self.deadline:  # given up on time, within the level
+                self.stats["time"] += int((~failed[np.unique(cell)]).sum())
+                failed[cell] = True
+                return np.ones(len(cell), dtype=bool)
             sl = slice(s, s + GROUP * 16)
             left[sl], witness[sl] = quadtree(self.lower, self.region, placed[sl], radii[sl])
         self.stats["quadtree"] += int((~left).sum())
@@ -146,6 +152,10 @@ class TurnTest:
                 i = cell[k]
                 if failed[i]:
                     continue  # an interval of this cell was left at the last level
+                if time.perf_counter() > self.deadline:
+                    self.stats["time"] += 1
+                    failed[i] = True
+                    continue
                 n = counts[i]
                 if bounds.translations_left(self.cache, placed[k, :n], radii[k, :n]).is_empty():
                     left[k] = False
