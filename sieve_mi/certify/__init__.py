@@ -75,6 +75,7 @@ __all__ = [
     "certify",
     "read_svg_hole",
     "replay",
+    "section_only",
     "thin_plate_proof",
     "thinnest_proved",
 ]
@@ -213,6 +214,32 @@ def thin_plate_proof(result: Certification, shape: Shape, holes: list, thickness
     outcome, entry = prove_section(shape, union_of_holes(list(holes)), float(thickness),
                                    budget_s, settings)  # fmt: skip
     return result.with_section(outcome, entry)
+
+
+def section_only(shape: Shape, holes: list, thickness: float, budget_s: float,
+                 settings: Settings | None = None) -> Certification:  # fmt: skip
+    """The slab-section proof at ``thickness`` without a straight search: a cell tree whose
+    roots are all left open (no symmetry), completed by :func:`thin_plate_proof` within
+    ``budget_s`` seconds. Proved (:attr:`Certification.proved_section`), it holds on plates at
+    least ``thickness`` thick; its certificate replays as any proof by a section beside open
+    cells. Used for a section-proved block's margin (:func:`sieve_mi.certify.blocks.section_margin`).
+    """
+    from sieve_mi.certify.search import Node, Outcome
+
+    t0 = time.perf_counter()
+    settings = settings or Settings()
+    hole = union_of_holes(list(holes))
+    contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
+    roots = cells.roots(*symmetry.domain("none"))
+    nodes = [Node(int(f), lo, hi) for f, lo, hi in zip(roots.face, roots.lo, roots.hi)]
+    outcome = Outcome(roots=nodes, candidates=shape.vertices[np.unique(shape.faces)])
+    diameter = points_diameter(shape.hull)
+    evidence = Evidence("none", None, outcome)
+    cert = build(shape, contours, "undecided", evidence, settings, 1.0, diameter)
+    result = Certification("undecided", time.perf_counter() - t0, "cells", cells_open=len(nodes),
+                           certificate=cert, straight="undecided", diameter=diameter)  # fmt: skip
+    left = budget_s - (time.perf_counter() - t0)
+    return thin_plate_proof(result, shape, [hole], thickness, max(left, 1e-3), settings)
 
 
 #: :func:`thinnest_proved` tries this fraction of the diameter first after a straight proof.

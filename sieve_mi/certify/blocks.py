@@ -25,6 +25,7 @@ __all__ = [
     "BALL_BOXES",
     "BALL_STEPS",
     "MARGIN_MIN_S",
+    "SECTION_MARGIN_STEPS",
     "ball_margin",
     "certify_blocks",
     "margin_by_ball",
@@ -32,6 +33,7 @@ __all__ = [
     "printed_hole",
     "progress_words",
     "prove_margin",
+    "section_margin",
     "sheet_holes",
 ]
 
@@ -39,6 +41,8 @@ __all__ = [
 MARGIN_FACTOR = 4.0
 #: ... and at least this many seconds (when the budget has them left).
 MARGIN_MIN_S = 2.0
+#: Bisection steps of a section-proved block's margin (:func:`section_margin`).
+SECTION_MARGIN_STEPS = 5
 #: Bisection steps of a ball-proved block's margin (within found / 2^steps of the ball's best) ...
 BALL_STEPS = 8
 #: ... each giving up (not proved) past this many boxes of the disk test.
@@ -314,11 +318,27 @@ def _prove(shape: Shape, holes: tuple, budget: Budgets, found: float | None) -> 
     c = _straight(shape, hole, budget, found)
     if c.status not in ("proved", "undecided") or c.method != "cells" or c.diameter is None:
         return c
+    t0 = time.perf_counter()
     if budget.thickness in (None, "thinnest"):
         c = thinnest_proved(c, shape, [section], budget.low, budget.section_s)
     elif (t := _section_thickness(c, budget.thickness)) is not None:
         c = thin_plate_proof(c, shape, [section], t, budget.section_s)
+    if c.by_section and not c.margin:  # no straight proof to bisect: the section's margin
+        c.margin, c.margin_certificate, c.margin_steps = _section_margin(c, shape, section,
+                                                                         found, budget, t0)  # fmt: skip
     return c if holes[1] is None else _against_sheet(c, holes[1])
+
+
+def _section_margin(c: Certification, shape: Shape, hole, found, budget: Budgets, t0: float):
+    """:func:`section_margin` of a block proved by its section, with what is left of
+    ``[verdict] section_budget`` (counted from ``t0``), but at most :data:`SECTION_MARGIN_STEPS`
+    times twice the section proof's own time (at least :data:`MARGIN_MIN_S`), each step at least
+    that twice."""
+    proof_s = float(c.section["seconds"])
+    spare = min(budget.section_s - (time.perf_counter() - t0),
+                max(MARGIN_MIN_S, 2.0 * SECTION_MARGIN_STEPS * proof_s))  # fmt: skip
+    return section_margin(shape, hole, c.section["thickness"], found, spare,
+                          steps=SECTION_MARGIN_STEPS, step_s=2.0 * proof_s)  # fmt: skip
 
 
 def _section_thickness(c: Certification, given) -> float | None:
@@ -415,6 +435,60 @@ def prove_margin(
     """
     from sieve_mi.certify import certify
 
+    def proved(grown, seconds: float) -> dict | None:
+        c = certify(shape, [grown], budget_s=seconds)
+        return c.certificate if c.status == "proved" else None
+
+    return _bisect(proved, hole, found, budget_s, steps)
+
+
+def section_margin(shape: Shape, hole, thickness: float, found: float | None, budget_s: float,
+                   *, steps: int = 5, step_s: float = 0.0) -> tuple[float, dict, int]:  # fmt: skip
+    """The largest m (of a bisection) for which the slab-section proof at ``thickness`` holds
+    against ``hole`` grown by m: the margin of a block proved by its section
+    (:attr:`~sieve_mi.certify.certificate.Certification.by_section`), as :func:`prove_margin` is
+    a straight proof's.
+
+    Each step is :func:`sieve_mi.certify.section_only` against H grown by m
+    (:func:`sieve_mi.geometry.outline.dilated`, which contains the exact dilation). Proved, it
+    means: on a plate at least ``thickness`` thick, by any motion, the section's projection (a
+    part of the silhouette) sticks out of H by more than m at the moment the pin crosses the
+    mid-plane; so every straight pose sticks out by more than m too. The certificate is that
+    proof's (a section beside open roots), which the replay re-proves against the grown hole.
+
+    Parameters
+    ----------
+    shape : Shape
+    hole : manifold3d.CrossSection
+        The hole the section proof held against (the sheet's copies on a perforated sheet).
+    thickness : float
+        The proved section's thickness, scene units.
+    found, budget_s, steps
+        As :func:`prove_margin`.
+    step_s : float
+        Seconds each step gets at least (while the budget has them): a step cut short by its
+        share counts as not proved, so a step is given about what the proof at m = 0 took.
+
+    Returns
+    -------
+    (float, dict, int)
+        As :func:`prove_margin`.
+    """
+    from sieve_mi.certify import section_only
+
+    def proved(grown, seconds: float) -> dict | None:
+        c = section_only(shape, [grown], thickness, seconds)
+        return c.certificate if c.proved_section is not None else None
+
+    return _bisect(proved, hole, found, budget_s, steps, step_s)
+
+
+def _bisect(proved: Callable, hole, found: float | None, budget_s: float, steps: int,
+            least: float = 0.0):  # fmt: skip
+    """The margin bisection of :func:`prove_margin` and :func:`section_margin`: between 0 and
+    ``found``, each step ``proved(H grown by m, seconds)`` (a certificate, or None) with an
+    equal share of what is left of ``budget_s`` (at least ``least`` seconds while that is
+    left); steps stop when under 0.5 s is left."""
     t0 = time.perf_counter()
     lo, hi, cert, ran = 0.0, float(found or 0.0), {}, 0
     for k in range(steps if hi > 0 else 0):
@@ -422,9 +496,9 @@ def prove_margin(
         if left < 0.5:
             break
         mid, ran = 0.5 * (lo + hi), ran + 1
-        c = certify(shape, [dilated(hole, mid)], budget_s=left / (steps - k))
-        if c.status == "proved":
-            lo, cert = mid, c.certificate
+        got = proved(dilated(hole, mid), min(left, max(left / (steps - k), least)))
+        if got is not None:
+            lo, cert = mid, got
         else:
             hi = mid
     return lo, cert, ran

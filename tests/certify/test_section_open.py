@@ -108,3 +108,19 @@ def test_the_plate_and_the_reports_rest_on_the_section(on_2_mm):
     assert certified_word({"certified": "proved", "certification": c.to_dict()}) == (
         "proved by section"
     )
+
+
+def test_a_section_proved_coin_gets_its_margin_and_the_replay_reproves_it():
+    # the rim-to-rim segment through the pinned centre is >= 22.238 mm long in every section
+    # (module docstring); the hole grown by m = 0.8 is 20.25 + 1.6 = 21.85 mm across (the
+    # polygon offset a hair more): still shorter, so the section proof holds at m = 0.8,
+    # the one bisection step between 0 and 1.6
+    from sieve_mi.certify.blocks import section_margin
+
+    m, cert, ran = section_margin(_coin(), HOLE, 2.0, 1.6, 30.0, steps=1)
+    assert (m, ran) == (0.8, 1)
+    extent = np.abs(np.concatenate([np.asarray(c) for c in cert["hole"]])).max(axis=0)
+    assert extent == pytest.approx([20.25 / 2 + 0.8] * 2, abs=0.01)  # against the grown hole
+    rep = replay(cert)
+    assert rep["valid"] and rep["proved"], rep["errors"]
+    assert rep["holds_for"] == SECTION_PLATES and rep["section_thickness"] == 2.0
