@@ -70,3 +70,57 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
+
+
+def section_levels(shape, hole, thickness: float, levels: int, inner: int = 0) -> list[dict]:
+    """The slab-section search (centre pin) of ``shape`` against ``hole`` at ``thickness``,
+    levels 1 to ``levels`` of caps, with ``inner`` band points spread inside the section added to
+    the turn test (:data:`sieve_mi.certify.section.INNER_POINTS`): per level, caps, excluded,
+    caps given up on a fit, CPU seconds and the caps it leaves for the next level."""
+    import numpy as np
+
+    from sieve_mi.certify.search import Settings, candidate_points
+    from sieve_mi.certify.section import SECTION_CANDIDATES, SectionSearch
+
+    points, _ = candidate_points(shape, Settings(max_candidates=SECTION_CANDIDATES), "none")
+    search = SectionSearch(points, hole, shape.radius)
+    search.inner, rows = inner, []
+    level_of = search._level
+
+    def timed(level, *args):
+        c0, fits = time.process_time(), search.turn_test.stats["fits"]
+        verdicts, done = level_of(level, *args)
+        excluded = sum(v is not None for v in verdicts)
+        rows.append({"level": len(rows) + 1, "caps": len(level), "excluded": excluded,
+                     "fits": search.turn_test.stats["fits"] - fits,
+                     "cpu_s": time.process_time() - c0, "left": 4 * (len(level) - excluded)})  # fmt: skip
+        return verdicts, done
+
+    search._level = timed
+    search.run(np.zeros(3), thickness, budget_s=1e9, min_angle=2.0 ** -(levels - 1))
+    return rows
+
+
+def letters_section(cert: str, thickness: float = 20.0, levels: int = 6) -> None:
+    """:func:`section_levels` of the letter in a letters solve's certificate ``cert`` (its exact
+    hole), extreme band points only and with 12 spread ones, in one run (a Markdown table)."""
+    import json
+
+    import numpy as np
+
+    from sieve_mi.geometry.meshes import Shape
+
+    data = json.load(open(cert))
+    v, f = np.asarray(data["shape"]["vertices"]), np.asarray(data["shape"]["faces"])
+    shape = shape_from_trimesh(trimesh.Trimesh(v, f, process=False), name=data["shape"]["name"])
+    assert isinstance(shape, Shape)
+    hole = manifold3d.CrossSection([np.asarray(c) for c in data["hole"]])
+    print(
+        "| inner points | level | caps | excluded | given up on a fit | CPU s | caps / CPU s | left |"
+    )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for inner in (0, 12):
+        for r in section_levels(shape, hole, thickness, levels, inner):
+            print(f"| {inner} | {r['level']} | {r['caps']} | {r['excluded']} | {r['fits']} | "
+                  f"{r['cpu_s']:.1f} | {r['caps'] / max(r['cpu_s'], 1e-9):.0f} | {r['left']} |",
+                  flush=True)  # fmt: skip

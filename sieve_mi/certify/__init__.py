@@ -283,8 +283,9 @@ def thinnest_proved(result: Certification, shape: Shape, holes: list, low: float
     Certification
         With :attr:`~Certification.section` the thinnest proved (the last tried when none was)
         and ``section["bracket"]``: ``proved`` (the thinnest thickness proved, or None) and
-        ``unproved`` (the thickest tried that was not); after open cells with nothing proved,
-        no bracket (no plate is proved, so there is nothing to bracket).
+        ``unproved`` (the thickest tried that was not), with ``unproved_left``: that try's caps
+        of directions ``open`` and ``examined`` and its ``seconds`` (why it is not proved);
+        after open cells with nothing proved, no bracket (nothing to bracket).
     """
     if result.straight not in ("proved", "undecided") or result.method != "cells":
         return result
@@ -317,8 +318,11 @@ def thinnest_proved(result: Certification, shape: Shape, holes: list, low: float
     if out is not result:  # every try's seconds, not only the one kept
         out.seconds = result.seconds + (time.perf_counter() - t0)
     if out.section is not None and (straight or best):
-        out.section = {**out.section, "bracket": {"proved": hi if best else None,
-                                                  "unproved": unproved}}  # fmt: skip
+        bracket = {"proved": hi if best else None, "unproved": unproved}
+        if last is not None:  # why the thickest unproved plate is not proved: caps left open
+            bracket["unproved_left"] = {k: last.section[f"cells_{k}"] for k in ("open", "examined")}
+            bracket["unproved_left"]["seconds"] = last.section["seconds"]
+        out.section = {**out.section, "bracket": bracket}
     return out
 
 

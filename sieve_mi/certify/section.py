@@ -62,6 +62,8 @@ __all__ = [
     "Plane",
     "SECTION_CANDIDATES",
     "SphereCells",
+    "INNER_POINTS",
+    "spread",
     "caps",
     "pins",
     "prove_section",
@@ -81,6 +83,9 @@ RELATIVE_MARGIN = 1e-9
 DIAMETER_DIRECTIONS = 16
 #: Points of a cell's width and turn tests: those extreme along these many directions (x2).
 EXTREME_DIRECTIONS = 12
+#: Band points spread over the section (:func:`spread`) that the turn test gets beside the
+#: extreme ones (0: the extreme ones only; measured on the letters, docs/performance.md).
+INNER_POINTS = 0
 #: Levels of the turn search: intervals of 2 pi / 8 halved this many times at most.
 TURN_DEPTH = 6
 #: Nodes across the hole of the turn test's grid of lower bounds on the distance to H.
@@ -394,6 +399,8 @@ class SectionSearch:
         self.dirs = np.column_stack([np.cos(a), np.sin(a)])
         b = 2 * np.pi * np.arange(EXTREME_DIRECTIONS) / EXTREME_DIRECTIONS
         self.extreme_dirs = np.column_stack([np.cos(b), np.sin(b)])
+        #: Band points spread inside the section (:func:`spread`) added to each cell's turn test.
+        self.inner = INNER_POINTS
 
     def run(self, pin, thickness: float, budget_s: float, min_angle: float = 2e-3):
         """Prove every direction excluded, or stop at the budget or at cells below ``min_angle``.
@@ -486,12 +493,29 @@ class SectionSearch:
         if len(pts) < 2:
             return None
         keep = np.unique((x @ self.extreme_dirs.T - r[:, None]).argmax(axis=0))
-        pts, x, r = pts[keep], x[keep], r[keep]
-        w = min_width(x) - 2.0 * float(r.max())
+        w = min_width(x[keep]) - 2.0 * float(r[keep].max())
         if w > self.width * (1 + RELATIVE_MARGIN) + self.eta:
-            return {"kind": "width", "points": pts.tolist()}
+            return {"kind": "width", "points": pts[keep].tolist()}
+        if self.inner > 0:  # band points inside the section's hull too: a non-convex H
+            keep = np.concatenate([keep, spread(x, keep, self.inner)])
+        pts, x, r = pts[keep], x[keep], r[keep]
         slack = self.kappa * self.radius * chord
         return (pts.tolist(), slack), (x, r + slack)
+
+
+def spread(x: np.ndarray, chosen: np.ndarray, count: int) -> np.ndarray:
+    """Up to ``count`` more indices into the points ``x`` (k, 2), each the furthest from those
+    chosen so far (farthest-point sampling from ``chosen``): points spread over the section,
+    inside its hull too (a choice only; any points of the band are sound)."""
+    d = np.min(np.linalg.norm(x[:, None] - x[chosen][None], axis=-1), axis=1)
+    out: list[int] = []
+    for _ in range(min(count, len(x) - len(chosen))):
+        j = int(np.argmax(d))
+        if d[j] <= 0.0:
+            break
+        out.append(j)
+        d = np.minimum(d, np.linalg.norm(x - x[j], axis=1))
+    return np.asarray(out, dtype=np.int64)
 
 
 def _evidence_points(ev: dict) -> list:

@@ -63,6 +63,8 @@ def test_default_plate_is_the_thinnest_proved(tmp_path):
     (gap,) = sheet.bracket
     assert gap["name"] == "rod" and gap["proved"] == pytest.approx(proof["thickness"])
     assert gap["unproved"] == proof["bracket"]["unproved"] and gap["unproved"] < gap["proved"]
+    left = proof["bracket"]["unproved_left"]  # why: the failed try's caps left open
+    assert left["open"] > 0 and left["seconds"] > 0
     tried = gap["no_passage_found"] + ([gap["passage"]] if gap["passage"] is not None else [])
     assert gap["unproved"] in tried and 1 <= len(tried) <= 3
     if gap["passage"] is not None:  # the thickest passage lies below every plate without one
