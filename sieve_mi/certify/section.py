@@ -601,6 +601,7 @@ def prove_section(shape: Shape, hole: manifold3d.CrossSection, thickness: float,
         if out.status == "proved":
             break
     if out is None:
-        out = SectionOutcome("undecided", todo[0], float(thickness), [Node()] * len(FACES))
+        roots = [Node() for _ in FACES]  # the set-up used the budget: every face open
+        out = SectionOutcome("undecided", todo[0], float(thickness), roots, open_cells=len(roots))
     out.seconds = time.perf_counter() - t0
     return out, certificate_entry(out, points, on_edge, settings.kappa)
