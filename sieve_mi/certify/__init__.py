@@ -222,7 +222,8 @@ def section_only(shape: Shape, holes: list, thickness: float, budget_s: float,
     roots are all left open (no symmetry), completed by :func:`thin_plate_proof` within
     ``budget_s`` seconds. Proved (:attr:`Certification.proved_section`), it holds on plates at
     least ``thickness`` thick; its certificate replays as any proof by a section beside open
-    cells. Used for a section-proved block's margin (:func:`sieve_mi.certify.blocks.section_margin`).
+    cells. Used for a section-proved block's margin
+    (:func:`sieve_mi.certify.blocks.section_margin`).
     """
     from sieve_mi.certify.search import Node, Outcome
 

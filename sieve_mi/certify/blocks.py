@@ -324,8 +324,8 @@ def _prove(shape: Shape, holes: tuple, budget: Budgets, found: float | None) -> 
     elif (t := _section_thickness(c, budget.thickness)) is not None:
         c = thin_plate_proof(c, shape, [section], t, budget.section_s)
     if c.by_section and not c.margin:  # no straight proof to bisect: the section's margin
-        c.margin, c.margin_certificate, c.margin_steps = _section_margin(c, shape, section,
-                                                                         found, budget, t0)  # fmt: skip
+        margin = _section_margin(c, shape, section, found, budget, t0)
+        c.margin, c.margin_certificate, c.margin_steps = margin
     return c if holes[1] is None else _against_sheet(c, holes[1])
 
 

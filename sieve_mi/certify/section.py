@@ -52,7 +52,7 @@ import numpy as np
 
 from sieve_mi.certify import bounds
 from sieve_mi.certify.search import EvenOdd
-from sieve_mi.certify.turns import TurnTest
+from sieve_mi.certify.turns import TurnTest, spread
 from sieve_mi.geometry.meshes import Shape
 
 __all__ = [
@@ -63,7 +63,6 @@ __all__ = [
     "SECTION_CANDIDATES",
     "SphereCells",
     "INNER_POINTS",
-    "spread",
     "caps",
     "pins",
     "prove_section",
@@ -83,8 +82,8 @@ RELATIVE_MARGIN = 1e-9
 DIAMETER_DIRECTIONS = 16
 #: Points of a cell's width and turn tests: those extreme along these many directions (x2).
 EXTREME_DIRECTIONS = 12
-#: Band points spread over the section (:func:`spread`) that the turn test gets beside the
-#: extreme ones (0: the extreme ones only; measured on the letters, docs/performance.md).
+#: Band points spread over the section (:func:`~sieve_mi.certify.turns.spread`) that the turn
+#: test gets beside the extreme ones (0: those only; measured on the letters, docs/performance.md).
 INNER_POINTS = 0
 #: Levels of the turn search: intervals of 2 pi / 8 halved this many times at most.
 TURN_DEPTH = 6
@@ -399,7 +398,8 @@ class SectionSearch:
         self.dirs = np.column_stack([np.cos(a), np.sin(a)])
         b = 2 * np.pi * np.arange(EXTREME_DIRECTIONS) / EXTREME_DIRECTIONS
         self.extreme_dirs = np.column_stack([np.cos(b), np.sin(b)])
-        #: Band points spread inside the section (:func:`spread`) added to each cell's turn test.
+        #: Band points spread inside the section (:func:`~sieve_mi.certify.turns.spread`) that
+        #: each cell's turn test gets too.
         self.inner = INNER_POINTS
 
     def run(self, pin, thickness: float, budget_s: float, min_angle: float = 2e-3):
@@ -501,21 +501,6 @@ class SectionSearch:
         pts, x, r = pts[keep], x[keep], r[keep]
         slack = self.kappa * self.radius * chord
         return (pts.tolist(), slack), (x, r + slack)
-
-
-def spread(x: np.ndarray, chosen: np.ndarray, count: int) -> np.ndarray:
-    """Up to ``count`` more indices into the points ``x`` (k, 2), each the furthest from those
-    chosen so far (farthest-point sampling from ``chosen``): points spread over the section,
-    inside its hull too (a choice only; any points of the band are sound)."""
-    d = np.min(np.linalg.norm(x[:, None] - x[chosen][None], axis=-1), axis=1)
-    out: list[int] = []
-    for _ in range(min(count, len(x) - len(chosen))):
-        j = int(np.argmax(d))
-        if d[j] <= 0.0:
-            break
-        out.append(j)
-        d = np.minimum(d, np.linalg.norm(x - x[j], axis=1))
-    return np.asarray(out, dtype=np.int64)
 
 
 def _evidence_points(ev: dict) -> list:

@@ -35,7 +35,7 @@ import numpy as np
 
 from sieve_mi.certify import bounds
 
-__all__ = ["EXACT_FROM", "FIRST_LEVEL", "GROUP", "QUADTREE_STEPS", "TurnTest", "quadtree"]
+__all__ = ["EXACT_FROM", "FIRST_LEVEL", "GROUP", "QUADTREE_STEPS", "TurnTest", "quadtree", "spread"]
 
 #: Level of the turn tree from which intervals the quadtree leaves get the exact test.
 EXACT_FROM = 6
@@ -247,3 +247,18 @@ def quadtree(lower, region, proj: np.ndarray, radii: np.ndarray, steps: int = QU
     left[cell] = True
     left |= crowded_any | np.isfinite(witness[:, 0])
     return left, witness
+
+
+def spread(x: np.ndarray, chosen: np.ndarray, count: int) -> np.ndarray:
+    """Up to ``count`` more indices into the points ``x`` (k, 2), each the furthest from those
+    chosen so far (farthest-point sampling from ``chosen``): points spread over the section,
+    inside its hull too (a choice only; any points of the band are sound)."""
+    d = np.min(np.linalg.norm(x[:, None] - x[chosen][None], axis=-1), axis=1)
+    out: list[int] = []
+    for _ in range(min(count, len(x) - len(chosen))):
+        j = int(np.argmax(d))
+        if d[j] <= 0.0:
+            break
+        out.append(j)
+        d = np.minimum(d, np.linalg.norm(x - x[j], axis=1))
+    return np.asarray(out, dtype=np.int64)
