@@ -70,12 +70,24 @@ def render(tmp: str, figure_args: tuple | None, passage) -> dict:
 
 
 def _rgb_once() -> None:
-    """The worker's first step: Mitsuba in an RGB variant for good (the worker renders only
-    colour pictures, so :func:`sieve_mi.outputs.stage.rgb_variant` switches no more)."""
+    """The worker's first step: Dr.Jit's CPU threads brought back, then Mitsuba in an RGB
+    variant for good (the worker renders only colour pictures, so
+    :func:`sieve_mi.outputs.stage.rgb_variant` switches no more).
+
+    A fork keeps only the forking thread: Dr.Jit's pool still counts the parent's workers, but
+    none of them runs in the child, so every kernel would run on one thread. Raising the count
+    by the missing workers starts that many new ones (Dr.Jit starts the difference), so the
+    worker renders on as many threads as the parent had.
+    """
+    import drjit as dr
     import mitsuba as mi
 
     from sieve_mi.backend import select_rgb_variant
 
+    wanted = dr.thread_count()
+    running = len(os.listdir("/proc/self/task")) - 1  # threads beside this one (Linux)
+    if running < wanted:
+        dr.set_thread_count(2 * wanted - running)
     select_rgb_variant(mi, mi.variant())
 
 
