@@ -24,6 +24,7 @@ from sieve_mi.geometry.rotations import normalize
 from sieve_mi.optim import POSE_KEYS, QUAT_KEYS, live_poses, pose_adam, renormalise_quaternions
 
 __all__ = [
+    "CONVERGED",
     "SETTLE_CHECK",
     "Batch",
     "BufferOverflow",
@@ -38,6 +39,10 @@ __all__ = [
 #: A descent whose poses settle (:meth:`~sieve_mi.game.player_b.PlayerB.attack`'s ``settle``)
 #: checks every this many steps whether all of its groups have: one read-back of a flag.
 SETTLE_CHECK = 5
+#: Converged starts leave a descent (issue 45's "adaptive stopping", measured, off by default):
+#: ``(window, rtol)``: every ``window`` steps, a start whose best loss fell by less than ``rtol``
+#: of itself since the last check stops where its best pose is. None: every start runs every step.
+CONVERGED = None
 
 
 class BufferOverflow(Exception):
@@ -275,7 +280,7 @@ def _keep_poses(opt, keep, best, best_loss, settle):
     best = [dr.gather(mi.Float, b, keep) for b in best]
     best_loss = dr.gather(mi.Float, best_loss, keep)
     dr.make_opaque(best, best_loss)
-    return best, best_loss, settle.subset(keep)
+    return best, best_loss, None if settle is None else settle.subset(keep)
 
 
 class Descent:
@@ -309,6 +314,7 @@ class Descent:
         self.settle = Settle.make(batch.group, self.loss)
         self.final = np.empty((len(batch), len(POSE_KEYS)))
         self.where = np.arange(len(batch))  # the original index of each pose still descending
+        self._last = None  # each pose's best loss at the last convergence check (CONVERGED)
         self._bind()
 
     def _bind(self) -> None:
@@ -327,6 +333,26 @@ class Descent:
         self.best, self.best_loss, _ = adam_step(
             self.opt, self.best, self.best_loss, lambda: self.evaluate(live)
         )
+
+    def _live(self, step: int) -> np.ndarray | None:
+        """After step ``step``: the poses that go on descending ((K,) bool), or None when
+        nothing is checked at this step (settled groups, :class:`Settle`; converged starts,
+        :data:`CONVERGED`)."""
+        settle = self.settle is not None and self.settle.due(step)
+        converge = CONVERGED is not None and (step + 1) % CONVERGED[0] == 0
+        if not (settle or converge):
+            return None
+        live = np.ones(len(self.where), dtype=bool)
+        if settle:
+            live &= np.asarray(self.settle.live(self.best_loss), dtype=bool)
+        if converge:
+            now = np.asarray(self.best_loss, dtype=np.float64)
+            last = self._last
+            if last is not None:
+                with np.errstate(invalid="ignore"):
+                    live &= ~np.isfinite(last) | (now < last - CONVERGED[1] * np.abs(last))
+            self._last = now
+        return live
 
     def shrink(self, live: np.ndarray) -> bool:
         """Keep descending only the ``live`` poses ((K,) bool); the others' best poses are
@@ -393,13 +419,15 @@ class Descent:
                     self.step()
                 if progress:
                     progress(step + 1)
-                if self.settle is None or not self.settle.due(step):
-                    continue
-                live = np.asarray(self.settle.live(self.best_loss), dtype=bool)
-                if 2 * live.sum() > len(live):  # too few settled to pay for a smaller batch
+                live = self._live(step)
+                if live is None or 2 * live.sum() > len(
+                    live
+                ):  # too few left to pay for a smaller batch
                     continue
                 if frozen is not None and frozen.overflowed():
                     raise BufferOverflow
+                if self._last is not None:
+                    self._last = self._last[live]
                 if not self.shrink(live):  # every group settled: the descent is over
                     if progress:
                         progress(steps)

@@ -25,6 +25,8 @@ figure
     ``figure.png``: a Mitsuba rendering of the sieve.
 animation
     ``passage.gif``: the shapes moving through (or stopping at) the plate.
+pictures
+    ``figure.png`` and ``passage.gif`` rendered in a worker process beside the rest of the save.
 passage
     The 3D passage scene shared by the page and the GIF.
 fabrication
@@ -43,6 +45,7 @@ __all__ = [
     "images",
     "outdir",
     "passage",
+    "pictures",
     "plots",
     "provenance",
     "report",

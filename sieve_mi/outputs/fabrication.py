@@ -30,6 +30,7 @@ __all__ = [
     "beside_plate",
     "stacked",
     "fabricate",
+    "figure_args",
     "figure_file",
     "plate",
     "plate_files",
@@ -387,17 +388,26 @@ def figure_file(result, out_dir: str, made: dict, meshes: tuple) -> float:
     from sieve_mi.outputs.figure import render_figure
 
     t_figure = time.perf_counter()
-    sieve, passes, blocks, lift = meshes
+    plate_mesh, passes, blocks, blocked, title = figure_args(result, meshes)
     render_figure(
-        os.path.join(out_dir, "figure.png"),
+        os.path.join(out_dir, "figure.png"), plate_mesh, passes, blocks, blocked, title=title
+    )
+    made["files"].append("figure.png")
+    return time.perf_counter() - t_figure
+
+
+def figure_args(result, meshes: tuple) -> tuple:
+    """What ``figure.png`` shows, from :func:`plate_files`' meshes: ``(plate, passes, blocks,
+    blocked, title)`` for :func:`sieve_mi.outputs.figure.render_figure` (the A stacked over the
+    hole, the B beside the plate, each B's colour from its verdict, the title)."""
+    sieve, passes, blocks, lift = meshes
+    return (
         sieve,
         stacked(passes, lift),
         beside_plate(sieve, blocks),
         [b.blocked for b in result.blocks],  # a thin-plate or certified passage passes
-        title=f"{result.scene.name}: winner {result.winner}",
+        f"{result.scene.name}: winner {result.winner}",
     )
-    made["files"].append("figure.png")
-    return time.perf_counter() - t_figure
 
 
 def stacked(meshes: list[trimesh.Trimesh], gap: float) -> list[trimesh.Trimesh]:

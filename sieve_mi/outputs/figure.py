@@ -102,7 +102,7 @@ class FigureSettings:
 
     width: int = 1200
     height: int = 900
-    spp: int = 16
+    spp: int = 8
 
 
 def render_figure(
@@ -136,7 +136,7 @@ def render_figure(
         One per entry of ``blocks``: True draws the shape red (blocked), False orange (it passes).
     picture : FigureSettings, optional
         Picture size and samples per pixel (default: :class:`FigureSettings`' defaults, 1200 x
-        900 pixels at 16 spp).
+        900 pixels at 8 spp).
     title : str, optional
         A line of text drawn at the top of the picture (the picture keeps its size).
 
@@ -147,8 +147,9 @@ def render_figure(
 
     Notes
     -----
-    Takes 2-3 s for 1200 x 900 pixels at 16 spp with ~300k triangles on a 2-core CPU
-    (``llvm_ad_rgb``, including the variant switch and kernel compilation). Open,
+    Takes about 1.5 s for 1200 x 900 pixels at 8 spp on a 2-core CPU (``llvm_ad_rgb``, the
+    default scene; 2.8 s at 16 spp, whose grain is only a little finer:
+    docs/performance.md). Open,
     non-manifold and flat meshes render (every material is two-sided). The Mitsuba variant in
     effect before the call is in effect after it; if none was set, the RGB variant stays selected
     (Mitsuba cannot unset a variant).

@@ -227,30 +227,69 @@ def write_outputs(
     inputs = input_paths(result.scene)
     with outdir.writing(out_dir, command="solve", inputs=inputs, salvage=salvage) as tmp:
         _write_certificates(result, report, tmp)
+        meshes = None
         if fabricate:
-            from sieve_mi.outputs.fabrication import figure_file, plate_files
+            from sieve_mi.outputs.fabrication import plate_files
 
             t0 = time.perf_counter()
             report["fabrication"], meshes = plate_files(result, tmp)
             timings["fabrication_s"] = round(time.perf_counter() - t0, 4)
             mark("fabrication")
         done.append("verdict")  # report.json and the plate, from here on kept if stopped
-        write_images(result, tmp)  # report.json's dict, the images and plots, from t_start
-        write_plots(result, tmp)
-        timings["images_s"] = round(
-            time.perf_counter() - t_start - timings.get("fabrication_s", 0), 4
-        )
-        mark("images")
-        done.append("images")
-        if fabricate and figure:
-            timings["figure_s"] = round(figure_file(result, tmp, report["fabrication"], meshes), 4)
-            mark("figure")
-            done.append("figure")
-        plate_mesh = meshes[0] if fabricate else None  # the plate, built once per save
-        _write_passage(result, report, tmp, animation, mark, done, plate_mesh)
+        passage, passage_s = _passage(result, meshes)
+        with _start_pictures(result, tmp, meshes if figure else None, passage, animation) as pics:
+            write_images(result, tmp)  # report.json's dict, the images and plots, from t_start
+            write_plots(result, tmp)
+            before = timings.get("fabrication_s", 0) + passage_s
+            timings["images_s"] = round(time.perf_counter() - t_start - before, 4)
+            mark("images")
+            done.append("images")
+            _collect_pictures(report, pics.wait(), watch, done, passage_s, figure and fabricate)
+        _write_page(result, report, tmp, passage, mark, done)
     if watch is not None:
         watch.stop()
     return report
+
+
+def _passage(result: Result, meshes):
+    """The passage scene (:func:`sieve_mi.outputs.passage.build`) on the save's plate (the first
+    of ``meshes``; None: built there), and the seconds it took."""
+    from sieve_mi.outputs.passage import build
+
+    t0 = time.perf_counter()
+    passage = build(result, meshes[0] if meshes is not None else None)
+    return passage, time.perf_counter() - t0
+
+
+def _start_pictures(result: Result, tmp: str, meshes, passage, animation: bool):
+    """figure.png (with the plate's ``meshes``) and passage.gif (with ``animation``) started
+    beside the rest of the save (:func:`sieve_mi.outputs.pictures.start`)."""
+    from sieve_mi.outputs import pictures
+
+    figure_args = None
+    if meshes is not None:
+        from sieve_mi.outputs.fabrication import figure_args as args_of
+
+        figure_args = args_of(result, meshes)
+    return pictures.start(tmp, figure_args, passage if animation else None, result.variant)
+
+
+def _collect_pictures(report: dict, got: dict, watch, done: list, passage_s: float, figure: bool):
+    """Record the pictures' times (the seconds the save waited for each), the GIF's record and
+    the rendering's memory in ``report``; mark their stages done."""
+    timings = report["timings"]
+    if figure:
+        timings["figure_s"] = round(got["figure_s"], 4)
+        report["fabrication"]["files"].append("figure.png")
+        done.append("figure")
+    timings["passage_s"] = round(passage_s, 4)
+    if got["animation"] is not None:
+        report["animation"] = got["animation"]
+        timings["animation_s"] = round(got["animation_s"], 4)
+        done.append("animation")
+    if watch is not None:  # the rendering's peak counts in its stages (it may be another process)
+        for stage in ("figure",) * figure + ("passage",):
+            watch.peaks[stage] = round(max(watch.mark(stage), got["peak_gb"]), 4)
 
 
 #: The files of each output stage after the verdict (a stage's files are kept only when it ended).
@@ -296,32 +335,15 @@ def _salvage(report: dict, done: list, figure: bool, animation: bool):
     return keep
 
 
-def _write_passage(
-    result: Result, report: dict, tmp: str, animation: bool, mark, done: list, plate_mesh=None
-) -> None:
-    """passage.gif (with ``animation``), report.json and report.html into ``tmp``, the passage's
-    plate ``plate_mesh`` (the one the save built; None: built by
-    :func:`sieve_mi.outputs.passage.build`).
+def _write_page(result: Result, report: dict, tmp: str, passage, mark, done: list) -> None:
+    """report.json and report.html into ``tmp``, the page showing ``passage`` (the 3D scene).
 
-    The GIF's record and its time go into ``report`` before report.json is written; the page,
-    written last, holds report.json's content and links every other file. ``mark(stage)`` ends
-    a stage of the run's memory watch.
+    The page, written last, holds report.json's content and links every other file.
+    ``mark(stage)`` ends a stage of the run's memory watch.
     """
-    from sieve_mi.outputs.passage import build
     from sieve_mi.outputs.viewer import page_files, write_page
 
     timings = report["timings"]
-    t0 = time.perf_counter()
-    passage = build(result, plate_mesh)
-    timings["passage_s"] = round(time.perf_counter() - t0, 4)
-    if animation:
-        from sieve_mi.outputs.animation import write_gif
-
-        t0 = time.perf_counter()
-        report["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
-        timings["animation_s"] = round(time.perf_counter() - t0, 4)
-        done.append("animation")
-    mark("passage")
     t0 = time.perf_counter()
     files = page_files(tmp) + ["report.json"]
     write_page(os.path.join(tmp, "report.html"), result, report, passage, sorted(set(files)))

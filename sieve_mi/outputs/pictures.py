@@ -1,0 +1,170 @@
+"""``figure.png`` and ``passage.gif`` rendered in a worker process while the save writes the rest.
+
+One idea: the two Mitsuba pictures of a solve (:mod:`sieve_mi.outputs.figure`,
+:mod:`sieve_mi.outputs.animation`) need nothing that the images, the plots and the page make, and
+they cost most of a small solve's save (2.8 + 1.8 s of the default scene's 9.7 s on 2 cores,
+2026-12-04). :func:`start` forks one worker (:func:`sieve_mi.workers.worker_pool`) that switches
+Mitsuba to an RGB variant once, renders the figure, then the GIF, into the save's temporary
+folder; :meth:`Pictures.wait` collects what report.json records of them. Where a fork is unsafe
+(a CUDA variant: its context does not survive a fork; a system without ``fork``) both are
+rendered in this process, one after the other, as before. The pictures are the same either way:
+the same scene, sampler seed and settings give the same pixels.
+
+Times: the worker's rendering overlaps the rest of the save, so ``figure_s`` and
+``animation_s`` in report.json are the seconds the save *waited* for each (the part of its
+wall time they account for: the stages still add up to ``total_s``); the seconds each took in
+the worker are in :attr:`Pictures.rendered`.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+__all__ = ["Pictures", "render", "start"]
+
+
+def render(tmp: str, figure_args: tuple | None, passage) -> dict:
+    """Render ``figure.png`` (with ``figure_args``) and ``passage.gif`` (with ``passage``) into ``tmp``.
+
+    Parameters
+    ----------
+    tmp : str
+        The save's temporary folder.
+    figure_args : tuple or None
+        ``(plate, passes, blocks, blocked, title)`` for
+        :func:`sieve_mi.outputs.figure.render_figure`; None: no figure.
+    passage : Passage or None
+        The GIF's motion (:func:`sieve_mi.outputs.passage.build`); None: no GIF.
+
+    Returns
+    -------
+    dict
+        ``figure_end`` (the ``time.perf_counter()`` at which the figure was written, None
+        without one), ``figure_s`` and ``animation_s`` (seconds each took), ``animation`` (what
+        :func:`~sieve_mi.outputs.animation.write_gif` returns, or None) and ``peak_gb`` (this
+        process's peak resident memory, GB).
+    """
+    from sieve_mi.backend import MemoryWatch
+
+    out = {"figure_end": None, "figure_s": 0.0, "animation_s": 0.0, "animation": None}
+    if figure_args is not None:
+        from sieve_mi.outputs.figure import render_figure
+
+        t0 = time.perf_counter()
+        plate, passes, blocks, blocked, title = figure_args
+        render_figure(os.path.join(tmp, "figure.png"), plate, passes, blocks, blocked, title=title)
+        out["figure_end"] = time.perf_counter()
+        out["figure_s"] = out["figure_end"] - t0
+    if passage is not None:
+        from sieve_mi.outputs.animation import write_gif
+
+        t0 = time.perf_counter()
+        out["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
+        out["animation_s"] = time.perf_counter() - t0
+    watch = MemoryWatch()
+    out["peak_gb"] = watch.peak
+    watch.stop()
+    return out
+
+
+def _rgb_once() -> None:
+    """The worker's first step: Dr.Jit's CPU threads brought back, then Mitsuba in an RGB
+    variant for good (the worker renders only colour pictures, so
+    :func:`sieve_mi.outputs.stage.rgb_variant` switches no more).
+
+    A fork keeps only the forking thread: Dr.Jit's pool still counts the parent's workers, but
+    none of them runs in the child, so every kernel would run on one thread. Raising the count
+    by the missing workers starts that many new ones (Dr.Jit starts the difference), so the
+    worker renders on as many threads as the parent had.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    from sieve_mi.backend import select_rgb_variant
+
+    wanted = dr.thread_count()
+    running = len(os.listdir("/proc/self/task")) - 1  # threads beside this one (Linux)
+    if running < wanted:
+        dr.set_thread_count(2 * wanted - running)
+    select_rgb_variant(mi, mi.variant())
+
+
+def _forkable(variant: str | None) -> bool:
+    """Whether the pictures may be rendered in a forked worker: Linux, and not a CUDA variant."""
+    return sys.platform.startswith("linux") and not str(variant or "").startswith("cuda")
+
+
+class Pictures:
+    """The figure and the GIF of one save, being rendered (see the module docstring).
+
+    Made by :func:`start`; :meth:`wait` returns their record. Leaving the ``with`` block of
+    :func:`start` by an exception stops the worker at once (nothing is kept of its files).
+
+    Attributes
+    ----------
+    rendered : dict
+        After :meth:`wait`: :func:`render`'s answer (the seconds each picture took).
+    """
+
+    def __init__(self, job: tuple, future=None):
+        self._job, self._future, self.rendered = job, future, {}
+
+    def wait(self) -> dict:
+        """Wait for both pictures; return the seconds the save waited for each.
+
+        Returns
+        -------
+        dict
+            ``figure_s`` and ``animation_s``: the caller's wall time from this call until the
+            figure, then the GIF, was written (in this process: the time each took), and
+            ``animation`` (:func:`~sieve_mi.outputs.animation.write_gif`'s record or None) and
+            ``peak_gb`` (the rendering process's peak memory, GB).
+        """
+        t_wait = time.perf_counter()
+        if self._future is None:
+            self.rendered = render(*self._job)
+            return {
+                k: self.rendered[k] for k in ("figure_s", "animation_s", "animation", "peak_gb")
+            }
+        self.rendered = self._future.result()
+        t_end = time.perf_counter()
+        end = self.rendered["figure_end"]
+        figure_s = 0.0 if end is None else min(max(end - t_wait, 0.0), t_end - t_wait)
+        return {
+            "figure_s": figure_s,
+            "animation_s": t_end - t_wait - figure_s,
+            "animation": self.rendered["animation"],
+            "peak_gb": self.rendered["peak_gb"],
+        }
+
+
+def start(tmp: str, figure_args: tuple | None, passage, variant: str | None):
+    """A context manager yielding :class:`Pictures`: the figure and GIF rendering into ``tmp``.
+
+    Parameters
+    ----------
+    tmp : str
+        The save's temporary folder.
+    figure_args, passage
+        As :func:`render`; both None: nothing to render (no worker).
+    variant : str or None
+        The solve's Mitsuba variant: with a CUDA one (or without ``fork``) the pictures are
+        rendered in this process by :meth:`Pictures.wait`.
+    """
+    import contextlib
+
+    from sieve_mi.workers import worker_pool
+
+    job = (tmp, figure_args, passage)
+
+    @contextlib.contextmanager
+    def pictures():
+        if (figure_args is None and passage is None) or not _forkable(variant):
+            yield Pictures(job)
+            return
+        with worker_pool(1, initializer=_rgb_once, what="figure and GIF rendering") as pool:
+            yield Pictures(job, pool.submit(render, *job))
+
+    return pictures()
