@@ -287,8 +287,9 @@ def test_shake_settings_are_checked_as_scene_keys_are():
 
 @pytest.mark.slow
 def test_solve_shake_adds_shake_outputs(tmp_path, monkeypatch, capsys):
-    """``solve --shake N`` shakes the fresh folder: shake.json, shake.png, a report.html card,
-    report.json's ``shake`` entry and one line per shape.
+    """``solve --shake N --json`` shakes the fresh folder: shake.json, shake.png, a report.html
+    card, report.json's ``shake`` entry and one line per shape (on stderr), and prints the
+    folder's report.json after the trials, with that entry.
     In-process (``sieve_mi.cli.main``), with the shaking cut to 0.3 s on one worker and no
     shake.gif (the default 10 s on every core and the rendered clip, which
     test_shake_dir_writes_json_png_and_clip_and_lists_them checks, would only make the same
@@ -315,20 +316,52 @@ def test_solve_shake_adds_shake_outputs(tmp_path, monkeypatch, capsys):
     )
     out = tmp_path / "out"
     argv = ["solve", str(scene), "--out", str(out), "--quiet", "--no-figure", "--no-animation"]
-    assert main([*argv, "--shake", "2"]) == 0, capsys.readouterr().err
+    assert main([*argv, "--shake", "2", "--json"]) == 0, capsys.readouterr().err
     assert [s.trials for s in shaken] == [2]  # --shake N: N trials, the rest the defaults
     report = json.loads((out / "shake.json").read_text())
     assert [s["role"] for s in report["shapes"]] == ["A", "B"] and report["settings"]["trials"] == 2
     assert 'id="shake"' in (out / "report.html").read_text()
     assert "shake.json" in json.loads((out / ".sieve-mi").read_text())["files"]
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.err  # --json: the table and the lines on stderr, report.json on stdout
     assert "fidelity: resting sink under" in printed  # the shake table printed
     entry = json.loads((out / "report.json").read_text())["shake"]  # and report.json's entry
+    assert json.loads(captured.out)["shake"] == entry  # the report after the trials is printed
     a, b = entry["shapes"]
     assert (a["role"], a["trials"], b["role"], b["trials"], entry["duration_s"]) == (
         "A", 2, "B", 2, 0.3)  # fmt: skip
     assert "proof" in b and "proof" not in a and b["passed"] == 0  # the sphere never passes
     assert f"shake: {b['name']} (B): 0 of 2 passed" in printed  # one line per shape
+
+
+def test_solve_shaken_honours_the_scenes_shake_table(tmp_path, monkeypatch):
+    """In Python, ``sieve_mi.shake.solve_shaken`` solves, saves and runs the scene's ``[shake]``
+    trials as ``sieve-mi solve`` does (``sieve_mi.solve`` plays the game alone): the returned
+    report.json has the ``shake`` entry with the table's trials and duration, and the 24 mm
+    sphere never passes (shaking cut to one worker and no clip, as above)."""
+    from dataclasses import replace
+
+    import sieve_mi as sm
+    from sieve_mi.shake import commands, solve_shaken
+    from sieve_mi.testing.settings import TINY
+
+    real = commands.shake_folder
+    monkeypatch.setattr(commands, "shake_folder", lambda folder, settings, **kw: real(
+        folder, replace(settings, workers=1), **{**kw, "clip": False}))  # fmt: skip
+    mesh = os.path.join(REPO, "scenes", "meshes")
+    path = tmp_path / "s.toml"
+    path.write_text(
+        f'name = "t"\n[[pass]]\nmesh = "{mesh}/cube.stl"\n[[block]]\nmesh = "{mesh}/sphere.stl"\n'
+        + TINY
+        + "\n[shake]\ntrials = 2\nduration = 0.3\n"
+    )
+    report = solve_shaken(sm.load_scene(str(path)), str(tmp_path / "out"), progress=False,
+                          figure=False, animation=False)  # fmt: skip
+    entry = report["shake"]
+    assert (entry["trials"], entry["duration_s"]) == (2, 0.3)
+    assert [(s["role"], s["trials"]) for s in entry["shapes"]] == [("A", 2), ("B", 2)]
+    assert entry["shapes"][1]["passed"] == 0
+    assert json.loads((tmp_path / "out" / "report.json").read_text())["shake"] == entry
 
 
 def test_the_letters_g_decomposes_within_a_millimetre():
