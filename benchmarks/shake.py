@@ -123,30 +123,38 @@ def _rdp_pieces(pieces, tolerance):
     from sieve_mi.geometry.plate import convex_pieces
 
     region = manifold3d.CrossSection(list(pieces))
-    return convex_pieces(region.simplify(tolerance)) if tolerance > 0 else list(pieces)
+    return convex_pieces(region.simplify(tolerance) if tolerance > 0 else region)
 
 
 def levers(folder: str, name: str, trials: int, which: str, duration: float = 10.0) -> str:
-    """Shake ``name`` of a solve's ``folder`` ``trials`` times with one lever of
+    """Shake ``name`` of a solve's ``folder`` (or the case ``name`` of :data:`CASES`) ``trials``
+    times with one lever of
     :data:`LEVERS` pulled (in this process, one worker, but ``workers2``); one Markdown row:
     passes, CPU and wall seconds per trial, the deepest penetration of any trial (mm)."""
     import mujoco
 
-    from sieve_mi.shake import model
+    from sieve_mi.shake import geometry, model
     from sieve_mi.shake import trials as trial_mod
     from sieve_mi.shake.inputs import from_folder, select
 
-    inp = select(from_folder(folder, [name]), [name])
-    plate = plate_from_mesh(inp.plate, inp.plate_path, inp.units)
-    _, role, _, mesh = inp.parts[0]
-    part = part_from_mesh(mesh, name, role, 0.05)
+    if name in CASES:  # a case of the table (folder unused)
+        kind, margin, make = CASES[name]
+        plate, part = (
+            plate_from_outline(_hole(kind), margin, 2.0),
+            part_from_mesh(make(), name, None, 0.05),
+        )
+    else:
+        inp = select(from_folder(folder, [name]), [name])
+        plate = plate_from_mesh(inp.plate, inp.plate_path, inp.units)
+        _, role, _, mesh = inp.parts[0]
+        part = part_from_mesh(mesh, name, role, 0.05)
     settings = ShakeSettings(trials=trials, duration=duration, workers=1,
                              timestep=0.5 if which == "dt0.5" else 0.25)  # fmt: skip
-    keep, build, pieces = model.PART_SIMPLIFY_M, trial_mod.build_model, model.collision_pieces
+    keep, build, pieces = model.PART_SIMPLIFY_M, trial_mod.build_model, geometry.collision_pieces
     if which in ("before", "allhull"):
         model.PART_SIMPLIFY_M = 0.0
     if which in ("before", "rdp"):
-        model.collision_pieces = _rdp_pieces
+        geometry.collision_pieces = _rdp_pieces
     if which == "nomulticcd":
 
         def build_nomulti(*a, **k):
@@ -162,7 +170,11 @@ def levers(folder: str, name: str, trials: int, which: str, duration: float = 10
         out = run_trials(plate, part, settings, 1e-3)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
-        model.PART_SIMPLIFY_M, trial_mod.build_model, model.collision_pieces = keep, build, pieces
+        model.PART_SIMPLIFY_M, trial_mod.build_model, geometry.collision_pieces = (
+            keep,
+            build,
+            pieces,
+        )
     deep = max(o.penetration for o in out) * 1e3
     cpu_cell = "-" if which == "workers2" else f"{cpu / trials:.3f}"
     return (f"| {which} | {name} | {trials} | {sum(o.passed for o in out)} | {cpu_cell} | "

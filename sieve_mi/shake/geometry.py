@@ -49,8 +49,9 @@ class Plate:
 
     Attributes
     ----------
-    pieces : list of (k, 2) float
-        Convex polygons (CCW) that tile the top face, scene units.
+    loops : list of (k, 2) float
+        The top face's boundary: its outer loop counter-clockwise, each hole's clockwise, scene
+        units (:attr:`pieces` and :meth:`collision` split it into convex pieces).
     thickness : float
         Scene units.
     half_size : (2,) float
@@ -66,7 +67,7 @@ class Plate:
         What the model leaves out of the plate's mesh (a plate that is not a uniform slab).
     """
 
-    pieces: list
+    loops: list
     thickness: float
     half_size: np.ndarray
     hole_area: float
@@ -74,13 +75,33 @@ class Plate:
     volume_error: float = 0.0
     warnings: list = field(default_factory=list)
 
-    def to_dict(self) -> dict:
-        """JSON-ready summary (scene units)."""
+    @property
+    def pieces(self) -> list:
+        """The exact convex pieces (CCW, (k, 2) float each) tiling the top face, made on first
+        use (a tray-sized sheet of 80 windowed holes takes minutes; the engine needs only
+        :meth:`collision`)."""
+        memo = self.__dict__.setdefault("_memo", {})
+        if "pieces" not in memo:
+            memo["pieces"] = collision_pieces(self.loops, 0.0)
+        return memo["pieces"]
+
+    def collision(self, tolerance: float) -> list:
+        """The convex pieces the engine collides, the outline within ``tolerance`` (scene units;
+        :func:`collision_pieces`), made once per tolerance (and carried to worker processes)."""
+        memo = self.__dict__.setdefault("_memo", {})
+        if tolerance not in memo:
+            memo[tolerance] = collision_pieces(self.loops, tolerance)
+        return memo[tolerance]
+
+    def to_dict(self, tolerance: float | None = None) -> dict:
+        """JSON-ready summary (scene units); ``convex_pieces`` counts the engine's pieces at
+        ``tolerance`` (:meth:`collision`), the exact ones without it."""
+        pieces = self.pieces if tolerance is None else self.collision(tolerance)
         return {
             "thickness": float(self.thickness),
             "size": [float(2 * self.half_size[0]), float(2 * self.half_size[1])],
             "hole_area": float(self.hole_area),
-            "convex_pieces": len(self.pieces),
+            "convex_pieces": len(pieces),
             "volume_error": float(self.volume_error),
             "warnings": list(self.warnings),
         }
@@ -101,10 +122,10 @@ def plate_from_outline(outline: manifold3d.CrossSection, margin: float, thicknes
     region = plate_region(outline, margin)
     x0, y0, x1, y1 = region.bounds()
     centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
-    pieces = [p - centre for p in convex_pieces(region)]
+    loops = [np.asarray(c, np.float64) - centre for c in region.to_polygons()]
     half = np.array([(x1 - x0) / 2, (y1 - y0) / 2])
     offset = np.array([centre[0], centre[1], 0.0])
-    return Plate(pieces, float(thickness), half, float(outline.area()), offset)
+    return Plate(loops, float(thickness), half, float(outline.area()), offset)
 
 
 def plate_from_mesh(mesh, path: str = "plate", units: str = "scene units") -> Plate:
@@ -136,12 +157,12 @@ def plate_from_mesh(mesh, path: str = "plate", units: str = "scene units") -> Pl
     x0, y0, x1, y1 = plate.footprint.bounds()
     centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
     half = np.array([(x1 - x0) / 2, (y1 - y0) / 2])
-    pieces = [p - centre for p in convex_pieces(region)]
+    loops = [np.asarray(c, np.float64) - centre for c in region.to_polygons()]
     extruded = region.area() * plate.thickness
     error = abs(plate.volume - extruded) / max(extruded, 1e-300)
     offset = np.array([centre[0], centre[1], plate.slab[1]])
     hole_area = float(sum(h.area() for h in plate.holes))
-    out = Plate(pieces, plate.thickness, half, hole_area, offset, float(error))
+    out = Plate(loops, plate.thickness, half, hole_area, offset, float(error))
     if not plate.uniform:
         out.warnings.append(f"{path}: {plate.describe(units)}; shaken as its slab")
     return out
@@ -162,18 +183,21 @@ def collision_pieces(pieces: list[np.ndarray], tolerance: float) -> list[np.ndar
     Parameters
     ----------
     pieces : list of (k, 2) float
-        Convex polygons (CCW) tiling the plate's top face, as :attr:`Plate.pieces`.
+        Polygons whose union (positive winding) is the plate's top face: its convex pieces, or
+        its boundary loops (:attr:`Plate.loops`).
     tolerance : float
-        Largest move of the outline, the pieces' units; 0 keeps ``pieces``.
+        Largest move of the outline, the pieces' units; 0: the exact convex pieces.
 
     Returns
     -------
     list of (k, 2) float
         Convex polygons (CCW) tiling the simplified face.
     """
-    if tolerance <= 0 or not pieces:
-        return list(pieces)
+    if not pieces:
+        return []
     region = manifold3d.CrossSection([np.asarray(p, dtype=np.float64) for p in pieces])
+    if tolerance <= 0:
+        return convex_pieces(region)
     loops = [simplify_loop(np.asarray(c, np.float64), tolerance) for c in region.to_polygons()]
     return convex_pieces(manifold3d.CrossSection(loops))
 

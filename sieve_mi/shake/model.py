@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from sieve_mi.geometry.plate import prism_vertices
-from sieve_mi.shake.geometry import Part, Plate, collision_hull, collision_pieces
+from sieve_mi.shake.geometry import Part, Plate, collision_hull
 from sieve_mi.shake.settings import CONTACT, ShakeSettings
 
 __all__ = [
@@ -166,7 +166,7 @@ def _add_plate(spec, plate: Plate, settings, unit_m: float, mass_wall, flat: boo
         slab = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]) / unit_m
         pieces = [slab]
     else:
-        pieces = collision_pieces(plate.pieces, PLATE_SIMPLIFY_M / unit_m)
+        pieces = plate.collision(PLATE_SIMPLIFY_M / unit_m)
     for i, poly in enumerate(pieces):
         mesh = spec.add_mesh(name=f"plate{i}")
         mesh.uservert = (prism_vertices(poly * unit_m, -th, 0.0)).ravel().tolist()
