@@ -152,6 +152,10 @@ def plate_from_mesh(mesh, path: str = "plate", units: str = "scene units") -> Pl
         One line: a flat plate, an open mesh, no through-hole, or a plate with no slab across z
         (a tilted plate among them: it says by how much, and to export it lying flat).
     """
+    import trimesh
+
+    if isinstance(mesh, trimesh.Trimesh):  # an STL's corners merged: the outline walked once,
+        mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)  # not every triangle
     plate = read_plate(mesh, "z", path)
     region = plate.region
     x0, y0, x1, y1 = plate.footprint.bounds()
