@@ -404,7 +404,9 @@ def _replay_scope(rep: dict) -> str:
     if not rep.get("holds_for"):
         return ""
     text = f" (holds for {rep['holds_for']}"
-    if rep["holds_for"] != "any plate" and rep.get("diameter") is not None:
+    if rep.get("section_thickness") is not None:  # a slab-section proof: its thickness
+        text += f": {rep['section_thickness']:.4g} mm"
+    elif rep["holds_for"] != "any plate" and rep.get("diameter") is not None:
         text += f": {rep['diameter']:.4g} mm"
     if rep.get("thickness") is not None:
         covered = "covered" if rep.get("covers_plate") else "NOT covered"
@@ -416,12 +418,15 @@ def _certify_summary(name: str, r) -> str:
     scope = r.scope_line()
     if r.straight == "proved" and r.status == "undecided":  # a straight proof, a thinner plate
         return f"{name}: undecided ({r.method}) in {r.seconds:.2f} s: {scope}"
+    how = "section" if r.by_section else r.method  # the slab section alone: cells left open
     line = (
-        f"{name}: {r.status} ({r.method}) in {r.seconds:.2f} s; cells {r.cells_examined} examined, "
+        f"{name}: {r.status} ({how}) in {r.seconds:.2f} s; cells {r.cells_examined} examined, "
         f"{r.cells_excluded} excluded, {r.cells_open} open; excluded {r.excluded_percent()} %"
     )
     if scope:
         line += "\n" + scope
+    elif r.section is not None and r.section["status"] != "proved":
+        line += f"\nno slab-section proof at {r.section['thickness']:.4g} mm within the budget"
     if r.passage:
         q, t = r.passage["quaternion"], r.passage["translation"]
         line += "\npassage: rotation (w,x,y,z) " + ", ".join(f"{v:.6f}" for v in q)

@@ -31,6 +31,8 @@ symmetry
     Rotational symmetries of a shape that shrink the search's domain.
 certificate
     The result of a certification and its certificate file (JSON).
+record
+    A certificate's dictionary, assembled from what a search found.
 structure
     A certificate's form, checked before any geometry.
 replay
@@ -58,7 +60,8 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.certify import bounds, cells, symmetry
-from sieve_mi.certify.certificate import Certification, Evidence, build, scope
+from sieve_mi.certify.certificate import Certification, scope
+from sieve_mi.certify.record import Evidence, build
 from sieve_mi.certify.replay import replay
 from sieve_mi.certify.search import CellSearch, Settings
 from sieve_mi.certify.svg import read_svg_hole
@@ -143,7 +146,11 @@ def certify(
     thickness : float, optional
         The plate's thickness where the holes are, scene units. None (the default): the holes
         are an outline without a plate, and the answer is for straight passage (a cell-tree
-        proof then also holds for plates at least the shape's diameter thick).
+        proof then also holds for plates at least the shape's diameter thick). Given, a plate
+        that the straight answer does not settle (thinner than the shape, or cells left open)
+        gets the slab-section proof at its thickness (capped at the diameter) from what is left
+        of the budget; on a plate thinner than the shape the straight search gets
+        :data:`STRAIGHT_SHARE` of it.
 
     Returns
     -------
@@ -154,14 +161,31 @@ def certify(
         and the certificate (``write_certificate``).
     """
     _check_arguments(shape, holes, budget_s, settings, thickness)
-    result = _certify(shape, holes, budget_s, settings, scale, use_symmetry)
+    thin = thickness is not None and 0 < thickness < points_diameter(shape.hull)
+    straight_s = STRAIGHT_SHARE * budget_s if thin else budget_s
+    result = _certify(shape, holes, straight_s, settings, scale, use_symmetry)
     if thickness is None:
         return result
     result = result.on_plate(thickness)
     left = budget_s - result.seconds
-    if result.straight == "proved" and not result.covers_plate and thickness > 0 and left > 0:
-        result = thin_plate_proof(result, shape, holes, thickness, left, settings)
+    if _needs_section(result) and thickness > 0 and left > 0:
+        t = min(float(thickness), float(result.diameter))  # at the diameter: every plate above
+        result = thin_plate_proof(result, shape, holes, t, left, settings)
     return result
+
+
+#: On a plate thinner than the shape, the straight search gets this share of ``certify``'s
+#: budget: only a section proof decides such a plate, and it gets the rest.
+STRAIGHT_SHARE = 0.5
+
+
+def _needs_section(result: Certification) -> bool:
+    """Whether a slab-section proof could still decide ``result`` on its plate: a straight proof
+    by cells that does not cover the plate, or a straight search that left cells open (a
+    section proof excludes straight passage too, :attr:`Certification.proved_section`)."""
+    if result.method != "cells" or result.diameter is None or result.straight == "passage":
+        return False
+    return result.straight == "undecided" or not result.covers_plate
 
 
 def thin_plate_proof(result: Certification, shape: Shape, holes: list, thickness: float,
@@ -191,25 +215,33 @@ def thin_plate_proof(result: Certification, shape: Shape, holes: list, thickness
     return result.with_section(outcome, entry)
 
 
-#: :func:`thinnest_proved` tries this fraction of the diameter first.
+#: :func:`thinnest_proved` tries this fraction of the diameter first after a straight proof.
 TOP_TRY = 0.95
+#: After a straight search that left cells open, :func:`thinnest_proved` tries ``low`` first,
+#: with this share of its budget, then the diameter with this share of what is left.
+LOW_SHARE = 0.5
 
 
 def thinnest_proved(result: Certification, shape: Shape, holes: list, low: float,
                     budget_s: float, steps: int = 5) -> Certification:  # fmt: skip
-    """The thinnest plate (of a bisection between ``low`` and the shape's diameter) on which a
-    straight proof ``result`` is completed by a section proof.
+    """The thinnest plate (of a bisection between ``low`` and the shape's diameter) on which
+    ``result`` (a straight search by cells) is completed by a section proof.
 
-    :data:`TOP_TRY` of the diameter is tried first (when that fails, nothing thinner is tried),
-    then ``low`` (a printable minimum), then the bisection, each step with an equal share of the
-    budget left. A section proof at t holds on every thicker plate (its band holds
-    more of the shape), so the bracket is sound.
+    After a straight proof, :data:`TOP_TRY` of the diameter is tried first (when that fails,
+    nothing thinner is tried: plates at least the diameter thick are proved already), then
+    ``low`` (a printable minimum), then the bisection, each step with an equal share of the
+    budget left. After a straight search that left cells open, nothing is proved yet, and a
+    section proof is a complete proof (:attr:`Certification.proved_section`): ``low`` is tried
+    first with :data:`LOW_SHARE` of the budget (a shape a section proves is often proved
+    there), then the diameter itself with that share of what is left (when that fails,
+    nothing thinner is tried), then the bisection. A section proof at t holds on every thicker plate
+    (its band holds more of the shape), so the bracket is sound.
 
     Parameters
     ----------
     result : Certification
-        A proof by cells (``straight == "proved"``); a ball proof or anything else is returned
-        as it is.
+        A search by cells (``straight`` "proved" or "undecided"); a ball proof, a passage or
+        anything else is returned as it is.
     shape : Shape
     holes : list of manifold3d.CrossSection
     low : float
@@ -217,40 +249,56 @@ def thinnest_proved(result: Certification, shape: Shape, holes: list, low: float
     budget_s : float
         Seconds for all steps.
     steps : int
-        Bisection steps after ``low``.
+        Bisection steps after the first two tries.
 
     Returns
     -------
     Certification
         With :attr:`~Certification.section` the thinnest proved (the last tried when none was)
         and ``section["bracket"]``: ``proved`` (the thinnest thickness proved, or None) and
-        ``unproved`` (the thickest tried that was not).
+        ``unproved`` (the thickest tried that was not); after open cells with nothing proved,
+        no bracket (no plate is proved, so there is nothing to bracket).
     """
-    if result.straight != "proved" or result.method != "cells" or result.diameter is None:
+    if result.straight not in ("proved", "undecided") or result.method != "cells":
+        return result
+    if result.diameter is None:
         return result
     t0, best, unproved, last = time.perf_counter(), None, None, None
-    hi, lo = float(result.diameter), float(low)
-    # first just below the diameter: a shape no section proves there is left at once
-    tries = [round(TOP_TRY * hi, 4), lo] + [None] * steps
+    hi, straight = float(result.diameter), result.straight == "proved"
+    lo = float(low) if straight else min(float(low), hi)  # a shape thinner than low: at hi
+    # after a straight proof first just below the diameter: a shape no section proves there is
+    # left at once; after open cells, the printable minimum first, then the diameter
+    top = round(TOP_TRY * hi, 4) if straight else hi
+    tries = ([top, lo] if straight else [lo, top]) + [None] * steps
     for k, t in enumerate(tries):
         left = budget_s - (time.perf_counter() - t0)
-        if left < 0.5 or hi - lo <= 1e-3 * hi or (t is not None and not lo <= t < hi):
+        narrow = t is None and hi - lo <= 1e-3 * hi
+        if left < 0.5 or narrow or not _worth(t, lo, hi, straight or best):
             break
         t = t if t is not None else round(0.5 * (lo + hi), 4)
-        c = thin_plate_proof(result, shape, holes, t, left / (len(tries) - k))
+        share = LOW_SHARE if (k <= 1 and not straight) else 1.0 / (len(tries) - k)
+        c = thin_plate_proof(result, shape, holes, t, left * share)
         if c.section["status"] == "proved":
             best, hi = c, t
             if t == lo:
                 break
         else:
             unproved, lo, last = t, t, c
-            if k == 0:
+            if t == top:
                 break
     out = best or last or result  # an attempt that failed is recorded too
-    if out.section is not None:
+    if out is not result:  # every try's seconds, not only the one kept
+        out.seconds = result.seconds + (time.perf_counter() - t0)
+    if out.section is not None and (straight or best):
         out.section = {**out.section, "bracket": {"proved": hi if best else None,
                                                   "unproved": unproved}}  # fmt: skip
     return out
+
+
+def _worth(t: float | None, lo: float, hi: float, hi_proved) -> bool:
+    """Whether a try at ``t`` (None: the bisection's middle) is inside the bracket: at least
+    ``lo``, below ``hi`` (or at it, while nothing proves ``hi``)."""
+    return t is None or lo <= t < hi or (t == hi and not hi_proved)
 
 
 def _certify(shape, holes, budget_s, settings, scale, use_symmetry) -> Certification:

@@ -30,6 +30,7 @@ __all__ = [
     "margin_by_ball",
     "on_sheet",
     "printed_hole",
+    "progress_words",
     "prove_margin",
     "sheet_holes",
 ]
@@ -198,9 +199,20 @@ def certify_blocks(
     for j, c in _proofs([block_shapes[j] for j in todo], holes, budget, workers, tops):
         out[todo[j]] = c
         if progress is not None:
-            progress(f"certify {block_shapes[todo[j]].name}: {c.status} ({c.seconds:.1f} s, "
-                     f"{c.excluded_percent(1)} % of rotations excluded)")  # fmt: skip
+            progress(f"certify {block_shapes[todo[j]].name}: {progress_words(c, scene.units)}")
     return out
+
+
+def progress_words(c: Certification, units: str = "mm") -> str:
+    """What a proof's progress line says after the B's name: ``proved (2.1 s, 100.0 % of
+    rotations excluded)``, or for a proof by its slab section alone (the straight search left
+    cells open, :attr:`Certification.by_section`) ``proved by its slab section on plates at
+    least 2 mm thick (12.3 s; the straight search excluded 0.0 % of rotations)``."""
+    if c.by_section:
+        return (f"proved by its slab section on plates at least {c.section['thickness']:g} "
+                f"{units} thick ({c.seconds:.1f} s; the straight search excluded "
+                f"{c.excluded_percent(1)} % of rotations)")  # fmt: skip
+    return f"{c.status} ({c.seconds:.1f} s, {c.excluded_percent(1)} % of rotations excluded)"
 
 
 class Budgets(NamedTuple):
@@ -287,22 +299,39 @@ def _prove(shape: Shape, holes: tuple, budget: Budgets, found: float | None) -> 
     margin (:func:`prove_margin`) with what is left of the budget, but at most
     :data:`MARGIN_FACTOR` times the proof's own time (at least :data:`MARGIN_MIN_S`): a step
     that takes much longer than the proof is near the true margin and would mostly end
-    undecided. A proof by cells then gets the slab-section proofs of the plate
+    undecided. A search by cells, proved or left with open cells (no passage), then gets the
+    slab-section proofs of the plate within ``[verdict] section_budget``
     (:func:`sieve_mi.certify.thinnest_proved`, or :func:`~sieve_mi.certify.thin_plate_proof` at a
-    given thickness). ``holes``: the straight proof's and the section proofs' contours
+    given thickness, see :func:`_section_thickness`): a section proof at t excludes every rigid
+    motion through a plate at least t thick, straight passage included (a straight passage
+    passes every plate), so it completes an undecided tree as well as a proved one. ``holes``:
+    the straight proof's and the section proofs' contours
     (:func:`sieve_mi.certify.blocks.sheet_holes`; None: the same)."""
     from sieve_mi.certify import thin_plate_proof, thinnest_proved
 
     hole = manifold3d.CrossSection(holes[0])
     section = hole if holes[1] is None else manifold3d.CrossSection(holes[1])
     c = _straight(shape, hole, budget, found)
-    if c.status != "proved" or c.method != "cells":
+    if c.status not in ("proved", "undecided") or c.method != "cells" or c.diameter is None:
         return c
     if budget.thickness in (None, "thinnest"):
         c = thinnest_proved(c, shape, [section], budget.low, budget.section_s)
-    elif isinstance(budget.thickness, float | int) and budget.thickness < (c.diameter or 0.0):
-        c = thin_plate_proof(c, shape, [section], float(budget.thickness), budget.section_s)
+    elif (t := _section_thickness(c, budget.thickness)) is not None:
+        c = thin_plate_proof(c, shape, [section], t, budget.section_s)
     return c if holes[1] is None else _against_sheet(c, holes[1])
+
+
+def _section_thickness(c: Certification, given) -> float | None:
+    """The thickness a given plate (``[fabrication] thickness``, a number) gets its section
+    proof at, scene units, or None for none: the plate's own when it is thinner than the shape
+    (a straight proof by cells does not cover it); after open cells also a thicker plate, at
+    the diameter (the section there covers every thicker plate)."""
+    if not isinstance(given, float | int) or isinstance(given, bool):
+        return None
+    d = float(c.diameter)
+    if float(given) < d:
+        return float(given)
+    return d if c.straight == "undecided" else None
 
 
 def _against_sheet(c: Certification, contours: list) -> Certification:

@@ -34,9 +34,6 @@ import math
 import os
 import tempfile
 from dataclasses import dataclass, field
-from typing import NamedTuple
-
-import numpy as np
 
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.meshes import Shape, mesh_sha256
@@ -45,19 +42,15 @@ from sieve_mi.geometry.plate import LENGTH_SLACK
 __all__ = [
     "ANY_PLATE",
     "Certification",
-    "Evidence",
     "FORMAT",
     "MAX_CERTIFICATE_BYTES",
     "REQUIRED",
     "SECTION_PLATES",
-    "build",
-    "certificate_entry",
     "excluded_percent",
     "is_certificate",
     "mesh_hash",
     "read_certificate_file",
     "scope",
-    "tree_to_dict",
     "writable_certificate",
 ]
 
@@ -70,6 +63,8 @@ THICK_PLATES = "plates at least the diameter thick"
 #: ``holds_for`` of a proof with a slab-section proof (``section``): plates at least the
 #: section's thickness thick (docs/certify.md, "Thin plates").
 SECTION_PLATES = "plates at least the section's thickness thick"
+#: The straight answers a proved section completes: a proof by cells, or cells left open.
+STRAIGHT_OPEN = ("proved", "undecided")
 
 
 def excluded_percent(fraction: float, complete: bool, digits: int = 2) -> str:
@@ -146,8 +141,9 @@ class Certification:
     straight : str or None
         The answer for straight passage (the search's status, the paper's model).
     holds_for : str or None
-        What ``straight`` covers (:func:`scope`): :data:`ANY_PLATE`, :data:`THICK_PLATES` or
-        None (undecided).
+        What the claim covers (:func:`scope`): :data:`ANY_PLATE`, :data:`THICK_PLATES`,
+        :data:`SECTION_PLATES` (a proved slab section, :meth:`with_section`, also beside an
+        undecided ``straight``) or None (undecided).
     diameter : float or None
         The shape's diameter, scene units.
     thickness : float or None
@@ -156,9 +152,10 @@ class Certification:
     plate_note : str
         Why the plate's thickness is unknown (empty otherwise).
     section : dict or None
-        The slab-section proof tried on a plate thinner than the diameter (:meth:`with_section`):
-        ``status``, ``thickness``, ``pin``, ``seconds``, ``cells_examined``, ``cells_excluded``,
-        ``cells_open``; None when none was tried.
+        The slab-section proof tried on a plate thinner than the diameter, or after a straight
+        search that left cells open (:meth:`with_section`): ``status``, ``thickness``, ``pin``,
+        ``seconds``, ``cells_examined``, ``cells_excluded``, ``cells_open``; None when none was
+        tried.
     """
 
     status: str
@@ -184,11 +181,23 @@ class Certification:
 
     @property
     def proved_section(self) -> dict | None:
-        """The ``section`` entry when it is a proof that counts: a proved section of a straight
-        claim that is proved (None otherwise)."""
+        """The ``section`` entry when it is a proof that counts: a proved section, whether the
+        straight search proved or left cells open (None otherwise; never beside a passage).
+
+        A section proof at t shows that no rigid motion carries the shape through a plate at
+        least t thick. A straight passage (a pose whose projection fits H, translated along the
+        vertical) would pass every plate, so the section proof excludes straight passage too: it
+        is a complete proof on plates at least t thick, even when the cell tree has open cells.
+        """
         s = self.section
-        ok = s is not None and s["status"] == "proved" and self.straight == "proved"
+        ok = s is not None and s["status"] == "proved" and self.straight in STRAIGHT_OPEN
         return s if ok else None
+
+    @property
+    def by_section(self) -> bool:
+        """Whether the proof rests on the slab-section proof alone: a proved section where the
+        straight search left cells open (its excluded share is then short of 100 %)."""
+        return self.proved_section is not None and self.straight != "proved"
 
     @property
     def covers_plate(self) -> bool | None:
@@ -215,8 +224,10 @@ class Certification:
         A straight proof that holds only for plates at least the shape's diameter thick
         (:data:`THICK_PLATES`, a cell tree) becomes ``"undecided"`` on a thinner plate, or one of
         unknown thickness: a tilted passage is not excluded. A ball proof and a passage keep
-        their status (they hold on any plate). The certificate records the thickness (its
-        ``status`` stays the straight answer, qualified by ``plate.holds_for``).
+        their status (they hold on any plate). A proved section (:data:`SECTION_PLATES`)
+        makes it "proved" on plates at least the section's thickness, "undecided" on thinner
+        ones, whatever ``straight`` says (short of a passage). The certificate records the
+        thickness (its ``status`` stays the claim, qualified by ``plate.holds_for``).
 
         Returns
         -------
@@ -230,8 +241,8 @@ class Certification:
         out.plate_note = "" if thickness is not None else (note or "thickness not measured")
         if out.straight is None:
             out.straight = self.status
-        if out.straight == "proved":  # again "proved" on a plate a section proof covers
-            out.status = "proved" if out.covers_plate else "undecided"
+        if out.straight == "proved" or out.proved_section is not None:
+            out.status = "proved" if out.covers_plate else "undecided"  # by the plate it covers
         if self.certificate:
             out.certificate = {**self.certificate}
             out.certificate["plate"] = {**self.certificate.get("plate", {}),
@@ -243,7 +254,11 @@ class Certification:
 
         A proved section at thickness t makes the claim hold on plates at least t thick
         (:data:`SECTION_PLATES`), and the certificate carries the proof (``section``) for the
-        replay; an unproved one is only recorded in :attr:`section`.
+        replay; an unproved one is only recorded in :attr:`section`. That holds whether the
+        straight search proved or left cells open (:attr:`proved_section`): then ``status`` and
+        the certificate's ``status`` become "proved" (``straight`` keeps the tree's own answer,
+        and the replay accepts open cells beside a section it re-proves). A passage is never
+        overruled.
 
         Returns
         -------
@@ -263,12 +278,12 @@ class Certification:
             "cells_open": outcome.open_cells,
         }
         out.seconds = self.seconds + float(outcome.seconds)
-        if outcome.status != "proved" or self.straight != "proved":
+        if outcome.status != "proved" or self.straight not in STRAIGHT_OPEN:
             return out
         out.holds_for = SECTION_PLATES
         out.status = "proved" if out.thickness is None or out.covers_plate else "undecided"
         if self.certificate:
-            out.certificate = {**self.certificate, "section": entry}
+            out.certificate = {**self.certificate, "section": entry, "status": "proved"}
             out.certificate["plate"] = {**self.certificate.get("plate", {}),
                                         "holds_for": SECTION_PLATES}  # fmt: skip
         return out
@@ -291,10 +306,16 @@ class Certification:
             )
         if self.holds_for == SECTION_PLATES:
             t = self.section["thickness"]
-            return (
+            line = (
                 f"holds on plates at least {t:.4g} {units} thick, by any motion (the part's slab "
                 f"section about a pinned point never fits the hole; the part is {d} across)"
             )
+            if self.by_section:
+                line += (
+                    "; proved by the section alone: the straight search left cells open, and "
+                    "a straight passage would pass every plate"
+                )
+            return line
         if self.holds_for != THICK_PLATES:
             return ""
         if self.thickness is None and not self.plate_note:
@@ -478,122 +499,3 @@ def _existing_is_replaceable(path: str, inputs: tuple[str, ...]) -> None:
         )
     if not os.access(path, os.W_OK):
         raise SieveError(f"--certificate {path}: is read-only; name another file")
-
-
-def tree_to_dict(node) -> dict:
-    """A search :class:`~sieve_mi.certify.search.Node` as a certificate node."""
-    if node.children:
-        return {"c": [tree_to_dict(c) for c in node.children]}
-    if node.evidence is not None:
-        return {"e": node.evidence}
-    return {"open": True}
-
-
-class Evidence(NamedTuple):
-    """What a certificate's status rests on.
-
-    Attributes
-    ----------
-    symmetry : str
-        The shape's symmetry group the rotations were reduced by ("none" when not used).
-    root : dict or None
-        The ball proof at the root (``kind``, ``centre``, ``radius``), or None.
-    outcome : object or None
-        The cell search's outcome (roots, points used, candidates, passage), or None.
-    """
-
-    symmetry: str
-    root: dict | None
-    outcome: object
-
-
-def build(
-    shape: Shape,
-    contours: list,
-    status: str,
-    evidence: Evidence,
-    settings,
-    scale: float = 1.0,
-    diameter: float | None = None,
-) -> dict:
-    """The certificate dictionary (format in the module docstring); ``diameter`` (scene units)
-    gives its ``plate`` entry (the thickness is set by :meth:`Certification.on_plate`).
-
-    Point indices in the evidence are renumbered into ``shape.points``.
-    """
-    symmetry, root, outcome = evidence
-    used = sorted(outcome.points) if outcome is not None else []
-    renumber = {old: new for new, old in enumerate(used)}
-    vertices = shape.vertices[np.unique(shape.faces)]
-    if outcome is not None and outcome.candidates is not None:
-        vertices = outcome.candidates
-    on_edge = [outcome.on_edge.get(u) for u in used] if outcome is not None else []
-
-    def renum(node: dict) -> dict:
-        if "c" in node:
-            return {"c": [renum(c) for c in node["c"]]}
-        if "e" in node:
-            e = dict(node["e"])
-            e["points"] = [renumber[p] for p in e["points"]]
-            return {"e": e}
-        return node
-
-    tree = [renum(tree_to_dict(n)) for n in outcome.roots] if outcome is not None else []
-    return {
-        "format": FORMAT,
-        "status": status,
-        "shape": {
-            "name": shape.name,
-            "path": os.path.abspath(shape.path) if shape.path else "",
-            "scale": scale,
-            "sha256": mesh_hash(shape),
-            "vertices": shape.vertices.tolist(),
-            "faces": shape.faces.tolist(),
-            "points": vertices[used].tolist(),
-            "on_edge": on_edge,
-        },
-        "hole": [np.asarray(c, dtype=np.float64).tolist() for c in contours],
-        "symmetry": symmetry,
-        "root": root,
-        "tree": tree,
-        "settings": {
-            "kappa": settings.kappa,
-            "directions": settings.directions,
-            "bound": settings.bound,
-        },
-        "passage": outcome.passage if outcome is not None else None,
-        "plate": {
-            "thickness": None,
-            "diameter": diameter,
-            "holds_for": scope(status, "ball" if root is not None else "cells"),
-        },
-    }
-
-
-def certificate_entry(out, points: np.ndarray, on_edge: dict, kappa: float) -> dict:
-    """The certificate's ``section`` entry of a section search's outcome
-    (:class:`~sieve_mi.certify.section.SectionOutcome`): pin, thickness, band, the points the
-    evidence uses (renumbered), where they lie on the mesh, and the tree over directions."""
-    used = sorted(out.points)
-    renumber = {old: new for new, old in enumerate(used)}
-
-    def renum(node: dict) -> dict:
-        if "c" in node:
-            return {"c": [renum(c) for c in node["c"]]}
-        if "e" not in node:
-            return node
-        e = dict(node["e"])
-        key = "pair" if e["kind"] == "diameter" else "points"
-        e[key] = [renumber[p] for p in e[key]]
-        return {"e": e}
-
-    return {
-        "status": out.status,
-        "pin": [float(c) for c in out.pin],
-        "thickness": float(out.thickness),
-        "band": 0.5 * float(out.thickness),
-        "kappa": float(kappa),
-        "points": points[used].tolist(),
-        "on_edge": [on_edge.get(u) for u in used],
-        "tree": [renum(n.to_dict()) for n in out.roots],
-    }

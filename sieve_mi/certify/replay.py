@@ -28,17 +28,20 @@ own geometry (:mod:`sieve_mi.certify.replay_geometry`), point in polygon is matp
    and a quadtree showing that no disk of the ball's radius fits in H;
 5. checks a claimed passage: every vertex inside H, no projected edge crossing H's boundary, and no
    vertex of H inside a projected triangle;
-6. re-derives the ``status`` from what steps 1-5 showed (a ball root or every cell excluded:
-   proved; a passage that fits: passage; open cells and no passage: undecided) and rejects a
-   claimed status that differs, or claims that contradict (a ball proof with a passage or a cell
-   tree, a passage where every cell is excluded). Every rejection lists at least one error, each
-   starting with the field it concerns;
+6. re-derives the ``status`` from what steps 1-5 showed (a ball root, every cell excluded, or a
+   slab-section proof re-proved by :mod:`~sieve_mi.certify.replay_section` beside open cells:
+   proved; a passage that fits: passage; open cells, no section and no passage: undecided) and
+   rejects a claimed status that differs, or claims that contradict (a ball proof with a
+   passage or a cell tree, a passage where every cell is excluded or beside a section). Every
+   rejection lists at least one error, each starting with the field it concerns;
 7. checks the scope of the claim (``plate``, when the certificate has one): its ``diameter``
    against the mesh's, recomputed here, and its ``holds_for`` against what the evidence gives: a
-   ball proof or a passage holds on any plate, a cell-tree proof only on plates at least the
-   diameter thick (the thick-plate argument), an undecided tree on none. A certificate claiming
-   more (``"any plate"`` for a cell tree) is invalid. Certificates written before ``plate`` are
-   replayed as before, with the scope derived.
+   ball proof or a passage holds on any plate, a complete cell-tree proof only on plates at
+   least the diameter thick (the thick-plate argument), a section proof on plates at least its
+   thickness thick (with open cells too: a straight passage would pass every plate, so the
+   section excludes it), an undecided tree on none. A certificate claiming more (``"any
+   plate"`` for a cell tree) is invalid. Certificates written before ``plate`` are replayed as
+   before, with the scope derived.
 """
 
 from __future__ import annotations
@@ -326,9 +329,11 @@ def replay(source) -> dict:
     -------
     dict
         ``valid`` (every check passed and the claimed status is the one the evidence shows),
-        ``proved`` (valid and proved, for straight passage), ``status`` claimed, ``holds_for``
-        (what the claim covers: ``"any plate"``, ``"plates at least the diameter thick"`` or
-        None), ``diameter`` (recomputed), ``thickness`` (the plate's, as recorded, or None),
+        ``proved`` (valid and proved: for straight passage, or by a section proof on plates
+        at least its thickness), ``status`` claimed, ``holds_for`` (what the claim covers:
+        ``"any plate"``, ``"plates at least the diameter thick"``, ``"plates at least the
+        section's thickness thick"`` (then ``section_thickness``) or None), ``diameter``
+        (recomputed), ``thickness`` (the plate's, as recorded, or None),
         ``covers_plate`` (whether the claim holds on that plate; None without one), ``leaves``
         re-proved, ``open`` cells, ``errors`` (the first 10 problems) and ``seconds``.
 
@@ -391,6 +396,9 @@ def _run_checks(cert: dict) -> Replay:
         )
         r.section = s.thickness if s.run() else None
         r.errors += s.errors
+        if r.section is not None and cert["section"]["status"] != "proved":
+            r.errors.append(f"section.status: claims {cert['section']['status']!r}, but every "
+                            "cell re-proves: a certificate carries only a proved section")  # fmt: skip
         if r.section is None and not s.errors:
             r.errors.append(f"section: {s.open} open cells; the section is not proved")
     return r
@@ -399,15 +407,20 @@ def _run_checks(cert: dict) -> Replay:
 def _status_errors(cert: dict, r: Replay) -> list[str]:
     """The claimed ``status`` against the one the evidence shows, and claims that contradict.
 
-    Evidence shows: a ball root, proved; else a passage, passage; else open cells, undecided;
-    else (every cell of the domain excluded), proved. Open cells are counted only by a walk
-    without errors, so with other errors only the claims themselves are compared.
+    Evidence shows: a ball root, proved; else a passage, passage; else open cells beside a
+    slab-section proof re-proved here, proved (a section proof excludes every rigid motion
+    through plates at least its thickness thick, and a straight passage would pass every
+    plate); else open cells, undecided; else (every cell of the domain excluded), proved. Open
+    cells are counted only by a walk without errors, so with other errors only the claims
+    themselves are compared.
     """
     claim, errors = cert["status"], []
     if claim not in STATUSES:
         errors.append(f"status: {claim!r} is not one of {', '.join(STATUSES)}")
     if cert["root"] and cert["passage"]:
         errors.append("passage: a ball proof (root) and a passage contradict each other")
+    if cert["passage"] and cert.get("section") is not None:
+        errors.append("passage: a slab-section proof (section) and a passage contradict each other")
     if errors or r.errors:
         return errors
     if cert["passage"] and not r.open:
@@ -416,6 +429,8 @@ def _status_errors(cert: dict, r: Replay) -> list[str]:
         shown, why = "proved", "a ball proof at the root"
     elif cert["passage"]:
         shown, why = "passage", "a passage pose that fits"
+    elif r.open and r.section is not None:
+        shown, why = "proved", f"a slab-section proof re-proved, beside {r.open} open cells"
     elif r.open:
         shown, why = "undecided", f"open cells: {r.open}, and no passage"
     else:
@@ -450,14 +465,16 @@ def mesh_diameter(vertices: np.ndarray) -> float:
 def _plate_scope(cert: dict, r: Replay) -> tuple[dict, list[str]]:
     """What the claim covers, from the evidence, and the certificate's ``plate`` entry checked.
 
-    A ball proof and a passage hold on any plate; a cell-tree proof on plates at least the
-    diameter thick; an undecided claim on none.
+    A ball proof and a passage hold on any plate; a complete cell-tree proof on plates at least
+    the diameter thick; a slab-section proof (re-proved, with a complete tree or open cells) on
+    plates at least its thickness thick; an undecided claim on none.
     """
     claim = cert["status"]
     holds = ANY_PLATE if claim == "passage" or (claim == "proved" and cert["root"]) else None
-    holds = THICK_PLATES if claim == "proved" and not cert["root"] else holds
-    if holds == THICK_PLATES and r.section is not None:
-        holds = SECTION_PLATES  # a slab-section proof, re-proved here
+    tree = claim == "proved" and not cert["root"]
+    holds = THICK_PLATES if tree and not r.open else holds
+    if tree and r.section is not None:
+        holds = SECTION_PLATES  # a slab-section proof, re-proved here (open cells or none)
     diameter = mesh_diameter(r.vertices[np.unique(r.faces)])
     plate, errors = cert.get("plate"), []
     thickness = plate.get("thickness") if plate else None

@@ -558,7 +558,7 @@ def prove_section(shape: Shape, hole: manifold3d.CrossSection, thickness: float,
         The last outcome (the proved one, if any) and its certificate entry (see
         :mod:`sieve_mi.certify.certificate`).
     """
-    from sieve_mi.certify.certificate import certificate_entry
+    from sieve_mi.certify.record import certificate_entry
     from sieve_mi.certify.search import candidate_points
 
     t0 = time.perf_counter()

@@ -261,15 +261,17 @@ def plate_sheet(
 def not_covered(scene: Scene, blocks: list, per: list, certified: list | None) -> list:
     """``per`` with "safe by its diameter" made "not covered" for each B of several bodies on a
     perforated sheet (``[fabrication] pattern``) whose straight proof (against the copies within
-    its reach, :func:`sieve_mi.certify.blocks.sheet_holes`) is missing: the diameter argument
-    rests on the straight verdict, and that is against one hole, which such a B's bodies need
-    not share (docs/fabrication.md, "A perforated sheet")."""
+    its reach, :func:`sieve_mi.certify.blocks.sheet_holes`), or a proved slab section (against
+    the copies within its diameter, which also excludes straight passage), is missing: the
+    diameter argument rests on the straight verdict, and that is against one hole, which such a
+    B's bodies need not share (docs/fabrication.md, "A perforated sheet")."""
     if scene.fabrication.pattern == "single":
         return per
     proofs = certified or [None] * len(blocks)
     out = list(per)
     for j, t in enumerate(per):
-        proved = proofs[j] is not None and proofs[j].straight == "proved"
+        c = proofs[j]
+        proved = c is not None and (c.straight == "proved" or c.proved_section is not None)
         if t is None or t.status != "safe" or t.argument != SAFE_ARGUMENT or proved:
             continue
         if bodies(blocks[j]) > 1:

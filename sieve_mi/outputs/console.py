@@ -20,6 +20,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "STAGES",
+    "certified_word",
     "check_summary",
     "margin_lines",
     "memory_line",
@@ -264,6 +265,17 @@ def _thin_cell(block: dict) -> str:
     return f"{t['status']} ({t['seconds']:.1f} s)"
 
 
+def certified_word(block: dict) -> str:
+    """A B's ``certified`` answer in a word or three: ``proved``, ``passage``, ``undecided``, or
+    ``proved by section`` where its slab-section proof alone proves it (report.json:
+    ``"certified": "proved"`` beside ``"straight": "undecided"``: the straight search left cells
+    open, so nothing says "100 % excluded"); ``-`` when it was not certified."""
+    c = block.get("certification") or {}
+    if block.get("certified") == "proved" and c.get("straight") == "undecided":
+        return "proved by section"
+    return block.get("certified", "-")
+
+
 def _certified_cell(block: dict) -> str:
     """The console's 'certified' cell of one B: the status and what it rests on."""
     from sieve_mi.certify.certificate import excluded_percent
@@ -271,6 +283,8 @@ def _certified_cell(block: dict) -> str:
     c = block.get("certification")
     if c is None:
         return "-"
+    if c["status"] == "proved" and c.get("straight") == "undecided":  # the section alone
+        return f"{certified_word(block)} ({c['seconds']:.1f} s)"
     if c["status"] == "undecided" and c.get("straight") == "proved":  # a thinner plate
         return f"straight only: plate thinner than B ({c['seconds']:.1f} s)"
     if c["status"] == "undecided":

@@ -34,7 +34,7 @@ from importlib import resources
 
 import numpy as np
 
-from sieve_mi.outputs.console import margin_lines, pose_lines
+from sieve_mi.outputs.console import certified_word, margin_lines, pose_lines
 from sieve_mi.outputs.palette import PALETTE, css_variables
 from sieve_mi.outputs.svg import convergence_svg, hole_svg, outline_svg
 
@@ -248,7 +248,7 @@ def result_table(report: dict) -> str:
                 f"{b['beta']:.4f}",
                 f"{b['protrusion']:.3f}",
                 "blocked" if b["blocked"] else "PASSES",
-                b.get("certified", "-"),
+                certified_word(b),
                 sheet,
             ]
         )
