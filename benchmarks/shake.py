@@ -1,7 +1,9 @@
 """Shake trials: the known answers of issue 30 at full size, and the time per 1,000 trials.
 
 Usage: ``python -m benchmarks.shake [--trials N] [--duration S] [--workers W] [--only NAME,...]
-[--exact-plate] [--timestep MS]``
+[--exact-plate] [--timestep MS]``; ``python -m benchmarks.shake --levers DIR --only NAMES
+--trials N [--which before,now,...]`` times the trial-speed levers on a solve's plate, one after
+another in one run (:func:`levers`).
 
 Runs each case (a 22 mm round hole with a 24 mm and a 20 mm ball, 2 mm plate with 14 mm of
 material around it; a 22 mm square hole with a 20 mm cube, 2 mm plate, 5 mm border) with the
@@ -55,7 +57,15 @@ def main() -> None:
         help="instead: how close --only's shapes of solve DIR come to "
         "their pass pose over --trials trials (benchmarks.shake.seating)",
     )
+    ap.add_argument("--levers", metavar="DIR", help="instead: time the levers (levers())")
+    ap.add_argument("--which", default=",".join(LEVERS), help="the levers, in this order")
     args = ap.parse_args()
+    if args.levers:
+        print(LEVER_HEAD, flush=True)
+        for which in args.which.split(","):
+            for name in args.only.split(","):
+                print(levers(args.levers, name, args.trials, which, args.duration), flush=True)
+        return
     if args.seat:
         for name in args.only.split(","):
             print(seating(args.seat, name, args.trials), flush=True)
@@ -69,8 +79,9 @@ def main() -> None:
     settings = ShakeSettings(
         trials=args.trials, duration=args.duration, workers=args.workers, timestep=args.timestep
     )
-    print("| case | trials | passed | fraction [95 % CI] | median s | sink mm | s / 1,000 trials |")
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+    print("| case | trials | passed | fraction [95 % CI] | median s | sink mm | deepest mm "
+          "| s / 1,000 trials |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for name, (kind, margin, mesh) in CASES.items():
         if args.only and name not in args.only.split(","):
             continue
@@ -78,15 +89,96 @@ def main() -> None:
         part = part_from_mesh(mesh(), name, None, settings.coacd_threshold)
         sink = measure_sink(plate, part, settings, 1e-3)["sink_mm"]
         t0 = time.perf_counter()
-        s = summarize(run_trials(plate, part, settings, 1e-3))
+        outcomes = run_trials(plate, part, settings, 1e-3)
+        s, deep = summarize(outcomes), max(o.penetration for o in outcomes) * 1e3
         per_k = (time.perf_counter() - t0) / settings.trials * 1000
         med = "-" if s["median_time_s"] is None else f"{s['median_time_s']:.2f}"
         lo, hi = s["ci95"]
         print(
             f"| {name} | {s['trials']} | {s['passed']} | {s['fraction']:.3f} [{lo:.3f}, {hi:.3f}] "
-            f"| {med} | {sink:.4f} | {per_k:.0f} |",
+            f"| {med} | {sink:.4f} | {deep:.3f} | {per_k:.0f} |",
             flush=True,
         )
+
+
+#: The trial-speed levers of :func:`levers`: what each changes from today's defaults.
+LEVERS = {
+    "before": "the engine's part and plate as before: every hull vertex, the plate's outline "
+    "simplified by Ramer-Douglas-Peucker",
+    "allhull": "every hull vertex of the part (PART_SIMPLIFY_M = 0)",
+    "rdp": "the plate's outline simplified by Ramer-Douglas-Peucker (CrossSection.simplify)",
+    "now": "today's defaults, one process",
+    "nomulticcd": "MuJoCo's multi-point convex contacts off (mjDSBL_MULTICCD)",
+    "dt0.5": "timestep 0.5 ms",
+    "workers2": "today's defaults on 2 worker processes (wall-clock)",
+}
+LEVER_HEAD = (
+    "| lever | shape | trials | passed | CPU s / trial | wall s / trial | deepest mm |\n"
+    "| --- | --- | --- | --- | --- | --- | --- |"
+)
+
+
+def _rdp_pieces(pieces, tolerance):
+    """The plate's pieces merged as before the greedy chords: Ramer-Douglas-Peucker."""
+    from sieve_mi.geometry.plate import convex_pieces
+
+    region = manifold3d.CrossSection(list(pieces))
+    return convex_pieces(region.simplify(tolerance) if tolerance > 0 else region)
+
+
+def levers(folder: str, name: str, trials: int, which: str, duration: float = 10.0) -> str:
+    """Shake ``name`` of a solve's ``folder`` (or the case ``name`` of :data:`CASES`) ``trials``
+    times with one lever of
+    :data:`LEVERS` pulled (in this process, one worker, but ``workers2``); one Markdown row:
+    passes, CPU and wall seconds per trial, the deepest penetration of any trial (mm)."""
+    import mujoco
+
+    from sieve_mi.shake import geometry, model
+    from sieve_mi.shake import trials as trial_mod
+    from sieve_mi.shake.inputs import from_folder, select
+
+    if name in CASES:  # a case of the table (folder unused)
+        kind, margin, make = CASES[name]
+        plate, part = (
+            plate_from_outline(_hole(kind), margin, 2.0),
+            part_from_mesh(make(), name, None, 0.05),
+        )
+    else:
+        inp = select(from_folder(folder, [name]), [name])
+        plate = plate_from_mesh(inp.plate, inp.plate_path, inp.units)
+        _, role, _, mesh = inp.parts[0]
+        part = part_from_mesh(mesh, name, role, 0.05)
+    settings = ShakeSettings(trials=trials, duration=duration, workers=1,
+                             timestep=0.5 if which == "dt0.5" else 0.25)  # fmt: skip
+    keep, build, pieces = model.PART_SIMPLIFY_M, trial_mod.build_model, geometry.collision_pieces
+    if which in ("before", "allhull"):
+        model.PART_SIMPLIFY_M = 0.0
+    if which in ("before", "rdp"):
+        geometry.collision_pieces = _rdp_pieces
+    if which == "nomulticcd":
+
+        def build_nomulti(*a, **k):
+            m = build(*a, **k)
+            m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
+            return m
+
+        trial_mod.build_model = build_nomulti
+    if which == "workers2":
+        settings = ShakeSettings(trials=trials, duration=duration, workers=2)
+    try:
+        t0, c0 = time.perf_counter(), time.process_time()
+        out = run_trials(plate, part, settings, 1e-3)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    finally:
+        model.PART_SIMPLIFY_M, trial_mod.build_model, geometry.collision_pieces = (
+            keep,
+            build,
+            pieces,
+        )
+    deep = max(o.penetration for o in out) * 1e3
+    cpu_cell = "-" if which == "workers2" else f"{cpu / trials:.3f}"
+    return (f"| {which} | {name} | {trials} | {sum(o.passed for o in out)} | {cpu_cell} | "
+            f"{wall / trials:.3f} | {deep:.3f} |")  # fmt: skip
 
 
 def _silhouette(mesh):

@@ -172,11 +172,7 @@ def cmd_solve(args) -> int:
         play(scene, variant=args.variant, seed=args.seed, progress=not args.quiet, run=run)
     )
     report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
-    if args.json:  # report.json's content, for scripts (jq); everything else on stderr
-        import json
-
-        print(json.dumps(report, indent=2))
-    else:
+    if not args.json:
         print(summary_table(report))
     for w in report["warnings"] + report.get("fabrication", {}).get("warnings", []):
         print(f"sieve-mi: warning: {w}", file=sys.stderr)
@@ -189,7 +185,20 @@ def cmd_solve(args) -> int:
                   "the shake trials: shake.json, shake.png and shake.gif were not made",
                   file=sys.stderr)  # fmt: skip
             raise
+        report = _folder_report(out_dir)  # with its shake entry (and a target's chosen try)
+    if args.json:  # report.json's content, for scripts (jq); everything else on stderr
+        import json
+
+        print(json.dumps(report, indent=2))
     return EXIT_OK if report["winner"] == "A" else EXIT_NO
+
+
+def _folder_report(out_dir: str) -> dict:
+    """The report.json a solve's folder holds now (after its shake trials)."""
+    import json
+
+    with open(os.path.join(out_dir, "report.json"), encoding="utf-8") as f:
+        return json.load(f)
 
 
 def _say_fit(v) -> None:

@@ -67,10 +67,12 @@ SPECS: dict[str, Callable[[], trimesh.Trimesh]] = {
     "brick_2x4.stl": lambda: catalogue.brick(4, 2),
     "cell_aaa.stl": lambda: catalogue.cell(*catalogue.CELLS["AAA"]),
     "cell_aa.stl": lambda: catalogue.cell(*catalogue.CELLS["AA"]),
-    # M3 / M4 hardware, catalogue sizes (mm): scenes/m3-vs-m4.toml
+    # M3 / M4 / M5 hardware, catalogue sizes (mm): scenes/m3-vs-m4.toml, scenes/nuts-shaken.toml
     # ISO 4032 hex nuts: across flats, thickness (m max), bore = nominal thread diameter
     "nut_m3.stl": lambda: catalogue.hex_nut(across_flats=5.5, thickness=2.4, bore=3.0),
     "nut_m4.stl": lambda: catalogue.hex_nut(across_flats=7.0, thickness=3.2, bore=4.0),
+    # M5 (scenes/nuts-shaken.toml): ISO 4032 s = 8, m max = 4.7 (DIN 934's M5 is 4.0 thick)
+    "nut_m5.stl": lambda: catalogue.hex_nut(across_flats=8.0, thickness=4.7, bore=5.0),
     # ISO 7089 plain washer, size 3: outer diameter, inner diameter, thickness
     "washer_m3.stl": lambda: catalogue.washer(outer=7.0, inner=3.2, thickness=0.5),
 }

@@ -53,6 +53,7 @@ __all__ = [
     "from_folder",
     "shake",
     "shake_folder",
+    "solve_shaken",
     "wilson",
 ]
 
@@ -66,6 +67,7 @@ _LAZY = {
     "from_folder": "sieve_mi.shake.inputs",
     "shake": "sieve_mi.shake.run",
     "shake_folder": "sieve_mi.shake.commands",
+    "solve_shaken": "sieve_mi.shake.commands",
     "wilson": "sieve_mi.shake.stats",
 }
 

@@ -18,6 +18,7 @@ __all__ = [
     "shake_after_solve",
     "shake_folder",
     "solve_shake_settings",
+    "solve_shaken",
     "trials_option",
 ]
 
@@ -255,3 +256,52 @@ def shake_after_solve(out_dir: str, settings: ShakeSettings, quiet: bool, to_std
     report = shake_folder(out_dir, settings, progress=not quiet)
     print(summary(report), file=sys.stderr if to_stderr else sys.stdout)
     return report
+
+
+def solve_shaken(
+    scene, out_dir: str, *, variant=None, seed=None, progress=True, figure=True, animation=True
+) -> dict:
+    """``sieve-mi solve SCENE --out DIR`` in Python, the scene's ``[shake]`` table honoured:
+    solve (:func:`sieve_mi.solve`), save into ``out_dir``, then the table's trials or its
+    target loop (:func:`after_solve`), as the command line does. ``sieve_mi.solve`` plays the
+    game alone: the trials need the engine (an optional extra) and the plate in a folder, and sit
+    above the API in the floor plan (docs/api.md).
+
+    Parameters
+    ----------
+    scene : sieve_mi.Scene
+    out_dir : str
+        The output folder (a folder sieve-mi did not write is refused, as ``Result.save`` does).
+    variant, seed, progress
+        As for :func:`sieve_mi.solve`; the per-shape lines and the target's lines go to stderr.
+    figure, animation
+        figure.png and passage.gif (of every try the target loop saves).
+
+    Returns
+    -------
+    dict
+        The folder's report.json after the trials: with a ``shake`` entry where the table asks
+        for trials (``shake.target`` with a target).
+
+    Raises
+    ------
+    SieveError
+        As ``sieve-mi solve``: bad arguments, or trials asked for without MuJoCo and CoACD.
+    """
+    import json
+    from types import SimpleNamespace
+
+    from sieve_mi import api
+    from sieve_mi.outputs.outdir import validate
+    from sieve_mi.outputs.report import input_paths
+
+    validate(out_dir, inputs=input_paths(scene))  # refused before the solve, as solve does
+    settings = solve_shake_settings(None, scene)  # the engine checked before the solve too
+    result = api.solve(scene, variant=variant, seed=seed, progress=progress)
+    result.save(out_dir, figure=figure, animation=animation)
+    if settings is not None:
+        args = SimpleNamespace(variant=variant, seed=seed, quiet=not progress, json=True,
+                               no_figure=not figure, no_animation=not animation)  # fmt: skip
+        after_solve(scene, result, out_dir, settings, args)
+    with open(os.path.join(out_dir, "report.json"), encoding="utf-8") as f:
+        return json.load(f)

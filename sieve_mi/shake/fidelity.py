@@ -18,7 +18,13 @@ import mujoco
 import numpy as np
 
 from sieve_mi.shake.geometry import Part, Plate
-from sieve_mi.shake.model import WARNINGS, build_model, engine_warnings, plate_motion
+from sieve_mi.shake.model import (
+    WARNINGS,
+    build_model,
+    engine_hulls,
+    engine_warnings,
+    plate_motion,
+)
 from sieve_mi.shake.settings import SHAKEN_BOUND_MM, SHAKEN_FRACTION, SINK_BOUND_MM, ShakeSettings
 from sieve_mi.shake.trials import drop_state
 
@@ -64,7 +70,7 @@ def measure_sink(plate: Plate, part: Part, settings: ShakeSettings, unit_m: floa
     """
     model = build_model(plate, part, settings, unit_m, flat=True)
     data = mujoco.MjData(model)
-    hulls = np.concatenate(part.hulls) * unit_m
+    hulls = np.concatenate(engine_hulls(part, unit_m)) * unit_m  # the vertices the engine has
     dt = model.opt.timestep
     sink, shaken, warned = 0.0, 0.0, []
     for k in range(ORIENTATIONS):

@@ -8,21 +8,24 @@ that one step of contact reaction moves it by nothing measurable. Lengths in met
 
 from __future__ import annotations
 
+import functools
 import math
 
 import mujoco
 import numpy as np
 
 from sieve_mi.geometry.plate import prism_vertices
-from sieve_mi.shake.geometry import Part, Plate, collision_pieces
+from sieve_mi.shake.geometry import Part, Plate, collision_hull
 from sieve_mi.shake.settings import CONTACT, ShakeSettings
 
 __all__ = [
+    "PART_SIMPLIFY_M",
     "PLATE_MASS_RATIO",
     "PLATE_SIMPLIFY_M",
     "WALL_THICKNESS_MM",
     "WARNINGS",
     "build_model",
+    "engine_hulls",
     "engine_warnings",
     "plate_motion",
     "wall_thickness",
@@ -35,6 +38,11 @@ PLATE_MASS_RATIO = 1e6
 #: 256-gon 22 mm hole in 256 convex pieces becomes 64 pieces, and 100 ten-second trials of a
 #: 23 mm ball seated on its rim cost a third of the CPU time (docs/performance.md, "Shake trials").
 PLATE_SIMPLIFY_M = CONTACT["solimp"][2]
+#: How far each of a part's convex pieces may shrink for the engine, metres (the same soft layer,
+#: :func:`~sieve_mi.shake.geometry.collision_hull`): a coin cut as a 96-gon prism goes in as a
+#: 32-gon (192 hull vertices to 64), and a 20-cent coin's ten-second trial on its 2 mm plate costs
+#: a fifth less CPU time (docs/shake.md, "Trial speed"). 0 keeps every hull vertex.
+PART_SIMPLIFY_M = CONTACT["solimp"][2]
 #: Least thickness of the frame wall, millimetres; it is at least the part's diameter too, so no
 #: fast part can tunnel through it in one step.
 WALL_THICKNESS_MM = 2.0
@@ -158,7 +166,7 @@ def _add_plate(spec, plate: Plate, settings, unit_m: float, mass_wall, flat: boo
         slab = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]) / unit_m
         pieces = [slab]
     else:
-        pieces = collision_pieces(plate.pieces, PLATE_SIMPLIFY_M / unit_m)
+        pieces = plate.collision(PLATE_SIMPLIFY_M / unit_m)
     for i, poly in enumerate(pieces):
         mesh = spec.add_mesh(name=f"plate{i}")
         mesh.uservert = (prism_vertices(poly * unit_m, -th, 0.0)).ravel().tolist()
@@ -184,7 +192,25 @@ def _add_part(spec, part: Part, settings, unit_m: float, mass: float) -> None:
     body.mass = mass
     i = part.inertia * unit_m**5 * settings.density
     body.fullinertia = [i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
-    for k, hull in enumerate(part.hulls):
+    for k, hull in enumerate(engine_hulls(part, unit_m)):
         mesh = spec.add_mesh(name=f"part{k}")
         mesh.uservert = (hull * unit_m).ravel().tolist()
         _contact(body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"part{k}"), settings)
+
+
+def engine_hulls(part: Part, unit_m: float) -> list[np.ndarray]:
+    """The part's convex pieces as the engine collides them, scene units: each within
+    :data:`PART_SIMPLIFY_M` of ``part.hulls`` (:func:`~sieve_mi.shake.geometry.collision_hull`)."""
+    return [_engine_hull(h, PART_SIMPLIFY_M / unit_m) for h in part.hulls]
+
+
+def _engine_hull(hull: np.ndarray, tolerance: float) -> np.ndarray:
+    """A convex piece as the engine gets it (:func:`~sieve_mi.shake.geometry.collision_hull`
+    within ``tolerance``, scene units), computed once per piece and process."""
+    hull = np.ascontiguousarray(hull, dtype=np.float64)
+    return _kept_hull(hull.tobytes(), hull.shape[0], float(tolerance))
+
+
+@functools.lru_cache(maxsize=64)
+def _kept_hull(data: bytes, n: int, tolerance: float) -> np.ndarray:
+    return collision_hull(np.frombuffer(data, dtype=np.float64).reshape(n, 3), tolerance)

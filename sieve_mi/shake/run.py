@@ -11,7 +11,7 @@ from sieve_mi.progress import Progress
 from sieve_mi.shake.fidelity import judge, measure_sink
 from sieve_mi.shake.geometry import Plate, part_from_mesh, plate_from_mesh
 from sieve_mi.shake.inputs import ShakeInput
-from sieve_mi.shake.model import PLATE_MASS_RATIO, build_model, plate_motion
+from sieve_mi.shake.model import PLATE_MASS_RATIO, PLATE_SIMPLIFY_M, build_model, plate_motion
 from sieve_mi.shake.settings import (
     CONTACT,
     MAX_ACCELERATION_G,
@@ -171,7 +171,7 @@ def shake(
     return {
         "format": FORMAT,
         "units": inp.units,
-        "plate": {"file": inp.plate_path, **plate.to_dict()},
+        "plate": {"file": inp.plate_path, **plate.to_dict(PLATE_SIMPLIFY_M / unit_m)},
         "settings": {**settings.to_dict(), "units": ShakeSettings.units()},
         "motion": motion_doc(settings),
         "engine": engine_doc(),

@@ -17,6 +17,7 @@ from shake_helpers import ball, plate_mesh, round_hole, square_hole
 from sieve_mi.errors import SieveError
 from sieve_mi.shake import decompose
 from sieve_mi.shake.geometry import (
+    collision_hull,
     collision_pieces,
     part_from_mesh,
     plate_from_mesh,
@@ -49,16 +50,17 @@ def test_plate_from_mesh_recovers_holes_and_thickness():
 
 
 def test_collision_pieces_merge_a_256_gon_hole_within_the_tolerance():
-    """A 22 mm hole cut as a 256-gon needs one convex piece per segment (256). Dropping the
-    vertices within 0.05 mm of their neighbours' chord keeps every 4th (a chord over four
-    segments of radius 11 strays by 11 (1 - cos(4 pi / 256)) = 0.013 mm, over eight 0.053 mm):
-    64 pieces, the outer square kept, the hole only shrunk (chords lie inside a convex hole) and
-    by less than its perimeter times the sagitta."""
+    """A 22 mm hole cut as a 256-gon needs one convex piece per segment (256). A chord over k
+    segments of radius 11 leaves its skipped vertices at most 11 (cos(pi / 256) - cos(7 pi /
+    256)) = 0.040 mm away for k = 7, and 11 (1 - cos(8 pi / 256)) = 0.053 mm for k = 8, so the
+    greedy chords at 0.05 mm span 7 segments: 36 of them and one over the last 4, 37 pieces; the
+    outer square kept, the hole only shrunk (chords lie inside a convex hole) and by less than its
+    perimeter times the tolerance."""
     import manifold3d
 
     plate = plate_from_outline(manifold3d.CrossSection.circle(11.0, 256), 14.0, 2.0)
     merged = collision_pieces(plate.pieces, 0.05)
-    assert len(plate.pieces) == 256 and len(merged) == 64
+    assert len(plate.pieces) == 256 and len(merged) == 37
 
     def area(p):
         q = np.roll(p, -1, axis=0)
@@ -67,12 +69,29 @@ def test_collision_pieces_merge_a_256_gon_hole_within_the_tolerance():
     pts = np.concatenate(merged)
     r = np.linalg.norm(pts, axis=1)
     inner = r[r < 12.0]
-    assert len(inner) == 2 * 64 and np.allclose(inner, 11.0, atol=1e-6)  # kept corners, 2 each
+    assert len(inner) == 2 * 37 and np.allclose(inner, 11.0, atol=1e-6)  # kept corners, 2 each
     assert np.abs(pts).max() == pytest.approx(25.0)
     grown = sum(area(p) for p in merged) - sum(area(p) for p in plate.pieces)
-    assert 0.0 < grown < 2 * math.pi * 11.0 * 11.0 * (1 - math.cos(4 * math.pi / 256))
+    assert 0.0 < grown < 2 * math.pi * 11.0 * 0.05
     assert all(area(p) > 0 for p in merged)
-    assert collision_pieces(plate.pieces, 0.0) == plate.pieces
+    assert len(collision_pieces(plate.loops, 0.0)) == 256  # 0: the exact pieces
+    assert len(collision_pieces(plate.loops, 0.05)) == 37  # from the face's loops alike
+
+
+def test_collision_hull_keeps_every_third_vertex_of_a_coin():
+    """A coin of radius 9.875 cut as a 96-gon prism: dropping the two vertices between two kept
+    ones leaves them 9.875 (cos(pi / 96) - cos(3 pi / 96)) = 0.042 mm inside the chord, three
+    would leave the middle one 9.875 (1 - cos(8 pi / 96)) = 0.085 mm: at 0.05 mm the engine's
+    coin is a 32-gon prism (64 of 192 vertices), each dropped vertex within 0.05 mm of it."""
+    coin = trimesh.creation.cylinder(radius=9.875, height=1.93, sections=96)
+    full = np.asarray(coin.convex_hull.vertices)
+    kept = collision_hull(full, 0.05)
+    assert len(full) == 192 and len(kept) == 64
+    hull = trimesh.convex.convex_hull(kept)
+    p, t = np.repeat(full, len(hull.triangles), axis=0), np.tile(hull.triangles, (len(full), 1, 1))
+    d = np.linalg.norm(trimesh.triangles.closest_point(t, p) - p, axis=1)
+    assert d.reshape(len(full), -1).min(axis=1).max() == pytest.approx(0.0423, abs=1e-3)
+    assert len(collision_hull(full, 0.0)) == 192  # 0: every vertex
 
 
 def test_plate_mesh_without_a_hole_is_one_line_error():
@@ -269,8 +288,9 @@ def test_shake_settings_are_checked_as_scene_keys_are():
 
 @pytest.mark.slow
 def test_solve_shake_adds_shake_outputs(tmp_path, monkeypatch, capsys):
-    """``solve --shake N`` shakes the fresh folder: shake.json, shake.png, a report.html card,
-    report.json's ``shake`` entry and one line per shape.
+    """``solve --shake N --json`` shakes the fresh folder: shake.json, shake.png, a report.html
+    card, report.json's ``shake`` entry and one line per shape (on stderr), and prints the
+    folder's report.json after the trials, with that entry.
     In-process (``sieve_mi.cli.main``), with the shaking cut to 0.3 s on one worker and no
     shake.gif (the default 10 s on every core and the rendered clip, which
     test_shake_dir_writes_json_png_and_clip_and_lists_them checks, would only make the same
@@ -297,20 +317,52 @@ def test_solve_shake_adds_shake_outputs(tmp_path, monkeypatch, capsys):
     )
     out = tmp_path / "out"
     argv = ["solve", str(scene), "--out", str(out), "--quiet", "--no-figure", "--no-animation"]
-    assert main([*argv, "--shake", "2"]) == 0, capsys.readouterr().err
+    assert main([*argv, "--shake", "2", "--json"]) == 0, capsys.readouterr().err
     assert [s.trials for s in shaken] == [2]  # --shake N: N trials, the rest the defaults
     report = json.loads((out / "shake.json").read_text())
     assert [s["role"] for s in report["shapes"]] == ["A", "B"] and report["settings"]["trials"] == 2
     assert 'id="shake"' in (out / "report.html").read_text()
     assert "shake.json" in json.loads((out / ".sieve-mi").read_text())["files"]
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.err  # --json: the table and the lines on stderr, report.json on stdout
     assert "fidelity: resting sink under" in printed  # the shake table printed
     entry = json.loads((out / "report.json").read_text())["shake"]  # and report.json's entry
+    assert json.loads(captured.out)["shake"] == entry  # the report after the trials is printed
     a, b = entry["shapes"]
     assert (a["role"], a["trials"], b["role"], b["trials"], entry["duration_s"]) == (
         "A", 2, "B", 2, 0.3)  # fmt: skip
     assert "proof" in b and "proof" not in a and b["passed"] == 0  # the sphere never passes
     assert f"shake: {b['name']} (B): 0 of 2 passed" in printed  # one line per shape
+
+
+def test_solve_shaken_honours_the_scenes_shake_table(tmp_path, monkeypatch):
+    """In Python, ``sieve_mi.shake.solve_shaken`` solves, saves and runs the scene's ``[shake]``
+    trials as ``sieve-mi solve`` does (``sieve_mi.solve`` plays the game alone): the returned
+    report.json has the ``shake`` entry with the table's trials and duration, and the 24 mm
+    sphere never passes (shaking cut to one worker and no clip, as above)."""
+    from dataclasses import replace
+
+    import sieve_mi as sm
+    from sieve_mi.shake import commands, solve_shaken
+    from sieve_mi.testing.settings import TINY
+
+    real = commands.shake_folder
+    monkeypatch.setattr(commands, "shake_folder", lambda folder, settings, **kw: real(
+        folder, replace(settings, workers=1), **{**kw, "clip": False}))  # fmt: skip
+    mesh = os.path.join(REPO, "scenes", "meshes")
+    path = tmp_path / "s.toml"
+    path.write_text(
+        f'name = "t"\n[[pass]]\nmesh = "{mesh}/cube.stl"\n[[block]]\nmesh = "{mesh}/sphere.stl"\n'
+        + TINY
+        + "\n[shake]\ntrials = 2\nduration = 0.3\n"
+    )
+    report = solve_shaken(sm.load_scene(str(path)), str(tmp_path / "out"), progress=False,
+                          figure=False, animation=False)  # fmt: skip
+    entry = report["shake"]
+    assert (entry["trials"], entry["duration_s"]) == (2, 0.3)
+    assert [(s["role"], s["trials"]) for s in entry["shapes"]] == [("A", 2), ("B", 2)]
+    assert entry["shapes"][1]["passed"] == 0
+    assert json.loads((tmp_path / "out" / "report.json").read_text())["shake"] == entry
 
 
 def test_the_letters_g_decomposes_within_a_millimetre():

@@ -156,3 +156,26 @@ def test_the_target_card_lists_every_try():
     card = target_card({"fraction": 0.9, "met": False, "chosen": 1, "tries": tries}, "mm")
     assert card.count("<tr><td>") == 2 and "1 (in this folder)" in card
     assert "not met: the best trade-off is kept" in card and "data:image/png;base64," in card
+
+
+def test_the_nut_scene_holds_the_m5_in_a_hole_turned_any_way():
+    """scenes/nuts-shaken.toml (issue 43): an M4 nut lying flat, corners 4.04 mm from its axis,
+    in a hole grown by the 0.3 mm tolerance and turned every way (a window of ±90°) makes a disc
+    of 4.34 mm; the M5 needs 4.62 mm lying flat (its corners) and 4.64 mm on its side (half the
+    diagonal of 8 × 4.7 mm), so even the widest window holds it: the target loop may widen it."""
+    import os
+
+    import numpy as np
+    import trimesh
+    from helpers import REPO
+
+    scene = load_scene(os.path.join(REPO, "scenes", "nuts-shaken.toml"))
+    assert (scene.shake.target, scene.shake.trials, scene.fabrication.tolerance) == (0.9, 200, 0.3)
+    mesh = os.path.join(REPO, "scenes", "meshes")
+    m4, m5 = (trimesh.load(os.path.join(mesh, f"nut_{n}.stl")) for n in ("m4", "m5"))
+    disc = np.linalg.norm(m4.vertices[:, :2], axis=1).max() + scene.fabrication.tolerance
+    assert disc == pytest.approx(4.341, abs=1e-3)
+    flat = np.linalg.norm(m5.vertices[:, :2], axis=1).max()
+    side = np.hypot(m5.extents[0] / 2, m5.extents[2] / 2)  # on a flat: 8 x 4.7
+    assert flat == pytest.approx(4.619, abs=1e-3) and side == pytest.approx(4.639, abs=1e-3)
+    assert min(flat, side) > disc

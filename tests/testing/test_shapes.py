@@ -367,7 +367,8 @@ LETTER_FILES = [f"letter_{c}.stl" for c in "SIGRAPH"]
 COIN_FILES = [f"coin_{c}.stl" for c in ("2eur", "1eur", "50c", "20c", "10c", "5c", "2c", "1c")]
 # toy bricks and cells (sieve_mi.testing.catalogue; tests/testing/test_catalogue.py)
 CATALOGUE_FILES = ["brick_1x2.stl", "brick_2x2.stl", "brick_2x4.stl", "cell_aaa.stl", "cell_aa.stl"]
-HARDWARE_FILES = ["nut_m3.stl", "nut_m4.stl", "washer_m3.stl"]  # scenes/m3-vs-m4.toml
+# scenes/m3-vs-m4.toml, scenes/nuts-shaken.toml
+HARDWARE_FILES = ["nut_m3.stl", "nut_m4.stl", "nut_m5.stl", "washer_m3.stl"]
 
 
 @pytest.fixture(scope="module")
