@@ -1,6 +1,7 @@
 """One A against many real-mesh B, each holding a ball just wider than any hole A can make.
 
-Usage: ``python -m benchmarks.many_b [--counts 1,10,20,50] [--no-screen] [--profile N] [--out PNG]``
+Usage: ``python -m benchmarks.many_b [--counts 1,10,20,50] [--no-screen] [--stand-in MM] [--profile N]
+[--out PNG]``
 
 A: a 20 mm ball (an icosphere of radius 10, 1,280 faces); ``[fabrication] tolerance`` at its
 default. B: the closed real meshes of 5.8k-13k faces that exist here, cycled: the cow (5,804
@@ -69,8 +70,8 @@ def blocks(count: int, target: float) -> list[dict]:
     return out
 
 
-def scene(count: int, screen: bool = True):
-    """The scene with ``count`` B (``[solver] screen`` as given)."""
+def scene(count: int, screen: bool = True, stand_in: float = 0.0):
+    """The scene with ``count`` B (``[solver] screen`` and ``stand_in`` as given)."""
     import trimesh
 
     import sieve_mi as sm
@@ -81,17 +82,18 @@ def scene(count: int, screen: bool = True):
     s = sm.Scene.from_meshes([{"mesh": ball, "name": "ball"}], blocks(count, target),
                              name=f"ball-vs-{count}")  # fmt: skip
     s.solver.screen = screen
+    s.solver.stand_in = stand_in
     return s
 
 
-def run_one(count: int, variant: str, screen: bool = True) -> dict:
+def run_one(count: int, variant: str, screen: bool = True, stand_in: float = 0.0) -> dict:
     """Solve the scene with ``count`` B in this process; its timings, winner and peak RSS."""
     import resource
 
     import sieve_mi as sm
 
     t0 = time.perf_counter()
-    sc = scene(count, screen)
+    sc = scene(count, screen, stand_in)
     setup = time.perf_counter() - t0
     c0 = time.process_time()
     t0 = time.perf_counter()
@@ -101,6 +103,7 @@ def run_one(count: int, variant: str, screen: bool = True) -> dict:
     return {
         "count": count,
         "screen": screen,
+        "stand_in": stand_in,
         "faces": int(sum(s.face_count for s in result.block_shapes)),
         "setup_s": round(setup, 1),
         "wall_s": round(wall, 1),
@@ -121,10 +124,11 @@ def plot(rows: list[dict], out: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(8, 3.4))
-    for screen, mark in ((True, "o-"), (False, "^-")):
-        got = [r for r in rows if r["screen"] == screen]
+    kinds = sorted({(r["screen"], r.get("stand_in", 0.0)) for r in rows}, reverse=True)
+    for (screen, stand), mark in zip(kinds, ("o-", "^-", "s-", "v-", "d-")):
+        got = [r for r in rows if (r["screen"], r.get("stand_in", 0.0)) == (screen, stand)]
         if got:
-            label = "size screen" if screen else "screen = false"
+            label = ("size screen" if screen else "screen = false") + _stand({"stand_in": stand})
             n = [r["count"] for r in got]
             ax.plot(n, [r["wall_s"] for r in got], mark, label=label)
             ax2.plot(n, [r["peak_gb"] for r in got], mark, label=label)
@@ -153,6 +157,7 @@ def _child(count: int, args) -> dict | None:
         args.variant,
     ]
     cmd += ["--no-screen"] if args.no_screen else []
+    cmd += ["--stand-in", str(args.stand_in)]
     before = os.getloadavg()[0]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     if proc.returncode != 0:
@@ -163,6 +168,11 @@ def _child(count: int, args) -> dict | None:
     return row
 
 
+def _stand(row: dict) -> str:
+    """``, stand-in 0.2 mm`` for a row with a stand-in tolerance, else ``""``."""
+    return f", stand-in {row['stand_in']:g} mm" if row.get("stand_in") else ""
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--counts", default="1,10,20,50")
@@ -170,11 +180,12 @@ def main(argv=None) -> int:
     p.add_argument("--out", help="write the plot here (PNG)")
     p.add_argument("--json", help="write the rows here (JSON; appended to a file that exists)")
     p.add_argument("--no-screen", action="store_true", help="[solver] screen = false")
+    p.add_argument("--stand-in", type=float, default=0.0, help="[solver] stand_in, mm")
     p.add_argument("--profile", type=int, help="profile this count in this process")
     p.add_argument("--one", type=int, help=argparse.SUPPRESS)  # the child process's count
     args = p.parse_args(argv)
     if args.one is not None:
-        print(json.dumps(run_one(args.one, args.variant, not args.no_screen)))
+        print(json.dumps(run_one(args.one, args.variant, not args.no_screen, args.stand_in)))
         return 0
     if args.profile is not None:
         import cProfile
@@ -182,7 +193,7 @@ def main(argv=None) -> int:
 
         prof = cProfile.Profile()
         prof.enable()
-        row = run_one(args.profile, args.variant, not args.no_screen)
+        row = run_one(args.profile, args.variant, not args.no_screen, args.stand_in)
         prof.disable()
         print(json.dumps(row))
         pstats.Stats(prof).sort_stats("cumulative").print_stats(25)
@@ -199,7 +210,7 @@ def main(argv=None) -> int:
         stages = ", ".join(
             f"{k.removesuffix('_s')} {v:g}" for k, v in r["timings"].items() if v >= 0.05
         )  # noqa: E501
-        print(f"| {r['count']} | {'on' if r['screen'] else 'off'} | {r['faces']:,} | {r['wall_s']} "
+        print(f"| {r['count']} | {'on' if r['screen'] else 'off'}{_stand(r)} | {r['faces']:,} | {r['wall_s']} "
               f"| {r['cpu_s']} | {stages} | {r['winner']} | {r['unblocked']} | {r['proved']} "
               f"| {r['peak_gb']} | {r['load'][0]} → {r['load'][1]} |", flush=True)  # fmt: skip
         if args.json:

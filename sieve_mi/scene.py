@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass, field, fields
 
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.pattern import PATTERNS, check_turns
+from sieve_mi.geometry.stand_in import STAND_IN
 from sieve_mi.objectives import OBJECTIVES
 from sieve_mi.optim import NLOPT_METHODS, PSO_COEFFICIENT
 from sieve_mi.parsing import parse_toml
@@ -237,11 +238,11 @@ class Solver:
         "prove before the game that B holding a ball larger than any hole A can make are "
         "blocked; A then plays against the others only",
     )
+    stand_in: float = setting(0.0, STAND_IN, unit="scene units", minimum=0, maximum=LENGTH_MAX)
     memory: float = setting(
         0.0,
-        "memory one attack of player B may hold at once; more poses run in chunks (same "
-        "results); 0: a quarter of the machine's available memory, in chunks of at most 0.25 GB "
-        "on the CPU",
+        "memory one attack of player B may hold at once; more poses run in chunks (same results); "
+        "0: a quarter of the machine's available memory, in chunks of at most 0.25 GB on the CPU",
         unit="GB",
         minimum=0,
         maximum=1_000_000,

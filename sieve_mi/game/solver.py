@@ -35,6 +35,7 @@ from sieve_mi.geometry.meshes import Shape, load_shape, shape_from_trimesh
 from sieve_mi.geometry.outline import dilated
 from sieve_mi.geometry.rotations import normalize
 from sieve_mi.geometry.silhouettes import SilhouetteRenderer
+from sieve_mi.geometry.stand_in import stand_ins
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.progress import Progress
 from sieve_mi.scene import Scene
@@ -293,8 +294,9 @@ def solve(
     skip = set(sure) | set(feasible.impossible)  # decided before the game: not searched
     open_blocks = [b for j, b in enumerate(blocks) if j not in skip]
     with run.stage("search"):
+        searched = stand_ins(open_blocks, scene.solver.stand_in)  # the verdict: the full meshes
         found = (
-            search(scene, passes, open_blocks, rng, seed, progress)
+            search(scene, passes, searched, rng, seed, progress)
             if open_blocks
             else _unsearched(scene)
         )

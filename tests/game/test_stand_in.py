@@ -1,0 +1,80 @@
+"""Simplified stand-ins for the search (``[solver] stand_in``, sieve_mi.geometry.stand_in).
+
+Known answers: an icosphere of radius 10 has every vertex on the sphere of radius 10; a stand-in
+keeps a subset of them, so its vertices still lie on that sphere, and each of its triangles lies
+within the tolerance of the original surface, hence (the original lying inside the ball of radius
+10 and outside the ball of radius 10 cos(half the largest edge angle) > 9.9) within the shell
+9.9 - tolerance <= |x| <= 10. A 24 mm ball cannot pass the hole of a 20 mm ball with a 1 mm
+tolerance (radius at most 11.003 < 12 - 0.5 even for the stand-in).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+import sieve_mi as sm
+from sieve_mi.errors import SieveError
+from sieve_mi.game import solver as solver_module
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.stand_in import stand_in, stand_ins
+from sieve_mi.scene import load_scene
+from sieve_mi.testing.settings import tiny_solver
+
+
+def _sphere(radius: float = 10.0, subdivisions: int = 3):
+    return trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+
+
+def test_a_stand_in_keeps_vertices_and_stays_within_its_tolerance():
+    full = shape_from_trimesh(_sphere(), name="ball")
+    coarse = stand_in(full, 0.5)
+    assert coarse.face_count < full.face_count / 2  # far fewer triangles
+    assert coarse.name == full.name and np.array_equal(coarse.centre, full.centre)
+    rows = {tuple(p) for p in full.vertices}
+    assert all(tuple(p) in rows for p in coarse.vertices)  # the original's own vertices, float64
+    assert np.allclose(np.linalg.norm(coarse.vertices, axis=1), 10.0)
+    centroids = coarse.vertices[coarse.faces].mean(axis=1)
+    assert np.linalg.norm(centroids, axis=1).min() >= 9.9 - 0.5  # inside the tolerance's shell
+    assert coarse.radius == pytest.approx(10.0)
+    hull = trimesh.convex.convex_hull(coarse.vertices)  # the hull's vertices are recomputed
+    assert len(coarse.hull) == len(hull.vertices)
+    assert stand_in(full, 0.0) is full and stand_ins([full], 0.0) == [full]
+
+
+def test_an_open_mesh_stays_whole():
+    mesh = _sphere()
+    mesh.update_faces(np.arange(len(mesh.faces)) != 0)  # one triangle missing: not closed
+    open_shape = shape_from_trimesh(mesh, name="open")
+    assert stand_in(open_shape, 0.5) is open_shape
+
+
+def test_the_search_plays_the_stand_in_and_the_verdict_the_full_mesh(monkeypatch):
+    scene = sm.Scene.from_meshes(
+        [_sphere()], [{"mesh": _sphere(12.0), "name": "big"}], name="stand-in"
+    )
+    scene.solver = tiny_solver(screen=False, stand_in=0.5)
+    scene.verdict.starts, scene.verdict.steps, scene.verdict.certify = 4, 10, False
+    seen = []
+    search = solver_module.search
+
+    def spy(scene, passes, blocks, *args):
+        seen.extend(b.face_count for b in blocks)
+        return search(scene, passes, blocks, *args)
+
+    monkeypatch.setattr(solver_module, "search", spy)
+    result = sm.solve(scene, progress=False)
+    assert len(seen) == 1 and seen[0] < 1280 / 2  # the search saw the stand-in
+    assert result.block_shapes[0].face_count == 1280  # the verdict: the full mesh
+    assert result.winner == "A" and result.blocks[0].blocked
+
+
+def test_a_negative_stand_in_is_one_line(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(
+        '[[pass]]\nmesh = "a.stl"\n[[block]]\nmesh = "b.stl"\n[solver]\nstand_in = -1.0\n'
+    )
+    with pytest.raises(SieveError) as err:
+        load_scene(str(path))
+    assert "stand_in" in str(err.value) and "\n" not in str(err.value)
