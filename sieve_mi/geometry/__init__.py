@@ -40,6 +40,9 @@ containment
     The least growth of one shape's hull that holds another (the feasibility test's proof).
 window
     The turning window's hole: every A at each turn within ±δ, with a chord bound.
+stand_in
+    A closed mesh simplified within a tolerance (Manifold's edge collapses): player A's search
+    plays it, the verdict the full mesh.
 """
 
 __all__ = [
