@@ -212,6 +212,10 @@ def progress_words(c: Certification, units: str = "mm") -> str:
     rotations excluded)``, or for a proof by its slab section alone (the straight search left
     cells open, :attr:`Certification.by_section`) ``proved by its slab section on plates at
     least 2 mm thick (12.3 s; the straight search excluded 0.0 % of rotations)``."""
+    if c.by_section and not c.cells_examined:  # proved first: no straight search ran
+        return (f"proved by its slab section on plates at least {c.section['thickness']:g} "
+                f"{units} thick ({c.seconds:.1f} s; no straight search needed: the section "
+                "excludes straight passage too)")  # fmt: skip
     if c.by_section:
         return (f"proved by its slab section on plates at least {c.section['thickness']:g} "
                 f"{units} thick ({c.seconds:.1f} s; the straight search excluded "
@@ -315,6 +319,9 @@ def _prove(shape: Shape, holes: tuple, budget: Budgets, found: float | None) -> 
 
     hole = manifold3d.CrossSection(holes[0])
     section = hole if holes[1] is None else manifold3d.CrossSection(holes[1])
+    first = _section_first(shape, hole, section, budget, found)
+    if first is not None:
+        return first if holes[1] is None else _against_sheet(first, holes[1])
     c = _straight(shape, hole, budget, found)
     if c.status not in ("proved", "undecided") or c.method != "cells" or c.diameter is None:
         return c
@@ -327,6 +334,41 @@ def _prove(shape: Shape, holes: tuple, budget: Budgets, found: float | None) -> 
         margin = _section_margin(c, shape, section, found, budget, t0)
         c.margin, c.margin_certificate, c.margin_steps = margin
     return c if holes[1] is None else _against_sheet(c, holes[1])
+
+
+#: A given plate thinner than the B first gets its section proof alone, with this share of
+#: ``[verdict] section_budget``: proved, no straight search is needed (it excludes straight
+#: passage too); failed, the straight search and the sections after it run as before.
+FIRST_SHARE = 0.3
+
+
+def _section_first(shape: Shape, hole, section, budget: Budgets,
+                   found: float | None) -> Certification | None:  # fmt: skip
+    """A B on a given plate thinner than it, proved by its slab section at the plate's thickness
+    before any straight search (:func:`sieve_mi.certify.section_only`, :data:`FIRST_SHARE` of
+    ``[verdict] section_budget``), with its section margin; None when the plate is not such a
+    plate, when a ball inside the B already proves it on any plate (the straight proof's root
+    test, kept first), or when the section is not proved in that time."""
+    from sieve_mi.certify import bounds, section_only
+    from sieve_mi.geometry.plate import diameter as points_diameter
+
+    t = budget.thickness
+    if not isinstance(t, float | int) or isinstance(t, bool) or t <= 0 or FIRST_SHARE <= 0:
+        return None
+    if t >= points_diameter(shape.hull):
+        return None
+    ball = bounds.inscribed_ball(shape)
+    contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
+    if ball is not None and bounds.no_disk_fits(bounds.contour_segments(contours), ball[1]):
+        return None  # the ball proof (any plate) comes from the straight proof
+    t0 = time.perf_counter()
+    c = section_only(shape, [section], float(t), FIRST_SHARE * budget.section_s)
+    if not c.by_section:
+        return None
+    c.margin, c.margin_certificate, c.margin_steps = _section_margin(
+        c, shape, section, found, budget, t0
+    )
+    return c
 
 
 def _section_margin(c: Certification, shape: Shape, hole, found, budget: Budgets, t0: float):

@@ -49,7 +49,19 @@ def _certified(thickness, low: float = 1.2):
 
 @pytest.fixture(scope="module")
 def on_2_mm():
-    return _certified(2.0)
+    # the straight search first (its section-first try off), then the section after open cells
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("sieve_mi.certify.blocks.FIRST_SHARE", 0.0)
+        return _certified(2.0)
+
+
+def test_a_given_thin_plate_is_proved_by_its_section_before_any_straight_search():
+    c, lines = _certified(2.0)
+    assert c.status == "proved" and c.by_section and c.cells_examined == 0
+    assert c.section["thickness"] == 2.0 and c.holds_for == SECTION_PLATES
+    assert "no straight search needed" in lines[0]
+    rep = replay(c.certificate)
+    assert rep["valid"] and rep["proved"] and rep["holds_for"] == SECTION_PLATES, rep["errors"]
 
 
 def test_a_section_proves_the_coin_where_the_straight_search_left_cells_open(on_2_mm):
