@@ -73,6 +73,7 @@ __all__ = [
     "Certification",
     "Settings",
     "certify",
+    "proving_ball",
     "read_svg_hole",
     "replay",
     "section_only",
@@ -333,6 +334,16 @@ def _worth(t: float | None, lo: float, hi: float, hi_proved) -> bool:
     return t is None or lo <= t < hi or (t == hi and not hi_proved)
 
 
+def proving_ball(shape: Shape, contours: list) -> tuple | None:
+    """The ball certified inside ``shape`` (:func:`~sieve_mi.certify.bounds.inscribed_ball`:
+    ``(centre (3,), radius)``) when no disk of its radius fits the hole given by ``contours``
+    ((k, 2) float each): then no pose passes, on a plate of any thickness. None otherwise."""
+    ball = bounds.inscribed_ball(shape)
+    if ball is not None and bounds.no_disk_fits(bounds.contour_segments(contours), ball[1]):
+        return ball
+    return None
+
+
 def _certify(shape, holes, budget_s, settings, scale, use_symmetry) -> Certification:
     """:func:`certify` for straight passage (the paper's model), arguments checked."""
     t0 = time.perf_counter()
@@ -342,8 +353,8 @@ def _certify(shape, holes, budget_s, settings, scale, use_symmetry) -> Certifica
     hole = union_of_holes(holes)
     contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
     diameter = points_diameter(shape.hull)
-    ball = bounds.inscribed_ball(shape)
-    if ball is not None and bounds.no_disk_fits(bounds.contour_segments(contours), ball[1]):
+    ball = proving_ball(shape, contours)
+    if ball is not None:
         root = {"kind": "ball", "centre": ball[0].tolist(), "radius": ball[1]}
         evidence = Evidence("none", root, None)
         cert = build(shape, contours, "proved", evidence, settings, scale, diameter)

@@ -349,17 +349,13 @@ def _section_first(shape: Shape, hole, section, budget: Budgets,
     ``[verdict] section_budget``), with its section margin; None when the plate is not such a
     plate, when a ball inside the B already proves it on any plate (the straight proof's root
     test, kept first), or when the section is not proved in that time."""
-    from sieve_mi.certify import bounds, section_only
+    from sieve_mi.certify import proving_ball, section_only
     from sieve_mi.geometry.plate import diameter as points_diameter
 
-    t = budget.thickness
-    if not isinstance(t, float | int) or isinstance(t, bool) or t <= 0 or FIRST_SHARE <= 0:
+    t = _given(budget.thickness)
+    if t is None or t <= 0 or FIRST_SHARE <= 0 or t >= points_diameter(shape.hull):
         return None
-    if t >= points_diameter(shape.hull):
-        return None
-    ball = bounds.inscribed_ball(shape)
-    contours = [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]
-    if ball is not None and bounds.no_disk_fits(bounds.contour_segments(contours), ball[1]):
+    if proving_ball(shape, [np.asarray(c, dtype=np.float64) for c in hole.to_polygons()]):
         return None  # the ball proof (any plate) comes from the straight proof
     t0 = time.perf_counter()
     c = section_only(shape, [section], float(t), FIRST_SHARE * budget.section_s)
@@ -388,12 +384,21 @@ def _section_thickness(c: Certification, given) -> float | None:
     proof at, scene units, or None for none: the plate's own when it is thinner than the shape
     (a straight proof by cells does not cover it); after open cells also a thicker plate, at
     the diameter (the section there covers every thicker plate)."""
-    if not isinstance(given, float | int) or isinstance(given, bool):
+    given = _given(given)
+    if given is None:
         return None
     d = float(c.diameter)
-    if float(given) < d:
-        return float(given)
+    if given < d:
+        return given
     return d if c.straight == "undecided" else None
+
+
+def _given(thickness) -> float | None:
+    """``[fabrication] thickness`` as a number of scene units, or None when it is not one
+    (unset, or ``"thinnest"``)."""
+    if not isinstance(thickness, float | int) or isinstance(thickness, bool):
+        return None
+    return float(thickness)
 
 
 def _against_sheet(c: Certification, contours: list) -> Certification:
