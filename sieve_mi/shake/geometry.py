@@ -152,11 +152,7 @@ def plate_from_mesh(mesh, path: str = "plate", units: str = "scene units") -> Pl
         One line: a flat plate, an open mesh, no through-hole, or a plate with no slab across z
         (a tilted plate among them: it says by how much, and to export it lying flat).
     """
-    import trimesh
-
-    if isinstance(mesh, trimesh.Trimesh):  # an STL's corners merged: the outline walked once,
-        mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)  # not every triangle
-    plate = read_plate(mesh, "z", path)
+    plate = read_plate(mesh, "z", path)  # it merges an STL's corners first
     region = plate.region
     x0, y0, x1, y1 = plate.footprint.bounds()
     centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
