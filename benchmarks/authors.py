@@ -4,7 +4,7 @@ Usage::
 
     python -m benchmarks.authors [--only NAME[,NAME]] [--timeout S] [--reduced NAME[,NAME]]
                                  [--variant llvm_ad_mono|cuda_ad_mono] [--out benchmarks/results]
-                                 [--gpu ROWS.json]
+                                 [--gpu ROWS.json] [--set TABLE.KEY=VALUE ...]
     python -m benchmarks.authors --table ROWS.json[,ROWS.json] [--gpu ROWS.json]
 
 The authors (GitHub ``David-Cha/shape-aware-sieves``, commit 686c1f7) publish one
@@ -21,7 +21,8 @@ Every case runs in its own process (``sieve-mi solve SCENE --quiet --json --no-f
 --no-animation``, or ``python -m benchmarks.stress --one N``); its peak RSS comes from ``wait4``
 (the process and the workers it waited for). A case that runs past ``--timeout`` is stopped and
 reported as time-limited; ``--reduced`` runs the named cases at reduced settings (``REDUCED``),
-which the table says. The table is printed and written to ``<out>/authors-<variant>.md`` and
+which the table says; ``--set TABLE.KEY=VALUE`` changes a key of every scene case (e.g.
+``verdict.certify=false``, as on a GPU lent for minutes, since certificates do not count here). The table is printed and written to ``<out>/authors-<variant>.md`` and
 ``.json``; generated meshes are made first (``benchmarks/authors/make_meshes.py``). ``--table``
 prints the table of saved rows without running anything; ``--gpu`` fills the GPU column from
 rows saved by a ``--variant cuda_ad_mono`` run (otherwise it says that none was measured).
@@ -48,10 +49,13 @@ import tempfile
 import time
 import tomllib
 
+from benchmarks.run import parse_override
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 SCENES = os.path.join(HERE, "authors")
-SIEVE_MI = os.path.join(os.path.dirname(sys.executable), "sieve-mi")
+#: The command line, through the interpreter (a machine with sieve-mi on PYTHONPATH has no script).
+SIEVE_MI = [sys.executable, "-m", "sieve_mi"]
 REPO = "David-Cha/shape-aware-sieves@686c1f7"
 
 #: name -> the authors' run: results folder, paper figure, A40 seconds (search = results.json's
@@ -206,15 +210,17 @@ def _toml_value(value) -> str:
     return repr(value)
 
 
-def reduced_scene(path: str, folder: str) -> str:
-    """Write ``path`` with ``REDUCED`` settings (and absolute mesh paths) into ``folder``.
+def reduced_scene(path: str, folder: str, settings: dict | None = None) -> str:
+    """Write ``path`` with other settings (and absolute mesh paths) into ``folder``.
 
     Parameters
     ----------
     path : str
         A scene file of ``benchmarks/authors/``.
     folder : str
-        Where to write the reduced scene.
+        Where to write the changed scene.
+    settings : dict, optional
+        ``{table: {key: value}}`` to set; default ``REDUCED``.
 
     Returns
     -------
@@ -226,7 +232,7 @@ def reduced_scene(path: str, folder: str) -> str:
     base = os.path.dirname(os.path.abspath(path))
     for shape in scene.get("pass", []) + scene.get("block", []):
         shape["mesh"] = os.path.normpath(os.path.join(base, shape["mesh"]))
-    for table, keys in REDUCED.items():
+    for table, keys in (REDUCED if settings is None else settings).items():
         scene.setdefault(table, {}).update(keys)
     lines = [f"{k} = {_toml_value(v)}" for k, v in scene.items() if not isinstance(v, (dict, list))]
     for key in ("pass", "block"):
@@ -305,7 +311,9 @@ def row_from_report(report: dict) -> dict:
     }
 
 
-def run_case(name: str, variant: str, timeout: float, reduced: bool) -> dict:
+def run_case(
+    name: str, variant: str, timeout: float, reduced: bool, settings: dict | None = None
+) -> dict:
     """Solve one case in a child process and return its row (ours and the authors').
 
     Parameters
@@ -318,6 +326,8 @@ def run_case(name: str, variant: str, timeout: float, reduced: bool) -> dict:
         Seconds before the case is stopped (then the row says so).
     reduced : bool
         Use ``REDUCED`` settings instead of the scene file's.
+    settings : dict, optional
+        ``{table: {key: value}}`` set on top (``--set``), e.g. ``{"verdict": {"certify": False}}``.
 
     Returns
     -------
@@ -326,14 +336,19 @@ def run_case(name: str, variant: str, timeout: float, reduced: bool) -> dict:
         ``row_from_report``) or ``error``, and the authors' run under ``authors``.
     """
     row = {"name": name, "variant": variant, "reduced": reduced, "authors": AUTHORS[name]}
+    if settings:
+        row["settings"] = settings
     with tempfile.TemporaryDirectory() as tmp:
         if name in STRESS:
             cmd = [sys.executable, "-m", "benchmarks.stress", "--one", str(STRESS[name])]
             cmd += ["--variant", variant]
         else:
             scene = os.path.join(SCENES, f"{name}.toml")
-            scene = reduced_scene(scene, tmp) if reduced else scene
-            cmd = [SIEVE_MI, "solve", scene, "--out", os.path.join(tmp, "out"), "--quiet"]
+            changed = {t: dict(k) for t, k in (REDUCED if reduced else {}).items()}
+            for table, keys in (settings or {}).items():
+                changed.setdefault(table, {}).update(keys)
+            scene = reduced_scene(scene, tmp, changed) if changed else scene
+            cmd = [*SIEVE_MI, "solve", scene, "--out", os.path.join(tmp, "out"), "--quiet"]
             cmd += ["--json", "--no-figure", "--no-animation", "--variant", variant]
         done = run_process(cmd, timeout)
     row.update(wall_s=done["wall_s"], peak_gb=done["peak_gb"], cpu_s=done["cpu_s"])
@@ -435,7 +450,13 @@ def gpu_cell(row: dict | None) -> str:
         return "not measured (no GPU lent)"
     if "error" in row:
         return row["error"]
-    return f"{row['search_s'] + row['verdict_s']:,.1f}"
+    a = row["authors"]
+    ours = row["search_s"] + row["verdict_s"]
+    ratio = (a["search"] + a["verdict"]) / ours if ours > 0 else float("inf")
+    outcome = _outcome(row["winner"], row.get("beta"), row.get("unblocked"))
+    return (
+        f"{row['search_s']:,.1f} + {row['verdict_s']:,.1f} = {ours:,.1f} ({ratio:,.0f}×), {outcome}"
+    )
 
 
 def markdown(rows: list[dict], header: str, gpu_rows: list[dict] | None = None) -> str:
@@ -511,7 +532,23 @@ def main(argv=None) -> int:
         "--table", help="only print the table of saved rows (JSON files, comma-separated)"
     )
     p.add_argument("--gpu", help="a JSON file of rows run with cuda_ad_mono, for the GPU column")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="TABLE.KEY=VALUE",
+        help="change a scene key of every case (TOML value), e.g. verdict.certify=false",
+    )
     args = p.parse_args(argv)
+    settings = {}
+    for text in args.set:
+        try:
+            table, key, value = parse_override(text)
+            settings.setdefault(table, {})[key] = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError as exc:
+            p.error(f"--set {text!r}: the value is not TOML ({exc})")
+        except ValueError as exc:
+            p.error(str(exc))
     if args.table:
         rows = []
         for path in args.table.split(","):
@@ -525,22 +562,22 @@ def main(argv=None) -> int:
         p.error(f"unknown case {unknown[0]!r}; known: {', '.join(AUTHORS)}")
     reduced = set(filter(None, args.reduced.split(",")))
     ensure_meshes()
+    os.makedirs(args.out, exist_ok=True)
+    stem = os.path.join(args.out, f"authors-{args.variant}")
     rows = []
     for name in names:
         before, load = machine(), os.getloadavg()[0]
-        rows.append(run_case(name, args.variant, args.timeout, name in reduced))
+        rows.append(run_case(name, args.variant, args.timeout, name in reduced, settings))
         rows[-1].update(machine=before, load=[load, os.getloadavg()[0]])
         rows[-1]["date"] = datetime.datetime.now(datetime.UTC).isoformat(timespec="minutes")
         print(markdown(rows[-1:], f"{name}: {before}").splitlines()[-1], flush=True)
+        with open(stem + ".json", "w") as fh:  # after every case: a stopped run keeps its rows
+            json.dump(rows, fh, indent=1)
     header = f"{machine()}; {args.variant}; {datetime.date.today().isoformat()}; {REPO}"
     text = markdown(rows, header, _rows(args.gpu))
     print(text)
-    os.makedirs(args.out, exist_ok=True)
-    stem = os.path.join(args.out, f"authors-{args.variant}")
     with open(stem + ".md", "w") as fh:
         fh.write(text)
-    with open(stem + ".json", "w") as fh:
-        json.dump(rows, fh, indent=1)
     return 0
 
 
