@@ -444,10 +444,13 @@ def our_cells(row: dict) -> list[str]:
     ]
 
 
-def gpu_cell(row: dict | None) -> str:
-    """The GPU column: search + verdict seconds of a ``cuda_ad_mono`` row, or why there is none."""
+def gpu_cell(row: dict | None, lent: bool = False) -> str:
+    """The GPU column: search + verdict seconds of a ``cuda_ad_mono`` row, or why there is none.
+
+    ``lent``: a GPU run was given (``--gpu``), so a missing row was not run on it.
+    """
     if row is None:
-        return "not measured (no GPU lent)"
+        return "not run on the GPU" if lent else "not measured (no GPU lent)"
     if "error" in row:
         return row["error"]
     a = row["authors"]
@@ -496,7 +499,9 @@ def markdown(rows: list[dict], header: str, gpu_rows: list[dict] | None = None) 
     out = [header, "", "| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     for row in rows:
         a = authors_cells(row["authors"])
-        cells = a + [LIKE[row["name"]]] + our_cells(row) + [gpu_cell(gpu.get(row["name"]))]
+        cells = (
+            a + [LIKE[row["name"]]] + our_cells(row) + [gpu_cell(gpu.get(row["name"]), bool(gpu))]
+        )
         out.append("| " + " | ".join(cells) + " |")
     return "\n".join(out) + "\n"
 
