@@ -254,7 +254,9 @@ def sheet_holes(hole, shape: Shape, pattern, found: float | None = None,
     iff it fits one copy: :mod:`sieve_mi.geometry.pattern`), a B of several bodies against the
     copies within its reach (:meth:`~sieve_mi.geometry.pattern.Pattern.window` of its diameter,
     plus twice ``found`` for the margin bisection's grown holes), and every slab-section proof
-    against the copies within its diameter (a section of a connected B may fall apart), except
+    against the groups of copies a set of its diameter can touch together
+    (:meth:`~sieve_mi.geometry.pattern.Pattern.patches`; a section of a connected B may fall
+    apart), except
     for a convex solid (:func:`~sieve_mi.geometry.meshes.convex_solid`: its sections are convex,
     so connected, and one copy decides them). ``section`` is None where it is ``straight``.
 
@@ -280,7 +282,7 @@ def sheet_holes(hole, shape: Shape, pattern, found: float | None = None,
         return contours(hole), None
     d = diameter(shape.hull)
     # a convex solid's slab sections are convex, hence connected: one copy decides them too
-    window = None if convex_solid(shape) else contours(pattern.window(d, hole))
+    window = None if convex_solid(shape) else contours(pattern.patches(d, hole))
     if merged or bodies(shape) > 1:
         return contours(pattern.window(d + 2.0 * max(found or 0.0, 0.0), hole)), window
     return contours(hole), window

@@ -34,6 +34,7 @@ from sieve_mi.errors import SieveError
 __all__ = [
     "BISECTION_STEPS",
     "PATTERNS",
+    "SYMMETRY_SLACK",
     "TRAY_MM",
     "from_settings",
     "WEB_SLACK",
@@ -54,6 +55,9 @@ BISECTION_STEPS = 24
 #: A gap short of the web by no more than this fraction (float rounding of an exact tie, such as
 #: two 10 mm squares 12 mm apart) counts as the web.
 WEB_SLACK = 1e-9
+#: H counts as centrally symmetric (:meth:`Pattern.patches`) when its union with its half turn
+#: is within this fraction of its area.
+SYMMETRY_SLACK = 1e-6
 #: Millimetres per scene unit (``units``); a unit not listed is taken as millimetres.
 _MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4, "um": 1e-3}
 
@@ -250,6 +254,51 @@ class Pattern:
                  for i, j in reach_sites for t in self.turns]  # fmt: skip
         return _union(parts)
 
+    def patches(self, reach: float, outline=None) -> manifold3d.CrossSection:
+        """The groups of copies a set of diameter ``reach`` can touch together, laid far apart:
+        a region whose proofs hold for the whole sheet, smaller than :meth:`window`.
+
+        A set of diameter at most ``reach`` inside the union of the copies lies in the union of
+        the copies it touches, and any two of those are at most ``reach`` apart (a point of the
+        set in each). So they form a clique of the graph joining two sites whose copies may be
+        that close (centres within ``reach + 2R``, R: H's circumscribed radius; a superset of
+        the true pairs), and lie in a maximal clique. With one turn every copy is H translated,
+        and a lattice move takes any clique to one of the maximal cliques through (0, 0) up to
+        translation (:func:`_cliques`), or up to a half turn too where H is centrally
+        symmetric (then H is replaced by its union with its half turn, within
+        :data:`SYMMETRY_SLACK` of H's area and never smaller, and a half turn of a group is the
+        same group for a shape at every turn); a copy of each, laid at least ``reach`` from the others,
+        is a region such a set could fit in only by fitting one group, which it could fit only
+        if it fits the sheet's copies somewhere, and conversely what fits the sheet fits here.
+        So a proof that a section (of diameter at most ``reach``) does not fit this region is a
+        proof for the whole sheet. On the nut sheet of docs/shake.md (discs 8.7 mm wide, 5 mm
+        apart, a 10.4 mm M5) each group is three discs in a triangle, against the window's seven.
+        With several turns it is :meth:`window`, unless they are half turns of a centrally
+        symmetric H (0° and 180°: every copy is then H' translated).
+
+        ``outline`` stands for H at every site, as in :meth:`window`.
+        """
+        outline = self.outline if outline is None else outline
+        radius = _circumradius(outline, self.centre)
+        half_turned = _copy(outline, self.centre, self.centre, 180.0)
+        both = _union([outline, half_turned])
+        symmetric = both.area() <= outline.area() * (1.0 + SYMMETRY_SLACK)
+        halves = all(float(t) % 180.0 == 0.0 for t in self.turns)
+        if len(self.turns) > 1 and not (symmetric and halves):
+            return self.window(reach, outline)
+        if symmetric:  # H' = H and H half-turned, a superset: every copy is H' up to a half turn
+            outline = both
+        groups = _cliques(self.a1, self.a2, reach + 2.0 * radius, symmetric)
+        step = 0.0
+        parts = []
+        for group in groups:
+            sites = [self.at(i, j) for i, j in group]
+            copies = [_copy(outline, self.centre, site, 0.0) for site in sites]
+            x0 = min(c.bounds()[0] for c in copies)
+            parts += [c.translate([step - x0, 0.0]) for c in copies]
+            step += max(c.bounds()[2] for c in copies) - x0 + 2.0 * reach + 2.0 * radius
+        return _union(parts)
+
     def to_dict(self) -> dict:
         """report.json's ``fabrication.pattern``."""
         return {
@@ -296,6 +345,56 @@ def _sites_within(a1, a2, radius: float) -> list[tuple[int, int]]:
             if (i, j) != (0, 0) and np.linalg.norm(i * a1 + j * a2) <= radius:
                 out.append((i, j))
     return out
+
+
+def _cliques(a1, a2, near: float, symmetric: bool = False) -> list[list[tuple[int, int]]]:
+    """The maximal cliques of sites through (0, 0), two sites joined when their positions are
+    at most ``near`` apart, one of each class under lattice translation (and the half turn
+    (i, j) -> (-i, -j) where ``symmetric``) and none that such a move of another contains; each
+    as a list of (i, j), (0, 0) first.
+
+    Examples
+    --------
+    On a hexagonal lattice of unit pitch with only nearest neighbours joined, the groups are
+    the two triangles (pointing up and down):
+
+    >>> import numpy as np
+    >>> sorted(len(g) for g in _cliques(np.array([1.0, 0]), np.array([0.5, 0.866]), 1.01))
+    [3, 3]
+
+    and the one triangle up to a half turn:
+
+    >>> _cliques(np.array([1.0, 0]), np.array([0.5, 0.866]), 1.01, symmetric=True)
+    [[(0, 0), (0, 1), (1, 0)]]
+    """
+    import networkx as nx
+
+    sites = _sites_within(a1, a2, 2.0 * near)
+    pos = {s: s[0] * np.asarray(a1) + s[1] * np.asarray(a2) for s in sites}
+    graph = nx.Graph()
+    graph.add_nodes_from(sites)
+    for m, s in enumerate(sites):
+        for t in sites[m + 1 :]:
+            if np.linalg.norm(pos[s] - pos[t]) <= near:
+                graph.add_edge(s, t)
+    found = []
+    for clique in nx.find_cliques(graph):
+        if (0, 0) not in clique:
+            continue
+        lo = min(clique)
+        found.append(frozenset((i - lo[0], j - lo[1]) for i, j in clique))
+    found = sorted(set(found), key=lambda c: (-len(c), sorted(c)))
+    kept = []
+    for c in found:
+        moves = [c, frozenset((-i, -j) for i, j in c)] if symmetric else [c]
+        if not any(
+            {(i - min(m)[0] + s[0], j - min(m)[1] + s[1]) for i, j in m} <= k
+            for m in moves
+            for k in kept
+            for s in k
+        ):
+            kept.append(c)
+    return [sorted(c, key=lambda s: (s != (0, 0), s)) for c in kept]
 
 
 def _keeps(found: float, web: float) -> bool:

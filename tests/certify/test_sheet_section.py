@@ -42,3 +42,19 @@ def test_a_section_hole_without_contours_is_refused(ring_proof):
     c, _ = ring_proof
     with pytest.raises(SieveError, match=r"section\.hole: no contour$"):
         replay({**c.certificate, "section": {**c.certificate["section"], "hole": []}})
+
+
+def test_a_section_search_on_several_holes_spreads_points_inside_the_section():
+    # a section that falls apart can put its extreme points in two holes and its inner points on
+    # the web between them, so on a hole of several regions the turn test gets inner points too
+    from sieve_mi.certify import section
+
+    pts = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    one = manifold3d.CrossSection.circle(4.5, 32)
+    two = one + one.translate([12.0, 0.0])
+    assert section.SectionSearch(pts, one, 1.0).inner == section.INNER_POINTS
+    assert (
+        section.SectionSearch(pts, two, 1.0).inner
+        == max(section.INNER_POINTS, section.SHEET_INNER_POINTS)
+        > 0
+    )

@@ -97,6 +97,51 @@ def test_window_holds_every_copy_within_reach():
     )
 
 
+def _centres(region) -> np.ndarray:
+    return np.array([np.mean(np.asarray(r.bounds()).reshape(2, 2), axis=0)
+                     for r in region.decompose()])  # fmt: skip
+
+
+def test_patches_of_a_hex_sheet_of_discs_are_one_triangle():
+    # discs of radius 4.357 (the M4 nut's hole) 5 mm apart: pitch 13.714. A set 10.36 mm across
+    # (the M5 nut) can touch two copies only if their centres are within 10.36 + 2 r = 19.07 mm:
+    # the six nearest (13.714), not the next ring (sqrt(3) x 13.714 = 23.75). Three copies touched
+    # together are then a triangle, and a disc is its own half turn: one group of three.
+    disc = manifold3d.CrossSection.circle(4.357, 64)
+    p = lay_out(disc, "hex", (100.0, 100.0), 5.0, 5.0)
+    assert np.linalg.norm(p.a1) == pytest.approx(2 * 4.357 + 5.0, rel=1e-6)
+    group = p.patches(10.36)
+    c = _centres(group)
+    assert len(c) == 3
+    sides = sorted(np.linalg.norm(c[u] - c[v]) for u, v in itertools.combinations(range(3), 2))
+    # (the 64-gon's flats let the rows pack up to r (1 - cos(pi / 64)) closer than discs would)
+    assert sides == pytest.approx([13.714] * 3, abs=0.02)
+    assert group.area() == pytest.approx(3 * disc.area(), rel=1e-9)
+    # the window (every copy such a set touching H could reach) holds H and its six neighbours
+    assert len(p.window(10.36).decompose()) == 7
+
+
+def test_patches_keep_every_group_and_lay_them_apart():
+    # a notched disc is not its own half turn: the up and down triangles are two groups, each
+    # laid more than the set's 10.36 mm from the other, so that no set of that size touches both
+    notched = manifold3d.CrossSection.circle(4.357, 64) - manifold3d.CrossSection.square(
+        [1.0, 1.0]
+    ).translate([3.8, -0.5])
+    p = lay_out(notched, "hex", (100.0, 100.0), 5.0, 5.0)
+    groups = p.patches(10.36)
+    parts = groups.decompose()
+    assert len(parts) == 6
+    order = np.argsort(_centres(groups)[:, 0])
+    left = manifold3d.CrossSection.batch_boolean([parts[k] for k in order[:3]],
+                                                 manifold3d.OpType.Add)  # fmt: skip
+    right = manifold3d.CrossSection.batch_boolean([parts[k] for k in order[3:]],
+                                                  manifold3d.OpType.Add)  # fmt: skip
+    assert gap(left, right, 100.0) > 10.36
+    # a narrower web joins the next ring too (sqrt(3) x 9.914 - 8.714 = 8.46 < 10.36): bigger groups
+    wide = lay_out(manifold3d.CrossSection.circle(4.357, 64), "hex", (100.0, 100.0), 5.0, 1.2)
+    assert len(wide.patches(10.36).decompose()) > 3
+
+
 @pytest.mark.parametrize(
     "kind, size, web, turns, key",
     [
