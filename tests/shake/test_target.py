@@ -173,6 +173,9 @@ def test_the_target_card_lists_every_try():
     card = target_card({"fraction": 0.9, "met": False, "chosen": 1, "tries": tries}, "mm")
     assert card.count("<tr><td>") == 2 and "1 (in this folder)" in card
     assert "not met: the best trade-off is kept" in card and "data:image/png;base64," in card
+    mirrored = dict(tries[1], step="mirror", holes=16, mirror=True)
+    card = target_card({"fraction": 0.9, "met": False, "chosen": 0, "tries": [mirrored]}, "mm")
+    assert "<td>mirror</td><td>±21.1°</td><td>16, every other class mirrored</td>" in card
 
 
 def test_the_nut_scene_holds_the_m5_in_a_hole_turned_any_way():
