@@ -162,14 +162,11 @@ class Fabrication:
         **_LENGTH,
     )
     web: float = setting(1.2, "least material between two holes of a pattern", **_LENGTH)
-    turns: ANGLES | None = setting(
-        None,
-        "a pattern's copies turned by these angles in turn, one of them 0",
-        unit="degrees",
-        minimum=-360,
-        maximum=360,
-        default_doc="none (every copy as the hole)",
-    )
+    turns: ANGLES | None = setting(None, "a pattern's copies turned by these angles in turn, one "
+                                   "of them 0", unit="degrees", minimum=-360, maximum=360,
+                                   default_doc="none (every copy as the hole)")  # fmt: skip
+    mirror: bool = setting(False, "every other class of a pattern's copies mirrored, so a part "
+                           "lying either side up finds its silhouette")  # fmt: skip
 
 
 @checked("solver")

@@ -1,7 +1,9 @@
 """A perforated sheet: copies of the hole H on a square or hexagonal lattice.
 
 Every copy is H moved by a rigid motion: turned about H's centre (the centre of its bounding box)
-by one of the pattern's turns, then moved to a lattice site. The lattice's pitch is chosen from
+by one of the pattern's turns, then moved to a lattice site; with ``mirror``, every other class
+of sites holds H mirrored (reflected in the vertical line through its centre) before the turn, so
+a part lying either side up finds a copy of its own silhouette. The lattice's pitch is chosen from
 H itself: it starts where the web is guaranteed (bounding boxes ``web`` apart; for turned copies,
 the circumscribed disks), then each lattice vector is shortened by bisection while every pair of
 neighbouring copies stays at least ``web`` apart, measured exactly (:func:`gap`: the least
@@ -13,7 +15,9 @@ Copies are kept only where their bounding box lies ``border`` inside the plate.
 least ``web`` > 0 apart). A connected set inside their union lies inside one of them (each copy is
 open and closed in the union). The projection of a connected shape is connected, so it fits the
 union iff it fits one copy, and a copy is H up to a rigid motion of the plane, which a pose of
-the shape absorbs. So for a connected B the straight-passage verdict and its certificate on H
+the shape absorbs; a mirrored copy too: the half turn about the y axis, (x, y, z) -> (-x, y, -z),
+mirrors every projection along z (and takes a slab of the plate's thickness to another), so the
+mirror image of any projection or section of B is one of B in another pose. So for a connected B the straight-passage verdict and its certificate on H
 are the sheet's, and so is the thick-plate argument (a B inside the plate's slab projects into
 the union). A ball proof holds for any B (the ball's disk is connected). Not so for a B of
 several bodies (its projection may fall apart), nor for a slab-section proof of a thin plate (a
@@ -182,6 +186,9 @@ class Pattern:
         The least distance found between two copies of the sheet (at least ``web``).
     plate : (2, 2) float
         The plate's corners ``[[x0, y0], [x1, y1]]``, scene units.
+    mirror : bool
+        Site (i, j) holds H mirrored when ``(i + j) % 2k >= k`` (k turns): the classes cycle
+        through every turn plain, then every turn mirrored.
     """
 
     kind: str
@@ -194,6 +201,7 @@ class Pattern:
     web: float
     least_gap: float
     plate: np.ndarray
+    mirror: bool = False
 
     @property
     def count(self) -> int:
@@ -214,9 +222,8 @@ class Pattern:
 
     def copy(self, i: int, j: int, turn: float | None = None) -> manifold3d.CrossSection:
         """The copy of H at site (i, j) (turned by ``turn`` degrees instead, if given)."""
-        return _copy(
-            self.outline, self.centre, self.at(i, j), self.turn(i, j) if turn is None else turn
-        )
+        turn = self.turn(i, j) if turn is None else turn
+        return _copy(self.outline, self.centre, self.at(i, j), turn, self.mirrored(i, j))
 
     def at(self, i: int, j: int) -> np.ndarray:
         """Site (i, j)'s position, scene units."""
@@ -225,6 +232,10 @@ class Pattern:
     def turn(self, i: int, j: int) -> float:
         """The turn of site (i, j), degrees."""
         return float(self.turns[(i + j) % len(self.turns)])
+
+    def mirrored(self, i: int, j: int) -> bool:
+        """Whether site (i, j) holds H mirrored (before its turn)."""
+        return _mirrored(i + j, len(self.turns), self.mirror)
 
     def holes(self) -> manifold3d.CrossSection:
         """The union of every copy on the plate."""
@@ -250,8 +261,9 @@ class Pattern:
         outline = self.outline if outline is None else outline
         radius = _circumradius(outline, self.centre)
         reach_sites = _sites_within(self.a1, self.a2, reach + 2.0 * radius)
-        parts = [_copy(outline, self.centre, self.at(i, j), t)
-                 for i, j in reach_sites for t in self.turns]  # fmt: skip
+        parts = [_copy(outline, self.centre, self.at(i, j), t, m)
+                 for i, j in reach_sites for t in self.turns
+                 for m in {False, self.mirror}]  # fmt: skip
         return _union(parts)
 
     def patches(self, reach: float, outline=None) -> manifold3d.CrossSection:
@@ -308,16 +320,25 @@ class Pattern:
             "web": float(self.web),
             "least_gap": float(self.least_gap),
             "turns": [float(t) for t in self.turns],
+            "mirror": bool(self.mirror),
             "open_fraction": float(self.open_fraction),
             "plate_size": list(self.plate_size),
         }
 
 
-def _copy(outline, centre, site, turn: float) -> manifold3d.CrossSection:
-    """H turned by ``turn`` degrees about ``centre``, then moved so its centre is at ``site``."""
-    if turn == 0.0 and np.array_equal(site, centre):
+def _mirrored(c: int, k: int, mirror: bool) -> bool:
+    """Whether site class ``c`` (i + j) of a pattern of ``k`` turns holds H mirrored."""
+    return bool(mirror) and c % (2 * k) >= k
+
+
+def _copy(outline, centre, site, turn: float, mirror: bool = False) -> manifold3d.CrossSection:
+    """H (mirrored in the vertical line through ``centre`` when ``mirror``) turned by ``turn``
+    degrees about ``centre``, then moved so its centre is at ``site``."""
+    if turn == 0.0 and not mirror and np.array_equal(site, centre):
         return outline
     moved = outline.translate([-centre[0], -centre[1]])
+    if mirror:
+        moved = moved.mirror([1.0, 0.0])
     if turn != 0.0:
         moved = moved.rotate(turn)
     return moved.translate([float(site[0]), float(site[1])])
@@ -408,30 +429,33 @@ def _lattice(kind: str, px: float, py: float) -> tuple[np.ndarray, np.ndarray]:
     return np.array([px, 0.0]), np.array([0.5 * px if kind == "hex" else 0.0, py])
 
 
-def _least_gap(outline, centre, turns, vectors, web: float) -> float:
-    """The least distance between a copy of each turn's class and every other copy near it, on
-    the unbounded lattice (at most ``2 web``: only whether it reaches ``web`` matters)."""
+def _least_gap(outline, centre, turns, vectors, web: float, mirror: bool = False) -> float:
+    """The least distance between a copy of each site class (turn, and mirrored or not) and
+    every other copy near it, on the unbounded lattice (at most ``2 web``: only whether it
+    reaches ``web`` matters)."""
     a1, a2 = vectors
     radius = _circumradius(outline, centre)
     near = _sites_within(a1, a2, 2.0 * radius + web)[1:]
     k, best = len(turns), 2.0 * web
-    for r in range(k):  # site (r, 0) holds turn r
-        here = _copy(outline, centre, centre + r * a1, float(turns[r % k]))
+    for r in range(2 * k if mirror else k):  # site (r, 0) holds class r
+        here = _copy(outline, centre, centre + r * a1, float(turns[r % k]), _mirrored(r, k, mirror))
         for i, j in near:
-            there = _copy(
-                outline, centre, centre + (r + i) * a1 + j * a2, float(turns[(r + i + j) % k])
-            )
+            c = r + i + j
+            there = _copy(outline, centre, centre + (r + i) * a1 + j * a2, float(turns[c % k]),
+                          _mirrored(c, k, mirror))  # fmt: skip
             best = min(best, gap(here, there, 2.0 * web))
             if not _keeps(best, web):
                 return best
     return best
 
 
-def _pitch(kind: str, outline, centre, turns, web: float) -> tuple[np.ndarray, np.ndarray, float]:
+def _pitch(
+    kind: str, outline, centre, turns, web: float, mirror: bool = False
+) -> tuple[np.ndarray, np.ndarray, float]:
     """The lattice vectors (shortest found) and the least gap between copies on them.
 
-    Start where the web holds by construction (bounding boxes, or circumscribed disks for turned
-    copies), then shorten ``px`` and then ``py`` by bisection, each step checked by
+    Start where the web holds by construction (bounding boxes, the same for a mirrored copy, or
+    circumscribed disks for turned copies), then shorten ``px`` and then ``py`` by bisection, each step checked by
     :func:`_least_gap`; only a checked pitch is ever kept.
     """
     x0, y0, x1, y1 = outline.bounds()
@@ -440,7 +464,7 @@ def _pitch(kind: str, outline, centre, turns, web: float) -> tuple[np.ndarray, n
         px, py = d, (d * math.sqrt(3.0) / 2.0 if kind == "hex" else d)
     else:
         px, py = x1 - x0 + web, y1 - y0 + web
-    ok = _least_gap(outline, centre, turns, _lattice(kind, px, py), web)
+    ok = _least_gap(outline, centre, turns, _lattice(kind, px, py), web, mirror)
     if not _keeps(ok, web):  # cannot happen by the construction above; refuse rather than guess
         raise SieveError(f"fabrication.pattern: no lattice keeps the web {web:g} between copies")
     for which in (0, 1):
@@ -448,7 +472,7 @@ def _pitch(kind: str, outline, centre, turns, web: float) -> tuple[np.ndarray, n
         for _ in range(BISECTION_STEPS):
             mid = 0.5 * (lo + hi)
             trial = (mid, py) if which == 0 else (px, mid)
-            found = _least_gap(outline, centre, turns, _lattice(kind, *trial), web)
+            found = _least_gap(outline, centre, turns, _lattice(kind, *trial), web, mirror)
             if _keeps(found, web):
                 hi, ok = mid, found
             else:
@@ -457,13 +481,14 @@ def _pitch(kind: str, outline, centre, turns, web: float) -> tuple[np.ndarray, n
     return *_lattice(kind, px, py), ok
 
 
-def _fitting(outline, centre, vectors, turns, box) -> list[tuple[int, int]]:
+def _fitting(outline, centre, vectors, turns, box, mirror: bool = False) -> list[tuple[int, int]]:
     """The sites (i, j) whose copy's bounding box lies inside ``box`` ``[[x0, y0], [x1, y1]]``."""
     a1, a2 = vectors
-    k = len(turns)
-    extents = []  # per turn: the copy's bounding box about its site
-    for t in turns:
-        b = _copy(outline, centre, centre, float(t)).bounds()
+    k = 2 * len(turns) if mirror else len(turns)
+    extents = []  # per site class: the copy's bounding box about its site
+    for c in range(k):
+        b = _copy(outline, centre, centre, float(turns[c % len(turns)]),
+                  _mirrored(c, len(turns), mirror)).bounds()  # fmt: skip
         extents.append((np.array(b[:2]) - centre, np.array(b[2:]) - centre))
     span = float(np.linalg.norm(box[1] - box[0])) + float(np.linalg.norm(a1) + np.linalg.norm(a2))
     out = []
@@ -476,7 +501,7 @@ def _fitting(outline, centre, vectors, turns, box) -> list[tuple[int, int]]:
 
 
 def lay_out(outline: manifold3d.CrossSection, kind: str, size, border: float, web: float,
-            turns=None, units: str = "mm") -> Pattern:  # fmt: skip
+            turns=None, units: str = "mm", mirror: bool = False) -> Pattern:  # fmt: skip
     """Copies of ``outline`` on a ``kind`` lattice over a plate of ``size``, ``border`` inside its
     edges and at least ``web`` apart (checked exactly, :func:`gap`).
 
@@ -496,6 +521,8 @@ def lay_out(outline: manifold3d.CrossSection, kind: str, size, border: float, we
         Degrees, one of them 0 (default: 0 only).
     units : str
         The scene's units (for the default size).
+    mirror : bool
+        Every other class of sites holds H mirrored (:class:`Pattern`).
 
     Returns
     -------
@@ -509,7 +536,7 @@ def lay_out(outline: manifold3d.CrossSection, kind: str, size, border: float, we
     turns = _turns(turns)
     x0, y0, x1, y1 = outline.bounds()
     centre = np.array([(x0 + x1) / 2.0, (y0 + y1) / 2.0])
-    a1, a2, least = _pitch(kind, outline, centre, turns, web)
+    a1, a2, least = _pitch(kind, outline, centre, turns, web, mirror)
     if size is None:
         size = tray_size(
             units, max(np.linalg.norm(a1), np.linalg.norm(a2), x1 - x0, y1 - y0), border
@@ -518,9 +545,8 @@ def lay_out(outline: manifold3d.CrossSection, kind: str, size, border: float, we
     best = None
     for shift in (np.zeros(2), 0.5 * a1, 0.5 * a2, 0.5 * (a1 + a2)):
         plate = np.array([centre + shift - half, centre + shift + half])
-        sites = _fitting(
-            outline, centre, (a1, a2), turns, plate + [[border, border], [-border, -border]]
-        )
+        inner = plate + [[border, border], [-border, -border]]
+        sites = _fitting(outline, centre, (a1, a2), turns, inner, mirror)
         if (0, 0) in sites and (best is None or len(sites) > len(best[1])):
             best = (plate, sites)
     if best is None:
@@ -532,7 +558,7 @@ def lay_out(outline: manifold3d.CrossSection, kind: str, size, border: float, we
         )
     plate, sites = best
     out = Pattern(kind, outline, centre, a1, a2, turns, np.array(sites, dtype=np.int64),
-                  float(web), float(least), plate)  # fmt: skip
+                  float(web), float(least), plate, bool(mirror))  # fmt: skip
     out.least_gap = placed_gap(out)
     if not _keeps(out.least_gap, web):  # the lattice was checked; this checks the sheet itself
         raise SieveError(f"fabrication.web: copies {out.least_gap:.6g} apart, less than {web:g}")
@@ -577,8 +603,9 @@ def from_settings(
     outline: manifold3d.CrossSection, fabrication, units: str = "mm"
 ) -> Pattern | None:
     """The sheet a scene's ``[fabrication]`` table asks for (``pattern``, ``plate_size``, ``web``,
-    ``turns``, ``border``) around the hole ``outline``; None for ``pattern = "single"``."""
+    ``turns``, ``mirror``, ``border``) around the hole ``outline``; None for ``pattern =
+    "single"``."""
     if fabrication.pattern == "single":
         return None
     return lay_out(outline, fabrication.pattern, fabrication.plate_size, fabrication.border,
-                   fabrication.web, fabrication.turns, units)  # fmt: skip
+                   fabrication.web, fabrication.turns, units, fabrication.mirror)  # fmt: skip

@@ -341,8 +341,9 @@ def target_card(target: dict, units: str) -> str:
                          f"{a['ci95'][1]:.3f}]" for a in t["pass"])  # fmt: skip
         margin = "-" if t["b_margin"] is None else f"{t['b_margin']:.3f}"
         mark = " (in this folder)" if k == target["chosen"] else ""
+        holes = f"{t['holes']}{', every other class mirrored' if t.get('mirror') else ''}"
         rows += (f"<tr><td>{k}{mark}</td><td>{escape(t['step'])}</td><td>±{t['window_deg']:g}°"
-                 f"</td><td>{t['holes']}</td><td>{rate}</td><td>{margin}</td>"
+                 f"</td><td>{holes}</td><td>{rate}</td><td>{margin}</td>"
                  f"<td>{'yes' if t['b_proved'] else 'no'}</td></tr>")  # fmt: skip
     png = base64.b64encode(tradeoff_plot(target["tries"], target["fraction"], units))
     met = "met" if target["met"] else "not met: the best trade-off is kept"

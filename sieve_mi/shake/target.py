@@ -8,7 +8,11 @@ of :data:`PLAN`, each a whole solve with A's rotations fixed at the first solve'
    ±δ at which the verdict's attack and certify's search still block every B;
 2. ``sheet``: copies of that hole on a hexagonal sheet (``[fabrication] pattern``; the default
    plate is a tray, :data:`sieve_mi.geometry.pattern.TRAY_MM` square), turned by multiples of
-   about 2δ so a part lying at any turn finds a copy it passes (:func:`sheet_turns`).
+   about 2δ so a part lying at any turn finds a copy it passes (:func:`sheet_turns`);
+3. ``mirror``: that sheet with every other class of copies mirrored (``[fabrication] mirror``),
+   so a flat part lying upside down (an S face up shows Ƨ) finds a copy of its silhouette too;
+   each verdict and proof of the hole holds for its mirror image (turning a B over mirrors its
+   projection).
 
 The loop stops when every A meets the target (the trial's point estimate; its Wilson interval is
 reported) or when no step is left; then the folder holds the best try (:func:`best_try`: every B
@@ -30,7 +34,7 @@ from sieve_mi.settings import ANGLES_MAX
 __all__ = ["PLAN", "best_try", "next_step", "reach_target", "sheet_turns", "try_row"]
 
 #: The steps tried in turn while an A is under its target.
-PLAN = ("window", "sheet")
+PLAN = ("window", "sheet", "mirror")
 
 
 def next_step(tries: list[dict], target: float, skip: tuple = ()) -> str:
@@ -50,8 +54,9 @@ def next_step(tries: list[dict], target: float, skip: tuple = ()) -> str:
     -------
     str
         ``"met"`` when the last try blocks every B and every A passed in at least ``target`` of
-        its trials; ``"stop"`` when the first try lets a B through (no step blocks it better)
-        or every step was taken; else the next step.
+        its trials; ``"stop"`` when the first try lets a B through (no step blocks it better),
+        when the sheet lets one through (its mirrored copies would too) or every step was
+        taken; else the next step.
     """
     last = tries[-1]
     if last["blocked"] and all(a["passed"] >= target * a["trials"] for a in last["pass"]):
@@ -59,7 +64,9 @@ def next_step(tries: list[dict], target: float, skip: tuple = ()) -> str:
     if not tries[0]["blocked"]:
         return "stop"
     done = {t["step"] for t in tries}
-    return next((s for s in PLAN if s not in done and s not in skip), "stop")
+    step = next((s for s in PLAN if s not in done and s not in skip), "stop")
+    # mirrored copies block exactly what the sheet's copies block: never after a sheet that leaks
+    return "stop" if step == "mirror" and not last["blocked"] else step
 
 
 def best_try(tries: list[dict]) -> int:
@@ -98,8 +105,8 @@ def try_row(step: str, report: dict, shaken: dict) -> dict:
     -------
     dict
         ``step``, ``blocked`` (the winner is A), ``window_deg``, ``holes``, ``turns``,
-        ``open_fraction``, ``pass`` (per A: ``name``, ``passed``, ``trials``, ``fraction``,
-        ``ci95``, ``median_time_s``), ``b_margin`` (the least ``margin.found_at_most`` over B,
+        ``mirror`` (the sheet's copies mirrored in turn), ``open_fraction``, ``pass`` (per A:
+        ``name``, ``passed``, ``trials``, ``fraction``, ``ci95``, ``median_time_s``), ``b_margin`` (the least ``margin.found_at_most`` over B,
         scene units), ``b_margin_proved`` (the least ``proved_at_least``; None where one is
         missing), ``b_proved`` (every B certified proved).
     """
@@ -115,6 +122,7 @@ def try_row(step: str, report: dict, shaken: dict) -> dict:
         "window_deg": window.get("degrees", 0.0),
         "holes": pattern.get("count", 1),
         "turns": pattern.get("turns", [0.0]),
+        "mirror": bool(pattern.get("mirror", False)),
         "open_fraction": pattern.get("open_fraction"),
         "pass": [{k: s[k] for k in keys} for s in shaken["shapes"] if s["role"] == "A"],
         "b_margin": min(found) if found and None not in found else None,
@@ -125,7 +133,8 @@ def try_row(step: str, report: dict, shaken: dict) -> dict:
 
 def _scene_for(scene, step: str, quats, degrees: float):
     """A copy of ``scene`` for ``step``: A's rotations fixed at ``quats`` (no search), and the
-    window bisected (``window``) or the sheet of :func:`sheet_turns` at ``degrees``."""
+    window bisected (``window``) or the sheet of :func:`sheet_turns` at ``degrees`` (``sheet``,
+    and ``mirror`` with every other class of copies mirrored)."""
     out, fab = copy.copy(scene), copy.copy(scene.fabrication)
     passes = [replace(e, rotation=[float(x) for x in q]) for e, q in zip(scene.passes, quats)]
     if step == "window":
@@ -134,6 +143,7 @@ def _scene_for(scene, step: str, quats, degrees: float):
         fab.window = float(degrees)
         fab.pattern = "hex" if fab.pattern == "single" else fab.pattern
         fab.turns = sheet_turns(degrees)
+        fab.mirror = step == "mirror" or fab.mirror
     object.__setattr__(out, "passes", passes)
     object.__setattr__(out, "fabrication", fab)
     return out
@@ -156,6 +166,7 @@ def _tell(k: int, row: dict, target: float, to_stderr: bool) -> None:
     parts = [f"{a['name']} {a['passed']}/{a['trials']} ({100 * a['fraction']:.1f} %)"
              for a in row["pass"]]  # fmt: skip
     where = f"±{row['window_deg']:g}°, {row['holes']} hole{'s' * (row['holes'] != 1)}"
+    where += ", every other class mirrored" if row.get("mirror") else ""
     _say(f"target {100 * target:g} %: try {k} ({row['step']}; {where}): " + ", ".join(parts)
          + ("" if row["blocked"] else "; a B passes"), to_stderr)  # fmt: skip
 
@@ -189,7 +200,10 @@ def reach_target(scene, result, out_dir: str, settings, flags: dict) -> dict:
     target, progress, loud = scene.shake.target, not flags["quiet"], flags["to_stderr"]
     names = [s.name for s in result.pass_shapes]
     results, rows, shaken = [result], [], []
-    skip = ("window",) if scene.fabrication.window == "auto" else ()
+    fab = scene.fabrication
+    skip = tuple(
+        s for s, done in (("window", fab.window == "auto"), ("mirror", fab.mirror)) if done
+    )
     step = "solved"
     while True:
         report = read_report(out_dir)[1]

@@ -161,3 +161,28 @@ def test_bodies_counts_separate_parts():
     two = trimesh.util.concatenate([one, one.copy().apply_translation((5, 0, 0))])
     assert bodies(shape_from_trimesh(one, name="one")) == 1
     assert bodies(shape_from_trimesh(two, name="two")) == 2
+
+
+def test_mirrored_copies_alternate_keep_the_web_and_are_in_the_window():
+    """An L (arms 10 and 6 mm, 2 mm wide) is chiral: lying upside down it shows a J, which no
+    turn of the L covers. With ``mirror`` every other site class holds the L reflected in the
+    vertical line through its centre (x -> 10 - x), computed here from the points by hand."""
+    pts = [(0.0, 0.0), (10.0, 0.0), (10.0, 2.0), (2.0, 2.0), (2.0, 6.0), (0.0, 6.0)]
+    ell = manifold3d.CrossSection([pts])
+    p = lay_out(ell, "hex", (60.0, 60.0), 2.0, 1.2, mirror=True)
+    centre = np.array([5.0, 3.0])
+    flips = 0
+    for i, j in p.sites:
+        site = p.centre + i * p.a1 + j * p.a2
+        flipped = (i + j) % 2 == 1  # one turn: classes plain, mirrored, plain, ...
+        want = [(10.0 - x, y) for x, y in pts[::-1]] if flipped else pts  # counter-clockwise
+        want = manifold3d.CrossSection([[tuple(np.add(q, site - centre)) for q in want]])
+        got = p.copy(int(i), int(j))
+        assert (got - want).area() < 1e-9 and (want - got).area() < 1e-9
+        flips += flipped
+    assert 0 < flips < p.count and p.to_dict()["mirror"] is True
+    assert p.least_gap >= 1.2 * (1 - 1e-9)
+    assert _least_gap_by_solids(_copies(p), 2.4) >= 1.2 - 1e-6
+    mirrored_here = manifold3d.CrossSection([[(10.0 - x, y) for x, y in pts[::-1]]])
+    assert abs(mirrored_here.area() - 28.0) < 1e-9  # 10 x 2 + 2 x 4
+    assert (mirrored_here - p.window(0.0)).area() < 1e-9  # the proofs' window holds the J too

@@ -7,7 +7,7 @@ import pytest
 
 from sieve_mi.errors import SieveError
 from sieve_mi.scene import load_scene
-from sieve_mi.shake import commands
+from sieve_mi.shake import commands, target
 from sieve_mi.shake.outputs import report_entry, shape_lines, target_card
 from sieve_mi.shake.settings import ShakeSettings
 from sieve_mi.shake.target import best_try, next_step, sheet_turns, try_row
@@ -67,14 +67,31 @@ def _try(step: str, *passed: int, trials: int = 20, blocked: bool = True, margin
             "window_deg": 0.0, "holes": 1, "b_proved": True}  # fmt: skip
 
 
-def test_the_loop_widens_then_adds_copies_then_stops():
+def test_the_loop_widens_then_adds_copies_then_mirrors_them_then_stops():
     tries = [_try("solved", 20, 10)]  # the second A is under 90 %
     assert next_step(tries, 0.9) == "window"
     tries.append(_try("window", 20, 15))
     assert next_step(tries, 0.9) == "sheet"
     tries.append(_try("sheet", 20, 17))
+    assert next_step(tries, 0.9) == "mirror"
+    assert next_step(tries, 0.9, skip=("mirror",)) == "stop"  # the scene's sheet mirrors already
+    tries.append(_try("mirror", 20, 16))
     assert next_step(tries, 0.9) == "stop"
     assert best_try(tries) == 2  # the least A pass fraction is highest there
+
+
+def test_the_mirror_step_lays_the_sheet_with_mirrored_copies(tmp_path):
+    scene = _scene(tmp_path, "target = 0.9")
+    sheet = target._scene_for(scene, "sheet", [[1.0, 0.0, 0.0, 0.0]], 30.0).fabrication
+    mirror = target._scene_for(scene, "mirror", [[1.0, 0.0, 0.0, 0.0]], 30.0).fabrication
+    assert (sheet.pattern, sheet.mirror, mirror.pattern, mirror.mirror) == (
+        "hex",
+        False,
+        "hex",
+        True,
+    )
+    assert mirror.turns == sheet.turns == sheet_turns(30.0) and mirror.window == 30.0
+    assert scene.fabrication.mirror is False  # the scene itself is left as it was
 
 
 def test_the_loop_stops_at_the_target_and_skips_a_window_already_auto():
@@ -156,6 +173,9 @@ def test_the_target_card_lists_every_try():
     card = target_card({"fraction": 0.9, "met": False, "chosen": 1, "tries": tries}, "mm")
     assert card.count("<tr><td>") == 2 and "1 (in this folder)" in card
     assert "not met: the best trade-off is kept" in card and "data:image/png;base64," in card
+    mirrored = dict(tries[1], step="mirror", holes=16, mirror=True)
+    card = target_card({"fraction": 0.9, "met": False, "chosen": 0, "tries": [mirrored]}, "mm")
+    assert "<td>mirror</td><td>±21.1°</td><td>16, every other class mirrored</td>" in card
 
 
 def test_the_nut_scene_holds_the_m5_in_a_hole_turned_any_way():
