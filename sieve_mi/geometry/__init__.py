@@ -11,6 +11,9 @@ plate
 pattern
     A perforated sheet: copies of the hole on a square or hexagonal lattice, the web between
     them checked exactly, and the copies within a shape's reach for the proofs.
+cliques
+    Groups of a lattice's sites that one set of bounded diameter can touch together (maximal
+    cliques up to lattice moves), for the proofs on a sheet.
 pixels
     A raster image's physical pixel size: PNG's ``pHYs`` chunk, written and read.
 raster

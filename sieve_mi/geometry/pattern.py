@@ -34,6 +34,7 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.errors import SieveError
+from sieve_mi.geometry.cliques import cliques, sites_within
 
 __all__ = [
     "BISECTION_STEPS",
@@ -260,7 +261,7 @@ class Pattern:
         """
         outline = self.outline if outline is None else outline
         radius = _circumradius(outline, self.centre)
-        reach_sites = _sites_within(self.a1, self.a2, reach + 2.0 * radius)
+        reach_sites = sites_within(self.a1, self.a2, reach + 2.0 * radius)
         parts = [_copy(outline, self.centre, self.at(i, j), t, m)
                  for i, j in reach_sites for t in self.turns
                  for m in {False, self.mirror}]  # fmt: skip
@@ -276,7 +277,7 @@ class Pattern:
         that close (centres within ``reach + 2R``, R: H's circumscribed radius; a superset of
         the true pairs), and lie in a maximal clique. With one turn every copy is H translated,
         and a lattice move takes any clique to one of the maximal cliques through (0, 0) up to
-        translation (:func:`_cliques`), or up to a half turn too where H is centrally
+        translation (:func:`~sieve_mi.geometry.cliques.cliques`), or up to a half turn too where H is centrally
         symmetric (then H is replaced by its union with its half turn, within
         :data:`SYMMETRY_SLACK` of H's area and never smaller, and a half turn of a group is the
         same group for a shape at every turn); a copy of each, laid at least ``reach`` from the others,
@@ -300,7 +301,7 @@ class Pattern:
             return self.window(reach, outline)
         if symmetric:  # H' = H and H half-turned, a superset: every copy is H' up to a half turn
             outline = both
-        groups = _cliques(self.a1, self.a2, reach + 2.0 * radius, symmetric)
+        groups = cliques(self.a1, self.a2, reach + 2.0 * radius, symmetric)
         step = 0.0
         parts = []
         for group in groups:
@@ -355,69 +356,6 @@ def _circumradius(outline, centre) -> float:
     return float(np.linalg.norm(pts - centre, axis=1).max())
 
 
-def _sites_within(a1, a2, radius: float) -> list[tuple[int, int]]:
-    """Lattice indices (i, j) with ``|i a1 + j a2| <= radius``, (0, 0) first."""
-    basis = np.column_stack([a1, a2])
-    inverse_norm = np.linalg.norm(np.linalg.inv(basis), 2)  # |(i, j)| <= this * |x|
-    m = int(math.ceil(radius * inverse_norm)) + 1
-    out = [(0, 0)]
-    for i in range(-m, m + 1):
-        for j in range(-m, m + 1):
-            if (i, j) != (0, 0) and np.linalg.norm(i * a1 + j * a2) <= radius:
-                out.append((i, j))
-    return out
-
-
-def _cliques(a1, a2, near: float, symmetric: bool = False) -> list[list[tuple[int, int]]]:
-    """The maximal cliques of sites through (0, 0), two sites joined when their positions are
-    at most ``near`` apart, one of each class under lattice translation (and the half turn
-    (i, j) -> (-i, -j) where ``symmetric``) and none that such a move of another contains; each
-    as a list of (i, j), (0, 0) first.
-
-    Examples
-    --------
-    On a hexagonal lattice of unit pitch with only nearest neighbours joined, the groups are
-    the two triangles (pointing up and down):
-
-    >>> import numpy as np
-    >>> sorted(len(g) for g in _cliques(np.array([1.0, 0]), np.array([0.5, 0.866]), 1.01))
-    [3, 3]
-
-    and the one triangle up to a half turn:
-
-    >>> _cliques(np.array([1.0, 0]), np.array([0.5, 0.866]), 1.01, symmetric=True)
-    [[(0, 0), (0, 1), (1, 0)]]
-    """
-    import networkx as nx
-
-    sites = _sites_within(a1, a2, 2.0 * near)
-    pos = {s: s[0] * np.asarray(a1) + s[1] * np.asarray(a2) for s in sites}
-    graph = nx.Graph()
-    graph.add_nodes_from(sites)
-    for m, s in enumerate(sites):
-        for t in sites[m + 1 :]:
-            if np.linalg.norm(pos[s] - pos[t]) <= near:
-                graph.add_edge(s, t)
-    found = []
-    for clique in nx.find_cliques(graph):
-        if (0, 0) not in clique:
-            continue
-        lo = min(clique)
-        found.append(frozenset((i - lo[0], j - lo[1]) for i, j in clique))
-    found = sorted(set(found), key=lambda c: (-len(c), sorted(c)))
-    kept = []
-    for c in found:
-        moves = [c, frozenset((-i, -j) for i, j in c)] if symmetric else [c]
-        if not any(
-            {(i - min(m)[0] + s[0], j - min(m)[1] + s[1]) for i, j in m} <= k
-            for m in moves
-            for k in kept
-            for s in k
-        ):
-            kept.append(c)
-    return [sorted(c, key=lambda s: (s != (0, 0), s)) for c in kept]
-
-
 def _keeps(found: float, web: float) -> bool:
     """Whether a measured gap is the web (up to :data:`WEB_SLACK`)."""
     return found >= web * (1.0 - WEB_SLACK)
@@ -435,7 +373,7 @@ def _least_gap(outline, centre, turns, vectors, web: float, mirror: bool = False
     reaches ``web`` matters)."""
     a1, a2 = vectors
     radius = _circumradius(outline, centre)
-    near = _sites_within(a1, a2, 2.0 * radius + web)[1:]
+    near = sites_within(a1, a2, 2.0 * radius + web)[1:]
     k, best = len(turns), 2.0 * web
     for r in range(2 * k if mirror else k):  # site (r, 0) holds class r
         here = _copy(outline, centre, centre + r * a1, float(turns[r % k]), _mirrored(r, k, mirror))
@@ -492,7 +430,7 @@ def _fitting(outline, centre, vectors, turns, box, mirror: bool = False) -> list
         extents.append((np.array(b[:2]) - centre, np.array(b[2:]) - centre))
     span = float(np.linalg.norm(box[1] - box[0])) + float(np.linalg.norm(a1) + np.linalg.norm(a2))
     out = []
-    for i, j in _sites_within(a1, a2, span):
+    for i, j in sites_within(a1, a2, span):
         lo, hi = extents[(i + j) % k]
         site = centre + i * a1 + j * a2
         if np.all(site + lo >= box[0]) and np.all(site + hi <= box[1]):
