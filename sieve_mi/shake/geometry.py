@@ -3,7 +3,8 @@
 The plate is an extrusion, so a convex partition of its top face (rectangle minus the holes),
 extruded, is an exact convex decomposition (:mod:`sieve_mi.geometry.plate`). A convex part goes
 in as it is (MuJoCo collides a mesh through its convex hull); a non-convex part is decomposed
-with CoACD and the Hausdorff distance between the decomposition and the mesh is measured.
+with CoACD, refined to a bound, and the Hausdorff distance between the decomposition and the
+mesh is measured (:mod:`sieve_mi.shake.decompose`).
 Everything here is in scene units; :mod:`sieve_mi.shake.model` converts to metres.
 """
 
@@ -17,14 +18,13 @@ import numpy as np
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.plate import convex_pieces, plate_region
 from sieve_mi.geometry.sieve import plate_holes, read_plate
+from sieve_mi.shake.decompose import hausdorff
 
 __all__ = [
     "Part",
     "Plate",
     "collision_hull",
     "collision_pieces",
-    "bulge",
-    "hausdorff",
     "part_from_mesh",
     "plate_from_mesh",
     "plate_from_outline",
@@ -34,12 +34,6 @@ __all__ = [
 
 #: A mesh is taken as convex when its volume is within this fraction of its hull's.
 CONVEX_TOLERANCE = 1e-4
-#: Surface samples per mesh for the sampled Hausdorff distance.
-HAUSDORFF_SAMPLES = 20_000
-#: Each surface's samples that the other's are measured to: this many times
-#: ``HAUSDORFF_SAMPLES`` (a point on the other surface is then within half a millimetre's tenth
-#: of one on a 30 mm letter, where 20,000 left it 0.4 mm away, so an exact split read 0.6 mm).
-REFERENCE_SAMPLES = 10
 #: CoACD cuts each part in its principal axes' frame (its ``pca`` option). On the letters of
 #: scenes/letters.toml this brings the decomposition's Hausdorff distance under 1 mm where the
 #: default left a piece bridging a concavity (G: 3.29 to 0.78 mm, R: 1.90 to 0.84 mm; a lower
@@ -479,150 +473,3 @@ def _coacd_pieces(mesh, threshold: float, seed: int, bound: float = 0.0) -> list
         seed=int(seed),
         pca=COACD_PCA,
     )
-
-
-def hausdorff(mesh, hulls: list[np.ndarray], com: np.ndarray, samples: int = HAUSDORFF_SAMPLES):
-    """Hausdorff distance between a solid and the union of convex pieces standing in for it.
-
-    For two solids it is attained on a boundary point of one that lies outside the other, so
-    both surfaces are sampled evenly (a fixed seed) and each sample outside the other solid is
-    measured to the other's nearest sample. A sample farther than the sample spacing from the
-    other surface is inside or outside by its winding number about the other mesh
-    (:func:`_winding`): this ignores the union's internal seams and voids, which no collision
-    sees, and which lie deep inside the part (two pieces of an H that meet a thousandth of a
-    millimetre apart leave a wall 2.9 mm from the part's surface, which the earlier test, the
-    sign along the nearest sample's normal, counted as error). A sample nearer than the spacing
-    is outside when it lies in front of that nearest sample's normal. The result is within the
-    sample spacing of the exact one.
-
-    Parameters
-    ----------
-    mesh : trimesh.Trimesh
-        The part, scene units.
-    hulls : list of (n, 3) float
-        Convex pieces relative to ``com``.
-    com : (3,) float
-        Where ``hulls``' origin lies in ``mesh``'s frame.
-    samples : int
-        Samples per surface.
-
-    Returns
-    -------
-    (float, float)
-        The distance and the sample spacing, scene units.
-    """
-    import trimesh
-
-    union = manifold3d.Manifold.batch_boolean(
-        [manifold3d.Manifold.hull_points(h + com) for h in hulls], manifold3d.OpType.Add
-    )
-    um = union.to_mesh()
-    union_mesh = trimesh.Trimesh(np.asarray(um.vert_properties)[:, :3], np.asarray(um.tri_verts))
-    a, na = _samples(mesh, REFERENCE_SAMPLES * samples)
-    b, nb = _samples(union_mesh, REFERENCE_SAMPLES * samples)
-    fine = float(np.sqrt(max(mesh.area, union_mesh.area) / (REFERENCE_SAMPLES * samples)))
-    d = max(
-        _outside_distance(a[::REFERENCE_SAMPLES], b, nb, union_mesh.triangles, fine),
-        _outside_distance(b[::REFERENCE_SAMPLES], a, na, np.asarray(mesh.triangles), fine),
-    )
-    spacing = float(np.sqrt(max(mesh.area, union_mesh.area) / samples))
-    return float(d), spacing
-
-
-def bulge(mesh, points: np.ndarray, samples: int = 2000) -> float:
-    """How far a convex piece reaches out of a solid: the largest distance to ``mesh``'s
-    surface of a sample of the piece's hull's surface outside ``mesh`` (as :func:`hausdorff`
-    measures, on ``samples`` points of the piece against ten times as many of the mesh).
-
-    Parameters
-    ----------
-    mesh : trimesh.Trimesh
-        The solid, scene units.
-    points : (k, 3) float
-        The piece's vertices, ``mesh``'s frame.
-    samples : int
-
-    Returns
-    -------
-    float
-        Scene units.
-    """
-    import trimesh
-
-    hull = trimesh.convex.convex_hull(points)
-    q, nq = _samples(mesh, REFERENCE_SAMPLES * samples)
-    fine = float(np.sqrt(mesh.area / (REFERENCE_SAMPLES * samples)))
-    p, _ = _samples(hull, samples)
-    return _outside_distance(p, q, nq, np.asarray(mesh.triangles), fine)
-
-
-def _outside_distance(p, q, nq, triangles, spacing: float) -> float:
-    """Largest distance from a point of ``p`` (n, 3) to the samples ``q`` (m, 3) of a solid's
-    surface, among the points outside that solid (outward normals ``nq``, bounded by
-    ``triangles`` (F, 3, 3)): a point farther than ``spacing`` from ``q`` is outside when its
-    winding number is under 1/2 (:func:`_winding`), a nearer one when it lies in front of its
-    nearest sample's normal."""
-    from scipy.spatial import cKDTree
-
-    dist, idx = cKDTree(q).query(p)
-    near = dist <= spacing
-    outside = near & (np.einsum("ij,ij->i", p - q[idx], nq[idx]) > 0)
-    best = float(dist[outside].max()) if outside.any() else 0.0
-    tri = np.asarray(triangles, np.float64)
-    far = np.nonzero(~near)[0]
-    far = far[np.argsort(-dist[far])]  # the farthest first: stop where none can beat ``best``
-    for s in range(0, len(far), 64):
-        idx = far[s : s + 64]
-        if dist[idx[0]] <= best:
-            break
-        idx = idx[_winding(tri, p[idx]) < 0.5]
-        if len(idx):
-            best = max(best, float(_surface_distance(tri, p[idx]).max()))
-    return best
-
-
-def _surface_distance(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Exact distance from each of ``points`` (n, 3) to the nearest of ``triangles`` (F, 3, 3)."""
-    import trimesh
-
-    f, n = len(triangles), len(points)
-    near = trimesh.triangles.closest_point(np.tile(triangles, (n, 1, 1)), np.repeat(points, f, 0))
-    return np.linalg.norm(near - np.repeat(points, f, 0), axis=1).reshape(n, f).min(axis=1)
-
-
-def _winding(triangles: np.ndarray, points: np.ndarray, chunk: int = 256) -> np.ndarray:
-    """Generalised winding number of each point about a closed, outward-oriented triangle mesh
-    (1 inside, 0 outside): the triangles' solid angles (Van Oosterom and Strackee's formula)
-    summed over 4 pi.
-
-    Parameters
-    ----------
-    triangles : (F, 3, 3) float
-    points : (n, 3) float
-
-    Returns
-    -------
-    (n,) float
-    """
-    out = np.empty(len(points))
-    for s in range(0, len(points), chunk):
-        v = triangles[None] - points[s : s + chunk, None, None, :]  # (c, F, 3, 3)
-        a, b, c = v[:, :, 0], v[:, :, 1], v[:, :, 2]
-        la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
-        num = np.einsum("cfi,cfi->cf", a, np.cross(b, c))
-        den = (
-            la * lb * lc
-            + np.einsum("cfi,cfi->cf", a, b) * lc
-            + np.einsum("cfi,cfi->cf", b, c) * la
-            + np.einsum("cfi,cfi->cf", c, a) * lb
-        )
-        out[s : s + chunk] = np.arctan2(num, den).sum(axis=1) / (2 * np.pi)
-    return out
-
-
-def _samples(mesh, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` points on a mesh's surface, area-weighted, from a fixed seed, and their normals."""
-    import trimesh
-
-    pts, face = trimesh.sample.sample_surface(mesh, n, seed=0)
-    return np.asarray(pts, dtype=np.float64), np.asarray(mesh.face_normals)[face]
