@@ -113,12 +113,13 @@ def refine(vertices, faces, pieces: list[np.ndarray], bound: float, **options) -
     """Split again, with CoACD, each piece that bulges more than ``bound`` out of the mesh.
 
     A piece's bulge is the largest distance of a sample of its hull's surface outside the mesh
-    (:func:`bulge`). A piece over ``bound`` is replaced by CoACD's pieces
-    of the mesh inside its hull (manifold3d's intersection), which CoACD measures against that
-    smaller solid, so its threshold is finer in scene units; every new piece lies inside the old
-    hull, and together they cover the mesh inside it, so the union still covers the mesh and
-    only shrinks towards it. At most :data:`REFINE_ROUNDS` rounds; a heuristic, so the result's
-    Hausdorff distance is measured and reported, never assumed.
+    (:func:`bulge`). A piece over ``bound`` is replaced by CoACD's pieces of the mesh inside its
+    hull (manifold3d's intersection), which CoACD measures against that smaller solid, so its
+    threshold is finer in scene units; every new piece lies inside the old hull, and together
+    they cover the mesh inside it, so the union still covers the mesh and only shrinks towards
+    it. A bound below the bulge's sample spacing is raised to it (a piece over it could not be
+    told from one that fits). At most :data:`REFINE_ROUNDS` rounds; a heuristic, so the
+    result's Hausdorff distance is measured and reported, never assumed.
 
     Parameters
     ----------
@@ -143,6 +144,9 @@ def refine(vertices, faces, pieces: list[np.ndarray], bound: float, **options) -
     solid = manifold3d.Manifold(
         manifold3d.Mesh(np.asarray(vertices, np.float32), np.asarray(faces, np.uint32))
     )
+    # a bulge is measured to samples this far apart: below it, splitting again cannot be judged
+    floor = float(np.sqrt(mesh.area / (REFERENCE_SAMPLES * PIECE_SAMPLES)))
+    bound = max(bound, floor)
     for _ in range(REFINE_ROUNDS):
         over = [k for k, p in enumerate(pieces) if bulge(mesh, p, PIECE_SAMPLES) > bound]
         if not over:
