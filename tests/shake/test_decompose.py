@@ -68,3 +68,20 @@ def test_part_reports_its_bound_and_the_cache_keys_it(coacd_cache, monkeypatch):
     assert all(np.array_equal(a, b) for a, b in zip(again.hulls, part.hulls, strict=True))
     with pytest.raises(pytest.fail.Exception):
         part_from_mesh(_ell(), "L", "A", 0.05, bound=0.5)
+
+
+def test_a_part_left_over_its_bound_is_said_plainly(coacd_cache, monkeypatch):
+    """A split that stays coarse (CoACD made to return the L's hull, refinement made to keep it):
+    5 mm from the L (the hull's known distance), over a 1 mm bound, so ``within_bound`` is False
+    and a warning names the part and both numbers."""
+    import coacd
+
+    ell = _ell()
+    hull = ell.convex_hull
+    monkeypatch.setattr(coacd, "run_coacd", lambda *a, **k: [(hull.vertices, hull.faces)])
+    monkeypatch.setattr(decompose, "refine", lambda v, f, pieces, bound, **k: pieces)
+    part = part_from_mesh(ell, "L", "A", 0.05, bound=1.0)
+    assert abs(part.hausdorff - 5.0) < part.hausdorff_resolution
+    assert part.to_dict()["within_bound"] is False
+    (warning,) = part.warnings
+    assert warning.startswith("L: its 1 convex pieces are 5") and "over the bound of 1" in warning
