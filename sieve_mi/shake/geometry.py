@@ -455,7 +455,7 @@ def part_from_mesh(
         warnings.append(
             f"{name}: its {len(hulls)} convex pieces are {h:.3g} scene units from the part "
             f"(Hausdorff, sampled to {res:.2g}), over the bound of {bound:.3g}: the part is "
-            "fatter in the engine than it is, so its pass fraction is low"
+            "fatter in the engine than it is, so its pass fraction may be too low"
         )
     return Part(name, role, hulls, volume, inertia, radius, convex, h, res, warnings, com, bound)
 
