@@ -173,7 +173,11 @@ def shake_cascade(
     """
     unit_m, run = metres_per_unit(units), Run().start()
     with run.stage("geometry"):
-        parts = {n: part_from_mesh(m, n, None, settings.coacd_threshold) for n, m in meshes.items()}
+        bound = settings.hausdorff_bound * 1e-3 / unit_m
+        parts = {
+            n: part_from_mesh(m, n, None, settings.coacd_threshold, bound=bound)
+            for n, m in meshes.items()
+        }
     reaching = {n: list(range(settings.trials)) for n in parts}
     ends = {n: np.full(settings.trials, len(stages)) for n in parts}
     sieves = []

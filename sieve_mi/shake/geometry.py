@@ -3,7 +3,8 @@
 The plate is an extrusion, so a convex partition of its top face (rectangle minus the holes),
 extruded, is an exact convex decomposition (:mod:`sieve_mi.geometry.plate`). A convex part goes
 in as it is (MuJoCo collides a mesh through its convex hull); a non-convex part is decomposed
-with CoACD and the Hausdorff distance between the decomposition and the mesh is measured.
+with CoACD, refined to a bound, and the Hausdorff distance between the decomposition and the
+mesh is measured (:mod:`sieve_mi.shake.decompose`).
 Everything here is in scene units; :mod:`sieve_mi.shake.model` converts to metres.
 """
 
@@ -17,13 +18,13 @@ import numpy as np
 from sieve_mi.errors import SieveError
 from sieve_mi.geometry.plate import convex_pieces, plate_region
 from sieve_mi.geometry.sieve import plate_holes, read_plate
+from sieve_mi.shake.decompose import hausdorff
 
 __all__ = [
     "Part",
     "Plate",
     "collision_hull",
     "collision_pieces",
-    "hausdorff",
     "part_from_mesh",
     "plate_from_mesh",
     "plate_from_outline",
@@ -33,8 +34,6 @@ __all__ = [
 
 #: A mesh is taken as convex when its volume is within this fraction of its hull's.
 CONVEX_TOLERANCE = 1e-4
-#: Surface samples per mesh for the sampled Hausdorff distance.
-HAUSDORFF_SAMPLES = 20_000
 #: CoACD cuts each part in its principal axes' frame (its ``pca`` option). On the letters of
 #: scenes/letters.toml this brings the decomposition's Hausdorff distance under 1 mm where the
 #: default left a piece bridging a concavity (G: 3.29 to 0.78 mm, R: 1.90 to 0.84 mm; a lower
@@ -369,6 +368,8 @@ class Part:
         Sampled Hausdorff distance between the mesh and the union of ``hulls``, scene units.
     hausdorff_resolution : float
         Spacing of the samples (the distance's uncertainty), scene units.
+    hausdorff_bound : float
+        The bound the pieces were refined to, scene units (0: none).
     warnings : list of str
     com : (3,) float
         The centre of mass in the mesh's frame, scene units.
@@ -385,6 +386,7 @@ class Part:
     hausdorff_resolution: float
     warnings: list
     com: np.ndarray | None = None
+    hausdorff_bound: float = 0.0
 
     def to_dict(self) -> dict:
         """JSON-ready geometry summary (scene units)."""
@@ -395,10 +397,16 @@ class Part:
             "radius": float(self.radius),
             "hausdorff": float(self.hausdorff),
             "hausdorff_resolution": float(self.hausdorff_resolution),
+            "hausdorff_bound": float(self.hausdorff_bound),
+            "within_bound": None
+            if self.hausdorff_bound <= 0
+            else bool(self.hausdorff <= self.hausdorff_bound),
         }
 
 
-def part_from_mesh(mesh, name: str, role: str | None, threshold: float, seed: int = 0) -> Part:
+def part_from_mesh(
+    mesh, name: str, role: str | None, threshold: float, seed: int = 0, bound: float = 0.0
+) -> Part:
     """Convex pieces, volume and inertia of one part.
 
     Parameters
@@ -411,6 +419,10 @@ def part_from_mesh(mesh, name: str, role: str | None, threshold: float, seed: in
         CoACD's concavity threshold (used only for a non-convex part).
     seed : int
         CoACD's seed.
+    bound : float
+        Largest Hausdorff distance wanted between the part and its pieces, scene units: a piece
+        bulging out further is split again (:func:`sieve_mi.shake.decompose.refine`); a part
+        left over it gets a warning. 0: CoACD's pieces as they are, no warning.
     """
     import trimesh
 
@@ -435,14 +447,20 @@ def part_from_mesh(mesh, name: str, role: str | None, threshold: float, seed: in
     if convex:
         hulls = [np.asarray(hull.vertices) - com]
     else:
-        hulls = [p - com for p in _coacd_pieces(mesh, threshold, seed)]
+        hulls = [p - com for p in _coacd_pieces(mesh, threshold, seed, bound)]
     inertia = np.asarray(solid.moment_inertia, dtype=np.float64) / solid.density
     radius = float(np.linalg.norm(np.asarray(hull.vertices) - com, axis=1).max())
     h, res = hausdorff(solid, hulls, com) if not convex else (0.0, 0.0)
-    return Part(name, role, hulls, volume, inertia, radius, convex, h, res, warnings, com)
+    if bound > 0 and h > bound:
+        warnings.append(
+            f"{name}: its {len(hulls)} convex pieces are {h:.3g} scene units from the part "
+            f"(Hausdorff, sampled to {res:.2g}), over the bound of {bound:.3g}: the part is "
+            "fatter in the engine than it is, so its pass fraction may be too low"
+        )
+    return Part(name, role, hulls, volume, inertia, radius, convex, h, res, warnings, com, bound)
 
 
-def _coacd_pieces(mesh, threshold: float, seed: int) -> list[np.ndarray]:
+def _coacd_pieces(mesh, threshold: float, seed: int, bound: float = 0.0) -> list[np.ndarray]:
     """CoACD's convex pieces of a mesh, vertices (n, 3) float each (cached on disk:
     :mod:`sieve_mi.shake.decompose`)."""
     from sieve_mi.shake.decompose import coacd_pieces
@@ -450,63 +468,8 @@ def _coacd_pieces(mesh, threshold: float, seed: int) -> list[np.ndarray]:
     return coacd_pieces(
         np.asarray(mesh.vertices, np.float64),
         np.asarray(mesh.faces, np.int64),
+        bound=float(bound),
         threshold=float(threshold),
         seed=int(seed),
         pca=COACD_PCA,
     )
-
-
-def hausdorff(mesh, hulls: list[np.ndarray], com: np.ndarray, samples: int = HAUSDORFF_SAMPLES):
-    """Hausdorff distance between a solid and the union of convex pieces standing in for it.
-
-    For two solids it is attained on a boundary point of one that lies outside the other, so
-    both surfaces are sampled evenly (a fixed seed) and each sample outside the other solid is
-    measured to the other's nearest sample; a sample is taken as inside when it lies behind the
-    outward normal of that nearest sample (this also ignores the union's internal seams and
-    voids, which no collision sees). The result is within the sample spacing of the exact one.
-
-    Parameters
-    ----------
-    mesh : trimesh.Trimesh
-        The part, scene units.
-    hulls : list of (n, 3) float
-        Convex pieces relative to ``com``.
-    com : (3,) float
-        Where ``hulls``' origin lies in ``mesh``'s frame.
-    samples : int
-        Samples per surface.
-
-    Returns
-    -------
-    (float, float)
-        The distance and the sample spacing, scene units.
-    """
-    import trimesh
-
-    union = manifold3d.Manifold.batch_boolean(
-        [manifold3d.Manifold.hull_points(h + com) for h in hulls], manifold3d.OpType.Add
-    )
-    um = union.to_mesh()
-    union_mesh = trimesh.Trimesh(np.asarray(um.vert_properties)[:, :3], np.asarray(um.tri_verts))
-    a, na = _samples(mesh, samples)
-    b, nb = _samples(union_mesh, samples)
-    d = max(_outside_distance(a, b, nb), _outside_distance(b, a, na))
-    spacing = float(np.sqrt(max(mesh.area, union_mesh.area) / samples))
-    return float(d), spacing
-
-
-def _outside_distance(p: np.ndarray, q: np.ndarray, nq: np.ndarray) -> float:
-    """Largest distance from a point of ``p`` outside the solid sampled by ``q`` (normals ``nq``)."""
-    from scipy.spatial import cKDTree
-
-    dist, idx = cKDTree(q).query(p)
-    outside = np.einsum("ij,ij->i", p - q[idx], nq[idx]) > 0
-    return float(dist[outside].max()) if outside.any() else 0.0
-
-
-def _samples(mesh, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` points on a mesh's surface, area-weighted, from a fixed seed, and their normals."""
-    import trimesh
-
-    pts, face = trimesh.sample.sample_surface(mesh, n, seed=0)
-    return np.asarray(pts, dtype=np.float64), np.asarray(mesh.face_normals)[face]

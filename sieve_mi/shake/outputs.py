@@ -102,17 +102,24 @@ def summary(report: dict) -> str:
     ]
     for s in report["shapes"]:
         med = "-" if s["median_time_s"] is None else f"{s['median_time_s']:.2f}"
+        over = "!" if s["geometry"].get("within_bound") is False else ""
+        h = f"{s['geometry']['hausdorff']:.3f}{over}"
         lo, hi = s["ci95"]
         rows.append(
             f"{s['name'][:16]:<16} {s['role'] or '?':<4} {s['passed']:>4}/{s['trials']:<4} "
             f"{s['fraction']:>8.3f} {f'[{lo:.3f}, {hi:.3f}]':>16} {med:>8} "
-            f"{s['geometry']['hausdorff']:>9.3f} {s['fidelity']['sink_mm']:>8.4f}"
+            f"{h:>9} {s['fidelity']['sink_mm']:>8.4f}"
         )
     bound = report["engine"]["sink_bound_mm"]
     ok = "all held" if report["fidelity_ok"] else "NOT all held"
     rows.append(
         f"fidelity: resting sink under {bound} mm, penetration while shaken within its bound, "
         f"no engine warning: {ok}; hausdorff in {report['units']}"
+        + (
+            f" (!: over the bound of {report['settings']['hausdorff_bound']} mm)"
+            if any(s["geometry"].get("within_bound") is False for s in report["shapes"])
+            else ""
+        )
     )
     rows += [f"warning: {w}" for w in report.get("warnings", [])]
     return "\n".join(rows)

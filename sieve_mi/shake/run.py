@@ -149,8 +149,9 @@ def shake(
         check_sizes(inp, unit_m)
         plate = plate_from_mesh(inp.plate, inp.plate_path, inp.units)
         check_plate(plate, settings, unit_m, inp.plate_path)
+        threshold, bound = settings.coacd_threshold, settings.hausdorff_bound * 1e-3 / unit_m
         parts = [
-            (name, role, path, part_from_mesh(mesh, name, role, settings.coacd_threshold))
+            (name, role, path, part_from_mesh(mesh, name, role, threshold, bound=bound))
             for name, role, path, mesh in inp.parts
         ]
         preflight(plate, parts, inp.plate_path, settings, unit_m)

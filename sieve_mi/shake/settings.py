@@ -149,6 +149,15 @@ class ShakeSettings:
         minimum=0.01,
         maximum=1.0,
     )
+    hausdorff_bound: float = setting(
+        0.4,
+        "largest Hausdorff distance between a non-convex part and its convex pieces: a piece "
+        "bulging out further is split again (0: CoACD's pieces as they are); a part left over "
+        "it is reported",
+        unit="mm",
+        minimum=0.0,
+        maximum=100.0,
+    )
     workers: int = setting(
         0,
         "worker processes (0: every CPU core); results do not depend on it",
