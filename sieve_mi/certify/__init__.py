@@ -43,6 +43,8 @@ section
     The slab-section proof: no rigid motion passes a plate of a given thickness.
 turns
     The section proof's batched turn test: a quadtree of proved bounds over in-plane turns.
+chain
+    The section proof's chain test on a sheet: a section too wide for any one copy of the hole.
 replay_section
     The independent replay of a slab-section proof.
 svg

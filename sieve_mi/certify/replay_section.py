@@ -13,7 +13,10 @@ re-proves each leaf (docs/certify.md, "Thin plates"):
    |P (v_i - v_j)| - r_i - r_j > diam(H), ``width`` evidence by the minimal width of the points'
    hull less twice their largest r above H's hull's minimal width, ``turns`` evidence by a
    translation quadtree (:func:`~sieve_mi.certify.replay_geometry.no_translation`) on every
-   interval of turns;
+   interval of turns, ``chain`` evidence (a sheet: :mod:`sieve_mi.certify.chain`) by every step
+   |x_k - x_(k+1)| + r_k + r_(k+1) below a lower bound on the distance between the convex hulls
+   of any two of H's contours (:func:`hull_separation`, less 2 eta) and the ends further apart
+   (after their r) than the largest diameter of one contour;
 4. the section is proved iff every leaf is re-proved and none is open.
 """
 
@@ -25,7 +28,7 @@ import numpy as np
 
 from sieve_mi.certify.replay_geometry import Hole, no_translation
 
-__all__ = ["CUBE_FACES", "SectionReplay", "hull_min_width", "largest_distance"]
+__all__ = ["CUBE_FACES", "SectionReplay", "hull_min_width", "hull_separation", "largest_distance"]
 
 #: The cube's faces in the certificate's order: (axis, sign).
 CUBE_FACES = ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0))
@@ -60,6 +63,41 @@ def hull_min_width(points: np.ndarray) -> float:
             cross = edge[0] * (h[:, 1] - a[1]) - edge[1] * (h[:, 0] - a[0])
             best = min(best, float(np.abs(cross).max()) / length)
     return 0.0 if best == math.inf else best
+
+
+def hull_separation(contours: list) -> float:
+    """A lower bound on the distance between the convex hulls of any two contours: per pair the
+    larger of the bounding circles' gap (about the vertices' mean) and the separating-axis gap
+    over both hulls' edge normals (u . b - u . a over the vertices, either way round); ``inf``
+    for one contour, 0 or less where two hulls may meet."""
+    from scipy.spatial import ConvexHull
+
+    hulls = []
+    for c in contours:
+        c = np.asarray(c, dtype=np.float64)
+        try:
+            hulls.append(c[ConvexHull(c).vertices])
+        except Exception:  # degenerate: its vertices stand for the hull
+            hulls.append(c)
+    mid = [h.mean(axis=0) for h in hulls]
+    rad = [float(np.linalg.norm(h - m, axis=1).max()) for h, m in zip(hulls, mid)]
+    best = math.inf
+    for i in range(len(hulls)):
+        for j in range(i + 1, len(hulls)):
+            circles = float(np.linalg.norm(mid[i] - mid[j])) - rad[i] - rad[j]
+            if circles >= best:
+                continue
+            axes = []
+            for h in (hulls[i], hulls[j]):
+                d = np.roll(h, -1, axis=0) - h
+                n = np.column_stack([d[:, 1], -d[:, 0]])
+                norm = np.linalg.norm(n, axis=1)
+                axes.append(n[norm > 0] / norm[norm > 0, None])
+            u = np.concatenate(axes)
+            a, b = hulls[i] @ u.T, hulls[j] @ u.T
+            axis = float(np.maximum(b.min(0) - a.max(0), a.min(0) - b.max(0)).max())
+            best = min(best, max(circles, axis))
+    return best
 
 
 def _direction(face: int, uv: np.ndarray) -> np.ndarray:
@@ -106,6 +144,7 @@ class SectionReplay:
             float(np.linalg.norm(vertices[np.unique(faces)], axis=1).max()),
         )
         self.eta = 1e-6 * scale
+        self._chain = None  # (step, diameter) of the chain test, computed when first needed
 
     def run(self) -> bool:
         """Every check; True when the section is proved (``errors`` lists the problems)."""
@@ -203,7 +242,22 @@ class SectionReplay:
             return hull_min_width(x) - 2.0 * float(r.max()) > self.width * (1 + MARGIN) + self.eta
         if ev["kind"] == "turns":
             return self._turns(x, r, ev)
+        if ev["kind"] == "chain":
+            return self._chain_holds(x, r)
         return False
+
+    def _chain_holds(self, x: np.ndarray, r: np.ndarray) -> bool:
+        """The points (in their order) step by less than the hulls' separation and end further
+        apart than one contour's diameter."""
+        if self._chain is None:
+            gap = hull_separation(self.hole.contours)
+            far = max(largest_distance(c) for c in self.hole.contours)
+            step = gap * (1 - MARGIN) - 2.0 * self.eta if math.isfinite(gap) else 0.0
+            self._chain = (step, far * (1 + MARGIN) + self.eta)
+        step, far = self._chain
+        steps = np.linalg.norm(np.diff(x, axis=0), axis=1) + r[:-1] + r[1:]
+        ends = float(np.linalg.norm(x[0] - x[-1])) - r[0] - r[-1]
+        return step > 0 and bool(np.all(steps < step)) and ends > far
 
     def _turns(self, x: np.ndarray, r: np.ndarray, ev: dict) -> bool:
         """Every interval of turns of the evidence's tree excluded by a translation quadtree."""

@@ -29,6 +29,9 @@ plates"):
 ``width``
     band points whose convex hull's minimal width, less twice their largest r, exceeds the
     minimal width of H's convex hull;
+``chain``
+    on a sheet (several contours): band points that hang together by steps shorter than the
+    gap between copies and end further apart than one copy's diameter (:mod:`~.chain`);
 ``turns``
     a one-dimensional branch and bound over the turn psi: each interval of turns is excluded when
     no offset puts every chosen point within its bound (r plus the turn's displacement
@@ -50,7 +53,7 @@ from dataclasses import dataclass, field
 import manifold3d
 import numpy as np
 
-from sieve_mi.certify import bounds
+from sieve_mi.certify import bounds, chain
 from sieve_mi.certify.search import EvenOdd
 from sieve_mi.certify.turns import TurnTest, spread
 from sieve_mi.geometry.meshes import Shape
@@ -396,6 +399,7 @@ class SectionSearch:
         self.diameter, self.width = hull_widths(contours)
         segs = bounds.contour_segments(contours)
         self.eta = 1e-6 * max(float(np.abs(segs).max()), self.radius)
+        self.chain = chain.Chain(contours, self.eta) if len(contours) > 1 else None
         self.cache = bounds.OffsetCache(hole, self.eta, r_min=self.eta)
         region = EvenOdd(contours)
         self.turn_test = TurnTest(self.cache, bounds.LowerDistance(segs, region, LOWER_PIXELS),
@@ -477,12 +481,15 @@ class SectionSearch:
             if gap[c] > self.diameter * (1 + RELATIVE_MARGIN) + self.eta:
                 out.append({"kind": "diameter", "pair": pair[c].tolist()})
                 continue
-            out.append(None)
-            if time.perf_counter() - t0 > budget_s:
+            out.append(
+                None if self.chain is None else chain.evidence(self.chain, plane, c, pair[c])
+            )
+            if out[c] is not None or time.perf_counter() - t0 > budget_s:
                 continue
             pts, x, r = plane.cell(c)
-            if gap[c] > self.diameter - 8.0 * float(r.max(initial=0.0)):
-                continue  # nearly excluded by the diameter: smaller cells will be
+            far = self.diameter if self.chain is None else min(self.diameter, self.chain.diameter)
+            if gap[c] > far - 8.0 * float(r.max(initial=0.0)):
+                continue  # nearly excluded by the diameter (or a chain): smaller cells will be
             out[c] = self._narrow(pts, x, r, plane.chord[c])
             if isinstance(out[c], tuple):
                 todo.append(c)

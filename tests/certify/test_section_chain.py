@@ -1,0 +1,97 @@
+"""The slab-section proof's chain test on a sheet of holes (:mod:`sieve_mi.certify.chain`).
+
+Known answers, on paper. A ring (an annulus: bore radius 2.5, outer radius 4, 4 mm tall; an
+octagon, so its outer flats are 4 cos 22.5 deg = 3.70 from the axis) against discs of radius
+3.3 on a 1 mm plate. Any plane through the ring's centre meets its outer faces at least 3.70
+from the centre, and the centre slab is centrally symmetric, so its projection is at least 7.4
+across: more than one disc's 6.6, so one disc is proved. Stood on edge, the ring's slab through
+its axis is two bars 1.5 x 4 mm whose facing sides are at least 2 sqrt(2.31^2 - 0.5^2) = 4.5
+apart (the bore's flats at 2.5 cos 22.5 deg = 2.31): each bar fits a disc, so two discs with a
+1 mm web between them hold the section (no sound proof exists), while across a 7 mm web no
+point of one bar can be in another disc than a point of the other bar less than 7 away.
+"""
+
+from __future__ import annotations
+
+import math
+
+import manifold3d
+import numpy as np
+import pytest
+import trimesh
+
+from sieve_mi.certify import replay, section_only
+from sieve_mi.certify.chain import Chain, hull_gap
+from sieve_mi.certify.replay_section import hull_separation
+from sieve_mi.geometry.meshes import shape_from_trimesh
+
+R = 3.3
+
+
+def _disc(x: float = 0.0) -> np.ndarray:
+    a = 2 * np.pi * np.arange(64) / 64
+    return np.column_stack([R * np.cos(a) + x, R * np.sin(a)])
+
+
+def _holes(web: float) -> list:
+    return [manifold3d.CrossSection([_disc()]), manifold3d.CrossSection([_disc(2 * R + web)])]
+
+
+@pytest.fixture(scope="module")
+def ring():
+    mesh = trimesh.creation.annulus(r_min=2.5, r_max=4.0, height=4.0, sections=8)
+    return shape_from_trimesh(mesh, name="ring")
+
+
+def test_both_separation_bounds_are_the_gap_between_two_discs_and_never_more():
+    for web in (0.5, 1.2, 7.0):
+        contours = [_disc(), _disc(2 * R + web)]
+        for gap in (hull_gap(contours), hull_separation(contours)):
+            # a 64-gon's edge lies within R (1 - cos(pi / 64)) of its circle, and the lower
+            # bound never exceeds the polygons' true distance (their facing vertices at web)
+            assert web - 2e-3 < gap <= web + 1e-12
+    crossing = [_disc(), _disc(R)]
+    assert hull_gap(crossing) <= 0 and hull_separation(crossing) <= 0
+    assert Chain(crossing, 1e-6).step == 0.0  # hulls that meet: no chain test
+
+
+def test_a_chain_needs_short_steps_and_far_ends():
+    chain = Chain([_disc(), _disc(2 * R + 2.0)], 1e-9)  # step < 2, ends > 6.6
+    x = np.array([[0.0, 0.0], [1.9, 0.0], [3.8, 0.0], [5.7, 0.0], [7.0, 0.0], [3.0, 1.0]])
+    r = np.zeros(len(x))
+    path = chain.path(x, r, 0, 4)
+    assert path is not None and path[0] == 0 and path[-1] == 4
+    steps = np.linalg.norm(np.diff(x[path], axis=0), axis=1)
+    assert steps.max() < 2.0
+    assert chain.path(x, r + 0.1, 0, 4) is None  # 1.9 + 0.2 is no step below 2
+    assert chain.path(x, r, 0, 3) is None  # 5.7 apart: one disc holds both
+
+
+def test_the_ring_is_proved_across_a_wide_web_by_chains_and_the_replay_agrees(ring):
+    c = section_only(ring, _holes(7.0), 1.0, 20.0)
+    assert c.section["status"] == "proved"
+    sec = c.certificate["section"]
+    kinds = set()
+
+    def walk(node):
+        if "c" in node:
+            for k in node["c"]:
+                walk(k)
+        elif "e" in node:
+            kinds.add(node["e"]["kind"])
+
+    for n in sec["tree"]:
+        walk(n)
+    assert "chain" in kinds
+    wide = [np.asarray(x).tolist() for x in (_holes(7.0)[0] + _holes(7.0)[1]).to_polygons()]
+    assert replay({**c.certificate, "section": {**sec, "hole": wide}})["valid"]
+    # the same chains across a 1 mm web: their steps are no longer shorter than the gap
+    narrow = [np.asarray(x).tolist() for x in (_holes(1.0)[0] + _holes(1.0)[1]).to_polygons()]
+    r = replay({**c.certificate, "section": {**sec, "hole": narrow}})
+    assert not r["valid"] and any("evidence does not hold" in e for e in r["errors"])
+
+
+def test_the_ring_is_not_proved_where_two_discs_hold_its_section(ring):
+    c = section_only(ring, _holes(1.0), 1.0, 1.0)
+    assert c.proved_section is None
+    assert math.isfinite(c.diameter)
