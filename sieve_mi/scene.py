@@ -183,7 +183,7 @@ class Solver:
     particles: int = setting(10, "PSO particles", minimum=1, maximum=10_000)
     iterations: int = setting(10, "PSO iterations", minimum=0, maximum=100_000)
     patience: int = setting(
-        0,
+        5,
         "stop player A's swarm once its best has not improved (by 1 %, at least 0.001) for this "
         "many iterations in a row (0: run every iteration, as the paper)",
         minimum=0,

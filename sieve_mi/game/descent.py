@@ -39,9 +39,10 @@ __all__ = [
 #: A descent whose poses settle (:meth:`~sieve_mi.game.player_b.PlayerB.attack`'s ``settle``)
 #: checks every this many steps whether all of its groups have: one read-back of a flag.
 SETTLE_CHECK = 5
-#: Converged starts leave a descent (issue 45's "adaptive stopping", measured, off by default):
-#: ``(window, rtol)``: every ``window`` steps, a start whose best loss fell by less than ``rtol``
-#: of itself since the last check stops where its best pose is. None: every start runs every step.
+#: Converged starts leave every descent (issue 45's "adaptive stopping"): ``(window, rtol)``:
+#: every ``window`` steps, a start whose best loss fell by less than ``rtol`` of itself since the
+#: last check stops where its best pose is. None: only descents whose :class:`Batch` asks for it
+#: (the verdict's, :data:`sieve_mi.game.verdict.CONVERGED`) stop converged starts.
 CONVERGED = None
 
 
@@ -217,6 +218,9 @@ class Batch:
         Starts per hole and shape where the poses are laid out hole by shape by start (as
         :meth:`~sieve_mi.game.player_b.PlayerB.attack` lays them out, K = H x B x starts);
         None for any other layout.
+    converged : tuple of (int, float), optional
+        ``(window, rtol)``: its starts leave the descent once converged (:data:`CONVERGED`, which
+        overrides it when set); None: every start runs every step.
     """
 
     holes: list
@@ -226,6 +230,7 @@ class Batch:
     t0: np.ndarray
     group: np.ndarray | None = None
     starts: int | None = None
+    converged: tuple | None = None
 
     def __post_init__(self) -> None:
         for name in ("pose_hole", "pose_shape", "q0", "t0"):
@@ -315,6 +320,7 @@ class Descent:
         self.final = np.empty((len(batch), len(POSE_KEYS)))
         self.where = np.arange(len(batch))  # the original index of each pose still descending
         self._last = None  # each pose's best loss at the last convergence check (CONVERGED)
+        self.converged = CONVERGED or batch.converged
         self._bind()
 
     def _bind(self) -> None:
@@ -339,7 +345,7 @@ class Descent:
         nothing is checked at this step (settled groups, :class:`Settle`; converged starts,
         :data:`CONVERGED`)."""
         settle = self.settle is not None and self.settle.due(step)
-        converge = CONVERGED is not None and (step + 1) % CONVERGED[0] == 0
+        converge = self.converged is not None and (step + 1) % self.converged[0] == 0
         if not (settle or converge):
             return None
         live = np.ones(len(self.where), dtype=bool)
@@ -350,7 +356,7 @@ class Descent:
             last = self._last
             if last is not None:
                 with np.errstate(invalid="ignore"):
-                    live &= ~np.isfinite(last) | (now < last - CONVERGED[1] * np.abs(last))
+                    live &= ~np.isfinite(last) | (now < last - self.converged[1] * np.abs(last))
             self._last = now
         return live
 

@@ -10,6 +10,7 @@ memory budget (:func:`sieve_mi.backend.pair_budget`), with frozen steps where th
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -109,6 +110,7 @@ class PlayerB:
         *,
         keep: int = 0,
         settle: str | None = None,
+        converged: tuple | None = None,
     ) -> Attack:
         """Player B's best attempt on each hole, for each shape.
 
@@ -142,9 +144,12 @@ class PlayerB:
             shapes) is 0 either way (the search). The settled starts keep the best pose they had
             reached, and a descent whose groups have all settled ends early. None: every start
             runs every step.
+        converged : (int, float), optional
+            ``(window, rtol)``: every ``window`` steps, starts whose best loss fell by less than
+            ``rtol`` of itself leave the descent (:data:`sieve_mi.game.descent.CONVERGED`).
         """
         starts = Starts.of(starts)
-        batch = self.start_batch(holes, starts, rng, settle)
+        batch = replace(self.start_batch(holes, starts, rng, settle), converged=converged)
         quats, trans = self.descend(batch, steps, learning_rate, progress)
         attack = self._score(batch, quats, trans, keep)
         if starts.memory is not None:

@@ -29,7 +29,7 @@ from sieve_mi.geometry.outline import dilated, is_closed, union
 from sieve_mi.geometry.window import GROWTH, windowed_hole
 from sieve_mi.scene import Scene
 
-__all__ = ["Judgement", "REACH", "exact_holes", "judge", "start_centres"]
+__all__ = ["CONVERGED", "Judgement", "REACH", "exact_holes", "judge", "start_centres"]
 
 
 @dataclass
@@ -71,6 +71,11 @@ class Judgement:
 
 #: The exact polish is tried on poses that stick out by at most this many pixels.
 REACH = 3.0
+#: Player B's verdict starts leave its descent once converged
+#: (:data:`sieve_mi.game.descent.CONVERGED`'s ``(window, rtol)``): every 20 steps, a start whose
+#: best loss fell by less than 1e-4 of itself stops at its best pose; the exact polish and scores
+#: then decide as before. None: every start runs every step.
+CONVERGED = (20, 1e-4)
 
 
 def _groups(count: int, separate: bool) -> list[list[int]]:
@@ -219,6 +224,7 @@ def judge(
         progress=progress,
         keep=CANDIDATES,
         settle="start" if fab.fill_holes and scene.solver.settle else None,
+        converged=CONVERGED,
     )
     margin = fab.block_margin > 0
     attack = exact_rescore(

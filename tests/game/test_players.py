@@ -254,19 +254,21 @@ def test_a_chunked_descent_reports_the_whole_descent_once_per_step():
 
 def test_converged_starts_leave_the_descent_with_their_best_pose(cube20, monkeypatch):
     # The 24 mm sphere cannot enter the square (12 > 11 mm): every start slides to the same
-    # least overhang and stays there. With game.descent.CONVERGED, starts whose best loss stopped
-    # falling leave the batch; once all have, the descent ends early with the value it reaches
-    # when every start runs every step.
+    # least overhang and stays there. With attack(converged=...) (the verdict's
+    # game.verdict.CONVERGED) or game.descent.CONVERGED set for every descent, starts whose best
+    # loss stopped falling leave the batch; once all have, the descent ends early with the value
+    # it reaches when every start runs every step, and the two ways stop the same starts.
     from sieve_mi.game import descent
 
     f, holes = _two_holes(cube20)
     b = PlayerB([sphere(12.0)], f)
     runs = {}
-    for converged in (None, (20, 1e-4)):
-        monkeypatch.setattr(descent, "CONVERGED", converged)
+    for everywhere, asked in ((None, None), (None, (20, 1e-4)), ((20, 1e-4), None)):
+        monkeypatch.setattr(descent, "CONVERGED", everywhere)
         done = []
-        attack = b.attack(holes[:1], 8, 300, 0.05, rng(7), progress=done.append)
-        runs[converged] = (float(attack.beta[0, 0]), done)
-    (full, every), (early, stopped) = runs[None], runs[(20, 1e-4)]
+        attack = b.attack(holes[:1], 8, 300, 0.05, rng(7), progress=done.append, converged=asked)
+        runs[everywhere, asked] = (float(attack.beta[0, 0]), done)
+    (full, every), (early, stopped), same = runs.values()
     assert len(every) == 300 and stopped[-1] == 300 and len(stopped) < 300
     assert full > 0 and early == pytest.approx(full, rel=0.01)
+    assert same == (early, stopped)
