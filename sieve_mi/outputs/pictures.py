@@ -202,15 +202,25 @@ class _Ahead:
         self._stack, self._pool = stack, None
 
     def fork(self) -> None:
-        """Fork the worker now (once; not with a CUDA variant or without ``fork``)."""
+        """Fork the worker now (once; not with a CUDA variant or without ``fork``). Where the
+        fork fails (an ``OSError``: no memory, too many processes) the save forks its own."""
+        import drjit as dr
         import mitsuba as mi
 
         from sieve_mi.workers import worker_pool
 
-        if self._pool is None and _forkable(mi.variant()):
-            pool = worker_pool(1, initializer=_rgb_once, what="figure and GIF rendering")
-            self._pool = self._stack.enter_context(pool)
-            self._pool.submit(_ready)  # the process starts now
+        if self._pool is not None or not _forkable(mi.variant()):
+            return
+        dr.sync_thread()  # no kernel of this thread runs while the process is copied
+        try:
+            pool = self._stack.enter_context(
+                worker_pool(1, initializer=_rgb_once, what="figure and GIF rendering")
+            )
+            pool.submit(_ready)  # the process starts now
+        except OSError:
+            self._stack.close()
+            return
+        self._pool = pool
 
     def take(self):
         """The forked worker's pool (None where none was forked)."""
