@@ -151,8 +151,11 @@ def _certify_parser(sub) -> None:
 
 
 def cmd_solve(args) -> int:
+    from contextlib import nullcontext
+
     from sieve_mi import api as sm
     from sieve_mi.game.solver import solve as play
+    from sieve_mi.outputs import pictures
     from sieve_mi.outputs.console import summary_table
     from sieve_mi.outputs.outdir import validate
     from sieve_mi.outputs.report import input_paths
@@ -168,10 +171,11 @@ def cmd_solve(args) -> int:
     # sm.solve's game, with a record whose times count from the process's start (Python, the
     # imports and reading the scene are "startup"); sm.solve's checks of the arguments ran above.
     run = Run.from_process_start()
-    result = sm.Result.of(
-        play(scene, variant=args.variant, seed=args.seed, progress=not args.quiet, run=run)
-    )
-    report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
+    with pictures.ahead(run) if not (args.no_figure and args.no_animation) else nullcontext():
+        result = sm.Result.of(
+            play(scene, variant=args.variant, seed=args.seed, progress=not args.quiet, run=run)
+        )
+        report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
     if not args.json:
         print(summary_table(report))
     for w in report["warnings"] + report.get("fabrication", {}).get("warnings", []):

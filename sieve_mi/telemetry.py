@@ -54,6 +54,7 @@ class Run:
         self.timings: dict[str, float] = {}
         self.memory: MemoryWatch | None = None
         self._startup = startup is not None
+        self._after: dict[str, list] = {}
         self.started = None if startup is None else time.perf_counter() - float(startup)
 
     @classmethod
@@ -88,6 +89,13 @@ class Run:
         self.timings[f"{name}_s"] = time.perf_counter() - t0
         if mark:
             self.mark(name)
+        for fn in self._after.pop(name, ()):
+            fn()
+
+    def after(self, name: str, fn) -> None:
+        """Call ``fn()`` (no arguments) once, when the stage ``name`` next ends (after its time
+        is recorded): e.g. the command line forks the pictures' worker after ``screen``."""
+        self._after.setdefault(name, []).append(fn)
 
     def mark(self, name: str) -> None:
         """End the memory watch's stage ``name`` here (nothing without a watch)."""

@@ -63,3 +63,21 @@ def test_stages_end_the_memory_watch_in_order():
     run.stop()
     assert list(run.memory.peaks) == ["search", "thin"]
     assert list(run.timings) == ["search_s", "thin_s"]
+
+
+def test_a_call_after_a_stage_runs_once_when_it_ends_and_not_when_it_raises():
+    run = Run().start()
+    calls = []
+    run.after("screen", lambda: calls.append(dict(run.timings)))
+    with run.stage("load"):
+        pass
+    assert calls == []  # another stage's end calls nothing
+    with pytest.raises(ValueError), run.stage("screen"):
+        raise ValueError("stopped")
+    assert calls == []  # a stage that raised did not end
+    with run.stage("screen"):
+        pass
+    assert len(calls) == 1 and "screen_s" in calls[0]  # after its time was recorded
+    with run.stage("screen"):
+        pass
+    assert len(calls) == 1  # once

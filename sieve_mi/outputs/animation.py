@@ -56,7 +56,7 @@ __all__ = [
 FRAMES_PER_SLOT = 10
 WIDTH = 300
 HEIGHT = 390
-SPP = 16
+SPP = 8
 #: Frame duration, milliseconds (the last frame is held three times as long).
 FRAME_MS = 120
 #: Camera direction: azimuth from +x towards +y and elevation above the plate, degrees; field of view.
@@ -72,7 +72,8 @@ BLOCKED_ALBEDO = 0.12
 ESCAPED_ALBEDO = 0.6
 #: Sky radiance and the sun's irradiance.
 SKY = 0.55
-#: Mitsuba sampler of the frames (stratified: far less grain than independent samples at 16 spp).
+#: Mitsuba sampler of the frames (stratified: far less grain than independent samples; with it
+#: 8 spp, since 2026-12-04, shows what 16 did at half the rendering: docs/performance.md).
 SAMPLER = "multijitter"
 SUN = 2.2
 #: The sun: azimuth offset to the camera's left and elevation, degrees.

@@ -10,6 +10,11 @@ folder; :meth:`Pictures.wait` collects what report.json records of them. Where a
 rendered in this process, one after the other, as before. The pictures are the same either way:
 the same scene, sampler seed and settings give the same pixels.
 
+The command line forks that worker ahead of the save (:func:`ahead`: when the solve's
+``screen`` stage ends), so its start (the fork, Mitsuba's RGB variant, the pictures' modules:
+about 0.4 s on 2 cores) overlaps the search instead of the save; :func:`start` then hands the
+pictures to it. A solve from Python forks its worker in the save, as before.
+
 Times: the worker's rendering overlaps the rest of the save, so ``figure_s`` and
 ``animation_s`` in report.json are the seconds the save *waited* for each (the part of its
 wall time they account for: the stages still add up to ``total_s``); the seconds each took in
@@ -22,7 +27,10 @@ import os
 import sys
 import time
 
-__all__ = ["Pictures", "render", "start"]
+__all__ = ["Pictures", "ahead", "render", "start"]
+
+#: The worker forked ahead of the save (:func:`ahead`), while its block runs; else None.
+_AHEAD = None
 
 
 def render(tmp: str, figure_args: tuple | None, passage) -> dict:
@@ -89,6 +97,15 @@ def _rgb_once() -> None:
     if running < wanted:
         dr.set_thread_count(2 * wanted - running)
     select_rgb_variant(mi, mi.variant())
+
+
+def _ready() -> None:
+    """The early worker's first job (:func:`ahead`): the pictures' modules imported, so the
+    save's job starts rendering at once."""
+    import PIL.Image  # noqa: F401
+
+    import sieve_mi.outputs.animation  # noqa: F401
+    import sieve_mi.outputs.figure  # noqa: F401
 
 
 def _forkable(variant: str | None) -> bool:
@@ -164,7 +181,80 @@ def start(tmp: str, figure_args: tuple | None, passage, variant: str | None):
         if (figure_args is None and passage is None) or not _forkable(variant):
             yield Pictures(job)
             return
+        early = _AHEAD.take() if _AHEAD is not None else None
+        if early is not None:  # forked ahead (:func:`ahead`): stopped at once on an exception
+            try:
+                yield Pictures(job, early.submit(render, *job))
+            except BaseException:
+                _AHEAD.stop()
+                raise
+            return
         with worker_pool(1, initializer=_rgb_once, what="figure and GIF rendering") as pool:
             yield Pictures(job, pool.submit(render, *job))
 
     return pictures()
+
+
+class _Ahead:
+    """The worker of :func:`ahead`: forked by :meth:`fork`, taken by :func:`start`."""
+
+    def __init__(self, stack):
+        self._stack, self._pool = stack, None
+
+    def fork(self) -> None:
+        """Fork the worker now (once; not with a CUDA variant or without ``fork``). Where the
+        fork fails (an ``OSError``: no memory, too many processes) the save forks its own."""
+        import drjit as dr
+        import mitsuba as mi
+
+        from sieve_mi.workers import worker_pool
+
+        if self._pool is not None or not _forkable(mi.variant()):
+            return
+        dr.sync_thread()  # no kernel of this thread runs while the process is copied
+        try:
+            pool = self._stack.enter_context(
+                worker_pool(1, initializer=_rgb_once, what="figure and GIF rendering")
+            )
+            pool.submit(_ready)  # the process starts now
+        except OSError:
+            self._stack.close()
+            return
+        self._pool = pool
+
+    def take(self):
+        """The forked worker's pool (None where none was forked)."""
+        return self._pool
+
+    def stop(self) -> None:
+        """Stop the worker at once (the save was left by an exception)."""
+        self._pool = None
+        self._stack.__exit__(*sys.exc_info())
+
+
+def ahead(run, stage: str = "screen"):
+    """A context manager in which the pictures' worker is forked when ``run``'s stage ``stage``
+    ends (:meth:`sieve_mi.telemetry.Run.after`), for the save in the block to use.
+
+    Parameters
+    ----------
+    run : sieve_mi.telemetry.Run
+        The solve's record.
+    stage : str
+        The stage after which the worker is forked: the Dr.Jit variant is set by then (the
+        worker switches to its RGB sibling) and the search, the longest stage, follows.
+    """
+    import contextlib
+
+    @contextlib.contextmanager
+    def block():
+        global _AHEAD
+        with contextlib.ExitStack() as stack:
+            _AHEAD = _Ahead(stack)
+            run.after(stage, _AHEAD.fork)
+            try:
+                yield _AHEAD
+            finally:
+                _AHEAD = None
+
+    return block()

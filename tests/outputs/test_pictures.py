@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 import pytest
+import trimesh
 
 from sieve_mi.outputs import pictures
 from sieve_mi.workers import worker_pool
@@ -42,3 +43,32 @@ def test_the_worker_renders_on_as_many_threads_as_its_parent(mi):
     if "llvm_ad_rgb" in mi.variants():
         assert variant == "llvm_ad_rgb"  # switched once, in the worker only
     assert mi.variant() == before
+
+
+def test_the_worker_forked_ahead_renders_the_save_and_stops_with_an_error(mi, tmp_path):
+    # pictures.ahead forks the worker when the stage ends; start() hands the pictures to that
+    # process (already in an RGB variant); an exception in the save ends it at once.
+    from sieve_mi.telemetry import Run
+
+    if mi.variant().startswith("cuda"):
+        pytest.skip("the pictures render in-process with a CUDA variant")
+    run = Run().start()
+    with pytest.raises(KeyboardInterrupt), pictures.ahead(run) as early:
+        assert early.take() is None  # not before the stage ends
+        with run.stage("screen"):
+            pass
+        pool = early.take()
+        (pid,) = list(pool._processes)
+        assert pid != os.getpid()
+        _, _, variant = pool.submit(_threads_in_worker).result()
+        if "llvm_ad_rgb" in mi.variants():
+            assert variant == "llvm_ad_rgb"
+        plate = trimesh.creation.box((60.0, 60.0, 2.0))
+        cube, ball = trimesh.creation.box((10.0, 10.0, 10.0)), trimesh.creation.icosphere(2, 6.0)
+        job = (plate, [cube], [ball], [True], "ahead")
+        with pictures.start(str(tmp_path), job, None, mi.variant()) as pics:
+            assert pics._future is not None  # the job went to the forked worker
+            raise KeyboardInterrupt
+    assert pictures._AHEAD is None
+    with pytest.raises(ProcessLookupError):  # killed and reaped
+        os.kill(pid, 0)
