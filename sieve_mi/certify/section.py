@@ -58,23 +58,9 @@ from sieve_mi.certify.search import EvenOdd
 from sieve_mi.certify.turns import TurnTest, spread
 from sieve_mi.geometry.meshes import Shape
 
-__all__ = [
-    "FACES",
-    "SectionOutcome",
-    "SectionSearch",
-    "Plane",
-    "SECTION_CANDIDATES",
-    "SphereCells",
-    "INNER_POINTS",
-    "SHEET_INNER_POINTS",
-    "caps",
-    "pins",
-    "prove_section",
-    "hull_widths",
-    "min_width",
-    "plane_frames",
-    "sphere_roots",
-]
+__all__ = ["FACES", "INNER_POINTS", "SECTION_CANDIDATES", "SHEET_INNER_POINTS", "Plane",
+           "SectionOutcome", "SectionSearch", "SphereCells", "caps", "hull_widths", "min_width",
+           "pins", "plane_frames", "prove_section", "sphere_roots"]  # fmt: skip
 
 #: Faces of the cube whose quadtree cells tile the sphere of directions: (axis, sign).
 FACES = ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0))
@@ -89,10 +75,8 @@ EXTREME_DIRECTIONS = 12
 #: Band points spread over the section (:func:`~sieve_mi.certify.turns.spread`) that the turn
 #: test gets beside the extreme ones (0: those only; measured on the letters, docs/performance.md).
 INNER_POINTS = 0
-#: The same against a hole of several regions (a sheet's copies), where a section that falls
-#: apart can put its extreme points in two holes and its inner ones on the web between: an M5
-#: nut against two discs 5 mm apart at 2 mm is proved with 8 in 7.9 s and undecided with 0 in 60 s
-#: (docs/shake.md).
+#: The same against a hole of several regions (a sheet: a section in parts can put its extreme
+#: points in two holes, its inner ones on the web; the M5 nut, docs/shake.md).
 SHEET_INNER_POINTS = 8
 #: Levels of the turn search: intervals of 2 pi / 8 halved this many times at most.
 TURN_DEPTH = 6
@@ -408,8 +392,7 @@ class SectionSearch:
         self.dirs = np.column_stack([np.cos(a), np.sin(a)])
         b = 2 * np.pi * np.arange(EXTREME_DIRECTIONS) / EXTREME_DIRECTIONS
         self.extreme_dirs = np.column_stack([np.cos(b), np.sin(b)])
-        #: Band points spread inside the section (:func:`~sieve_mi.certify.turns.spread`) that
-        #: each cell's turn test gets too.
+        #: Band points spread inside the section that each cell's turn test gets too.
         several = len(hole.decompose()) > 1
         self.inner = max(INNER_POINTS, SHEET_INNER_POINTS) if several else INNER_POINTS
 
