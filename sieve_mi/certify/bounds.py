@@ -23,6 +23,7 @@ import manifold3d
 import numpy as np
 
 from sieve_mi.geometry.meshes import Shape
+from sieve_mi.geometry.solid import triangle_distance, winding_numbers
 
 __all__ = [
     "LowerDistance",
@@ -94,36 +95,6 @@ def inside(points: np.ndarray, segs: np.ndarray, chunk: int = 2048) -> np.ndarra
 # ------------------------------------------------------------------------------------------------
 
 
-def _triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Exact distance from point ``p`` (3,) to each triangle of ``tri`` (F, 3, 3), (F,); from
-    points ``p`` (P, 3), (P, F)."""
-    p = np.asarray(p, dtype=np.float64)
-    q = p[..., None, :]  # (..., 1, 3) against (F, 3)
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    n = np.cross(b - a, c - a)
-    nn = np.maximum((n * n).sum(1), 1e-300)
-    h = ((q - a) * n).sum(-1) / nn
-    foot = q - h[..., None] * n
-    inside_tri = np.ones(h.shape, dtype=bool)
-    for u, v in ((a, b), (b, c), (c, a)):
-        inside_tri &= (np.cross(v - u, foot - u) * n).sum(-1) >= 0
-    best = np.where(inside_tri, np.abs(h) * np.sqrt(nn), np.inf)
-    for u, v in ((a, b), (b, c), (c, a)):
-        d = v - u
-        t = np.clip(((q - u) * d).sum(-1) / np.maximum((d * d).sum(1), 1e-300), 0.0, 1.0)
-        best = np.minimum(best, np.linalg.norm(q - u - t[..., None] * d, axis=-1))
-    return best
-
-
-def _winding_number(p: np.ndarray, tri: np.ndarray) -> float:
-    """Generalised winding number of a closed oriented triangle mesh about ``p`` (solid angles / 4 pi)."""
-    a, b, c = tri[:, 0] - p, tri[:, 1] - p, tri[:, 2] - p
-    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-    num = (a * np.cross(b, c)).sum(1)
-    den = la * lb * lc + (a * b).sum(1) * lc + (b * c).sum(1) * la + (c * a).sum(1) * lb
-    return float(np.arctan2(num, den).sum() / (2.0 * np.pi))
-
-
 #: Surface samples (besides vertices and face centres) that rank candidate centres.
 BALL_SAMPLES = 2048
 #: Exact distance evaluations of the compass search that moves the best centre uphill.
@@ -185,11 +156,11 @@ def _inscribed(shape: Shape, grid: int, exact: int) -> tuple[np.ndarray, float] 
         if not maybe[k]:
             continue  # outside by the parity filter: not tried (the winding number decides)
         centre = candidates[k]
-        enclosed = abs(round(_winding_number(centre, tri))) >= 1
+        enclosed = abs(round(winding_numbers(centre[None], tri)[0])) >= 1
         if k and not enclosed:
             continue  # outside: not a candidate (only inside points count towards ``exact``)
         tried += 1
-        rho = float(_triangle_distance(centre, tri).min())
+        rho = float(triangle_distance(centre, tri).min())
         if rho <= 1e-9 * shape.radius or not enclosed:
             continue
         if best is None or rho > best[1]:
@@ -247,10 +218,10 @@ def _climb(start: tuple[np.ndarray, float], tri: np.ndarray, step: float):
     while evaluations < BALL_CLIMB and step > 1e-3 * rho:
         near = tri[np.linalg.norm(mid - centre, axis=1) - reach <= rho + 2.0 * step]
         pts = centre + step * moves
-        d = _triangle_distance(pts, near).min(axis=1)
+        d = triangle_distance(pts, near).min(axis=1)
         evaluations += len(pts)
         k = int(np.argmax(d))
-        if d[k] > rho * (1.0 + 1e-6) and abs(round(_winding_number(pts[k], tri))) >= 1:
+        if d[k] > rho * (1.0 + 1e-6) and abs(round(winding_numbers(pts[k][None], tri)[0])) >= 1:
             centre, rho = pts[k], float(d[k])
         else:
             step *= 0.5

@@ -11,6 +11,8 @@ plate
 pattern
     A perforated sheet: copies of the hole on a square or hexagonal lattice, the web between
     them checked exactly, and the copies within a shape's reach for the proofs.
+solid
+    Exact point queries against a triangle mesh: distances to its triangles, winding numbers.
 cliques
     Groups of a lattice's sites that one set of bounded diameter can touch together (maximal
     cliques up to lattice moves), for the proofs on a sheet.

@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sieve_mi.geometry.solid import triangle_distance, winding_numbers
+
 __all__ = ["CACHE_ENV", "bulge", "cache_dir", "cache_key", "coacd_pieces", "hausdorff", "refine"]
 
 #: Environment variable naming the cache's root folder (``coacd/`` is made inside it).
@@ -148,11 +150,11 @@ def refine(vertices, faces, pieces: list[np.ndarray], bound: float, **options) -
     floor = float(np.sqrt(mesh.area / (REFERENCE_SAMPLES * PIECE_SAMPLES)))
     bound = max(bound, floor)
     for _ in range(REFINE_ROUNDS):
-        over = [k for k, p in enumerate(pieces) if bulge(mesh, p, PIECE_SAMPLES) > bound]
+        over = {k for k, p in enumerate(pieces) if bulge(mesh, p, PIECE_SAMPLES) > bound}
         if not over:
             break
-        out = [p for k, p in enumerate(pieces) if k not in set(over)]
-        for k in over:
+        out = [p for k, p in enumerate(pieces) if k not in over]
+        for k in sorted(over):
             sub = (solid ^ manifold3d.Manifold.hull_points(pieces[k])).to_mesh()
             v = np.asarray(sub.vert_properties, np.float64)[:, :3]
             f = np.asarray(sub.tri_verts, np.int64)
@@ -203,7 +205,7 @@ def hausdorff(mesh, hulls: list[np.ndarray], com: np.ndarray, samples: int = HAU
     both surfaces are sampled evenly (a fixed seed) and each sample outside the other solid is
     measured to the other's nearest sample. A sample farther than the sample spacing from the
     other surface is inside or outside by its winding number about the other mesh
-    (:func:`_winding`): this ignores the union's internal seams and voids, which no collision
+    (:func:`~sieve_mi.geometry.solid.winding_numbers`): this ignores the union's internal seams and voids, which no collision
     sees, and which lie deep inside the part (two pieces of an H that meet a thousandth of a
     millimetre apart leave a wall 2.9 mm from the part's surface, which the earlier test, the
     sign along the nearest sample's normal, counted as error). A sample nearer than the spacing
@@ -276,8 +278,8 @@ def _outside_distance(p, q, nq, triangles, spacing: float) -> float:
     """Largest distance from a point of ``p`` (n, 3) to the samples ``q`` (m, 3) of a solid's
     surface, among the points outside that solid (outward normals ``nq``, bounded by
     ``triangles`` (F, 3, 3)): a point farther than ``spacing`` from ``q`` is outside when its
-    winding number is under 1/2 (:func:`_winding`), a nearer one when it lies in front of its
-    nearest sample's normal."""
+    winding number is under 1/2 (:func:`~sieve_mi.geometry.solid.winding_numbers`), a nearer
+    one when it lies in front of its nearest sample's normal."""
     from scipy.spatial import cKDTree
 
     dist, idx = cKDTree(q).query(p)
@@ -291,49 +293,10 @@ def _outside_distance(p, q, nq, triangles, spacing: float) -> float:
         idx = far[s : s + 64]
         if dist[idx[0]] <= best:
             break
-        idx = idx[_winding(tri, p[idx]) < 0.5]
+        idx = idx[winding_numbers(p[idx], tri) < 0.5]
         if len(idx):
-            best = max(best, float(_surface_distance(tri, p[idx]).max()))
+            best = max(best, float(triangle_distance(p[idx], tri).min(axis=1).max()))
     return best
-
-
-def _surface_distance(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Exact distance from each of ``points`` (n, 3) to the nearest of ``triangles`` (F, 3, 3)."""
-    import trimesh
-
-    f, n = len(triangles), len(points)
-    near = trimesh.triangles.closest_point(np.tile(triangles, (n, 1, 1)), np.repeat(points, f, 0))
-    return np.linalg.norm(near - np.repeat(points, f, 0), axis=1).reshape(n, f).min(axis=1)
-
-
-def _winding(triangles: np.ndarray, points: np.ndarray, chunk: int = 256) -> np.ndarray:
-    """Generalised winding number of each point about a closed, outward-oriented triangle mesh
-    (1 inside, 0 outside): the triangles' solid angles (Van Oosterom and Strackee's formula)
-    summed over 4 pi.
-
-    Parameters
-    ----------
-    triangles : (F, 3, 3) float
-    points : (n, 3) float
-
-    Returns
-    -------
-    (n,) float
-    """
-    out = np.empty(len(points))
-    for s in range(0, len(points), chunk):
-        v = triangles[None] - points[s : s + chunk, None, None, :]  # (c, F, 3, 3)
-        a, b, c = v[:, :, 0], v[:, :, 1], v[:, :, 2]
-        la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
-        num = np.einsum("cfi,cfi->cf", a, np.cross(b, c))
-        den = (
-            la * lb * lc
-            + np.einsum("cfi,cfi->cf", a, b) * lc
-            + np.einsum("cfi,cfi->cf", b, c) * la
-            + np.einsum("cfi,cfi->cf", c, a) * lb
-        )
-        out[s : s + chunk] = np.arctan2(num, den).sum(axis=1) / (2 * np.pi)
-    return out
 
 
 def _samples(mesh, n: int) -> tuple[np.ndarray, np.ndarray]:
