@@ -147,10 +147,11 @@ def _far(points: np.ndarray) -> tuple:
     return tuple(h[a]), tuple(h[b])
 
 
-def evidence(chain: Chain, plane, c: int, pair) -> dict | None:
-    """Chain evidence for cell ``c`` of a :class:`~sieve_mi.certify.section.Plane` from the
-    pair of candidate indices ``pair`` furthest apart, or None."""
-    cols, x, r = plane.cell(c)
+def evidence(chain: Chain, cell: tuple, pair) -> dict | None:
+    """Chain evidence for a cell of a :class:`~sieve_mi.certify.section.Plane` (``cell``: its
+    ``Plane.cell``, the band points' indices, plane coordinates and bounds) from the pair of
+    candidate indices ``pair`` furthest apart, or None."""
+    cols, x, r = cell
     at = np.searchsorted(cols, pair)
     if (
         len(cols) < 3

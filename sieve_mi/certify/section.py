@@ -464,12 +464,13 @@ class SectionSearch:
             if gap[c] > self.diameter * (1 + RELATIVE_MARGIN) + self.eta:
                 out.append({"kind": "diameter", "pair": pair[c].tolist()})
                 continue
-            out.append(
-                None if self.chain is None else chain.evidence(self.chain, plane, c, pair[c])
-            )
+            if self.chain is None and time.perf_counter() - t0 > budget_s:
+                out.append(None)
+                continue
+            pts, x, r = cell = plane.cell(c)
+            out.append(None if self.chain is None else chain.evidence(self.chain, cell, pair[c]))
             if out[c] is not None or time.perf_counter() - t0 > budget_s:
                 continue
-            pts, x, r = plane.cell(c)
             far = self.diameter if self.chain is None else min(self.diameter, self.chain.diameter)
             if gap[c] > far - 8.0 * float(r.max(initial=0.0)):
                 continue  # nearly excluded by the diameter (or a chain): smaller cells will be

@@ -49,7 +49,7 @@ def cliques(a1, a2, near: float, symmetric: bool = False) -> list[list[tuple[int
     """
     import networkx as nx
 
-    sites = sites_within(a1, a2, 2.0 * near)
+    sites = sites_within(a1, a2, near)  # a clique through (0, 0) lies within ``near`` of it
     pos = {s: s[0] * np.asarray(a1) + s[1] * np.asarray(a2) for s in sites}
     graph = nx.Graph()
     graph.add_nodes_from(sites)
