@@ -205,8 +205,8 @@ def hausdorff(mesh, hulls: list[np.ndarray], com: np.ndarray, samples: int = HAU
     both surfaces are sampled evenly (a fixed seed) and each sample outside the other solid is
     measured to the other's nearest sample. A sample farther than the sample spacing from the
     other surface is inside or outside by its winding number about the other mesh
-    (:func:`~sieve_mi.geometry.solid.winding_numbers`): this ignores the union's internal seams and voids, which no collision
-    sees, and which lie deep inside the part (two pieces of an H that meet a thousandth of a
+    (:func:`~sieve_mi.geometry.solid.winding_numbers`): this ignores the union's internal seams
+    and voids, which no collision sees, and which lie deep inside the part (two pieces of an H that meet a thousandth of a
     millimetre apart leave a wall 2.9 mm from the part's surface, which the earlier test, the
     sign along the nearest sample's normal, counted as error). A sample nearer than the spacing
     is outside when it lies in front of that nearest sample's normal. The result is within the
