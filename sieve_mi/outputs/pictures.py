@@ -23,6 +23,7 @@ the worker are in :attr:`Pictures.rendered`.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import time
@@ -170,8 +171,6 @@ def start(tmp: str, figure_args: tuple | None, passage, variant: str | None):
         The solve's Mitsuba variant: with a CUDA one (or without ``fork``) the pictures are
         rendered in this process by :meth:`Pictures.wait`.
     """
-    import contextlib
-
     from sieve_mi.workers import worker_pool
 
     job = (tmp, figure_args, passage)
@@ -232,6 +231,7 @@ class _Ahead:
         self._stack.__exit__(*sys.exc_info())
 
 
+@contextlib.contextmanager
 def ahead(run, stage: str = "screen"):
     """A context manager in which the pictures' worker is forked when ``run``'s stage ``stage``
     ends (:meth:`sieve_mi.telemetry.Run.after`), for the save in the block to use.
@@ -244,17 +244,11 @@ def ahead(run, stage: str = "screen"):
         The stage after which the worker is forked: the Dr.Jit variant is set by then (the
         worker switches to its RGB sibling) and the search, the longest stage, follows.
     """
-    import contextlib
-
-    @contextlib.contextmanager
-    def block():
-        global _AHEAD
-        with contextlib.ExitStack() as stack:
-            _AHEAD = _Ahead(stack)
-            run.after(stage, _AHEAD.fork)
-            try:
-                yield _AHEAD
-            finally:
-                _AHEAD = None
-
-    return block()
+    global _AHEAD
+    with contextlib.ExitStack() as stack:
+        _AHEAD = _Ahead(stack)
+        run.after(stage, _AHEAD.fork)
+        try:
+            yield _AHEAD
+        finally:
+            _AHEAD = None
