@@ -277,17 +277,18 @@ class Pattern:
         that close (centres within ``reach + 2R``, R: H's circumscribed radius; a superset of
         the true pairs), and lie in a maximal clique. With one turn every copy is H translated,
         and a lattice move takes any clique to one of the maximal cliques through (0, 0) up to
-        translation (:func:`~sieve_mi.geometry.cliques.cliques`), or up to a half turn too where H is centrally
-        symmetric (then H is replaced by its union with its half turn, within
+        translation (:func:`~sieve_mi.geometry.cliques.cliques`), or up to a half turn too where
+        H is centrally symmetric (then H is replaced by its union with its half turn, within
         :data:`SYMMETRY_SLACK` of H's area and never smaller, and a half turn of a group is the
-        same group for a shape at every turn); a copy of each, laid at least ``reach`` from the others,
-        is a region such a set could fit in only by fitting one group, which it could fit only
+        same group for a shape at every turn); a copy of each, laid at least ``reach`` from the
+        others, is a region such a set could fit in only by fitting one group, which it could fit only
         if it fits the sheet's copies somewhere, and conversely what fits the sheet fits here.
         So a proof that a section (of diameter at most ``reach``) does not fit this region is a
         proof for the whole sheet. On the nut sheet of docs/shake.md (discs 8.7 mm wide, 5 mm
         apart, a 10.4 mm M5) each group is three discs in a triangle, against the window's seven.
         With several turns it is :meth:`window`, unless they are half turns of a centrally
-        symmetric H (0° and 180°: every copy is then H' translated).
+        symmetric H (0° and 180°: every copy is then H' translated); with mirrored copies
+        (``mirror``) it is :meth:`window` too.
 
         ``outline`` stands for H at every site, as in :meth:`window`.
         """
@@ -297,7 +298,7 @@ class Pattern:
         both = _union([outline, half_turned])
         symmetric = both.area() <= outline.area() * (1.0 + SYMMETRY_SLACK)
         halves = all(float(t) % 180.0 == 0.0 for t in self.turns)
-        if len(self.turns) > 1 and not (symmetric and halves):
+        if self.mirror or (len(self.turns) > 1 and not (symmetric and halves)):
             return self.window(reach, outline)
         if symmetric:  # H' = H and H half-turned, a superset: every copy is H' up to a half turn
             outline = both

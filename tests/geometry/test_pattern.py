@@ -186,3 +186,16 @@ def test_mirrored_copies_alternate_keep_the_web_and_are_in_the_window():
     mirrored_here = manifold3d.CrossSection([[(10.0 - x, y) for x, y in pts[::-1]]])
     assert abs(mirrored_here.area() - 28.0) < 1e-9  # 10 x 2 + 2 x 4
     assert (mirrored_here - p.window(0.0)).area() < 1e-9  # the proofs' window holds the J too
+
+
+def test_patches_of_a_mirrored_sheet_hold_the_mirrored_copies():
+    # with mirror, neighbouring copies are an L and a J: no lattice move takes one to the other,
+    # so the groups (all copies H translated) do not apply and the section proofs get the window,
+    # which holds a J at H's own site
+    pts = [(0.0, 0.0), (10.0, 0.0), (10.0, 2.0), (2.0, 2.0), (2.0, 6.0), (0.0, 6.0)]
+    ell = manifold3d.CrossSection([pts])
+    jay = manifold3d.CrossSection([[(10.0 - x, y) for x, y in pts[::-1]]])
+    p = lay_out(ell, "hex", (60.0, 60.0), 2.0, 1.2, mirror=True)
+    region = p.patches(12.0)
+    assert (jay - region).area() < 1e-9
+    assert region.area() == pytest.approx(p.window(12.0).area(), rel=1e-12)
