@@ -281,7 +281,10 @@ def test_api_check_selects_the_variant_itself_in_a_fresh_process(tmp_path):
         "s = CheckSettings(starts=2, steps=2, fit=False, thin_budget=0.5)\n"
         "print(sm.check('ball.stl', sieve='plate.stl', settings=s).passes)\n"
     )
-    env = {**os.environ, "PYTHONPATH": REPO}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [REPO, os.environ.get("PYTHONPATH")])),
+    }
     run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env,
                          capture_output=True, text=True, timeout=300)  # fmt: skip
     assert run.returncode == 0 and run.stdout.strip() == "True", run.stderr[-2000:]

@@ -111,7 +111,10 @@ _SCRIPT = textwrap.dedent(
 def test_sigterm_ends_a_run_and_its_workers_within_seconds(method, tmp_path):
     script = tmp_path / "run.py"
     script.write_text(_SCRIPT.format(tests=os.path.join(REPO, "tests"), method=method))
-    env = {**os.environ, "PYTHONPATH": REPO}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [REPO, os.environ.get("PYTHONPATH")])),
+    }
     proc = subprocess.Popen(
         [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env=env,

@@ -49,8 +49,12 @@ class Frame:
         also for indices beyond the frame (the lattice extends). The silhouettes' rays come
         from it (:meth:`sieve_mi.geometry.silhouettes.SilhouetteRenderer.trace`), and ``mi.render``
         under it gives the written masks (:meth:`~sieve_mi.geometry.silhouettes.SilhouetteRenderer.render`).
+        The cache is keyed by Mitsuba's variant too: a sensor built under ``llvm_ad_mono`` takes
+        only LLVM arrays, so a run that switches to ``cuda_ad_mono`` needs its own.
         """
-        key = (self.resolution, self.half_extent)
+        import mitsuba as mi
+
+        key = (mi.variant(), self.resolution, self.half_extent)
         if key not in _SENSORS:
             _SENSORS[key] = self.window_sensor(0, 0, self.resolution)
         return _SENSORS[key]

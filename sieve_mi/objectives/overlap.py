@@ -80,10 +80,13 @@ class EdgeOverlapObjective(EdgeSampledObjective):
 
     def __init__(self, shapes: list[Shape], frame: Frame, samples_per_segment: int | None = None):
         super().__init__(shapes, frame, samples_per_segment)
-        self._scenes = [mesh_scene(s.vertices, s.faces, s.name or "shape") for s in shapes]
         h = frame.pixel_size
         # Ray origins sit this far below the shape's centre (as in SilhouetteRenderer.trace).
-        self._reach = [s.radius * 1.01 + h for s in shapes]
+        self._reach = np.array([s.radius * 1.01 + h for s in shapes])
+        self._scene, offsets = _shelf_scene(shapes, 3.0 * float(self._reach.max()))
+        # On the device once: arrays made inside a symbolic loop's body would not outlive it.
+        self._reach_dev = self.mi.Float(self._reach.astype(np.float32))
+        self._sites = self.mi.Point3f(offsets.astype(np.float32).T)
         self._prefix_cache = None
 
     def bind(self, pose_shape: np.ndarray) -> None:
@@ -123,24 +126,21 @@ class EdgeOverlapObjective(EdgeSampledObjective):
         """Whether world points (x, y) are covered by their pose's shape (one ray each).
 
         ``g`` holds the pose's 9 rotation entries and 2 translations (gathered per lane),
-        ``shape`` its shape index.
+        ``shape`` its shape index. Every shape lies in one scene, each at its own place
+        (:func:`_shelf_scene`): one ray test per point, against one BVH.
         """
-        mi = self.mi
+        mi, dr = self.mi, self.dr
         dx, dy = x - g[9], y - g[10]
-        direction = mi.Vector3f(g[6], g[7], g[8])
-        hit = mi.Bool(False)
-        for i, scene in enumerate(self._scenes):
-            reach = self._reach[i]
-            origin = mi.Point3f(
-                dx * g[0] + dy * g[3] - reach * g[6],
-                dx * g[1] + dy * g[4] - reach * g[7],
-                dx * g[2] + dy * g[5] - reach * g[8],
-            )
-            ray = mi.Ray3f(origin, direction)
-            ray.maxt = mi.Float(2.0 * reach)
-            mask = active if len(self._scenes) == 1 else (shape == i) & active
-            hit |= scene.ray_test(ray, mask)
-        return hit
+        reach = dr.gather(mi.Float, self._reach_dev, shape)
+        place = dr.gather(mi.Point3f, self._sites, shape)
+        origin = mi.Point3f(
+            dx * g[0] + dy * g[3] - reach * g[6],
+            dx * g[1] + dy * g[4] - reach * g[7],
+            dx * g[2] + dy * g[5] - reach * g[8],
+        )
+        ray = mi.Ray3f(origin + place, mi.Vector3f(g[6], g[7], g[8]))
+        ray.maxt = 2.0 * reach
+        return self._scene.ray_test(ray, active)
 
     def _prefix(self, holes: HoleStack):
         """Per hole and pixel row, the length outside H left of each cell edge: (count N (N + 1),).
@@ -257,3 +257,37 @@ class EdgeOverlapObjective(EdgeSampledObjective):
             accumulate,
             "overlap outline",
         )
+
+
+def _shelf_scene(shapes: list[Shape], spacing: float):
+    """One Mitsuba scene holding every shape, each moved to its own lattice site.
+
+    On ``cuda_ad_mono`` a kernel may trace rays against one scene only (OptiX takes one
+    pipeline and one shader binding table per kernel and silently disables the others' ray
+    tests), so the visibility rays of all shapes go to one BVH; on the CPU it is one BVH too.
+    Shape ``k`` sits at ``offsets[k]``, sites of a cubic lattice ``spacing`` apart: a visibility
+    ray of shape k stays within about 1.42 reach of its site (its points are within the
+    silhouette's pixel band, its segment 2 reach long), so with ``spacing`` = 3 x the largest
+    reach it never meets another shape.
+
+    Parameters
+    ----------
+    shapes : list of Shape
+        Centred meshes, mm.
+    spacing : float
+        Distance between neighbouring sites, mm.
+
+    Returns
+    -------
+    scene : mitsuba.Scene
+    offsets : (K, 3) ndarray of float
+        Each shape's site, mm.
+    """
+    side = max(1, int(np.ceil(len(shapes) ** (1.0 / 3.0) - 1e-9)))
+    k = np.arange(len(shapes))
+    offsets = spacing * np.column_stack([k % side, (k // side) % side, k // (side * side)])
+    offsets = offsets.astype(np.float64)
+    counts = np.cumsum([0] + [len(s.vertices) for s in shapes])
+    vertices = np.vstack([s.vertices + o for s, o in zip(shapes, offsets)])
+    faces = np.vstack([s.faces + c for s, c in zip(shapes, counts)])
+    return mesh_scene(vertices, faces, "shapes"), offsets

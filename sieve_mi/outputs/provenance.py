@@ -32,13 +32,19 @@ def sha256(path: str) -> str:
 
 
 def versions() -> dict[str, str | None]:
-    """Installed version of each of :data:`PACKAGES` (None where one is not installed)."""
+    """Installed version of each of :data:`PACKAGES` (None where one is not installed).
+
+    sieve-mi run from a checkout on ``PYTHONPATH`` (not pip-installed, as on an offline GPU
+    machine) reports its own ``sieve_mi._version.VERSION``.
+    """
+    from sieve_mi._version import VERSION
+
     out: dict[str, str | None] = {"python": platform.python_version()}
     for name in PACKAGES:
         try:
             out[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
-            out[name] = None
+            out[name] = VERSION if name == "sieve-mi" else None
     return out
 
 

@@ -98,7 +98,10 @@ for name in engine:
         raise AssertionError(name + " imported without MuJoCo")
 print(len(names))
 """
-    env = {**os.environ, "PYTHONPATH": REPO}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [REPO, os.environ.get("PYTHONPATH")])),
+    }
     p = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300
     )
