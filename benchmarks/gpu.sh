@@ -6,7 +6,9 @@
 # left of the budget; a stopped step keeps the rows it wrote.
 # Needs Mitsuba, Dr.Jit, trimesh, manifold3d, nlopt and shapely importable (on the offline device
 # machine: PYTHONPATH from ../shared/tools/gpu-site.sh's .gpu/site.tar.xz, packed with
-# `PYTHON=.venv/bin/python ../shared/tools/gpu-site.sh shapely svg.path`). Writes into
+# `PYTHON=.venv/bin/python ../shared/tools/gpu-site.sh shapely svg.path`; coal and OMPL, which the
+# thin-plate step needs, from tools/gpu_extra.sh's .gpu/extra.tar.xz, unpacked beside it with
+# /tmp/site/cmeel.prefix/lib/python3.12/site-packages on PYTHONPATH too). Writes into
 # ${OUT:-benchmarks/results}.
 #   usage: [TAG=h200] [BUDGET=540] [CASES=a,b,...] benchmarks/gpu.sh [letters-seeds...]
 set -u
