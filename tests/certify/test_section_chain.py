@@ -7,8 +7,10 @@ from the centre, and the centre slab is centrally symmetric, so its projection i
 across: more than one disc's 6.6, so one disc is proved. Stood on edge, the ring's slab through
 its axis is two bars 1.5 x 4 mm whose facing sides are at least 2 sqrt(2.31^2 - 0.5^2) = 4.5
 apart (the bore's flats at 2.5 cos 22.5 deg = 2.31): each bar fits a disc, so two discs with a
-1 mm web between them hold the section (no sound proof exists), while across a 7 mm web no
-point of one bar can be in another disc than a point of the other bar less than 7 away.
+1 mm web between them hold the section (no section test can exclude it), while across a 7 mm
+web no point of one bar can be in another disc than a point of the other bar less than 7 away.
+Across the 1 mm web topology keeps the ring out (:mod:`sieve_mi.certify.link`): the web would
+pass through the bore, and the ring's core loop would link a loop of the plate around a disc.
 """
 
 from __future__ import annotations
@@ -91,7 +93,52 @@ def test_the_ring_is_proved_across_a_wide_web_by_chains_and_the_replay_agrees(ri
     assert not r["valid"] and any("evidence does not hold" in e for e in r["errors"])
 
 
-def test_the_ring_is_not_proved_where_two_discs_hold_its_section(ring):
-    c = section_only(ring, _holes(1.0), 1.0, 1.0)
+def test_without_its_loop_the_ring_is_not_proved_where_two_discs_hold_its_section(ring):
+    from sieve_mi.certify import link
+
+    real = link.find_loops
+    link.find_loops = lambda shape: []  # the section tests alone: each bar fits one disc
+    try:
+        c = section_only(ring, _holes(1.0), 1.0, 1.0)
+    finally:
+        link.find_loops = real
     assert c.proved_section is None
     assert math.isfinite(c.diameter)
+
+
+def test_its_loop_proves_the_ring_across_a_narrow_web_and_the_replay_checks_the_loop(ring):
+    """Stood on edge across the 1 mm web, the ring's bars fit the two discs, but its core loop
+    would then link a loop of the plate around either disc: the link test excludes it."""
+    from sieve_mi.certify.link import find_loops, inside_clearance
+
+    loops = find_loops(ring)
+    # the core loops lie between the bore's flats (2.31) and the outer flats (3.70), and within
+    # the ring's height
+    core = np.concatenate(loops)
+    radii = np.linalg.norm(core[:, :2], axis=1)
+    assert np.all(radii > 2.31) and np.all(radii < 3.70) and np.all(np.abs(core[:, 2]) < 2.0)
+    assert all(inside_clearance(q, ring.vertices[ring.faces]) > 0 for q in loops)
+    c = section_only(ring, _holes(1.0), 1.0, 20.0)
+    assert c.section["status"] == "proved"
+    sec = c.certificate["section"]
+    kinds = set()
+
+    def walk(node):
+        if "c" in node:
+            for k in node["c"]:
+                walk(k)
+        elif "e" in node:
+            kinds.add(node["e"]["kind"])
+
+    for n in sec["tree"]:
+        walk(n)
+    assert "link" in kinds and "loops" in sec
+    assert replay(c.certificate)["valid"]
+    # a loop shrunk into the bore (radius 2.2 < 2.31) is not inside the ring: rejected
+    q = np.asarray(sec["loops"][0])
+    bore = (q * (2.2 / np.linalg.norm(q[:, :2], axis=1).max())).tolist()
+    r = replay({**c.certificate, "section": {**sec, "loops": [bore] + sec["loops"][1:]}})
+    assert not r["valid"] and any("section.loops" in e for e in r["errors"])
+    # without its loops the link leaves do not hold
+    r = replay({**c.certificate, "section": {k: v for k, v in sec.items() if k != "loops"}})
+    assert not r["valid"]
