@@ -398,9 +398,12 @@ class SectionReplay:
             rs.append((2.0 * (1.0 - math.cos(alpha)) * length + math.sin(alpha) * abs(z))
                       * (1 + MARGIN) + self.eta)  # fmt: skip
         xs, rs = np.asarray(xs, dtype=np.float64), np.asarray(rs, dtype=np.float64)
-        links = [k for k in range(len(path) - 1)
-                 if where[k] and where[k + 1] and where[k][0] == where[k + 1][0]]  # fmt: skip
-        for k in links:
+        self._chain_holds(xs[:2], rs[:2])  # sets the bounds
+        steps = np.linalg.norm(np.diff(xs, axis=0), axis=1) + rs[:-1] + rs[1:]
+        links = [k for k in range(len(path) - 1) if not steps[k] < self._chain[0]]
+        for k in links:  # a step too long for the chain: a link, or the evidence fails
+            if not (where[k] and where[k + 1] and where[k][0] == where[k + 1][0]):
+                return False
             q = where[k][0]
             v = self.loops[q] - self.pin
             found = self._stretches(v, n_c, alpha)
