@@ -25,6 +25,7 @@ import trimesh
 from sieve_mi.certify import replay, section_only
 from sieve_mi.certify.chain import Chain, hull_gap
 from sieve_mi.certify.replay_section import hull_separation
+from sieve_mi.certify.search import Settings
 from sieve_mi.geometry.meshes import shape_from_trimesh
 
 R = 3.3
@@ -118,7 +119,10 @@ def test_its_loop_proves_the_ring_across_a_narrow_web_and_the_replay_checks_the_
     radii = np.linalg.norm(core[:, :2], axis=1)
     assert np.all(radii > 2.31) and np.all(radii < 3.70) and np.all(np.abs(core[:, 2]) < 2.0)
     assert all(inside_clearance(q, ring.vertices[ring.faces]) > 0 for q in loops)
-    c = section_only(ring, _holes(1.0), 1.0, 20.0)
+    # a 3 mm plate: the bars' facing sides are 2 sqrt(2.31^2 - 1.5^2) = 3.5 apart, and each bar
+    # (4 x 2.24 mm at most) fits one disc; fewer points than the default keep the test short
+    settings = Settings(max_candidates=1000, edge_spacing=0.03)
+    c = section_only(ring, _holes(1.0), 3.0, 30.0, settings)
     assert c.section["status"] == "proved"
     sec = c.certificate["section"]
     kinds = set()
