@@ -61,20 +61,37 @@ def _frame(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, np.cross(a, e1)
 
 
-def inside_clearance(loop: np.ndarray, tri: np.ndarray, samples: int = 4) -> float:
+def inside_clearance(loop: np.ndarray, tri: np.ndarray, samples: int = 2) -> float:
     """The least distance to the mesh ``tri`` (F, 3, 3) of points sampled on the closed polygon
     ``loop`` (m, 3), less half the sample spacing (each point of an edge is within that of a
-    sample), scene units; -inf where a sample is outside (winding number below 1/2). Positive:
-    the whole polygon lies in the mesh's interior."""
+    sample, so the loop never meets the surface), scene units; -inf where its first vertex is
+    outside (winding number below 1/2). Positive: the whole polygon lies in the mesh's interior
+    (it is connected, and on the side of its first vertex)."""
+    return float(_rooms([loop], tri, samples)[0])
+
+
+def _rooms(loops: list, tri: np.ndarray, samples: int = 2) -> np.ndarray:
+    """:func:`inside_clearance` of each loop, (n,), all loops at once."""
     from sieve_mi.geometry.solid import triangle_distance, winding_numbers
 
-    a, b = loop, np.roll(loop, -1, axis=0)
+    out = np.full(len(loops), -np.inf)
+    if not loops:
+        return out
+    first = winding_numbers(np.array([q[0] for q in loops]), tri)
+    keep = [k for k in range(len(loops)) if first[k] >= 0.5]
+    if not keep:
+        return out
     s = np.arange(samples)[:, None, None] / samples
-    pts = (a[None] + s * (b - a)[None]).reshape(-1, 3)
-    if np.any(winding_numbers(pts, tri) < 0.5):
-        return -math.inf
-    half = 0.5 * float(np.linalg.norm(b - a, axis=1).max()) / samples
-    return float(triangle_distance(pts, tri).min()) - half * (1 + MARGIN)
+    pts, half = [], []
+    for k in keep:
+        a, b = loops[k], np.roll(loops[k], -1, axis=0)
+        pts.append((a[None] + s * (b - a)[None]).reshape(-1, 3))
+        half.append(0.5 * float(np.linalg.norm(b - a, axis=1).max()) / samples)
+    ends = np.cumsum([len(p) for p in pts])[:-1]
+    near = np.split(triangle_distance(np.concatenate(pts), tri).min(axis=1), ends)
+    for k, d, h in zip(keep, near, half):
+        out[k] = float(d.min()) - h * (1 + MARGIN)
+    return out
 
 
 def _ring(centre, e1, e2, rho: float, spacing: float) -> np.ndarray:
@@ -96,31 +113,26 @@ def find_loops(shape: Shape) -> list:
     axes = list(np.eye(3)) + list(np.linalg.eigh(np.cov((hull - hull.mean(0)).T))[1].T)
     spacing = LOOP_SPACING * shape.radius
 
-    def room(loop: np.ndarray) -> float:
-        if np.any(winding_numbers(loop, tri) < 0.5):
-            return -math.inf  # a vertex outside: cheap to see, so the full check is spared
-        return inside_clearance(loop, tri)
-
     best, found = 0.0, None
     for k, a in enumerate(axes):
         if any(abs(float(a @ b)) > 1 - 1e-9 for b in axes[:k]):
             continue
         a = a / np.linalg.norm(a)
-        for rho in LOOP_RADII * shape.radius:
-            got = room(_ring(np.zeros(3), *_frame(a), rho, spacing))
-            if got > best:
-                best, found = got, (a, rho)
+        radii = LOOP_RADII * shape.radius
+        got = _rooms([_ring(np.zeros(3), *_frame(a), rho, spacing) for rho in radii], tri)
+        if got.max() > best:
+            best, found = float(got.max()), (a, float(radii[int(got.argmax())]))
     if found is None:
         return []
     a, rho0 = found
     step = LOOP_STEP * shape.radius
-    loops = []
-    for h in step * np.arange(-math.floor(1 / LOOP_STEP), math.floor(1 / LOOP_STEP) + 1):
-        for rho in rho0 + step * np.arange(-math.floor(rho0 / step), math.floor(1 / LOOP_STEP)):
-            loop = _ring(h * a, *_frame(a), rho, spacing)
-            if rho > 0 and room(loop) > 0:
-                loops.append(loop)
-    return loops
+    tried = [
+        _ring(h * a, *_frame(a), rho, spacing)
+        for h in step * np.arange(-math.floor(1 / LOOP_STEP), math.floor(1 / LOOP_STEP) + 1)
+        for rho in rho0 + step * np.arange(-math.floor(rho0 / step), math.floor(1 / LOOP_STEP))
+        if rho > 0
+    ]
+    return [q for q, room in zip(tried, _rooms(tried, tri)) if room > 0]
 
 
 class Link:
