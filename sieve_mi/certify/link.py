@@ -13,8 +13,9 @@ What keeps the nut out is topology (docs/certify.md, "The link test"):
   of B). So in every reachable pose gamma crosses the mid-plane as often up as down in each copy.
 * Over a cell of directions n, a loop vertex v (less the pin) is *surely above* the plane through
   the pin if n_c . v exceeds 2 sin(alpha / 2) |v| (and margins), *surely below* likewise. When
-  the surely-signed vertices change sign exactly twice around the loop, every crossing lies on
-  two *stretches* (from the last vertex of one sign to the first of the other), stretch 1
+  the surely-signed vertices change sign exactly twice around the loop and every other vertex
+  lies on one of the two *stretches* (from the last vertex of one sign to the first of the
+  other), every crossing lies on a stretch's segment, stretch 1
   crossing down once net and stretch 2 up once net (a segment between two vertices of one sign
   does not cross). If each stretch's vertices are band points stepping by less than the
   chain test's g (the least gap between two copies' hulls), each stretch with its crossings lies
