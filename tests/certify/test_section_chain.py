@@ -71,7 +71,7 @@ def test_a_chain_needs_short_steps_and_far_ends():
 
 
 def test_the_ring_is_proved_across_a_wide_web_by_chains_and_the_replay_agrees(ring):
-    c = section_only(ring, _holes(7.0), 1.0, 20.0)
+    c = section_only(ring, _holes(7.0), 1.0, 60.0)  # a cap: a loaded machine needs more than 20 s
     assert c.section["status"] == "proved"
     sec = c.certificate["section"]
     kinds = set()
