@@ -143,6 +143,32 @@ def test_its_loop_proves_the_ring_across_a_narrow_web_and_the_replay_checks_the_
     bore = (q * (2.2 / np.linalg.norm(q[:, :2], axis=1).max())).tolist()
     r = replay({**c.certificate, "section": {**sec, "loops": [bore] + sec["loops"][1:]}})
     assert not r["valid"] and any("section.loops" in e for e in r["errors"])
+    # a link between two loop vertices that are not both on the loop's stretches: rejected
+    leaf = _first_link(sec["tree"])
+    path = leaf["path"]
+    k = next(i for i in range(len(path) - 1) if isinstance(path[i], list)
+             and isinstance(path[i + 1], list) and path[i][0] == path[i + 1][0])  # fmt: skip
+    q = sec["loops"][path[k][0]]
+    far = [path[k][0], (path[k][1] + len(q) // 4) % len(q)]  # a quarter turn round the loop
+    leaf["path"] = path[: k + 1] + [far] + path[k + 2 :]
+    r = replay(c.certificate)
+    assert not r["valid"] and any("evidence does not hold" in e for e in r["errors"])
+    leaf["path"] = path
     # without its loops the link leaves do not hold
     r = replay({**c.certificate, "section": {k: v for k, v in sec.items() if k != "loops"}})
     assert not r["valid"]
+
+
+def _first_link(tree: list) -> dict:
+    """The evidence of the first leaf whose path takes a link step."""
+    todo = list(tree)
+    while todo:
+        node = todo.pop()
+        todo += node.get("c", [])
+        ev = node.get("e")
+        if ev and ev["kind"] == "link":
+            path = ev["path"]
+            if any(isinstance(a, list) and isinstance(b, list) and a[0] == b[0]
+                   for a, b in zip(path, path[1:])):  # fmt: skip
+                return ev
+    raise AssertionError("no link step")
