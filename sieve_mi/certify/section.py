@@ -32,6 +32,8 @@ plates"):
 ``chain``
     on a sheet (several contours): band points that hang together by steps shorter than the
     gap between copies and end further apart than one copy's diameter (:mod:`~.chain`);
+``link``
+    the same through a ring's loops, which cannot straddle a web (:mod:`~.link`);
 ``turns``
     a one-dimensional branch and bound over the turn psi: each interval of turns is excluded when
     no offset puts every chosen point within its bound (r plus the turn's displacement
