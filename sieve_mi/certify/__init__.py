@@ -45,6 +45,8 @@ turns
     The section proof's batched turn test: a quadtree of proved bounds over in-plane turns.
 chain
     The section proof's chain test on a sheet: a section too wide for any one copy of the hole.
+link
+    The section proof's link test: a ring's loops keep it from straddling a web of the sheet.
 replay_section
     The independent replay of a slab-section proof.
 svg

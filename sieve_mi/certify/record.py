@@ -7,6 +7,7 @@ evidence's points into the few the certificate stores.
 
 from __future__ import annotations
 
+import json
 import os
 from typing import NamedTuple
 
@@ -108,10 +109,12 @@ def build(
     }
 
 
-def certificate_entry(out, points: np.ndarray, on_edge: dict, kappa: float) -> dict:
+def certificate_entry(out, points: np.ndarray, on_edge: dict, kappa: float, loops=()) -> dict:
     """The certificate's ``section`` entry of a section search's outcome
     (:class:`~sieve_mi.certify.section.SectionOutcome`): pin, thickness, band, the points the
-    evidence uses (renumbered), where they lie on the mesh, and the tree over directions."""
+    evidence uses (renumbered), where they lie on the mesh, the tree over directions, and the
+    link test's loops (each (m, 3) vertices, :mod:`~sieve_mi.certify.link`) where a leaf uses
+    them."""
     used = sorted(out.points)
     renumber = {old: new for new, old in enumerate(used)}
 
@@ -125,7 +128,7 @@ def certificate_entry(out, points: np.ndarray, on_edge: dict, kappa: float) -> d
         e[key] = [renumber[p] for p in e[key]]
         return {"e": e}
 
-    return {
+    entry = {
         "status": out.status,
         "pin": [float(c) for c in out.pin],
         "thickness": float(out.thickness),
@@ -135,3 +138,6 @@ def certificate_entry(out, points: np.ndarray, on_edge: dict, kappa: float) -> d
         "on_edge": [on_edge.get(u) for u in used],
         "tree": [renum(n.to_dict()) for n in out.roots],
     }
+    if len(loops) and '"kind": "link"' in json.dumps(entry["tree"]):
+        entry["loops"] = [np.asarray(q, dtype=np.float64).tolist() for q in loops]
+    return entry

@@ -16,7 +16,13 @@ re-proves each leaf (docs/certify.md, "Thin plates"):
    interval of turns, ``chain`` evidence (a sheet: :mod:`sieve_mi.certify.chain`) by every step
    |x_k - x_(k+1)| + r_k + r_(k+1) below a lower bound on the distance between the convex hulls
    of any two of H's contours (:func:`hull_separation`, less 2 eta) and the ends further apart
-   (after their r) than the largest diameter of one contour;
+   (after their r) than the largest diameter of one contour; ``link`` evidence (a ring across a
+   web, :mod:`sieve_mi.certify.link`) as a chain over mesh points and loop vertices (each in the
+   band), where a step between two vertices of one loop is a link: the section's ``loops`` lie
+   inside the mesh (:meth:`SectionReplay.check_loops`: samples along each edge further from every
+   triangle than half their spacing, and enclosed), and over the cell that loop's surely-signed
+   vertices change sign exactly twice, each stretch between them in the band and stepping by
+   less than the separation, both vertices on the stretches;
 4. the section is proved iff every leaf is re-proved and none is open.
 """
 
@@ -145,6 +151,10 @@ class SectionReplay:
         )
         self.eta = 1e-6 * scale
         self._chain = None  # (step, diameter) of the chain test, computed when first needed
+        self.loops = [
+            np.asarray(q, dtype=np.float64).reshape(-1, 3) for q in section.get("loops") or []
+        ]
+        self._loops_ok = None  # whether the loops lie inside the mesh, checked when first needed
 
     def run(self) -> bool:
         """Every check; True when the section is proved (``errors`` lists the problems)."""
@@ -244,11 +254,14 @@ class SectionReplay:
             return self._turns(x, r, ev)
         if ev["kind"] == "chain":
             return self._chain_holds(x, r)
+        if ev["kind"] == "link":
+            return self._link_holds(x, r, ev, n_c, alpha, (e1, e2))
         return False
 
-    def _chain_holds(self, x: np.ndarray, r: np.ndarray) -> bool:
+    def _chain_holds(self, x: np.ndarray, r: np.ndarray, skip=()) -> bool:
         """The points (in their order) step by less than the hulls' separation and end further
-        apart than one contour's diameter."""
+        apart than one contour's diameter (the steps from the points ``skip`` to the next are not
+        tested: links)."""
         if self._chain is None:
             gap = hull_separation(self.hole.contours)
             far = max(largest_distance(c) for c in self.hole.contours)
@@ -256,6 +269,7 @@ class SectionReplay:
             self._chain = (step, far * (1 + MARGIN) + self.eta)
         step, far = self._chain
         steps = np.linalg.norm(np.diff(x, axis=0), axis=1) + r[:-1] + r[1:]
+        steps[list(skip)] = 0.0
         ends = float(np.linalg.norm(x[0] - x[-1])) - r[0] - r[-1]
         return step > 0 and bool(np.all(steps < step)) and ends > far
 
@@ -286,3 +300,126 @@ class SectionReplay:
             return no_translation(self.hole, placed, r + grow, slack)
 
         return all(holds(n, k * step, (k + 1) * step, 0) for k, n in enumerate(roots))
+
+    def check_loops(self) -> bool:
+        """Every loop lies in the mesh's interior: on every edge, k samples (spacing at most 2 %
+        of the mesh's radius) each further from every triangle than half the spacing (so the ball
+        about it holds the edge's points near it and no surface) and enclosed by the mesh (its
+        winding number, computed here); the mesh closed and consistently oriented."""
+        import trimesh
+
+        if self._loops_ok is not None:
+            return self._loops_ok
+        self._loops_ok = False
+        mesh = trimesh.Trimesh(self.vertices, self.faces, process=False)
+        if not self.loops or any(len(q) < 3 or not np.all(np.isfinite(q)) for q in self.loops):
+            self.errors.append("section.loops: none, or one of fewer than 3 finite vertices")
+            return False
+        if not (mesh.is_watertight and mesh.is_winding_consistent):
+            self.errors.append("section.loops: need a closed, consistently oriented mesh")
+            return False
+        radius = float(np.linalg.norm(self.vertices[np.unique(self.faces)], axis=1).max())
+        pts, half = [], []
+        for q in self.loops:
+            a, b = q, np.roll(q, -1, axis=0)
+            length = np.linalg.norm(b - a, axis=1)
+            k = np.maximum(1, np.ceil(length / (0.02 * radius))).astype(int)
+            pts += [a[e] + np.arange(k[e])[:, None] / k[e] * (b[e] - a[e]) for e in range(len(a))]
+            half.append(np.repeat(0.5 * length / k, k))
+        pts, half = np.concatenate(pts), np.concatenate(half)
+        tri = self.vertices[self.faces]
+        near, wind = np.full(len(pts), np.inf), np.zeros(len(pts))
+        for s in range(0, len(pts), 64):
+            p = pts[s : s + 64]
+            flat = np.repeat(p, len(tri), axis=0)
+            foot = trimesh.triangles.closest_point(np.tile(tri, (len(p), 1, 1)), flat)
+            near[s : s + 64] = np.linalg.norm(foot - flat, axis=1).reshape(len(p), -1).min(1)
+            v = tri[None] - p[:, None, None]
+            la, lb, lc = np.linalg.norm(v, axis=3).transpose(2, 0, 1)
+            num = (v[:, :, 0] * np.cross(v[:, :, 1], v[:, :, 2])).sum(-1)
+            den = la * lb * lc + lc * (v[:, :, 0] * v[:, :, 1]).sum(-1)
+            den += la * (v[:, :, 1] * v[:, :, 2]).sum(-1) + lb * (v[:, :, 2] * v[:, :, 0]).sum(-1)
+            wind[s : s + 64] = np.arctan2(num, den).sum(1) / (2 * np.pi)
+        if not np.all(near > half * (1 + MARGIN) + self.eta):
+            self.errors.append("section.loops: an edge comes nearer the surface than its samples")
+            return False
+        if not np.all(np.abs(wind) >= 0.5):
+            self.errors.append("section.loops: a point of a loop is outside the mesh")
+            return False
+        self._loops_ok = True
+        return True
+
+    def _stretches(self, v: np.ndarray, n_c: np.ndarray, alpha: float) -> list | None:
+        """A loop's two stretches over the cap (``v``: its vertices less the pin): runs from the
+        last surely-signed vertex of one sign to the first of the other; None unless there are
+        exactly two, every unsure vertex on them, both in the band."""
+        length = np.linalg.norm(v, axis=1)
+        reach = 2.0 * math.sin(0.5 * alpha) * length * (1 + MARGIN)
+        z = v @ n_c
+        sure = [k for k in range(len(v)) if abs(z[k]) > reach[k] + self.eta]
+        if len(sure) < 2:
+            return None
+        out = []
+        for a, b in zip([sure[-1]] + sure[:-1], sure):
+            if (z[a] > 0) != (z[b] > 0):
+                out.append([(a + i) % len(v) for i in range((b - a) % len(v) + 1)])
+        unsure = set(range(len(v))) - set(sure)
+        if len(out) != 2 or not unsure <= set(out[0]) | set(out[1]):
+            return None  # a vertex off the stretches unsure: the plane might cross there too
+        inband = np.abs(z) + reach < self.band * (1 - MARGIN) - self.eta
+        return out if all(inband[s].all() for s in out) else None
+
+    def _link_holds(self, x: np.ndarray, r: np.ndarray, ev: dict, n_c, alpha, frame) -> bool:
+        """The path's items (an index into the evidence's points, or ``[loop, vertex]``) step as
+        a chain, except from one vertex of a loop's stretches to another of the same loop's (the
+        link, once the loop's stretches are checked); its ends further apart than D."""
+        path = ev.get("path")
+        if not isinstance(path, list) or len(path) < 2 or not self.check_loops():
+            return False
+        xs, rs, where = [], [], []
+        for item in path:
+            if isinstance(item, int) and 0 <= item < len(x):
+                xs.append(x[item])
+                rs.append(r[item])
+                where.append(None)
+                continue
+            if not (isinstance(item, list) and len(item) == 2
+                    and all(isinstance(i, int) for i in item)
+                    and 0 <= item[0] < len(self.loops)
+                    and 0 <= item[1] < len(self.loops[item[0]])):  # fmt: skip
+                return False
+            v = self.loops[item[0]][item[1]] - self.pin
+            z, length = float(v @ n_c), float(np.linalg.norm(v))
+            reach = 2.0 * math.sin(0.5 * alpha) * length * (1 + MARGIN)
+            if not abs(z) + reach < self.band * (1 - MARGIN) - self.eta:
+                return False  # a loop vertex must be a band point too
+            xs.append([v @ frame[0], v @ frame[1]])
+            where.append(tuple(item))
+            rs.append((2.0 * (1.0 - math.cos(alpha)) * length + math.sin(alpha) * abs(z))
+                      * (1 + MARGIN) + self.eta)  # fmt: skip
+        xs, rs = np.asarray(xs, dtype=np.float64), np.asarray(rs, dtype=np.float64)
+        self._chain_holds(xs[:2], rs[:2])  # sets the bounds
+        steps = np.linalg.norm(np.diff(xs, axis=0), axis=1) + rs[:-1] + rs[1:]
+        links = [k for k in range(len(path) - 1) if not steps[k] < self._chain[0]]
+        for k in links:  # a step too long for the chain: a link, or the evidence fails
+            if not (where[k] and where[k + 1] and where[k][0] == where[k + 1][0]):
+                return False
+            q = where[k][0]
+            v = self.loops[q] - self.pin
+            found = self._stretches(v, n_c, alpha)
+            if found is None or not all(any(w[1] in s for s in found) for w in where[k : k + 2]):
+                return False
+            z = v @ n_c
+            rl = (2.0 * (1.0 - math.cos(alpha)) * np.linalg.norm(v, axis=1)
+                  + math.sin(alpha) * np.abs(z)) * (1 + MARGIN) + self.eta  # fmt: skip
+            xl = np.column_stack([v @ frame[0], v @ frame[1]])
+            if not all(self._chain_steps(xl[s], rl[s]) for s in found):
+                return False
+        return self._chain_holds(xs, rs, skip=links)
+
+    def _chain_steps(self, x: np.ndarray, r: np.ndarray) -> bool:
+        """Every step of the points shorter than the chain test's (its ends not tested)."""
+        self._chain_holds(x[:2], r[:2])  # sets the bounds
+        step = self._chain[0]
+        steps = np.linalg.norm(np.diff(x, axis=0), axis=1) + r[:-1] + r[1:]
+        return step > 0 and bool(np.all(steps < step))

@@ -32,6 +32,8 @@ plates"):
 ``chain``
     on a sheet (several contours): band points that hang together by steps shorter than the
     gap between copies and end further apart than one copy's diameter (:mod:`~.chain`);
+``link``
+    the same through a ring's loops, which cannot straddle a web (:mod:`~.link`);
 ``turns``
     a one-dimensional branch and bound over the turn psi: each interval of turns is excluded when
     no offset puts every chosen point within its bound (r plus the turn's displacement
@@ -53,7 +55,7 @@ from dataclasses import dataclass, field
 import manifold3d
 import numpy as np
 
-from sieve_mi.certify import bounds, chain
+from sieve_mi.certify import bounds, chain, link
 from sieve_mi.certify.search import EvenOdd
 from sieve_mi.certify.turns import TurnTest, spread
 from sieve_mi.geometry.meshes import Shape
@@ -384,6 +386,7 @@ class SectionSearch:
         segs = bounds.contour_segments(contours)
         self.eta = 1e-6 * max(float(np.abs(segs).max()), self.radius)
         self.chain = chain.Chain(contours, self.eta) if len(contours) > 1 else None
+        self.loops, self.link = [], None  # the shape's loops for the link test (:mod:`~.link`)
         self.cache = bounds.OffsetCache(hole, self.eta, r_min=self.eta)
         region = EvenOdd(contours)
         self.turn_test = TurnTest(self.cache, bounds.LowerDistance(segs, region, LOWER_PIXELS),
@@ -408,6 +411,8 @@ class SectionSearch:
         v = self.candidates - pin
         lengths = np.linalg.norm(v, axis=1)
         band = 0.5 * float(thickness)
+        if self.loops and self.chain is not None:
+            self.link = link.Link(self.loops, pin, band, self.eta)
         level = sphere_roots()
         nodes = [Node() for _ in range(len(level))]
         out = SectionOutcome("undecided", pin, float(thickness), list(nodes))
@@ -469,6 +474,8 @@ class SectionSearch:
                 continue
             pts, x, r = cell = plane.cell(c)
             out.append(None if self.chain is None else chain.evidence(self.chain, cell, pair[c]))
+            if out[c] is None and self.link is not None:
+                out[c] = self.link.evidence(self.chain, plane, c, cell, pair[c])
             if out[c] is not None or time.perf_counter() - t0 > budget_s:
                 continue
             far = self.diameter if self.chain is None else min(self.diameter, self.chain.diameter)
@@ -574,6 +581,7 @@ def prove_section(shape: Shape, hole: manifold3d.CrossSection, thickness: float,
         shape, type(settings)(**{**settings.__dict__, "max_candidates": most}), "none"
     )
     search = SectionSearch(points, hole, shape.radius, settings.kappa)
+    search.loops = link.find_loops(shape) if search.chain is not None else []
     todo = pins(shape)
     out = None
     for k, pin in enumerate(todo):
@@ -587,4 +595,4 @@ def prove_section(shape: Shape, hole: manifold3d.CrossSection, thickness: float,
         roots = [Node() for _ in FACES]  # the set-up used the budget: every face open
         out = SectionOutcome("undecided", todo[0], float(thickness), roots, open_cells=len(roots))
     out.seconds = time.perf_counter() - t0
-    return out, certificate_entry(out, points, on_edge, settings.kappa)
+    return out, certificate_entry(out, points, on_edge, settings.kappa, search.loops)

@@ -130,7 +130,7 @@ def check_structure(cert: dict, where: str = "certificate") -> None:
 
 def _check_section(section, n_vertices: int, where: str) -> None:
     """``section`` (only with a slab-section proof): pin, thickness, band, kappa, points,
-    on_edge and a tree of six roots."""
+    on_edge, a tree of six roots, and the link test's ``loops`` where a leaf uses them."""
     if section is None:
         return
     if not isinstance(section, dict):
@@ -150,6 +150,9 @@ def _check_section(section, n_vertices: int, where: str) -> None:
             raise SieveError(f"{where}: section.hole[{i}]: a contour needs at least 3 points")
     if "hole" in section and not section["hole"]:
         raise SieveError(f"{where}: section.hole: no contour")
+    for i, q in enumerate(section.get("loops") or []):  # the link test's loops, if any
+        if len(_numbers(q, f"section.loops[{i}]", (-1, 3), where)) < 3:
+            raise SieveError(f"{where}: section.loops[{i}]: a loop needs at least 3 vertices")
     if not isinstance(section.get("tree"), list) or len(section["tree"]) != 6:
         raise SieveError(f"{where}: section.tree must be a list of 6 nodes (the cube's faces)")
 
