@@ -29,7 +29,7 @@ from sieve_mi.game.result import Result, block_margins, is_blocked
 from sieve_mi.game.scoring import mask_window
 from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved
 from sieve_mi.game.sheet import plate_sheet
-from sieve_mi.game.verdict import judge
+from sieve_mi.game.verdict import CONVERGED, judge
 from sieve_mi.game.window import at_window, widest_window, window_record
 from sieve_mi.geometry.meshes import Shape, load_shape, shape_from_trimesh
 from sieve_mi.geometry.outline import dilated
@@ -251,7 +251,7 @@ def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: Progress
     players = [PlayerA.from_settings(p, frame, fab, s) for p in passes]
     player_b = PlayerB.from_settings(blocks, frame, s)
     recheck = (scene.verdict.starts, scene.verdict.steps)
-    context = PlacementContext(player_b, s, scene.layout, rng, recheck)
+    context = PlacementContext(player_b, s, scene.layout, rng, recheck, converged=CONVERGED)
     return merge(
         players,
         quats,
