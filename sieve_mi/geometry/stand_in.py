@@ -16,14 +16,42 @@ import numpy as np
 
 from sieve_mi.geometry.meshes import Shape
 
-__all__ = ["STAND_IN", "stand_in", "stand_ins"]
+__all__ = ["AUTO_PIXELS", "STAND_IN", "stand_in", "stand_ins", "tolerance"]
 
-#: The meaning of ``[solver] stand_in`` (scene units; 0: off).
+#: The meaning of ``[solver] stand_in`` (scene units, or "auto"; 0: off).
 STAND_IN = (
     "player A's search plays against each closed B simplified so that no surface moves more "
     "than this (fewer silhouette edges, faster attacks); the verdict and every proof use the "
-    "full meshes; 0: the full meshes throughout"
+    'full meshes; "auto": half a pixel of the search\'s finest raster; 0: the full meshes '
+    "throughout"
 )
+#: ``[solver] stand_in = "auto"`` (the default) simplifies within this many pixels of the finest
+#: raster the search plays on: no silhouette moves by more than half a pixel, less than the
+#: raster itself resolves (a hole's pixels are those whose centres lie inside it).
+AUTO_PIXELS = 0.5
+
+
+def tolerance(setting: float | str, pixel: float) -> float:
+    """The stand-in tolerance of a ``[solver] stand_in`` setting, scene units.
+
+    Parameters
+    ----------
+    setting : float or "auto"
+        The scene's value: a distance (scene units; 0: off), or "auto".
+    pixel : float
+        The smallest pixel of the rasters the search plays on, scene units.
+
+    Returns
+    -------
+    float
+        ``setting`` itself, or :data:`AUTO_PIXELS` times ``pixel`` for "auto".
+
+    Examples
+    --------
+    >>> tolerance("auto", 0.2), tolerance(0.3, 0.2), tolerance(0.0, 0.2)
+    (0.1, 0.3, 0.0)
+    """
+    return AUTO_PIXELS * float(pixel) if setting == "auto" else float(setting)
 
 
 def stand_in(shape: Shape, tolerance: float) -> Shape:

@@ -50,22 +50,35 @@ def test_an_open_mesh_stays_whole():
     assert stand_in(open_shape, 0.5) is open_shape
 
 
-def test_the_search_plays_the_stand_in_and_the_verdict_the_full_mesh(monkeypatch):
+def test_by_default_the_search_plays_a_half_pixel_stand_in_and_the_verdict_the_full_mesh(
+    monkeypatch,
+):
+    # A: a ball of radius 10, tolerance 1, so its frame covers radius 11 at 64 pixels with 3
+    # pixels of margin a side: a pixel is 2 * 11 / (64 - 6) = 0.379 mm, "auto" half of it.
     scene = sm.Scene.from_meshes(
         [_sphere()], [{"mesh": _sphere(12.0), "name": "big"}], name="stand-in"
     )
-    scene.solver = tiny_solver(screen=False, stand_in=0.5)
+    scene.solver = tiny_solver(screen=False)  # stand_in: the default, "auto"
     scene.verdict.starts, scene.verdict.steps, scene.verdict.certify = 4, 10, False
+    assert scene.solver.stand_in == "auto" and scene.fabrication.tolerance == 1.0
+    tol = 0.5 * 2 * 11.0 / (64 - 6)
     seen = []
     search = solver_module.search
 
     def spy(scene, passes, blocks, *args):
-        seen.extend(b.face_count for b in blocks)
+        seen.extend(blocks)
         return search(scene, passes, blocks, *args)
 
     monkeypatch.setattr(solver_module, "search", spy)
     result = sm.solve(scene, progress=False)
-    assert len(seen) == 1 and seen[0] < 1280 / 2  # the search saw the stand-in
+    (coarse,) = seen
+    assert coarse.face_count < 1280  # the search saw a stand-in
+    assert np.allclose(np.linalg.norm(coarse.vertices, axis=1), 12.0)  # B's own vertices
+    # The full mesh lies outside radius 12 cos(largest edge angle / 2); every stand-in
+    # triangle within the tolerance of it.
+    edges = _sphere(12.0).edges_unique_length.max() / 12.0
+    centroids = coarse.vertices[coarse.faces].mean(axis=1)
+    assert np.linalg.norm(centroids, axis=1).min() >= 12.0 * np.cos(edges / 2) - tol - 1e-9
     assert result.block_shapes[0].face_count == 1280  # the verdict: the full mesh
     assert result.winner == "A" and result.blocks[0].blocked
 
