@@ -35,7 +35,7 @@ from sieve_mi.geometry.meshes import Shape, load_shape, shape_from_trimesh
 from sieve_mi.geometry.outline import dilated
 from sieve_mi.geometry.rotations import normalize
 from sieve_mi.geometry.silhouettes import SilhouetteRenderer
-from sieve_mi.geometry.stand_in import stand_ins, tolerance
+from sieve_mi.geometry.stand_in import AUTO_FACES, stand_ins, tolerance
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.progress import Progress
 from sieve_mi.scene import Scene
@@ -306,7 +306,8 @@ def solve(
     open_blocks = [b for j, b in enumerate(blocks) if j not in skip]
     with run.stage("search"):
         stand = tolerance(scene.solver.stand_in, _search_pixel(scene, passes))
-        searched = stand_ins(open_blocks, stand)  # the verdict: the full meshes
+        big = AUTO_FACES if scene.solver.stand_in == "auto" else 0
+        searched = stand_ins(open_blocks, stand, big)  # the verdict: the full meshes
         found = (
             search(scene, passes, searched, rng, seed, progress)
             if open_blocks
