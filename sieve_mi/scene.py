@@ -236,7 +236,7 @@ class Solver:
         "blocked; A then plays against the others only",
     )
     stand_in: float | str = setting(
-        "auto", STAND_IN, choices=("auto",), unit="scene units", minimum=0, maximum=LENGTH_MAX
+        0.0, STAND_IN, choices=("auto",), unit="scene units", minimum=0, maximum=LENGTH_MAX
     )
     memory: float = setting(
         0.0,

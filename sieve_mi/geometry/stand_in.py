@@ -25,12 +25,13 @@ STAND_IN = (
     'full meshes; "auto": half a pixel of the search\'s finest raster, for B of more than '
     "5,000 faces; 0: the full meshes throughout"
 )
-#: ``[solver] stand_in = "auto"`` (the default) simplifies within this many pixels of the finest
+#: ``[solver] stand_in = "auto"`` (off by default) simplifies within this many pixels of the finest
 #: raster the search plays on: no silhouette moves by more than half a pixel, less than the
 #: raster itself resolves (a hole's pixels are those whose centres lie inside it).
 AUTO_PIXELS = 0.5
 #: ... and only B of more faces than this: small meshes cost little per step, and simplifying
-#: them changed the letters' search (β up to 11 % lower, docs/performance.md) for no gain.
+#: them changed the letters' search (β up to 11 % lower) for no gain. Not the default: on the
+#: fandisk row of the authors' table it lowered β by 39 % (docs/performance.md, "Knobs").
 AUTO_FACES = 5000
 
 

@@ -51,7 +51,7 @@ def test_an_open_mesh_stays_whole():
     assert stand_in(open_shape, 0.5) is open_shape
 
 
-def test_by_default_the_search_plays_big_b_within_half_a_pixel_and_the_verdict_the_full_mesh(
+def test_auto_plays_big_b_within_half_a_pixel_and_the_verdict_the_full_mesh(
     monkeypatch,
 ):
     # A: a ball of radius 10, tolerance 1, so its frame covers radius 11 at 64 pixels with 3
@@ -61,9 +61,9 @@ def test_by_default_the_search_plays_big_b_within_half_a_pixel_and_the_verdict_t
     scene = sm.Scene.from_meshes(
         [_sphere()], [{"mesh": big, "name": "big"}, {"mesh": small, "name": "small"}], name="s"
     )
-    scene.solver = tiny_solver(screen=False)  # stand_in: the default, "auto"
+    scene.solver = tiny_solver(screen=False, stand_in="auto")
     scene.verdict.starts, scene.verdict.steps, scene.verdict.certify = 4, 10, False
-    assert scene.solver.stand_in == "auto" and scene.fabrication.tolerance == 1.0
+    assert scene.fabrication.tolerance == 1.0
     tol = 0.5 * 2 * 11.0 / (64 - 6)
     seen = []
     search = solver_module.search
