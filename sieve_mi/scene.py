@@ -235,7 +235,9 @@ class Solver:
         "prove before the game that B holding a ball larger than any hole A can make are "
         "blocked; A then plays against the others only",
     )
-    stand_in: float = setting(0.0, STAND_IN, unit="scene units", minimum=0, maximum=LENGTH_MAX)
+    stand_in: float | str = setting(
+        0.0, STAND_IN, choices=("auto",), unit="scene units", minimum=0, maximum=LENGTH_MAX
+    )
     memory: float = setting(
         0.0,
         "memory one attack of player B may hold at once; more poses run in chunks (same results); "

@@ -269,7 +269,8 @@ def _other_value(f, kind, spec):
     if kind is int:
         value = (spec.minimum if f.default is None else f.default) + 1
         return value if spec.maximum is None or value <= spec.maximum else spec.minimum
-    value = (f.default or 1.0) * 1.5 + 0.25
+    number = f.default if isinstance(f.default, (int, float)) else None  # not a word ("auto")
+    value = (number or 1.0) * 1.5 + 0.25
     return value if spec.maximum is None or value <= spec.maximum else spec.maximum / 2
 
 

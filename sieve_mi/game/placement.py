@@ -92,6 +92,11 @@ class PlacementContext:
         B's best poses so far, shared by the placements; every attack starts from them too.
         Default: an empty memory sized for ``solver.starts``
         (:meth:`~sieve_mi.game.attack.AttackMemory.for_starts`).
+    converged : (int, float), optional
+        The re-ranking attack's starts leave its descent once converged (``(window, rtol)`` of
+        :data:`sieve_mi.game.descent.CONVERGED`); the solver passes the verdict's
+        (:data:`sieve_mi.game.verdict.CONVERGED`), as for ``recheck``. None: every start runs
+        every step.
     """
 
     player_b: PlayerB
@@ -100,6 +105,7 @@ class PlacementContext:
     rng: np.random.Generator
     recheck: tuple[int, int] | None = None
     memory: AttackMemory | None = None
+    converged: tuple | None = None
 
     def __post_init__(self):
         if self.recheck is None:
@@ -175,13 +181,16 @@ class _PlacementGame:
     reach: float
     context: PlacementContext
 
-    def energy(self, x: np.ndarray, starts: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """Eq. 14 energy and the weakest B's β of placements ``x`` (P, 6): (P,) and (P,)."""
+    def energy(
+        self, x: np.ndarray, starts: int, steps: int, converged: tuple | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Eq. 14 energy and the weakest B's β of placements ``x`` (P, 6): (P,) and (P,);
+        ``converged``: the attack's converged stop (:meth:`PlayerB.attack`)."""
         c = self.context
         holes = self.player.holes(x[:, :4], x[:, 4:] * self.reach, base=self.base)
         attack = c.player_b.attack(
             holes, Starts(starts, memory=c.memory), steps, c.solver.learning_rate, c.rng,
-            settle=self.player.settle,
+            settle=self.player.settle, converged=converged,
         )  # fmt: skip
         area = np.array([hh.mask.mean() for hh in holes])
         n = np.array([pieces(hh.mask) for hh in holes])
@@ -212,7 +221,7 @@ class _PlacementGame:
             # The swarm ranks placements with a short attack, which can miss a narrow passage.
             # Re-rank its best few placements with a long attack and keep the best of those.
             xs = np.stack([f for f, _ in h.finalists[:finalists]]) if h.finalists else x[None]
-            values, betas = self.energy(xs, *c.recheck)
+            values, betas = self.energy(xs, *c.recheck, c.converged)
             i = int(np.argmax(values))
             if values[i] > value:
                 best, value, best_beta = xs[i], float(values[i]), float(betas[i])

@@ -29,13 +29,13 @@ from sieve_mi.game.result import Result, block_margins, is_blocked
 from sieve_mi.game.scoring import mask_window
 from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved
 from sieve_mi.game.sheet import plate_sheet
-from sieve_mi.game.verdict import judge
+from sieve_mi.game.verdict import CONVERGED, judge
 from sieve_mi.game.window import at_window, widest_window, window_record
 from sieve_mi.geometry.meshes import Shape, load_shape, shape_from_trimesh
 from sieve_mi.geometry.outline import dilated
 from sieve_mi.geometry.rotations import normalize
 from sieve_mi.geometry.silhouettes import SilhouetteRenderer
-from sieve_mi.geometry.stand_in import stand_ins
+from sieve_mi.geometry.stand_in import AUTO_FACES, stand_ins, tolerance
 from sieve_mi.optim import SwarmHistory
 from sieve_mi.progress import Progress
 from sieve_mi.scene import Scene
@@ -184,6 +184,17 @@ def search(
     return out
 
 
+def _search_pixel(scene: Scene, passes: list[Shape]) -> float:
+    """The smallest pixel (scene units) of the rasters the search plays on: each A's own frame
+    and, for a merged hole, the frame of their union (what ``[solver] stand_in = "auto"`` is
+    measured in)."""
+    fab, res = scene.fabrication, scene.solver.resolution
+    pixels = [hole_frame(p, fab.tolerance, res).pixel_size for p in passes]
+    if len(passes) > 1 and scene.layout.mode == "merged":
+        pixels.append(union_frame([p.radius for p in passes], fab.tolerance, res).pixel_size)
+    return min(pixels)
+
+
 def _merge_with_restarts(
     scene: Scene, passes, blocks, out: SearchOutcome, rng, seed: int, bar
 ) -> None:
@@ -251,7 +262,7 @@ def _merge(scene: Scene, passes, blocks, quats, alternatives, rng, bar: Progress
     players = [PlayerA.from_settings(p, frame, fab, s) for p in passes]
     player_b = PlayerB.from_settings(blocks, frame, s)
     recheck = (scene.verdict.starts, scene.verdict.steps)
-    context = PlacementContext(player_b, s, scene.layout, rng, recheck)
+    context = PlacementContext(player_b, s, scene.layout, rng, recheck, converged=CONVERGED)
     return merge(
         players,
         quats,
@@ -294,7 +305,9 @@ def solve(
     skip = set(sure) | set(feasible.impossible)  # decided before the game: not searched
     open_blocks = [b for j, b in enumerate(blocks) if j not in skip]
     with run.stage("search"):
-        searched = stand_ins(open_blocks, scene.solver.stand_in)  # the verdict: the full meshes
+        stand = tolerance(scene.solver.stand_in, _search_pixel(scene, passes))
+        big = AUTO_FACES if scene.solver.stand_in == "auto" else 0
+        searched = stand_ins(open_blocks, stand, big)  # the verdict: the full meshes
         found = (
             search(scene, passes, searched, rng, seed, progress)
             if open_blocks

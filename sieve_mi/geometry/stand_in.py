@@ -16,14 +16,47 @@ import numpy as np
 
 from sieve_mi.geometry.meshes import Shape
 
-__all__ = ["STAND_IN", "stand_in", "stand_ins"]
+__all__ = ["AUTO_FACES", "AUTO_PIXELS", "STAND_IN", "stand_in", "stand_ins", "tolerance"]
 
-#: The meaning of ``[solver] stand_in`` (scene units; 0: off).
+#: The meaning of ``[solver] stand_in`` (scene units, or "auto"; 0: off).
 STAND_IN = (
     "player A's search plays against each closed B simplified so that no surface moves more "
     "than this (fewer silhouette edges, faster attacks); the verdict and every proof use the "
-    "full meshes; 0: the full meshes throughout"
+    'full meshes; "auto": half a pixel of the search\'s finest raster, for B of more than '
+    "5,000 faces; 0: the full meshes throughout"
 )
+#: ``[solver] stand_in = "auto"`` (off by default) simplifies within this many pixels of the finest
+#: raster the search plays on: no silhouette moves by more than half a pixel, less than the
+#: raster itself resolves (a hole's pixels are those whose centres lie inside it).
+AUTO_PIXELS = 0.5
+#: ... and only B of more faces than this: small meshes cost little per step, and simplifying
+#: them changed the letters' search (β up to 11 % lower) for no gain. Not the default: on the
+#: fandisk row of the authors' table it lowered β by 39 % (docs/performance.md, "Knobs").
+AUTO_FACES = 5000
+
+
+def tolerance(setting: float | str, pixel: float) -> float:
+    """The stand-in tolerance of a ``[solver] stand_in`` setting, scene units.
+
+    Parameters
+    ----------
+    setting : float or "auto"
+        The scene's value: a distance (scene units; 0: off), or "auto".
+    pixel : float
+        The smallest pixel of the rasters the search plays on, scene units.
+
+    Returns
+    -------
+    float
+        ``setting`` itself, or :data:`AUTO_PIXELS` times ``pixel`` for "auto" (which
+        :func:`stand_ins` applies to B of more than :data:`AUTO_FACES` faces only).
+
+    Examples
+    --------
+    >>> tolerance("auto", 0.2), tolerance(0.3, 0.2), tolerance(0.0, 0.2)
+    (0.1, 0.3, 0.0)
+    """
+    return AUTO_PIXELS * float(pixel) if setting == "auto" else float(setting)
 
 
 def stand_in(shape: Shape, tolerance: float) -> Shape:
@@ -72,9 +105,12 @@ def stand_in(shape: Shape, tolerance: float) -> Shape:
     )
 
 
-def stand_ins(shapes: list[Shape], tolerance: float) -> list[Shape]:
-    """:func:`stand_in` of each of ``shapes`` (the list itself when ``tolerance`` is 0)."""
-    return list(shapes) if tolerance <= 0 else [stand_in(s, tolerance) for s in shapes]
+def stand_ins(shapes: list[Shape], tolerance: float, faces: int = 0) -> list[Shape]:
+    """:func:`stand_in` of each of ``shapes`` with more than ``faces`` faces (the others, and all
+    of them when ``tolerance`` is 0, as they are)."""
+    if tolerance <= 0:
+        return list(shapes)
+    return [stand_in(s, tolerance) if s.face_count > faces else s for s in shapes]
 
 
 def _hull(v: np.ndarray) -> np.ndarray:

@@ -272,3 +272,35 @@ def test_converged_starts_leave_the_descent_with_their_best_pose(cube20, monkeyp
     assert len(every) == 300 and stopped[-1] == 300 and len(stopped) < 300
     assert full > 0 and early == pytest.approx(full, rel=0.01)
     assert same == (early, stopped)
+
+
+def test_the_placements_long_attack_stops_converged_starts_as_the_verdict(cube20, monkeypatch):
+    # The placement re-ranks its finalists with the verdict's attack, and now stops its
+    # converged starts as the verdict does (PlacementContext.converged): on the face-on cube's
+    # square hole the 24 mm sphere is blocked (12 > 11 mm), so no start settles, every start
+    # slides to the same least overhang, and the descent ends early with the same β.
+    from sieve_mi.game import descent
+    from sieve_mi.game.placement import PlacementContext, _PlacementGame
+    from sieve_mi.game.verdict import CONVERGED
+    from sieve_mi.scene import Layout
+
+    f, a, _ = _cube_hole(cube20, resolution=64)
+    steps_run, run = [], descent.Descent.run
+
+    def counted(self, steps, progress=None, freeze=None):
+        seen = []
+        out = run(self, steps, seen.append, freeze)
+        steps_run.append(seen)
+        return out
+
+    monkeypatch.setattr(descent.Descent, "run", counted)
+    x = np.array([[1.0, 0, 0, 0, 0, 0]])  # the cube face-on at the centre
+    got = []
+    for converged in (None, CONVERGED):
+        ctx = PlacementContext(PlayerB([sphere(12.0)], f), tiny_solver(), Layout(), rng(3))
+        ctx.converged = converged
+        game = _PlacementGame(a, np.zeros((64, 64), bool), f.half_extent / 2, ctx)
+        got.append(game.energy(x, 8, 300, ctx.converged)[1][0])
+    (full, early), (every, stopped) = got, steps_run
+    assert full > 0 and early == pytest.approx(full, rel=0.01)  # blocked either way
+    assert len(every) == 300 and stopped[-1] == 300 and len(stopped) < 300

@@ -41,6 +41,7 @@ def test_a_stand_in_keeps_vertices_and_stays_within_its_tolerance():
     hull = trimesh.convex.convex_hull(coarse.vertices)  # the hull's vertices are recomputed
     assert len(coarse.hull) == len(hull.vertices)
     assert stand_in(full, 0.0) is full and stand_ins([full], 0.0) == [full]
+    assert stand_ins([full], 0.5, faces=1280) == [full]  # not more faces than the bound
 
 
 def test_an_open_mesh_stays_whole():
@@ -50,24 +51,39 @@ def test_an_open_mesh_stays_whole():
     assert stand_in(open_shape, 0.5) is open_shape
 
 
-def test_the_search_plays_the_stand_in_and_the_verdict_the_full_mesh(monkeypatch):
+def test_auto_plays_big_b_within_half_a_pixel_and_the_verdict_the_full_mesh(
+    monkeypatch,
+):
+    # A: a ball of radius 10, tolerance 1, so its frame covers radius 11 at 64 pixels with 3
+    # pixels of margin a side: a pixel is 2 * 11 / (64 - 6) = 0.379 mm, "auto" half of it, for
+    # B of more than 5,000 faces only (the 5,120-face ball; the 1,280-face one stays whole).
+    big, small = _sphere(12.0, 4), _sphere(12.5)
     scene = sm.Scene.from_meshes(
-        [_sphere()], [{"mesh": _sphere(12.0), "name": "big"}], name="stand-in"
+        [_sphere()], [{"mesh": big, "name": "big"}, {"mesh": small, "name": "small"}], name="s"
     )
-    scene.solver = tiny_solver(screen=False, stand_in=0.5)
+    scene.solver = tiny_solver(screen=False, stand_in="auto")
     scene.verdict.starts, scene.verdict.steps, scene.verdict.certify = 4, 10, False
+    assert scene.fabrication.tolerance == 1.0
+    tol = 0.5 * 2 * 11.0 / (64 - 6)
     seen = []
     search = solver_module.search
 
     def spy(scene, passes, blocks, *args):
-        seen.extend(b.face_count for b in blocks)
+        seen.extend(blocks)
         return search(scene, passes, blocks, *args)
 
     monkeypatch.setattr(solver_module, "search", spy)
     result = sm.solve(scene, progress=False)
-    assert len(seen) == 1 and seen[0] < 1280 / 2  # the search saw the stand-in
-    assert result.block_shapes[0].face_count == 1280  # the verdict: the full mesh
-    assert result.winner == "A" and result.blocks[0].blocked
+    coarse, whole = seen
+    assert coarse.face_count < 5120 and whole.face_count == 1280  # only the big B simplified
+    assert np.allclose(np.linalg.norm(coarse.vertices, axis=1), 12.0)  # B's own vertices
+    # The full mesh lies outside radius 12 cos(largest edge angle / 2); every stand-in
+    # triangle within the tolerance of it.
+    angle = big.edges_unique_length.max() / 12.0
+    centroids = coarse.vertices[coarse.faces].mean(axis=1)
+    assert np.linalg.norm(centroids, axis=1).min() >= 12.0 * np.cos(angle / 2) - tol - 1e-9
+    assert [b.face_count for b in result.block_shapes] == [5120, 1280]  # the verdict: full
+    assert result.winner == "A" and all(b.blocked for b in result.blocks)
 
 
 def test_a_negative_stand_in_is_one_line(tmp_path):
