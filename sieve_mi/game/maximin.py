@@ -8,14 +8,15 @@ others can only lower its value further: it cannot change what the search does. 
 :class:`Pruned` attacks B in rounds (1/16 of them, then twice as many each round), the most
 dangerous first (the lowest β each B reached in its last attack, :func:`note`), and each round
 attacks only the candidates still above their floors; a pruned candidate's value is then an
-upper bound at or below its floor.
+upper bound at or below its floor. A B far from fitting (:data:`FAR`) gets only :data:`FEW` of
+its starts there.
 
 Every start is drawn up front, as one attack of every B draws them
 (:meth:`~sieve_mi.game.player_b.PlayerB.start_batch`), and a start's descent does not depend on
 which other starts descend beside it (Adam is per parameter, the loss a sum of per-pose terms; see
 :meth:`~sieve_mi.game.player_b.PlayerB.descend`): a candidate that stays above its floor gets the
 value one attack of every B gives it, so the search takes the same steps with pruning as without
-(a test holds the two together). The verdict is not pruned: it attacks every B on the printed
+(a test holds the two together, with ``FAR = inf``). The verdict is not pruned: it attacks every B on the printed
 polygon (:mod:`sieve_mi.game.verdict`).
 """
 
@@ -30,13 +31,20 @@ from sieve_mi.game.attack import Starts
 from sieve_mi.game.descent import Batch, settle_groups
 from sieve_mi.game.scoring import score_poses
 
-__all__ = ["FIRST", "PRUNE", "Best", "Pruned", "groups", "note"]
+__all__ = ["FAR", "FEW", "FIRST", "PRUNE", "Best", "Pruned", "groups", "note"]
 
 #: Player A's search prunes its candidates at their floors (False: every candidate is attacked
 #: by every B, as the verdict always is; the search's choices are the same either way).
 PRUNE = True
 #: The first round attacks this fraction of B (at least one); each later round twice the last.
 FIRST = 1 / 16
+#: A B whose danger (its lowest β in its last attack) is above ``(1 + FAR)`` times the most
+#: dangerous B's is *far from fitting*: a pruned evaluation attacks it with only :data:`FEW` of
+#: its starts (a heuristic, unlike the pruning itself: such a B sets a candidate's value only if
+#: its attack does far better than last time). ``inf``: every B gets every start.
+FAR = 0.25
+#: The share of its starts (at least one) a B far from fitting gets in a pruned evaluation.
+FEW = 0.3
 
 
 @dataclass(frozen=True)
@@ -114,6 +122,13 @@ class Pruned:
         self.value[[not h.mask.any() for h in holes]] = -1.0
         self.reached = np.where(self.value < 0, len(self.rounds), 0)
         self.low = np.full((len(holes), len(player_b.shapes)), np.inf)  # β per hole and B
+        count = Starts.of(starts).count
+        self.start = np.arange(len(self.batch)) % count  # each pose's start, in hole x B x start
+        danger = player_b.danger
+        self.few = np.zeros(len(player_b.shapes), dtype=bool)  # B far from fitting
+        if danger is not None and np.isfinite(FAR) and len(danger) and danger.min() > 0:
+            self.few = danger > (1 + FAR) * danger.min()  # none while some B fits (β 0)
+        self.few_starts = max(1, int(np.ceil(FEW * count)))
 
     def advance(self, which=None, floor=-np.inf) -> np.ndarray:
         """Attack the candidates ``which`` (indices; default all) round after round until each is
@@ -150,6 +165,7 @@ class Pruned:
         """One descent of the starts of B ``shapes`` against the candidates ``holes``, scored."""
         b = self.batch
         sel = np.isin(b.pose_hole, holes) & np.isin(b.pose_shape, shapes)
+        sel &= ~self.few[b.pose_shape] | (self.start < self.few_starts)
         local = np.full(len(self.holes), -1)
         local[holes] = np.arange(len(holes))
         pose_hole, pose_shape = local[b.pose_hole[sel]], b.pose_shape[sel]

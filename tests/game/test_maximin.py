@@ -65,6 +65,7 @@ def test_pruning_never_changes_the_search(cube20, monkeypatch):
     # Canonical views (ranked), the swarm (personal bests) and the polish (gain) all prune; the
     # rotation, value and history are those of the unpruned search, for fewer descended poses.
     got = {}
+    monkeypatch.setattr(maximin, "FAR", np.inf)  # every B gets every start: pruning alone
     for prune in (False, True):
         monkeypatch.setattr(maximin, "PRUNE", prune)
         player_a, player_b = _players(cube20, _blocks())
@@ -82,3 +83,25 @@ def test_pruning_never_changes_the_search(cube20, monkeypatch):
     np.testing.assert_array_equal(q0, q1)
     assert v0 == v1 and b0 == b1 and p0 == p1
     assert n1 < n0
+
+
+def test_a_b_far_from_fitting_gets_fewer_starts(cube20):
+    # B 1's last β is more than (1 + FAR) times B 0's: a pruned evaluation gives it FEW of its
+    # starts (2 of 6), B 0 all of them; without a known danger every B gets every start.
+    blocks = _blocks()[:2]
+    player_a, player_b = _players(cube20, blocks)
+    holes = player_a.holes(np.array([[1.0, 0.0, 0.0, 0.0]]))
+    for danger, want in ((None, [6, 6]), (np.array([0.1, 0.2]), [6, 2])):
+        player_b.danger = danger
+        pruned = maximin.Pruned(player_b, holes, 6, 5, 0.05, rng(0), None)
+        shapes, descend = [], player_b.descend
+
+        def counted(batch, *args, shapes=shapes, descend=descend, **kw):
+            shapes.append(batch.pose_shape)
+            return descend(batch, *args, **kw)
+
+        player_b.descend = counted
+        pruned.advance()
+        player_b.descend = descend
+        got = np.bincount(np.concatenate(shapes), minlength=2)
+        assert list(got) == want
