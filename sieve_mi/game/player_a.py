@@ -207,7 +207,8 @@ class PlayerA:
         ``floor`` (scalar or (K,)): only values above it matter to the caller; B are then
         attacked in rounds, the most dangerous first, and a candidate at or below its floor
         after a round is attacked no further (its value is then an upper bound at or below
-        the floor; :mod:`sieve_mi.game.maximin`). A :class:`~sieve_mi.game.maximin.Best`: only
+        the floor; B far from fitting get fewer starts there, :data:`~sieve_mi.game.maximin.FAR`;
+        :mod:`sieve_mi.game.maximin`). A :class:`~sieve_mi.game.maximin.Best`: only
         which candidates are its ``count`` best matters (and its ``exact`` ones' values). None:
         every B attacks every candidate.
         """
