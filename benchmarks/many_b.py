@@ -1,7 +1,7 @@
 """One A against many real-mesh B, each holding a ball just wider than any hole A can make.
 
-Usage: ``python -m benchmarks.many_b [--counts 1,10,20,50] [--no-screen] [--stand-in MM] [--profile N]
-[--out PNG]``
+Usage: ``python -m benchmarks.many_b [--counts 1,10,20,50] [--no-screen] [--no-prune] [--stand-in MM]
+[--profile N] [--out PNG] [--json ROWS]``
 
 A: a 20 mm ball (an icosphere of radius 10, 1,280 faces); ``[fabrication] tolerance`` at its
 default. B: the closed real meshes of 5.8k-13k faces that exist here, cycled: the cow (5,804
@@ -15,7 +15,10 @@ disk): every B must be blocked, and each is proved so by its ball (the issue's f
 
 Each count runs in its own process (its peak RSS is its own), at ``nice -n 10`` if asked by the
 caller; the table gives report.json's ``timings`` by stage, the winner, how many B were proved
-and the peak RSS, with the load average before and after. ``--profile N`` runs count N in this
+and the peak RSS, with the load average before and after. ``--no-prune`` turns player A's maximin
+pruning off (:data:`sieve_mi.game.maximin.PRUNE`: every candidate attacked by every B), to
+measure it; ``--json`` appends the rows to a file, so that runs with and without the screen make
+one plot. ``--profile N`` runs count N in this
 process under cProfile and prints the 25 most expensive functions (cumulative).
 """
 
@@ -86,11 +89,16 @@ def scene(count: int, screen: bool = True, stand_in: float = 0.0):
     return s
 
 
-def run_one(count: int, variant: str, screen: bool = True, stand_in: float = 0.0) -> dict:
+def run_one(
+    count: int, variant: str, screen: bool = True, stand_in: float = 0.0, prune: bool = True
+) -> dict:
     """Solve the scene with ``count`` B in this process; its timings, winner and peak RSS."""
     import resource
 
     import sieve_mi as sm
+    from sieve_mi.game import maximin
+
+    maximin.PRUNE = prune
 
     t0 = time.perf_counter()
     sc = scene(count, screen, stand_in)
@@ -104,6 +112,7 @@ def run_one(count: int, variant: str, screen: bool = True, stand_in: float = 0.0
         "count": count,
         "screen": screen,
         "stand_in": stand_in,
+        "prune": prune,
         "faces": int(sum(s.face_count for s in result.block_shapes)),
         "setup_s": round(setup, 1),
         "wall_s": round(wall, 1),
@@ -112,28 +121,37 @@ def run_one(count: int, variant: str, screen: bool = True, stand_in: float = 0.0
         "winner": result.winner,
         "unblocked": sum(not b.blocked for b in result.blocks),
         "proved": sum(c is not None and c.status == "proved" for c in result.certified),
+        "beta": [round(float(b), 4) for b in result.attack.beta[0]],
         "peak_gb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, 2),
     }
 
 
 def plot(rows: list[dict], out: str) -> None:
-    """Wall time and peak RSS against the number of B, with the screen and without (PNG)."""
+    """CPU and wall time and peak RSS against the number of B, with the screen and without (PNG):
+    on a shared machine the CPU seconds are the measure."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(8, 3.4))
-    kinds = sorted({(r["screen"], r.get("stand_in", 0.0)) for r in rows}, reverse=True)
-    for (screen, stand), mark in zip(kinds, ("o-", "^-", "s-", "v-", "d-")):
-        got = [r for r in rows if (r["screen"], r.get("stand_in", 0.0)) == (screen, stand)]
+
+    def kind(r):
+        return r["screen"], r.get("stand_in", 0.0), r.get("prune", True)
+
+    kinds = sorted({kind(r) for r in rows}, reverse=True)
+    for (screen, stand, prune), mark in zip(kinds, ("o-", "^-", "s-", "v-", "d-")):
+        got = [r for r in rows if kind(r) == (screen, stand, prune)]
         if got:
-            label = ("size screen" if screen else "screen = false") + _stand({"stand_in": stand})
+            row = {"stand_in": stand, "prune": prune}
+            label = ("size screen" if screen else "screen = false") + _stand(row)
             n = [r["count"] for r in got]
-            ax.plot(n, [r["wall_s"] for r in got], mark, label=label)
+            line = ax.plot(n, [r["cpu_s"] for r in got], mark, label=label + ", CPU s")[0]
+            ax.plot(n, [r["wall_s"] for r in got], mark[0] + ":", color=line.get_color(),
+                    alpha=0.6, label=label + ", wall s")  # fmt: skip
             ax2.plot(n, [r["peak_gb"] for r in got], mark, label=label)
     ax.axhline(300, color="grey", lw=0.8, ls=":", label="5 minutes")
-    ax.set_ylabel("solve wall time (s)")
+    ax.set_ylabel("solve time (s): CPU (solid), wall (dotted)")
     ax2.set_ylabel("peak RSS (GB)")
     for a in (ax, ax2):
         a.set_xlabel("number of B (real meshes, 5.8k-13k faces)")
@@ -158,6 +176,7 @@ def _child(count: int, args) -> dict | None:
     ]
     cmd += ["--no-screen"] if args.no_screen else []
     cmd += ["--stand-in", str(args.stand_in)]
+    cmd += ["--no-prune"] if args.no_prune else []
     before = os.getloadavg()[0]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     if proc.returncode != 0:
@@ -169,8 +188,10 @@ def _child(count: int, args) -> dict | None:
 
 
 def _stand(row: dict) -> str:
-    """``, stand-in 0.2 mm`` for a row with a stand-in tolerance, else ``""``."""
-    return f", stand-in {row['stand_in']:g} mm" if row.get("stand_in") else ""
+    """``, stand-in 0.2 mm`` for a row with a stand-in tolerance, ``, no pruning`` for one
+    without maximin pruning, else ``""``."""
+    out = f", stand-in {row['stand_in']:g} mm" if row.get("stand_in") else ""
+    return out + ("" if row.get("prune", True) else ", no pruning")
 
 
 def main(argv=None) -> int:
@@ -181,11 +202,13 @@ def main(argv=None) -> int:
     p.add_argument("--json", help="write the rows here (JSON; appended to a file that exists)")
     p.add_argument("--no-screen", action="store_true", help="[solver] screen = false")
     p.add_argument("--stand-in", type=float, default=0.0, help="[solver] stand_in, mm")
+    p.add_argument("--no-prune", action="store_true", help="no maximin pruning in the search")
     p.add_argument("--profile", type=int, help="profile this count in this process")
     p.add_argument("--one", type=int, help=argparse.SUPPRESS)  # the child process's count
     args = p.parse_args(argv)
     if args.one is not None:
-        print(json.dumps(run_one(args.one, args.variant, not args.no_screen, args.stand_in)))
+        print(json.dumps(run_one(args.one, args.variant, not args.no_screen, args.stand_in,
+                                 not args.no_prune)))  # fmt: skip
         return 0
     if args.profile is not None:
         import cProfile
@@ -193,7 +216,8 @@ def main(argv=None) -> int:
 
         prof = cProfile.Profile()
         prof.enable()
-        row = run_one(args.profile, args.variant, not args.no_screen, args.stand_in)
+        row = run_one(args.profile, args.variant, not args.no_screen, args.stand_in,
+                      not args.no_prune)  # fmt: skip
         prof.disable()
         print(json.dumps(row))
         pstats.Stats(prof).sort_stats("cumulative").print_stats(25)

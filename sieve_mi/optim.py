@@ -178,6 +178,7 @@ def particle_swarm(
     v0: np.ndarray | None = None,
     project: Callable[[np.ndarray], np.ndarray] | None = None,
     progress: Callable[[int, float], None] | None = None,
+    floors: bool = False,
 ):
     """Maximise ``evaluate`` with particle swarm optimisation (Poli 2008), all particles per call.
 
@@ -200,6 +201,11 @@ def particle_swarm(
         Maps positions back onto the feasible set after every move (e.g. normalise quaternions).
     progress : callable, optional
         Called as ``progress(iteration, best_value)``.
+    floors : bool
+        After the first evaluation, call ``evaluate(x, floor)`` with each particle's personal
+        best (P,): a value at or below it changes nothing here, so ``evaluate`` may return any
+        value not above the floor there (an upper bound; maximin pruning,
+        :mod:`sieve_mi.game.maximin`).
 
     Returns
     -------
@@ -225,7 +231,7 @@ def particle_swarm(
         x = x + v
         if project is not None:
             x = project(x)
-        f = np.asarray(evaluate(x), dtype=np.float64)
+        f = np.asarray(evaluate(x, p_val.copy()) if floors else evaluate(x), dtype=np.float64)
         history.evaluations += len(x)
         better = f > p_val
         p_best[better], p_val[better] = x[better], f[better]

@@ -15,6 +15,9 @@ player_b
     Player B: random starts, batched descents in chunks that fit memory, raster scores.
 player_a
     Player A: canonical views, then a swarm (or nlopt) over rotations, then a local polish.
+maximin
+    Player A's values with maximin pruning: B attacked in rounds, the most dangerous first, and
+    a candidate already at or below the value it must beat attacked no further.
 screen
     Blocks proved before the game: a B holding a ball larger than any hole A can make.
 scoring
@@ -64,6 +67,7 @@ __all__ = [
     "frames",
     "frozen",
     "layout",
+    "maximin",
     "placement",
     "player_a",
     "player_b",

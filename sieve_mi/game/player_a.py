@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from sieve_mi.game import maximin
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.game.scoring import with_core
 from sieve_mi.geometry.hole import Hole, build_hole
@@ -173,8 +174,8 @@ class PlayerA:
         s = solver
         seed = s.seed if seed is None else seed
 
-        def evaluate(qs: np.ndarray) -> np.ndarray:
-            return self.values(player_b, qs, s.starts, s.steps, s.learning_rate, rng)
+        def evaluate(qs: np.ndarray, floor=None) -> np.ndarray:
+            return self.values(player_b, qs, s.starts, s.steps, s.learning_rate, rng, floor)
 
         def say(name: str) -> None:
             if stage is not None:
@@ -195,17 +196,34 @@ class PlayerA:
             q, f, history.polish = self.polish(player_b, q, s, seed=seed)
         return q, f, history
 
-    def values(self, player_b: PlayerB, quats, starts, steps, learning_rate, rng) -> np.ndarray:
+    def values(
+        self, player_b: PlayerB, quats, starts, steps, learning_rate, rng, floor=None
+    ) -> np.ndarray:
         """The game value (min over B of β, eq. 10) of the holes of rotations (K, 4), one attack.
 
         An empty raster hole (A seen edge-on, thinner than a pixel) blocks everything on the
         raster but not on the plate: it gets -1, below every real hole.
+
+        ``floor`` (scalar or (K,)): only values above it matter to the caller; B are then
+        attacked in rounds, the most dangerous first, and a candidate at or below its floor
+        after a round is attacked no further (its value is then an upper bound at or below
+        the floor; B far from fitting get fewer starts there, :data:`~sieve_mi.game.maximin.FAR`;
+        :mod:`sieve_mi.game.maximin`). A :class:`~sieve_mi.game.maximin.Best`: only
+        which candidates are its ``count`` best matters (and its ``exact`` ones' values). None:
+        every B attacks every candidate.
         """
         holes = self.holes(quats)
         step = None if self.on_step is None else _per_candidate(self.on_step, len(holes))
+        if floor is not None and maximin.PRUNE and len(player_b.shapes) > 1:
+            pruned = maximin.Pruned(player_b, holes, starts, steps, learning_rate, rng,
+                                    self.settle, step)  # fmt: skip
+            if isinstance(floor, maximin.Best):
+                return pruned.best(floor.count, floor.exact).copy()
+            return pruned.advance(floor=floor).copy()
         attack = player_b.attack(
             holes, starts, steps, learning_rate, rng, progress=step, settle=self.settle
         )
+        maximin.note(player_b, attack.beta)
         values = attack.value()
         return np.where([h.mask.any() for h in holes], values, -1.0)
 
@@ -220,7 +238,8 @@ class PlayerA:
         views = np.concatenate([views, extra]) if len(extra) else views
         if not len(views):
             return np.zeros((0, 4)), 0, np.zeros(0)
-        values = evaluate(views)
+        tail = tuple(range(len(views) - len(extra), len(views)))  # their values are reported
+        values = evaluate(views, maximin.Best(keep, tail))
         best = views[np.argsort(-values, kind="stable")[:keep]]
         return best, len(views), values[len(views) - len(extra) :]
 
@@ -233,9 +252,8 @@ class PlayerA:
             swarm = SwarmSettings(
                 solver.inertia, solver.c_personal, solver.c_global, patience=solver.patience
             )
-            return particle_swarm(
-                evaluate, x0, iterations, rng, swarm, project=normalize, progress=progress
-            )
+            return particle_swarm(evaluate, x0, iterations, rng, swarm, project=normalize,
+                                  progress=progress, floors=True)  # fmt: skip
         lower, upper = -np.pi * np.ones(3), np.pi * np.ones(3)
         x0 = rng.uniform(-np.pi, np.pi, 3)
         if len(seeds):
@@ -300,10 +318,10 @@ class PlayerA:
 
         seed, rounds = (solver.seed if seed is None else seed), solver.polish
 
-        def values(qs):
+        def values(qs, floor=None):
             common = np.random.default_rng([int(seed), 0x501])
             return self.values(
-                player_b, qs, solver.starts, solver.steps, solver.learning_rate, common
+                player_b, qs, solver.starts, solver.steps, solver.learning_rate, common, floor
             )
 
         start = normalize(np.asarray(quat, dtype=np.float64))
@@ -312,10 +330,11 @@ class PlayerA:
         before = current
         while done < rounds and step >= np.radians(last) * (1 - 1e-9):
             tried = normalize(quat_multiply(from_rotvec(tilts * step), best))
-            v = values(tried)
+            floor = current + max(1e-3, gain * abs(current))  # a tilt must beat this
+            v = values(tried, floor)
             done += 1
             k = int(np.argmax(v))
-            if v[k] > current + max(1e-3, gain * abs(current)):
+            if v[k] > floor:
                 best, current = tried[k], float(v[k])
             else:
                 step /= 2

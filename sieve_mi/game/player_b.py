@@ -77,6 +77,9 @@ class PlayerB:
         self.memory = float(memory)
         #: (pose, segment) pairs one descent binds at once; more poses run in chunks.
         self.max_pairs = pair_budget(self.memory)
+        #: Each B's lowest β in its last attack (None: none yet); the search's pruned rounds
+        #: attack the lowest first (:mod:`sieve_mi.game.maximin`).
+        self.danger: np.ndarray | None = None
 
     @classmethod
     def from_settings(
