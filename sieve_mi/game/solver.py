@@ -305,9 +305,7 @@ def solve(
     skip = set(sure) | set(feasible.impossible)  # decided before the game: not searched
     open_blocks = [b for j, b in enumerate(blocks) if j not in skip]
     with run.stage("search"):
-        stand = tolerance(scene.solver.stand_in, _search_pixel(scene, passes))
-        big = AUTO_FACES if scene.solver.stand_in == "auto" else 0
-        searched = stand_ins(open_blocks, stand, big)  # the verdict: the full meshes
+        searched = _searched(scene, passes, open_blocks)  # the verdict: the full meshes
         found = (
             search(scene, passes, searched, rng, seed, progress)
             if open_blocks
@@ -356,6 +354,15 @@ def solve(
         feasibility=feasible,
         rest=_rest(scene, passes, found),
     )
+
+
+def _searched(scene: Scene, passes: list, open_blocks: list) -> list:
+    """The B the search plays: ``open_blocks``, closed ones simplified as ``[solver] stand_in``
+    says (:mod:`sieve_mi.geometry.stand_in`; "auto": within half the search's finest pixel, only
+    B of more than ``AUTO_FACES`` faces)."""
+    stand = tolerance(scene.solver.stand_in, _search_pixel(scene, passes))
+    big = AUTO_FACES if scene.solver.stand_in == "auto" else 0
+    return stand_ins(open_blocks, stand, big)
 
 
 def _rest(scene: Scene, passes: list, found: SearchOutcome) -> list:
