@@ -24,6 +24,12 @@ says
   than the square of the hull's size (on the shared 2-core VM: a ball of 642 hull vertices
   0.6-2.8 s, of 2,562 32 s, of 10,242 113 s), so a hull of more than :data:`REST_VERTICES` vertices is first thinned to one vertex per cell
   of a grid (:func:`rest_points`): a hull inside the part's, within a cell's diagonal of it.
+* the share of random drops that settle *showing the same silhouette*: the nearest resting
+  face's share, plus that of every face in the same position whose silhouette is the same
+  polygon turned and shifted in the plane (:func:`same_silhouette`). A brick lying studs up or
+  studs down shows one rectangle, so both count; an S lying face up shows Ƨ, its mirror image,
+  which no turn of an S-shaped hole admits, so only the S's own face counts (about 30 % of
+  drops, not the 60 % that settle face down on either face).
 """
 
 from __future__ import annotations
@@ -47,6 +53,8 @@ __all__ = [
     "positions_of",
     "rest_points",
     "resting_poses",
+    "same_silhouette",
+    "silhouette_share",
 ]
 
 #: Extents within this fraction of the larger one count as equal (a coin's rim polygon is a
@@ -55,6 +63,10 @@ SAME_EXTENT = 0.02
 
 #: The most hull vertices the resting poses are computed on (:func:`rest_points`).
 REST_VERTICES = 256
+
+#: Two silhouettes are the same polygon (:func:`same_silhouette`) when, turned and shifted onto
+#: each other, their symmetric difference is at most this fraction of the area.
+SAME_SILHOUETTE = 0.01
 
 #: The named positions: which extent stands upright.
 POSITIONS = ("face down", "on its side", "end on", "any way up")
@@ -87,8 +99,11 @@ class PoseWords:
         on one of its flats is *on its side*, its across-flats width upright, whichever
         principal axis that flat's normal is nearest).
     rest_share : float or None
-        The share of random drops that settle in that position, on any of its faces
-        (quasi-static estimate: a brick lands on its side studs up or studs down).
+        The share of random drops that settle in that position showing the same silhouette up
+        to a turn and a shift (quasi-static estimate, :func:`silhouette_share`: a brick lying
+        studs up or studs down, both; an S face up, whose silhouette is the mirror image, not).
+    position_share : float or None
+        The share that settle in that position on any of its faces (both faces of an S).
     quaternion : list of float
         The rotation (w, x, y, z), w >= 0.
     euler_xyz_deg : list of float
@@ -108,6 +123,7 @@ class PoseWords:
     rest_deg: float | None
     rest_position: str | None
     rest_share: float | None
+    position_share: float | None
     quaternion: list
     euler_xyz_deg: list
     turn_deg: float
@@ -136,16 +152,29 @@ def pose_sentence(pose: dict, units: str = "mm") -> str:
     >>> print(pose_sentence({"words": "end on (standing on its short end)", "upright": 15.8,
     ...     "tilt_deg": 1.24, "rest_deg": 1.24, "rest_position": "end on", "rest_share": 0.16}))
     end on (standing on its short end): its 15.8 mm extent upright, tilted 1.2°; 1.2° from resting end on (about 16 % of random drops settle end on)
+
+    Where the position's other faces show another silhouette (an S face up shows its mirror
+    image), the sentence says both shares:
+
+    >>> print(pose_sentence({"words": "face down (lying flat)", "upright": 12.0, "tilt_deg": 0.0,
+    ...     "rest_deg": 0.0, "rest_position": "face down", "rest_share": 0.299,
+    ...     "position_share": 0.598}))
+    face down (lying flat): its 12 mm extent upright; 0.0° from resting face down (about 30 % of random drops settle face down showing this silhouette, 60 % face down on any face)
     """
     out = f"{pose['words']}: its {pose['upright']:.4g} {units} extent upright"
     out += f", tilted {pose['tilt_deg']:.1f}°" if pose["tilt_deg"] >= 0.05 else ""
     if pose["rest_deg"] is None:
         return out + "; a flat part has no resting pose"
-    share = f"{100 * pose['rest_share']:.0f} %" if pose["rest_share"] >= 0.005 else "under 1 %"
-    return (
-        f"{out}; {pose['rest_deg']:.1f}° from resting {pose['rest_position']} "
-        f"(about {share} of random drops settle {pose['rest_position']})"
-    )
+    where, share = pose["rest_position"], _percent(pose["rest_share"])
+    out = f"{out}; {pose['rest_deg']:.1f}° from resting {where} (about {share} of random drops"
+    whole = pose.get("position_share")  # absent from report.json files of before 2026-12-04
+    if whole is None or _percent(whole) == share:
+        return f"{out} settle {where})"
+    return f"{out} settle {where} showing this silhouette, {_percent(whole)} {where} on any face)"
+
+
+def _percent(share: float) -> str:
+    return f"{100 * share:.0f} %" if share >= 0.005 else "under 1 %"
 
 
 def euler_xyz(quat) -> np.ndarray:
@@ -307,7 +336,7 @@ def describe_pose(shape: Shape, quat) -> PoseWords:
     down = to_matrix(q).T @ np.array([0.0, 0.0, -1.0])  # the body direction pointing down
     axes, extents = _frame(shape)
     k, tilt = _upright(axes, extents, down)
-    rest_deg = rest_position = rest_share = None
+    rest_deg = rest_position = rest_share = position_share = None
     rest = resting_poses(shape)
     if rest is not None:
         normals, shares = rest
@@ -315,7 +344,8 @@ def describe_pose(shape: Shape, quat) -> PoseWords:
         rest_deg = float(np.degrees(np.arccos(np.clip(normals[i] @ down, -1.0, 1.0))))
         named = _rest_positions(shape, extents, normals)
         rest_position = named[i]
-        rest_share = float(sum(p for p, n in zip(shares, named) if n == rest_position))
+        position_share = float(sum(p for p, n in zip(shares, named) if n == rest_position))
+        rest_share = silhouette_share(shape, normals, shares, named, i)
     position, gloss = _position(extents, k)
     rotvec = to_rotvec(q)
     angle = float(np.linalg.norm(rotvec))
@@ -329,8 +359,114 @@ def describe_pose(shape: Shape, quat) -> PoseWords:
         rest_deg=rest_deg,
         rest_position=rest_position,
         rest_share=rest_share,
+        position_share=position_share,
         quaternion=[float(x) for x in q],
         euler_xyz_deg=[float(a) + 0.0 for a in euler_xyz(q)],  # + 0.0: no -0.0
         turn_deg=float(np.degrees(angle)),
         turn_axis=[float(a) + 0.0 for a in axis],
     )
+
+
+def _moments(section) -> tuple[float, np.ndarray, np.ndarray]:
+    """Area, centroid (2,) and central second moments (2, 2) (∫ x x^T dA about the centroid) of
+    a CrossSection, from its contours (holes wound the other way subtract)."""
+    loops = [np.asarray(c, dtype=np.float64) for c in section.to_polygons()]
+    if not loops:
+        return 0.0, np.zeros(2), np.zeros((2, 2))
+    ref = np.concatenate(loops).mean(axis=0)  # about a point near the polygon: less rounding
+    area, first, second = 0.0, np.zeros(2), np.zeros((2, 2))
+    for loop in loops:
+        a = loop - ref
+        b = np.roll(a, -1, axis=0)
+        cross = a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1]
+        area += cross.sum() / 2.0
+        first += ((a + b) * cross[:, None]).sum(axis=0) / 6.0
+        sxx = ((a[:, 0] ** 2 + a[:, 0] * b[:, 0] + b[:, 0] ** 2) * cross).sum() / 12.0
+        syy = ((a[:, 1] ** 2 + a[:, 1] * b[:, 1] + b[:, 1] ** 2) * cross).sum() / 12.0
+        sxy = ((a[:, 0] * b[:, 1] + 2 * a[:, 0] * a[:, 1] + 2 * b[:, 0] * b[:, 1]
+                + b[:, 0] * a[:, 1]) * cross).sum() / 24.0  # fmt: skip
+        second += np.array([[sxx, sxy], [sxy, syy]])
+    c = first / area
+    return float(area), ref + c, second - area * np.outer(c, c)
+
+
+def same_silhouette(p, q, tol: float = SAME_SILHOUETTE) -> bool:
+    """Whether two polygons are the same up to a turn and a shift in the plane (no mirroring).
+
+    Both are moved to their centroids. Where the second moments have two distinct principal
+    axes (anisotropy over 5 %), a turn taking one polygon onto the other takes its major axis
+    onto the other's: the two turns that do (0° and 180° apart) are tried. Otherwise every
+    whole degree is tried, and the best refined to a hundredth of a degree. The polygons are
+    the same when the symmetric difference at the best turn is at most ``tol`` of the area.
+
+    Parameters
+    ----------
+    p, q : manifold3d.CrossSection
+        Scene units.
+    tol : float
+        Fraction of the area.
+
+    Returns
+    -------
+    bool
+    """
+    (ap, cp, mp), (aq, cq, mq) = _moments(p), _moments(q)
+    if ap <= 0.0 or abs(ap - aq) > tol * ap:
+        return False
+    (lp, vp), (lq, vq) = np.linalg.eigh(mp), np.linalg.eigh(mq)
+    spread = abs(lp[1] - lp[0]) / max(lp.sum(), 1e-300)
+    if abs(spread - abs(lq[1] - lq[0]) / max(lq.sum(), 1e-300)) > tol:
+        return False
+    p0, q0 = p.translate([-cp[0], -cp[1]]), q.translate([-cq[0], -cq[1]])
+
+    def off(turn: float) -> float:  # the symmetric difference's area (``^`` intersects)
+        return ap + aq - 2.0 * float((p0.rotate(turn) ^ q0).area())
+
+    if spread > 0.05:
+        major = np.degrees(np.arctan2(vq[1, 1], vq[0, 1]) - np.arctan2(vp[1, 1], vp[0, 1]))
+        best = min(off(major), off(major + 180.0))
+    else:
+        turns = np.arange(360.0)
+        for step in (1.0, 0.1, 0.01):
+            values = [off(t) for t in turns]
+            at = float(turns[int(np.argmin(values))])
+            turns = at + step * np.arange(-10, 11) / 10.0
+        best = min(values)
+    return best <= tol * ap
+
+
+def silhouette_share(shape: Shape, normals: np.ndarray, shares: np.ndarray, positions: list,
+                     k: int) -> float:  # fmt: skip
+    """The share of random drops that settle showing rest pose ``k``'s silhouette up to a turn
+    and a shift: its own share and that of each rest pose in the same position (``positions``)
+    whose silhouette :func:`same_silhouette` finds the same (an S's other face shows its mirror
+    image: not counted).
+
+    Parameters
+    ----------
+    shape : Shape
+    normals : (R, 3) ndarray
+        The rest poses' down directions (body frame, unit), as :func:`resting_poses` gives them.
+    shares : (R,) ndarray
+        Their shares of random drops.
+    positions : list of str
+        Their positions (:func:`positions_of`).
+    k : int
+        The rest pose asked about.
+
+    Returns
+    -------
+    float
+    """
+    from sieve_mi.geometry.outline import silhouette
+    from sieve_mi.geometry.rotations import align
+
+    def seen(i: int):
+        return silhouette(shape, align(normals[i], [0.0, 0.0, -1.0]), [0.0, 0.0])
+
+    own = seen(k)
+    total = float(shares[k])
+    for j, where in enumerate(positions):
+        if j != k and where == positions[k] and same_silhouette(own, seen(j)):
+            total += float(shares[j])
+    return total

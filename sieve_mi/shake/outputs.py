@@ -349,6 +349,8 @@ def target_card(target: dict, units: str) -> str:
         margin = "-" if t["b_margin"] is None else f"{t['b_margin']:.3f}"
         mark = " (in this folder)" if k == target["chosen"] else ""
         holes = f"{t['holes']}{', every other class mirrored' if t.get('mirror') else ''}"
+        if None not in t.get("plate_size", [None]):
+            holes += " on {:.4g} x {:.4g}".format(*t["plate_size"])
         rows += (f"<tr><td>{k}{mark}</td><td>{escape(t['step'])}</td><td>±{t['window_deg']:g}°"
                  f"</td><td>{holes}</td><td>{rate}</td><td>{margin}</td>"
                  f"<td>{'yes' if t['b_proved'] else 'no'}</td></tr>")  # fmt: skip

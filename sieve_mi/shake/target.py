@@ -105,7 +105,9 @@ def try_row(step: str, report: dict, shaken: dict) -> dict:
     -------
     dict
         ``step``, ``blocked`` (the winner is A), ``window_deg``, ``holes``, ``turns``,
-        ``mirror`` (the sheet's copies mirrored in turn), ``open_fraction``, ``pass`` (per A:
+        ``mirror`` (the sheet's copies mirrored in turn), ``open_fraction``, ``plate_size``
+        (width and height of the plate or sheet, scene units; None where report.json has
+        none), ``pass`` (per A:
         ``name``, ``passed``, ``trials``, ``fraction``, ``ci95``, ``median_time_s``), ``b_margin`` (the least ``margin.found_at_most`` over B,
         scene units), ``b_margin_proved`` (the least ``proved_at_least``; None where one is
         missing), ``b_proved`` (every B certified proved).
@@ -124,6 +126,7 @@ def try_row(step: str, report: dict, shaken: dict) -> dict:
         "turns": pattern.get("turns", [0.0]),
         "mirror": bool(pattern.get("mirror", False)),
         "open_fraction": pattern.get("open_fraction"),
+        "plate_size": (pattern.get("plate_size") or fab.get("plate_size") or [None, None])[:2],
         "pass": [{k: s[k] for k in keys} for s in shaken["shapes"] if s["role"] == "A"],
         "b_margin": min(found) if found and None not in found else None,
         "b_margin_proved": min(proved) if proved and None not in proved else None,
@@ -166,6 +169,8 @@ def _tell(k: int, row: dict, target: float, to_stderr: bool) -> None:
     parts = [f"{a['name']} {a['passed']}/{a['trials']} ({100 * a['fraction']:.1f} %)"
              for a in row["pass"]]  # fmt: skip
     where = f"±{row['window_deg']:g}°, {row['holes']} hole{'s' * (row['holes'] != 1)}"
+    if None not in row.get("plate_size", [None]):  # the tray a shaken part must search
+        where += " on {:.4g} x {:.4g}".format(*row["plate_size"])
     where += ", every other class mirrored" if row.get("mirror") else ""
     _say(f"target {100 * target:g} %: try {k} ({row['step']}; {where}): " + ", ".join(parts)
          + ("" if row["blocked"] else "; a B passes"), to_stderr)  # fmt: skip

@@ -143,3 +143,39 @@ def test_a_flat_part_has_no_resting_pose():
     p = describe_pose(square, [1.0, 0, 0, 0])
     assert p.rest_deg is None and p.position == "face down"
     assert p.sentence().endswith("a flat part has no resting pose")
+
+
+def _tetromino(cells, thickness=4.0):
+    """Four 10 mm squares extruded ``thickness`` along z (a flat part lying face down)."""
+    from shapely.geometry import box as square
+    from shapely.ops import unary_union
+
+    outline = unary_union([square(10 * i, 10 * j, 10 * i + 10, 10 * j + 10) for i, j in cells])
+    return shape_from_trimesh(trimesh.creation.extrude_polygon(outline, thickness), name="t")
+
+
+def test_a_chiral_flat_part_counts_only_the_face_that_shows_its_silhouette():
+    # The S tetromino face up shows the Z tetromino, its mirror image, which no turn of it gives:
+    # a hole for it lying face down admits only the drops on that face (half of face down's).
+    # The T tetromino is its own mirror image: both faces show the same silhouette.
+    s = describe_pose(_tetromino([(1, 0), (2, 0), (0, 1), (1, 1)]), [1.0, 0, 0, 0])
+    assert s.rest_position == "face down" and s.position_share > 0.5  # flat: mostly face down
+    assert s.rest_share == pytest.approx(s.position_share / 2, rel=1e-9)
+    assert "settle face down showing this silhouette" in s.sentence()
+    t = describe_pose(_tetromino([(0, 1), (1, 1), (2, 1), (1, 0)]), turn(X, 180))  # upside down
+    assert t.rest_share == pytest.approx(t.position_share, rel=1e-9)
+    assert t.sentence().endswith("random drops settle face down)")
+
+
+def test_same_silhouette_is_turn_and_shift_never_mirror():
+    import manifold3d
+
+    from sieve_mi.geometry.pose_words import same_silhouette
+
+    ell = manifold3d.CrossSection([np.array([[0, 0], [3, 0], [3, 1], [1, 1], [1, 2], [0, 2.0]])])
+    moved = ell.rotate(73.0).translate([5.0, -2.0])
+    assert same_silhouette(ell, moved)
+    assert not same_silhouette(ell, ell.mirror([1.0, 0.0]).rotate(73.0))  # an L with unequal arms
+    disc = manifold3d.CrossSection.circle(2.0, 7)  # a heptagon: isotropic, every degree tried
+    assert same_silhouette(disc, disc.rotate(40.0).translate([1.0, 1.0]))
+    assert not same_silhouette(disc, manifold3d.CrossSection.circle(2.1, 7))

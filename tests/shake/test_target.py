@@ -129,7 +129,9 @@ def _report(certified: str | None = "proved") -> dict:
         block["certified"] = certified
     return {"winner": "A", "pass": [{"name": "a"}], "block": [block],
             "fabrication": {"window": {"degrees": 21.1},
-                            "pattern": {"count": 16, "turns": [0.0, 180.0], "open_fraction": 0.5}}}  # fmt: skip
+                            "pattern": {"count": 16, "turns": [0.0, 180.0], "open_fraction": 0.5,
+                                        "plate_size": [104.8, 104.8]},
+                            "plate_size": [30.0, 30.0, 2.0]}}  # fmt: skip
 
 
 def _shape(name: str, role: str, passed: int, trials: int = 200, median=None) -> dict:
@@ -148,6 +150,10 @@ def test_a_try_row_holds_the_pass_counts_and_b_margin():
     assert row["pass"] == [{"name": "a", "passed": 179, "trials": 200, "fraction": 0.895,
                             "ci95": [0.845, 0.930], "median_time_s": 1.234}]  # fmt: skip
     assert (row["window_deg"], row["holes"], row["turns"]) == (21.1, 16, [0.0, 180.0])
+    assert row["plate_size"] == [104.8, 104.8]  # the sheet's, not the one hole's plate
+    one = _report()
+    del one["fabrication"]["pattern"]
+    assert try_row("solved", one, _run(_shape("a", "A", 1)))["plate_size"] == [30.0, 30.0]
     assert (row["blocked"], row["b_margin"], row["b_margin_proved"], row["b_proved"]) == (
         True, 0.75, None, True)  # fmt: skip
 
@@ -175,7 +181,8 @@ def test_the_target_card_lists_every_try():
     assert "not met: the best trade-off is kept" in card and "data:image/png;base64," in card
     mirrored = dict(tries[1], step="mirror", holes=16, mirror=True)
     card = target_card({"fraction": 0.9, "met": False, "chosen": 0, "tries": [mirrored]}, "mm")
-    assert "<td>mirror</td><td>±21.1°</td><td>16, every other class mirrored</td>" in card
+    held = "<td>mirror</td><td>±21.1°</td><td>16, every other class mirrored on 104.8 x 104.8</td>"
+    assert held in card
 
 
 def test_the_nut_scene_holds_the_m5_in_a_hole_turned_any_way():
