@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-__all__ = ["Chain", "evidence", "hull_gap"]
+__all__ = ["Chain", "evidence", "fewest_steps", "hull_gap"]
 
 
 def _hull(points: np.ndarray) -> np.ndarray:
@@ -116,27 +116,37 @@ class Chain:
         """A chain of the points ``x`` (k, 2) with bounds ``r`` (k,) from ``i`` to ``j`` (indices
         into them) over the edges of their Delaunay triangulation, fewest steps; None when there
         is none (or the points are degenerate) or the ends are not far enough apart."""
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import breadth_first_order
-        from scipy.spatial import Delaunay, QhullError
-
         if self.step <= 0 or np.linalg.norm(x[i] - x[j]) - r[i] - r[j] <= self.diameter:
             return None
-        try:
-            tri = Delaunay(x).simplices
-        except (QhullError, ValueError):
-            return None
-        e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [0, 2]]])
-        w = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) + r[e[:, 0]] + r[e[:, 1]]
-        e = e[w < self.step]
-        graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(x), len(x)))
-        _, pred = breadth_first_order(graph, i, directed=False, return_predecessors=True)
-        if pred[j] < 0:
-            return None
-        out = [j]
-        while out[-1] != i:
-            out.append(int(pred[out[-1]]))
-        return out[::-1]
+        return fewest_steps(x, r, self.step, i, j)
+
+
+def fewest_steps(
+    x: np.ndarray, r: np.ndarray, step: float, i: int, j: int, joins=()
+) -> list | None:
+    """The fewest-step path from point ``i`` to ``j`` of ``x`` (k, 2) over the edges of their
+    Delaunay triangulation with ``|x_a - x_b| + r_a + r_b`` below ``step`` (scene units), plus the
+    extra edges ``joins`` ((m, 2) int arrays); None when there is none or the points are
+    degenerate. Shared by the chain test and the link test (:mod:`sieve_mi.certify.link`)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order
+    from scipy.spatial import Delaunay, QhullError
+
+    try:
+        tri = Delaunay(x).simplices
+    except (QhullError, ValueError):
+        return None
+    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [0, 2]]])
+    w = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) + r[e[:, 0]] + r[e[:, 1]]
+    e = np.concatenate([e[w < step], *joins])
+    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(x), len(x)))
+    _, pred = breadth_first_order(graph, i, directed=False, return_predecessors=True)
+    if pred[j] < 0:
+        return None
+    out = [j]
+    while out[-1] != i:
+        out.append(int(pred[out[-1]]))
+    return out[::-1]
 
 
 def _far(points: np.ndarray) -> tuple:

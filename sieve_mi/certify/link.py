@@ -189,9 +189,7 @@ class Link:
         of the candidate pair ``pair``, or None: ``{"kind": "link", "points": [candidates],
         "path": [...]}``, the path's items an index into ``points`` or ``[loop, vertex]``; each
         step a chain step, or two vertices of one loop's stretches (the link)."""
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import breadth_first_order
-        from scipy.spatial import Delaunay, QhullError
+        from sieve_mi.certify.chain import fewest_steps
 
         cols, x, r = cell
         at = np.searchsorted(cols, pair)
@@ -229,21 +227,9 @@ class Link:
                 continue
             hub = node[np.concatenate(ids)]
             joins.append(np.column_stack([np.full(len(hub) - 1, hub[0]), hub[1:]]))
-        try:
-            tri = Delaunay(pts).simplices
-        except (QhullError, ValueError):
+        path = fewest_steps(pts, rad, chain.step, i, j, joins)
+        if path is None:
             return None
-        e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [0, 2]]])
-        w = np.linalg.norm(pts[e[:, 0]] - pts[e[:, 1]], axis=1) + rad[e[:, 0]] + rad[e[:, 1]]
-        e = np.concatenate([e[w < chain.step]] + joins) if joins else e[w < chain.step]
-        graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(pts), len(pts)))
-        _, pred = breadth_first_order(graph, i, directed=False, return_predecessors=True)
-        if pred[j] < 0:
-            return None
-        path = [j]
-        while path[-1] != i:
-            path.append(int(pred[path[-1]]))
-        path = path[::-1]
         if all(p < k for p in path):
             return None  # a chain of mesh points: the chain test's
         chosen = [p for p in path if p < k]
