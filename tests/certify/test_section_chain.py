@@ -70,21 +70,22 @@ def test_a_chain_needs_short_steps_and_far_ends():
     assert chain.path(x, r, 0, 3) is None  # 5.7 apart: one disc holds both
 
 
+def _evidence_kinds(tree: list) -> set:
+    """The kinds of evidence in a section certificate's tree (its six roots)."""
+    kinds, todo = set(), list(tree)
+    while todo:
+        node = todo.pop()
+        todo.extend(node.get("c", []))
+        if "e" in node:
+            kinds.add(node["e"]["kind"])
+    return kinds
+
+
 def test_the_ring_is_proved_across_a_wide_web_by_chains_and_the_replay_agrees(ring):
     c = section_only(ring, _holes(7.0), 1.0, 60.0)  # a cap: a loaded machine needs more than 20 s
     assert c.section["status"] == "proved"
     sec = c.certificate["section"]
-    kinds = set()
-
-    def walk(node):
-        if "c" in node:
-            for k in node["c"]:
-                walk(k)
-        elif "e" in node:
-            kinds.add(node["e"]["kind"])
-
-    for n in sec["tree"]:
-        walk(n)
+    kinds = _evidence_kinds(sec["tree"])
     assert "chain" in kinds
     wide = [np.asarray(x).tolist() for x in (_holes(7.0)[0] + _holes(7.0)[1]).to_polygons()]
     assert replay({**c.certificate, "section": {**sec, "hole": wide}})["valid"]
@@ -125,17 +126,7 @@ def test_its_loop_proves_the_ring_across_a_narrow_web_and_the_replay_checks_the_
     c = section_only(ring, _holes(1.0), 3.0, 30.0, settings)
     assert c.section["status"] == "proved"
     sec = c.certificate["section"]
-    kinds = set()
-
-    def walk(node):
-        if "c" in node:
-            for k in node["c"]:
-                walk(k)
-        elif "e" in node:
-            kinds.add(node["e"]["kind"])
-
-    for n in sec["tree"]:
-        walk(n)
+    kinds = _evidence_kinds(sec["tree"])
     assert "link" in kinds and "loops" in sec
     assert replay(c.certificate)["valid"]
     # a loop shrunk into the bore (radius 2.2 < 2.31) is not inside the ring: rejected
