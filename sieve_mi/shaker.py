@@ -38,8 +38,9 @@ class Shake:
     )
     target: float | None = setting(
         None,
-        "the fraction of each A's trials that must pass within duration: the solver widens the "
-        "turning window, then adds turned copies on a tray-sized sheet, until it does",
+        "the fraction of each A's trials that must pass within duration: the solver grows the "
+        "tolerance, widens the turning window, then adds turned and mirrored copies on a "
+        "tray-sized sheet, until it does",
         minimum=0,
         exclusive_min=True,
         maximum=1,

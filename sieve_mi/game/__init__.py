@@ -52,6 +52,8 @@ feasible
     Feasibility before the search: a B that fits inside a grown A cannot be blocked (proved).
 window
     The turning window: ``[fabrication] window``, given or bisected against the verdict.
+tolerance
+    The widest tolerance of a solved hole: B's margin spent on ``[fabrication] tolerance``.
 rest
     A's likely resting poses as candidates, and the preference for one (``[solver] rest_poses``).
 """

@@ -18,7 +18,7 @@ import numpy as np
 from sieve_mi.game.verdict import judge
 from sieve_mi.scene import Scene
 
-__all__ = ["STEPS", "WIDEST", "at_window", "window_record", "widest_window"]
+__all__ = ["STEPS", "WIDEST", "at_window", "passage_found", "window_record", "widest_window"]
 
 #: The widest window tried, degrees (either way: ±90° covers every turn of a part that looks the
 #: same turned by 180°).
@@ -78,7 +78,7 @@ def widest_window(scene: Scene, passes: list, blocks: list, found, seed: int,
                   memory=found.memory)  # fmt: skip
         ok = bool(np.all(v.attack.blocked()[0]))
         if ok and scene.verdict.certify:  # certify's cell search finds passages the attack missed
-            ok = not _passage(at_window(scene, d), passes, blocks, found.quats, v.trans)
+            ok = not passage_found(at_window(scene, d), passes, blocks, found.quats, v.trans)
         tries.append({"degrees": d, "blocked": ok})
         if progress:
             word = "every B blocked" if ok else "a B passes"
@@ -112,8 +112,9 @@ def window_record(scene: Scene, passes: list, mode: str, tries: list | None = No
     return out
 
 
-def _passage(scene: Scene, passes: list, blocks: list, quats, trans) -> bool:
-    """Whether certify's search finds a passage of some B through the scene's printed hole."""
+def passage_found(scene: Scene, passes: list, blocks: list, quats, trans) -> bool:
+    """Whether certify's search (:data:`CERTIFY_S` per B, at most the certify budget) finds a
+    passage of some B through the scene's printed hole."""
     from sieve_mi.certify import certify
     from sieve_mi.certify.blocks import printed_hole
 

@@ -39,7 +39,8 @@ clip
 commands
     The ``shake`` subcommand of the command line.
 target
-    A pass-rate target (``[shake] target``): widen the window, add turned copies, until met.
+    A pass-rate target (``[shake] target``): grow the tolerance, widen the window, add turned
+    copies, mirror them, until met.
 """
 
 import os

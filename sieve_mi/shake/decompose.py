@@ -30,8 +30,9 @@ __all__ = ["CACHE_ENV", "bulge", "cache_dir", "cache_key", "coacd_pieces", "haus
 
 #: Environment variable naming the cache's root folder (``coacd/`` is made inside it).
 CACHE_ENV = "SIEVE_MI_CACHE"
-#: Bumped when what is stored changes meaning.
-_FORMAT = b"sieve-mi coacd cache 2"
+#: Bumped when what is stored changes meaning (3: :func:`refine` splits without CoACD's
+#: manifold preprocessing).
+_FORMAT = b"sieve-mi coacd cache 3"
 #: Surface samples per mesh for the sampled Hausdorff distance.
 HAUSDORFF_SAMPLES = 20_000
 #: Each surface's samples that the other's are measured to: this many times
@@ -161,7 +162,10 @@ def refine(vertices, faces, pieces: list[np.ndarray], bound: float, **options) -
             if len(f) < 4:
                 out.append(pieces[k])
                 continue
-            parts = coacd.run_coacd(coacd.Mesh(v, f), **options)
+            # manifold3d's solid is closed and manifold: CoACD's manifold preprocessing has
+            # nothing to mend, and on some of these solids it aborts the process (a C++
+            # logic_error, "unexpected code path was hit": the letters' R at one pose)
+            parts = coacd.run_coacd(coacd.Mesh(v, f), **{**options, "preprocess_mode": "off"})
             new = [np.asarray(a, np.float64) for a, _ in parts if len(a) >= 4]
             out += new if new else [pieces[k]]
         pieces = out

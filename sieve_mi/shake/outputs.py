@@ -36,6 +36,7 @@ __all__ = [
     "summary",
     "target_card",
     "to_json",
+    "tradeoff_figure",
     "tradeoff_plot",
     "write_new_folder",
 ]
@@ -315,26 +316,79 @@ TARGET_CARD = "target"
 
 def tradeoff_plot(tries: list[dict], target: float, units: str) -> bytes:
     """A small PNG: each try's least A pass fraction (with its 95 % interval) against the least
-    B margin found (scene units; the try's number where no B has one), the target dashed."""
+    B margin found (scene units; the try's number where no B has one), the target dashed
+    (:func:`tradeoff_figure`)."""
+    buf = io.BytesIO()
+    tradeoff_figure(tries, target, units).savefig(buf, format="png")
+    return buf.getvalue()
+
+
+def tradeoff_figure(tries: list[dict], target: float, units: str):
+    """The figure of :func:`tradeoff_plot`, its labels laid out (:func:`_unstack`): tries of
+    nearly equal margin and pass rate (a window, its sheet and its mirrored sheet) get labels
+    one above the other, each joined to its point by a thin line, not printed over each other.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Its layout fixed after the labels were placed.
+    """
     from sieve_mi.outputs.plots import new_figure
 
     fig = new_figure(4.8, 3.2, 110)
     ax = fig.add_subplot()
+    labels = []
     for k, t in enumerate(tries):
         a = min(t["pass"], key=lambda s: s["fraction"])
         x = k if t["b_margin"] is None else t["b_margin"]
         err = [[max(0.0, a["fraction"] - a["ci95"][0])], [max(0.0, a["ci95"][1] - a["fraction"])]]
         ax.errorbar([x], [a["fraction"]], yerr=err, fmt="o", color="#1a9850" if t["blocked"]
                     else "#d73027", capsize=3)  # fmt: skip
-        ax.annotate(f"{k}: {t['step']}", (x, a["fraction"]), fontsize=7, xytext=(4, 4),
-                    textcoords="offset points")  # fmt: skip
+        labels.append(ax.annotate(f"{k}: {t['step']}", (x, a["fraction"]), fontsize=7,
+                                  xytext=(4, 4), textcoords="offset points"))  # fmt: skip
     ax.axhline(target, ls="--", color="grey", lw=1)
     ax.set_ylim(-0.02, 1.05)
-    ax.set_xlabel(f"least B margin found ({units})")
+    ax.set_xlabel(f"B margin: least overhang found ({units})")
     ax.set_ylabel("least A pass fraction")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()
+    _unstack(fig, labels)
+    return fig
+
+
+#: The thin line that joins a moved label to its point.
+_LEADER = {"arrowstyle": "-", "lw": 0.5, "color": "grey", "shrinkA": 0, "shrinkB": 3}
+
+
+def _unstack(fig, labels: list) -> None:
+    """Move each label of ``labels`` (annotations offset in points) up, or down in the upper
+    half of the plot, until its box overlaps no label placed before it; then fix the figure's
+    layout so the saved picture keeps the places."""
+    from matplotlib.text import Text
+
+    fig.canvas.draw()  # the constrained layout sets the axes first
+    renderer = fig.canvas.get_renderer()
+    placed = []
+
+    def box_of(ann):  # the text's box, not its leader line
+        ann.update_positions(renderer)
+        return Text.get_window_extent(ann, renderer)
+
+    for ann in labels:
+        box = box_of(ann)
+        step = (box.height + 1.0) * 72.0 / fig.dpi  # a line, in points
+        up = ann.xy[1] < 0.5
+        moved = False
+        while any(box.overlaps(b) for b in placed):
+            dx, dy = ann.xyann
+            ann.xyann = (dx, dy + step if up else dy - step)
+            box, moved = box_of(ann), True
+        if moved:  # the same label, joined to its point
+            ax = ann.axes
+            ann.remove()
+            ann = ax.annotate(ann.get_text(), ann.xy, xytext=ann.xyann, fontsize=7,
+                                    textcoords="offset points", arrowprops=_LEADER)  # fmt: skip
+            box = box_of(ann)
+        placed.append(box)
+    fig.set_layout_engine("none")
 
 
 def target_card(target: dict, units: str) -> str:
@@ -351,8 +405,9 @@ def target_card(target: dict, units: str) -> str:
         holes = f"{t['holes']}{', every other class mirrored' if t.get('mirror') else ''}"
         if None not in t.get("plate_size", [None]):
             holes += " on {:.4g} x {:.4g}".format(*t["plate_size"])
-        rows += (f"<tr><td>{k}{mark}</td><td>{escape(t['step'])}</td><td>±{t['window_deg']:g}°"
-                 f"</td><td>{holes}</td><td>{rate}</td><td>{margin}</td>"
+        tol = "-" if t.get("tolerance") is None else f"{t['tolerance']:g}"
+        rows += (f"<tr><td>{k}{mark}</td><td>{escape(t['step'])}</td><td>{tol}</td>"
+                 f"<td>±{t['window_deg']:g}°</td><td>{holes}</td><td>{rate}</td><td>{margin}</td>"
                  f"<td>{'yes' if t['b_proved'] else 'no'}</td></tr>")  # fmt: skip
     png = base64.b64encode(tradeoff_plot(target["tries"], target["fraction"], units))
     met = "met" if target["met"] else "not met: the best trade-off is kept"
@@ -360,7 +415,8 @@ def target_card(target: dict, units: str) -> str:
         f'<section class="card wide" id="{TARGET_CARD}"><h2>Pass-rate target</h2>'
         f"<p>Target {100 * target['fraction']:g} % of each A within the shaking time: {met}.</p>"
         f'<img alt="pass rate against B margin" src="data:image/png;base64,{png.decode()}">'
-        "<table><thead><tr><th>try</th><th>step</th><th>window</th><th>holes</th>"
-        f"<th>A passed [95 %]</th><th>B margin ({escape(units)})</th><th>B proved</th></tr>"
+        f"<table><thead><tr><th>try</th><th>step</th><th>tolerance ({escape(units)})</th>"
+        "<th>window</th><th>holes</th>"
+        f"<th>A passed [95 %]</th><th>B margin: least overhang found ({escape(units)})</th><th>B proved</th></tr>"
         f"</thead><tbody>{rows}</tbody></table></section>"
     )

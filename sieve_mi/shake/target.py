@@ -4,12 +4,17 @@ After the solve, every A is shaken on its plate (:func:`~sieve_mi.shake.run.shak
 passes in less than ``target`` of its trials within ``duration``, the solver takes the next step
 of :data:`PLAN`, each a whole solve with A's rotations fixed at the first solve's:
 
-1. ``window``: ``[fabrication] window = "auto"`` (:mod:`sieve_mi.game.window`): the widest turn
-   ±δ at which the verdict's attack and certify's search still block every B;
-2. ``sheet``: copies of that hole on a hexagonal sheet (``[fabrication] pattern``; the default
-   plate is a tray, :data:`sieve_mi.geometry.pattern.TRAY_MM` square), turned by multiples of
-   about 2δ so a part lying at any turn finds a copy it passes (:func:`sheet_turns`);
-3. ``mirror``: that sheet with every other class of copies mirrored (``[fabrication] mirror``),
+1. ``tolerance``: the first solve's B margin spent on ``[fabrication] tolerance``
+   (:mod:`sieve_mi.game.tolerance`): the widest tolerance at which the verdict's attack and
+   certify's search still block every B, bisected below the first solve's tolerance plus its
+   least overhang found (skipped when that bracket is empty or no wider tolerance holds);
+2. ``window``: the first solve's tolerance with ``[fabrication] window = "auto"``
+   (:mod:`sieve_mi.game.window`): the widest turn ±δ at which every B is still blocked (the
+   same margin spent on the turn instead);
+3. ``sheet``: copies of the window's hole on a hexagonal sheet (``[fabrication] pattern``; the
+   default plate is a tray, :data:`sieve_mi.geometry.pattern.TRAY_MM` square), turned by
+   multiples of about 2δ so a part lying at any turn finds a copy it passes (:func:`sheet_turns`);
+4. ``mirror``: that sheet with every other class of copies mirrored (``[fabrication] mirror``),
    so a flat part lying upside down (an S face up shows Ƨ) finds a copy of its silhouette too;
    each verdict and proof of the hole holds for its mirror image (turning a B over mirrors its
    projection).
@@ -17,9 +22,10 @@ of :data:`PLAN`, each a whole solve with A's rotations fixed at the first solve'
 The loop stops when every A meets the target (the trial's point estimate; its Wilson interval is
 reported) or when no step is left; then the folder holds the best try (:func:`best_try`: every B
 blocked, the highest least pass fraction, then the widest B margin) and report.json's
-``shake.target`` lists every try (the trade-off of pass rate against B's margin). A B's 0 is its
-proof where certify proved it (no trials); a B not proved is shaken on the chosen plate, as its
-trials are then the only evidence.
+``shake.target`` lists every try (the trade-off of pass rate against B's margin: the least
+overhang found over B, :mod:`sieve_mi.game.overhang`). A B's 0 is its proof where certify proved
+it (no trials); a B not proved is shaken on the chosen plate, as its trials are then the only
+evidence.
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ from sieve_mi.settings import ANGLES_MAX
 __all__ = ["PLAN", "best_try", "next_step", "reach_target", "sheet_turns", "try_row"]
 
 #: The steps tried in turn while an A is under its target.
-PLAN = ("window", "sheet", "mirror")
+PLAN = ("tolerance", "window", "sheet", "mirror")
 
 
 def next_step(tries: list[dict], target: float, skip: tuple = ()) -> str:
@@ -48,7 +54,8 @@ def next_step(tries: list[dict], target: float, skip: tuple = ()) -> str:
     target : float
         The fraction each A must reach, in (0, 1].
     skip : tuple of str
-        Steps of :data:`PLAN` that do not apply (a window already "auto").
+        Steps of :data:`PLAN` that do not apply (a window already "auto", a tolerance that
+        cannot grow).
 
     Returns
     -------
@@ -108,19 +115,22 @@ def try_row(step: str, report: dict, shaken: dict) -> dict:
         ``mirror`` (the sheet's copies mirrored in turn), ``open_fraction``, ``plate_size``
         (width and height of the plate or sheet, scene units; None where report.json has
         none), ``pass`` (per A:
-        ``name``, ``passed``, ``trials``, ``fraction``, ``ci95``, ``median_time_s``), ``b_margin`` (the least ``margin.found_at_most`` over B,
-        scene units), ``b_margin_proved`` (the least ``proved_at_least``; None where one is
-        missing), ``b_proved`` (every B certified proved).
+        ``name``, ``passed``, ``trials``, ``fraction``, ``ci95``, ``median_time_s``), ``tolerance``
+        (``[fabrication] tolerance``, scene units), ``b_margin`` (the least overhang found over
+        B, :func:`_least_overhang`, scene units), ``b_margin_proved`` (the least
+        ``margin.proved_at_least``; None where one is missing), ``b_proved`` (every B certified
+        proved).
     """
     fab = report.get("fabrication", {})
     pattern, window = fab.get("pattern") or {}, fab.get("window") or {}
     margins = [b.get("margin") or {} for b in report["block"]]
-    found = [m.get("found_at_most") for m in margins]
+    found = [_least_overhang(b) for b in report["block"]]
     proved = [m.get("proved_at_least") for m in margins]
     keys = ("name", "passed", "trials", "fraction", "ci95", "median_time_s")
     return {
         "step": step,
         "blocked": report["winner"] == "A",
+        "tolerance": (report.get("settings") or {}).get("fabrication", {}).get("tolerance"),
         "window_deg": window.get("degrees", 0.0),
         "holes": pattern.get("count", 1),
         "turns": pattern.get("turns", [0.0]),
@@ -134,13 +144,26 @@ def try_row(step: str, report: dict, shaken: dict) -> dict:
     }
 
 
-def _scene_for(scene, step: str, quats, degrees: float):
+def _least_overhang(block: dict) -> float | None:
+    """A blocked B's least overhang found over poses (report.json's ``overhang.at_best_pose``,
+    :mod:`sieve_mi.game.overhang`), else the protrusion of the verdict's pose
+    (``margin.found_at_most``), which ranks poses by the area outside H first and can stick out
+    much further: the letters' P overhangs by 1.63 mm on its side over the I's hole while its
+    verdict pose sticks out 3.33 mm."""
+    over = (block.get("overhang") or {}).get("at_best_pose")
+    return over if over is not None else (block.get("margin") or {}).get("found_at_most")
+
+
+def _scene_for(scene, step: str, quats, degrees: float, tolerance: float | None = None):
     """A copy of ``scene`` for ``step``: A's rotations fixed at ``quats`` (no search), and the
-    window bisected (``window``) or the sheet of :func:`sheet_turns` at ``degrees`` (``sheet``,
-    and ``mirror`` with every other class of copies mirrored)."""
+    ``tolerance`` given at the window ``degrees`` (``tolerance``), the window bisected (``window``) or the sheet of
+    :func:`sheet_turns` at ``degrees`` (``sheet``, and ``mirror`` with every other class of
+    copies mirrored)."""
     out, fab = copy.copy(scene), copy.copy(scene.fabrication)
     passes = [replace(e, rotation=[float(x) for x in q]) for e, q in zip(scene.passes, quats)]
-    if step == "window":
+    if step == "tolerance":  # at the first solve's window
+        fab.tolerance, fab.window = float(tolerance), float(degrees)
+    elif step == "window":
         fab.window = "auto"
     else:
         fab.window = float(degrees)
@@ -169,6 +192,8 @@ def _tell(k: int, row: dict, target: float, to_stderr: bool) -> None:
     parts = [f"{a['name']} {a['passed']}/{a['trials']} ({100 * a['fraction']:.1f} %)"
              for a in row["pass"]]  # fmt: skip
     where = f"±{row['window_deg']:g}°, {row['holes']} hole{'s' * (row['holes'] != 1)}"
+    if row.get("tolerance") is not None:
+        where = f"tolerance {row['tolerance']:g}, " + where
     if None not in row.get("plate_size", [None]):  # the tray a shaken part must search
         where += " on {:.4g} x {:.4g}".format(*row["plate_size"])
     where += ", every other class mirrored" if row.get("mirror") else ""
@@ -209,17 +234,29 @@ def reach_target(scene, result, out_dir: str, settings, flags: dict) -> dict:
     skip = tuple(
         s for s, done in (("window", fab.window == "auto"), ("mirror", fab.mirror)) if done
     )
-    step = "solved"
+    step, bisection, widest = "solved", [], fab.tolerance
     while True:
         report = read_report(out_dir)[1]
         shaken.append(_shake_names(out_dir, names, settings, progress))
         rows.append(try_row(step, report, shaken[-1]))
+        if step == "tolerance":
+            rows[-1]["bisection"] = bisection
         _tell(len(rows) - 1, rows[-1], target, loud)
         step = next_step(rows, target, skip)
+        if step == "tolerance":
+            widest, bisection = _widest_tolerance(scene, result, rows[0], flags)
+            if widest <= fab.tolerance:
+                _say(f"target: no tolerance above {fab.tolerance:g} keeps every B blocked", loud)
+                skip += ("tolerance",)
+                step = next_step(rows, target, skip)
         if step in ("met", "stop"):
             break
-        degrees = rows[-1]["window_deg"] if rows[-1]["blocked"] else 0.0
-        try_scene = _scene_for(scene, step, result.pass_quats, degrees)
+        # the sheet lays the window's hole (the tolerance's try spends the margin otherwise)
+        base = [r for r in rows if r["step"] != "tolerance"][-1]
+        degrees = base["window_deg"] if base["blocked"] else 0.0
+        if step == "tolerance":
+            degrees = rows[0]["window_deg"]
+        try_scene = _scene_for(scene, step, result.pass_quats, degrees, widest)
         results.append(api.solve(try_scene, variant=flags["variant"], seed=flags["seed"],
                                  progress=progress))  # fmt: skip
         results[-1].save(out_dir, figure=flags["figure"], animation=flags["animation"])
@@ -230,6 +267,23 @@ def reach_target(scene, result, out_dir: str, settings, flags: dict) -> dict:
     run = _with_unproved(out_dir, report, shaken[chosen], settings, progress)
     add_to_folder(run, out_dir)
     return {"run": run, "report": report, "met": step == "met", "chosen": chosen, "tries": rows}
+
+
+def _widest_tolerance(scene, result, first: dict, flags: dict) -> tuple[float, list]:
+    """The tolerance step's bisection (:func:`~sieve_mi.game.tolerance.widest_tolerance`) on the
+    first solve ``result`` (its rotations, translations and window; ``first`` its
+    :func:`try_row`): the widest tolerance and the tries; the scene's tolerance and no tries
+    when the first try has no B margin."""
+    from sieve_mi.game.tolerance import widest_tolerance
+
+    margin = first["b_margin"]
+    if not first["blocked"] or margin is None or margin <= 0:
+        return scene.fabrication.tolerance, []
+    play = _scene_for(scene, "tolerance", result.pass_quats, first["window_deg"],
+                      scene.fabrication.tolerance)  # fmt: skip
+    seed = flags["seed"] if flags["seed"] is not None else scene.solver.seed
+    return widest_tolerance(play, result.pass_shapes, result.block_shapes, result.pass_quats,
+                            result.pass_trans, margin, seed or 0, not flags["quiet"])  # fmt: skip
 
 
 def _with_unproved(folder: str, report: dict, run: dict, settings, progress: bool) -> dict:

@@ -67,8 +67,11 @@ def _try(step: str, *passed: int, trials: int = 20, blocked: bool = True, margin
             "window_deg": 0.0, "holes": 1, "b_proved": True}  # fmt: skip
 
 
-def test_the_loop_widens_then_adds_copies_then_mirrors_them_then_stops():
+def test_the_loop_grows_then_widens_then_adds_copies_then_mirrors_them_then_stops():
     tries = [_try("solved", 20, 10)]  # the second A is under 90 %
+    assert next_step(tries, 0.9) == "tolerance"
+    assert next_step(tries, 0.9, skip=("tolerance",)) == "window"  # no wider tolerance holds
+    tries.append(_try("tolerance", 20, 12))
     assert next_step(tries, 0.9) == "window"
     tries.append(_try("window", 20, 15))
     assert next_step(tries, 0.9) == "sheet"
@@ -77,7 +80,7 @@ def test_the_loop_widens_then_adds_copies_then_mirrors_them_then_stops():
     assert next_step(tries, 0.9, skip=("mirror",)) == "stop"  # the scene's sheet mirrors already
     tries.append(_try("mirror", 20, 16))
     assert next_step(tries, 0.9) == "stop"
-    assert best_try(tries) == 2  # the least A pass fraction is highest there
+    assert best_try(tries) == 3  # the least A pass fraction is highest there
 
 
 def test_the_mirror_step_lays_the_sheet_with_mirrored_copies(tmp_path):
@@ -92,19 +95,23 @@ def test_the_mirror_step_lays_the_sheet_with_mirrored_copies(tmp_path):
     )
     assert mirror.turns == sheet.turns == sheet_turns(30.0) and mirror.window == 30.0
     assert scene.fabrication.mirror is False  # the scene itself is left as it was
+    grown = target._scene_for(scene, "tolerance", [[1.0, 0.0, 0.0, 0.0]], 5.0, 2.125)
+    assert (grown.fabrication.tolerance, grown.fabrication.window) == (2.125, 5.0)
+    assert grown.fabrication.pattern == "single" and grown.passes[0].rotation == [1, 0, 0, 0]
+    assert scene.fabrication.tolerance == 1.0
 
 
 def test_the_loop_stops_at_the_target_and_skips_a_window_already_auto():
     assert next_step([_try("solved", 18)], 0.9) == "met"  # 18 of 20 is 90 %
-    assert next_step([_try("solved", 17)], 0.9) == "window"
-    assert next_step([_try("solved", 17)], 0.9, skip=("window",)) == "sheet"
+    assert next_step([_try("solved", 17)], 0.9) == "tolerance"
+    assert next_step([_try("solved", 17)], 0.9, skip=("tolerance", "window")) == "sheet"
     assert next_step([_try("solved", 17), _try("window", 19)], 0.9) == "met"
 
 
 def test_a_try_that_lets_b_through_never_meets_the_target_nor_is_chosen():
     assert next_step([_try("solved", 20, blocked=False)], 0.9) == "stop"  # B wins from the start
     tries = [_try("solved", 5), _try("window", 9), _try("sheet", 20, blocked=False)]
-    assert next_step(tries, 0.9) == "stop"
+    assert next_step(tries, 0.9, skip=("tolerance",)) == "stop"
     assert best_try(tries) == 1
     # equal pass rates: the wider B margin is the better trade-off
     assert best_try([_try("solved", 9, margin=0.8), _try("window", 9, margin=0.2)]) == 0
@@ -158,6 +165,21 @@ def test_a_try_row_holds_the_pass_counts_and_b_margin():
         True, 0.75, None, True)  # fmt: skip
 
 
+def test_the_b_margin_is_the_least_overhang_found_not_the_verdict_poses_protrusion():
+    """The letters at tolerance 0.5 mm (docs/shake.md): the verdict keeps the P's pose of least
+    area outside H, which sticks out 3.33 mm; lying on its side over the I's hole the P sticks
+    out 1.63 mm, the R at best 2.93 mm: the margin the tolerance can spend is 1.63 mm."""
+    report = _report()
+    report["settings"] = {"fabrication": {"tolerance": 0.5}}
+    report["block"] = [
+        {"name": name, "margin": {"found_at_most": found, "proved_at_least": 0.0},
+         "overhang": {"at_best_pose": over, "proved_at_least": 0.0}, "certified": "proved"}
+        for name, found, over in (("R", 2.93, 2.93), ("P", 3.33, 1.63))
+    ]  # fmt: skip
+    row = try_row("solved", report, _run(_shape("a", "A", 1)))
+    assert (row["b_margin"], row["b_margin_proved"], row["tolerance"]) == (1.63, 0.0, 0.5)
+
+
 def test_each_shape_is_one_line_a_b_with_its_proof():
     run = _run(_shape("a", "A", 179, median=1.234))
     entry = report_entry(run, _report())  # b proved: not shaken
@@ -181,8 +203,31 @@ def test_the_target_card_lists_every_try():
     assert "not met: the best trade-off is kept" in card and "data:image/png;base64," in card
     mirrored = dict(tries[1], step="mirror", holes=16, mirror=True)
     card = target_card({"fraction": 0.9, "met": False, "chosen": 0, "tries": [mirrored]}, "mm")
-    held = "<td>mirror</td><td>±21.1°</td><td>16, every other class mirrored on 104.8 x 104.8</td>"
+    held = ("<td>mirror</td><td>-</td><td>±21.1°</td><td>16, every other class mirrored on 104.8 "
+            "x 104.8</td>")  # fmt: skip
     assert held in card
+
+
+def test_the_trade_off_plots_labels_of_nearly_equal_tries_do_not_overlap():
+    """The letters' loop (docs/shake.md): a window, its sheet and its mirrored sheet at margins
+    1.57, 1.55 and 1.55 mm, all at 0 of 20, beside a try at 2.93 mm: four labels, no two boxes
+    overlapping, each moved label joined to its point."""
+    from matplotlib.text import Text
+
+    from sieve_mi.shake.outputs import tradeoff_figure
+
+    tries = [_try(step, 0, margin=m) for step, m in
+             (("solved", 2.93), ("window", 1.57), ("sheet", 1.55), ("mirror", 1.55))]  # fmt: skip
+    fig = tradeoff_figure(tries, 0.5, "mm")
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    labels = [t for t in fig.axes[0].texts if t.get_text()[:1].isdigit()]
+    assert sorted(t.get_text() for t in labels) == ["0: solved", "1: window", "2: sheet",
+                                                    "3: mirror"]  # fmt: skip
+    boxes = [Text.get_window_extent(t, renderer) for t in labels]
+    assert not any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1 :])
+    moved = [t for t in labels if t.xyann != (4, 4)]
+    assert len(moved) == 2 and all(t.arrow_patch is not None for t in moved)
 
 
 def test_the_nut_scene_holds_the_m5_in_a_hole_turned_any_way():

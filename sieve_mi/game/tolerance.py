@@ -1,0 +1,94 @@
+"""The widest tolerance of a solved hole: B's margin spent on ``[fabrication] tolerance``.
+
+The printed hole is A's silhouette grown by the tolerance (a round offset,
+:func:`sieve_mi.geometry.outline.dilated`), and a round offset by t grown by d again is the
+offset by t + d. So a pose of B that sticks out of the hole made with tolerance t0 by at most m
+(its overhang, :mod:`sieve_mi.game.overhang`) fits the hole made with t0 + m: the tolerance can
+grow by less than B's least overhang over poses, and not by more. The least overhang *found*
+bounds it from above; :func:`widest_tolerance` bisects between the solve's tolerance (every B
+blocked) and that bound against the verdict's attack on the exact polygon, as
+:func:`sieve_mi.game.window.widest_window` bisects the window. For separate holes the layout
+(:func:`sieve_mi.game.frames.separate_layout`) moves the holes apart as they grow, which only
+adds material between them. The bisection is a search: a tolerance is *proved* only where
+certify proves every B on the hole it makes.
+"""
+
+from __future__ import annotations
+
+import copy
+import sys
+
+import numpy as np
+
+from sieve_mi.game.verdict import judge
+from sieve_mi.game.window import passage_found
+from sieve_mi.scene import Scene
+
+__all__ = ["STEPS", "at_tolerance", "widest_tolerance"]
+
+#: Bisection steps: the bracket shrinks to the B margin / 2^STEPS.
+STEPS = 6
+
+
+def at_tolerance(scene: Scene, tolerance: float) -> Scene:
+    """A copy of ``scene`` whose ``[fabrication] tolerance`` is ``tolerance`` (the scene is
+    unchanged)."""
+    out = copy.copy(scene)
+    fab = copy.copy(scene.fabrication)
+    fab.tolerance = float(tolerance)
+    object.__setattr__(out, "fabrication", fab)
+    return out
+
+
+def widest_tolerance(scene: Scene, passes: list, blocks: list, quats, trans, margin: float,
+                     seed: int, progress: bool = False) -> tuple[float, list]:  # fmt: skip
+    """The widest tolerance at which the verdict's attack blocks every B of ``blocks``.
+
+    The bracket is [t0, t0 + ``margin`` - ``block_margin``] (t0 the scene's tolerance, at which
+    every B is blocked; at the upper end the pose of least overhang found fits, so it is not
+    tried); :data:`STEPS` bisection steps shrink it. A try counts as blocked when the verdict's
+    attack (the scene's ``[verdict]`` settings, its own random numbers (``seed``, try)) blocks
+    every B and, with ``[verdict] certify``, certify's search finds no passage either
+    (:func:`~sieve_mi.game.window.passage_found`).
+
+    Parameters
+    ----------
+    scene : Scene
+    passes, blocks : list of Shape
+    quats : (m, 4) ndarray
+        Each A's rotation (w, x, y, z), held fixed.
+    trans : (m, 2) ndarray
+        Each A's translation, scene units (ignored for separate holes).
+    margin : float
+        The least overhang found over ``blocks`` at t0 (report.json's ``overhang.at_best_pose``),
+        scene units.
+    seed : int
+    progress : bool
+        One line per try on stderr.
+
+    Returns
+    -------
+    tolerance : float
+        Scene units; t0 when no wider tolerance keeps every B blocked.
+    tries : list of dict
+        ``tolerance`` and ``blocked`` (every B) per try, in order.
+    """
+    lo = float(scene.fabrication.tolerance)
+    hi = lo + float(margin) - float(scene.fabrication.block_margin)
+    tries = []
+    for k in range(STEPS if hi > lo else 0):
+        t = round(0.5 * (lo + hi), 4)
+        if not lo < t < hi:  # the bracket is below the rounding
+            break
+        play = at_tolerance(scene, t)
+        v = judge(play, passes, blocks, np.asarray(quats), np.asarray(trans),
+                  np.random.default_rng([seed, k]))  # fmt: skip
+        ok = bool(np.all(v.attack.blocked()[0]))
+        if ok and scene.verdict.certify:  # certify's cell search finds passages the attack missed
+            ok = not passage_found(play, passes, blocks, np.asarray(quats), v.trans)
+        tries.append({"tolerance": t, "blocked": ok})
+        if progress:
+            word = "every B blocked" if ok else "a B passes"
+            print(f"tolerance: {t:g}: {word}", file=sys.stderr, flush=True)
+        lo, hi = (t, hi) if ok else (lo, t)
+    return lo, tries
