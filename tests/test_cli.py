@@ -560,10 +560,16 @@ def test_solve_json_prints_report_json_on_stdout_and_one_thread_writes_every_exr
 
 
 @pytest.mark.slow
-def test_check_exit_code_says_passes_or_blocked(tmp_path):
+def test_check_exit_code_says_passes_or_blocked(tmp_path, capsys):
     # A 10 mm cube and a 16 mm square hole (1 mm pixels, recorded in the PNG as solve writes
-    # it): 0 when it passes, 3 when blocked; --pixel-size overrides what the PNG records.
+    # it): 0 when it passes, 3 when blocked; --pixel-size overrides what the PNG records. The
+    # first check runs in a process of its own, the other two in this one (sieve_mi.cli.main).
+    from sieve_mi.cli import main
     from sieve_mi.outputs.images import write_png
+
+    def in_process(*argv):
+        code = main(list(argv))
+        return code, json.loads(capsys.readouterr().out)
 
     trimesh.creation.box((10.0, 10.0, 10.0)).export(str(tmp_path / "cube.stl"))
     img = np.zeros((24, 24), bool)
@@ -575,10 +581,10 @@ def test_check_exit_code_says_passes_or_blocked(tmp_path):
     assert passes.returncode == 0, passes.stderr
     assert json.loads(passes.stdout)["passes"] is True
     assert json.loads(passes.stdout)["pixel_size"] == 1.0
-    blocked = run_cli(*args, "--scale", "2")  # a 20 mm cube
-    assert blocked.returncode == 3 and json.loads(blocked.stdout)["passes"] is False
-    smaller = run_cli(*args, "--pixel-size", "0.5")  # the flag wins: an 8 mm hole
-    assert smaller.returncode == 3 and json.loads(smaller.stdout)["pixel_size"] == 0.5
+    code, blocked = in_process(*args, "--scale", "2")  # a 20 mm cube
+    assert code == 3 and blocked["passes"] is False
+    code, smaller = in_process(*args, "--pixel-size", "0.5")  # the flag wins: an 8 mm hole
+    assert code == 3 and smaller["pixel_size"] == 0.5
 
 
 @pytest.mark.parametrize("inner, code", [("term", 143), ("int", 130)])

@@ -397,7 +397,8 @@ def same_silhouette(p, q, tol: float = SAME_SILHOUETTE) -> bool:
     axes (anisotropy over 5 %), a turn taking one polygon onto the other takes its major axis
     onto the other's: the two turns that do (0° and 180° apart) are tried. Otherwise every
     whole degree is tried, and the best refined to a hundredth of a degree. The polygons are
-    the same when the symmetric difference at the best turn is at most ``tol`` of the area.
+    the same when the symmetric difference at the best turn is at most ``tol`` of the area;
+    the first turn tried that is within ``tol`` decides (the best is at least as good).
 
     Parameters
     ----------
@@ -422,17 +423,22 @@ def same_silhouette(p, q, tol: float = SAME_SILHOUETTE) -> bool:
     def off(turn: float) -> float:  # the symmetric difference's area (``^`` intersects)
         return ap + aq - 2.0 * float((p0.rotate(turn) ^ q0).area())
 
+    # Each refinement's turns include the previous best, so the best turn found is at least as
+    # good as every turn tried: the first turn within ``tol`` already decides "the same".
+    limit = tol * ap
     if spread > 0.05:
         major = np.degrees(np.arctan2(vq[1, 1], vq[0, 1]) - np.arctan2(vp[1, 1], vp[0, 1]))
-        best = min(off(major), off(major + 180.0))
-    else:
-        turns = np.arange(360.0)
-        for step in (1.0, 0.1, 0.01):
-            values = [off(t) for t in turns]
-            at = float(turns[int(np.argmin(values))])
-            turns = at + step * np.arange(-10, 11) / 10.0
-        best = min(values)
-    return best <= tol * ap
+        return off(major) <= limit or off(major + 180.0) <= limit
+    turns = np.arange(360.0)
+    for step in (1.0, 0.1, 0.01):
+        values = []
+        for t in turns:
+            values.append(off(t))
+            if values[-1] <= limit:
+                return True
+        at = float(turns[int(np.argmin(values))])
+        turns = at + step * np.arange(-10, 11) / 10.0
+    return False
 
 
 def silhouette_share(shape: Shape, normals: np.ndarray, shares: np.ndarray, positions: list,

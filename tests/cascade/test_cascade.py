@@ -194,15 +194,20 @@ def test_a_pair_that_no_sieve_splits_shares_a_tray_with_the_reason(tmp_path):
 
 
 @pytest.mark.slow
-def test_sort_shake_reports_the_trays_each_ball_ends_in(tmp_path):
+def test_sort_shake_reports_the_trays_each_ball_ends_in(tmp_path, monkeypatch, capsys):
     # Balls of 24, 20 and 14 mm: sieve 1's hole is about a 21 mm disc (the falling balls grown
     # by the 0.5 mm tolerance), which no pose of the 24 mm ball fits, so no trial gets it through
     # and it never reaches sieve 2; sieve 2's hole (about 15 mm) never passes the 20 mm ball, so
-    # it cannot reach the bottom tray. 4 parts per shape, 1 s of shaking per sieve.
+    # it cannot reach the bottom tray. 4 parts per shape, 1 s of shaking per sieve. The command
+    # runs in this process (the test above runs sort in its own).
+    from sieve_mi.cli import main
+
     balls = {f"ball{d}": trimesh.creation.icosphere(3, d / 2) for d in (14, 24, 20)}
     path = _mixture(tmp_path, balls, name="balls", extra="[shake]\nduration = 1.0\nworkers = 1\n")
-    proc = _cli("sort", path, "--serial", "--quiet", "--out", "out", "--shake", "4", cwd=tmp_path)
-    assert proc.returncode == 0, proc.stderr
+    monkeypatch.chdir(tmp_path)
+    code = main(["sort", path, "--serial", "--quiet", "--out", "out", "--shake", "4"])
+    stdout, stderr = capsys.readouterr()
+    assert code == 0, stderr
     report = json.loads((tmp_path / "out" / "cascade.json").read_text())
     assert report["trays"] == [["ball24"], ["ball20"], ["ball14"]]
     shake = report["shake"]
@@ -214,8 +219,8 @@ def test_sort_shake_reports_the_trays_each_ball_ends_in(tmp_path):
     assert [r["name"] for r in top["shapes"]] == ["ball24", "ball20", "ball14"]
     assert top["shapes"][0]["passed"] == 0 and top["plate"]["file"].endswith("/sieve.stl")
     assert "ball24" not in [r["name"] for r in shake["sieves"][1]["shapes"]]
-    assert "shake trials: 4 parts of each shape" in proc.stdout
-    assert "ball24          * 1.000 [0.510, 1.000]" in proc.stdout
+    assert "shake trials: 4 parts of each shape" in stdout
+    assert "ball24          * 1.000 [0.510, 1.000]" in stdout
 
 
 def test_bad_shake_settings_of_sort_are_one_line_before_any_game(tmp_path, monkeypatch, capsys):
