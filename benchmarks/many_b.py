@@ -19,7 +19,8 @@ and the peak RSS, with the load average before and after. ``--no-prune`` turns p
 pruning off (:data:`sieve_mi.game.maximin.PRUNE`: every candidate attacked by every B), to
 measure it; ``--no-reuse`` turns off the reuse of player B's attacks across congruent holes
 (:data:`sieve_mi.game.reuse.REUSE`: every hole a full multi-start attack); each row counts player
-B's work, pose x Adam steps over every descent of the solve (search and verdict); ``--json`` appends the rows to a file, so that runs with and without the screen make
+B's work, pose x Adam steps over every descent of the solve and of player A's search alone, and
+with reuse the search's classes and holes; ``--json`` appends the rows to a file, so that runs with and without the screen make
 one plot. ``--profile N`` runs count N in this
 process under cProfile and prints the 25 most expensive functions (cumulative).
 """
@@ -106,18 +107,28 @@ def run_one(
     import sieve_mi as sm
     from sieve_mi.game import maximin
     from sieve_mi.game import reuse as reusing
+    from sieve_mi.game.player_a import PlayerA
     from sieve_mi.game.player_b import PlayerB
 
     maximin.PRUNE = prune
     reusing.REUSE = reuse
-    work = [0]
-    descend = PlayerB.descend
+    work, searching, classes = [0, 0], [False], []
+    descend, search = PlayerB.descend, PlayerA.search
 
     def counted(self, batch, steps, *args, **kw):
-        work[0] += len(batch) * steps
+        work[searching[0]] += len(batch) * steps
         return descend(self, batch, steps, *args, **kw)
 
-    PlayerB.descend = counted
+    def searched(self, *args, **kw):
+        searching[0] = True
+        try:
+            return search(self, *args, **kw)
+        finally:
+            searching[0] = False
+            if self.classes is not None:
+                classes.append([len(self.classes.entries), self.classes.placed])
+
+    PlayerB.descend, PlayerA.search = counted, searched
 
     t0 = time.perf_counter()
     sc = scene(count, screen, stand_in)
@@ -133,7 +144,9 @@ def run_one(
         "stand_in": stand_in,
         "prune": prune,
         "reuse": reuse,
-        "pose_steps": work[0],
+        "pose_steps": sum(work),
+        "search_pose_steps": work[1],
+        "classes": classes,
         "faces": int(sum(s.face_count for s in result.block_shapes)),
         "setup_s": round(setup, 1),
         "wall_s": round(wall, 1),
@@ -248,7 +261,7 @@ def main(argv=None) -> int:
         pstats.Stats(prof).sort_stats("cumulative").print_stats(25)
         return 0
     rows = json.load(open(args.json)) if args.json and os.path.exists(args.json) else []
-    print("| B | screen | faces of B | wall s | CPU s | pose-steps | timings s | winner | unblocked | "
+    print("| B | screen | faces of B | wall s | CPU s | pose-steps (search) | timings s | winner | unblocked | "
           "proved | peak GB | load before → after |")  # fmt: skip
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for count in [int(c) for c in args.counts.split(",")]:
@@ -260,7 +273,7 @@ def main(argv=None) -> int:
             f"{k.removesuffix('_s')} {v:g}" for k, v in r["timings"].items() if v >= 0.05
         )  # noqa: E501
         print(f"| {r['count']} | {'on' if r['screen'] else 'off'}{_stand(r)} | {r['faces']:,} | {r['wall_s']} "
-              f"| {r['cpu_s']} | {r['pose_steps']:,} | {stages} | {r['winner']} | {r['unblocked']} | {r['proved']} "
+              f"| {r['cpu_s']} | {r['pose_steps']:,} ({r['search_pose_steps']:,}) | {stages} | {r['winner']} | {r['unblocked']} | {r['proved']} "
               f"| {r['peak_gb']} | {r['load'][0]} → {r['load'][1]} |", flush=True)  # fmt: skip
         if args.json:
             with open(args.json, "w") as fh:
