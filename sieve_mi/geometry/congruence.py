@@ -147,6 +147,7 @@ class Outline:
     profile: np.ndarray = field(default_factory=lambda: np.zeros(_BINS))
     _signed: np.ndarray | None = None
     _band: np.ndarray | None = None
+    _near: tuple | None = None
 
     @classmethod
     def of(cls, hole: Hole) -> Outline:
@@ -185,6 +186,17 @@ class Outline:
             rows, cols = np.nonzero(np.abs(self.signed) <= 1.0)
             self._band = np.column_stack([x[cols], y[rows]])
         return self._band
+
+    @property
+    def near(self) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel centres (P, 2) within :data:`LOCAL` + 1 pixels of the outline and whether each
+        is in the hole (P,): beyond them two holes whose outlines are within :data:`LOCAL` of
+        each other agree."""
+        if self._near is None:
+            x, y = self.hole.frame.centres()
+            rows, cols = np.nonzero(np.abs(self.signed) <= LOCAL + 1.0)
+            self._near = np.column_stack([x[cols], y[rows]]), self.hole.mask[rows, cols]
+        return self._near
 
     def at(self, xy: np.ndarray) -> np.ndarray:
         """:attr:`signed` read bilinearly at points ``xy`` (..., 2), scene units (clamped to
@@ -239,23 +251,24 @@ def _mismatch(a: Outline, b: Outline, points: np.ndarray, angles, mirror: bool) 
 
 
 def _fits(a: Outline, b: Outline, motion: Motion) -> bool:
-    """Whether ``motion`` takes ``a`` onto ``b`` within :data:`FRACTION` and :data:`LOCAL`,
-    checked both ways."""
-    frame = a.hole.frame
-    x, y = frame.centres()
-    xx, yy = np.meshgrid(x, y)
-    grid = np.stack([xx, yy], -1)
-    limit = FRACTION * max(a.border, b.border)
-    moved_a = a.at(motion.inverse_points(grid)) < 0  # a moved, on b's pixels
-    if np.count_nonzero(moved_a != b.hole.mask) > limit:
-        return False
-    moved_b = b.at(motion.points(grid)) < 0  # b moved back, on a's pixels
-    if np.count_nonzero(moved_b != a.hole.mask) > limit:
-        return False
+    """Whether ``motion`` takes ``a`` onto ``b`` within :data:`LOCAL` and :data:`FRACTION`,
+    checked both ways.
+
+    The outlines first: at every border pixel of either the two signed distances agree within
+    :data:`LOCAL`, so the holes can only disagree within :data:`LOCAL` of an outline; there,
+    the pixels where the moved hole and the other differ are counted (:attr:`Outline.near`).
+    """
     pa, pb = a.band, b.band
     if np.abs(b.at(motion.points(pa)) - a.at(pa)).max(initial=0.0) > LOCAL:
         return False
-    return bool(np.abs(a.at(motion.inverse_points(pb)) - b.at(pb)).max(initial=0.0) <= LOCAL)
+    if np.abs(a.at(motion.inverse_points(pb)) - b.at(pb)).max(initial=0.0) > LOCAL:
+        return False
+    limit = FRACTION * max(a.border, b.border)
+    xb, inside_b = b.near
+    if np.count_nonzero((a.at(motion.inverse_points(xb)) < 0) != inside_b) > limit:
+        return False  # a moved, on b's pixels
+    xa, inside_a = a.near
+    return bool(np.count_nonzero((b.at(motion.points(xa)) < 0) != inside_a) <= limit)
 
 
 def congruent(a: Outline, b: Outline) -> Motion | None:
