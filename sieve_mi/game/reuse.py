@@ -82,17 +82,11 @@ class Member:
 
 
 class Classes:
-    """The classes of congruent holes met by one search, oldest first (at most :data:`LIMIT`).
+    """The classes of congruent holes met by one search, oldest first (at most :data:`LIMIT`);
+    every attack through them must use the same starts, steps and learning rate (a search's
+    evaluations do)."""
 
-    Parameters
-    ----------
-    key : tuple
-        The attack's settings (starts, steps, learning rate, settle); a search's evaluations
-        share them.
-    """
-
-    def __init__(self, key: tuple = ()):
-        self.key = key
+    def __init__(self):
         self.entries: list[Entry] = []
         #: Holes placed so far, and how many of them joined an existing class.
         self.placed, self.reused = 0, 0
