@@ -16,8 +16,10 @@ Every start is drawn up front, as one attack of every B draws them
 which other starts descend beside it (Adam is per parameter, the loss a sum of per-pose terms; see
 :meth:`~sieve_mi.game.player_b.PlayerB.descend`): a candidate that stays above its floor gets the
 value one attack of every B gives it, so the search takes the same steps with pruning as without
-(a test holds the two together, with ``FAR = inf``). The verdict is not pruned: it attacks every B on the printed
-polygon (:mod:`sieve_mi.game.verdict`).
+(a test holds the two together, with ``FAR = inf``). With player B's attacks reused across
+congruent holes (:mod:`sieve_mi.game.reuse`, the search's default) every pair of hole and B gets
+its β from its class alone, so the same holds (and every B gets every start). The verdict is not
+pruned: it attacks every B on the printed polygon (:mod:`sieve_mi.game.verdict`).
 """
 
 from __future__ import annotations
