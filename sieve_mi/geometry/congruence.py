@@ -277,7 +277,8 @@ def congruent(a: Outline, b: Outline) -> Motion | None:
     Tried in order: the identity up to the centroids' shift, then the four angles (both mirror
     senses) whose :attr:`Outline.profile` match best at whole degrees, each refined to 0.01° on
     up to :data:`_SEARCH_POINTS` border points of ``a``; the first that passes the test (module
-    docstring) is returned.
+    docstring) is returned. An angle whose mean border mismatch is already beyond what the test
+    allows anywhere (:data:`LOCAL`, plus half a degree's turn before refining) is dropped.
     Deterministic. Empty holes are congruent to each other only.
     """
     if a.hole.frame != b.hole.frame:
@@ -296,12 +297,19 @@ def congruent(a: Outline, b: Outline) -> Motion | None:
         local = (err <= np.roll(err, 1)) & (err <= np.roll(err, -1))
         for k in np.flatnonzero(local):
             tries.append((err[k], coarse[k], mirror))
+    # within half a degree of a congruent angle, a border point moves by at most reach / 115 px
+    slack = LOCAL + len(a.radial) * np.radians(0.5)
     for _, angle, mirror in sorted(tries, key=lambda t: (t[0], t[1], t[2]))[:4]:
+        if _mismatch(a, b, pts, [angle], mirror)[0] > slack:
+            continue
         step = np.radians(0.5)
         while step > np.radians(0.01):  # compass search on the angle
             near = np.array([angle - step, angle, angle + step])
-            angle = float(near[int(np.argmin(_mismatch(a, b, pts, near, mirror)))])
+            err = _mismatch(a, b, pts, near, mirror)
+            angle = float(near[int(np.argmin(err))])
             step /= 2
+        if err.min() > LOCAL:  # the mean over border points exceeds the test's largest allowed
+            continue
         motion = _motion(a, b, angle, mirror)
         if _fits(a, b, motion):
             return motion
