@@ -1,7 +1,7 @@
 """One A against many real-mesh B, each holding a ball just wider than any hole A can make.
 
-Usage: ``python -m benchmarks.many_b [--counts 1,10,20,50] [--no-screen] [--no-prune] [--stand-in MM]
-[--profile N] [--out PNG] [--json ROWS]``
+Usage: ``python -m benchmarks.many_b [--counts 1,10,20,50] [--no-screen] [--no-prune] [--no-reuse]
+[--stand-in MM] [--profile N] [--out PNG] [--json ROWS]``
 
 A: a 20 mm ball (an icosphere of radius 10, 1,280 faces); ``[fabrication] tolerance`` at its
 default. B: the closed real meshes of 5.8k-13k faces that exist here, cycled: the cow (5,804
@@ -17,7 +17,10 @@ Each count runs in its own process (its peak RSS is its own), at ``nice -n 10`` 
 caller; the table gives report.json's ``timings`` by stage, the winner, how many B were proved
 and the peak RSS, with the load average before and after. ``--no-prune`` turns player A's maximin
 pruning off (:data:`sieve_mi.game.maximin.PRUNE`: every candidate attacked by every B), to
-measure it; ``--json`` appends the rows to a file, so that runs with and without the screen make
+measure it; ``--no-reuse`` turns off the reuse of player B's attacks across congruent holes
+(:data:`sieve_mi.game.reuse.REUSE`: every hole a full multi-start attack); each row counts player
+B's work, pose x Adam steps over every descent of the solve and of player A's search alone, and
+with reuse the search's classes and holes; ``--json`` appends the rows to a file, so that runs with and without the screen make
 one plot. ``--profile N`` runs count N in this
 process under cProfile and prints the 25 most expensive functions (cumulative).
 """
@@ -90,15 +93,42 @@ def scene(count: int, screen: bool = True, stand_in: float = 0.0):
 
 
 def run_one(
-    count: int, variant: str, screen: bool = True, stand_in: float = 0.0, prune: bool = True
+    count: int,
+    variant: str,
+    screen: bool = True,
+    stand_in: float = 0.0,
+    prune: bool = True,
+    reuse: bool = True,
 ) -> dict:
-    """Solve the scene with ``count`` B in this process; its timings, winner and peak RSS."""
+    """Solve the scene with ``count`` B in this process; its timings, winner, peak RSS and
+    player B's pose x Adam steps (every descent)."""
     import resource
 
     import sieve_mi as sm
     from sieve_mi.game import maximin
+    from sieve_mi.game import reuse as reusing
+    from sieve_mi.game.player_a import PlayerA
+    from sieve_mi.game.player_b import PlayerB
 
     maximin.PRUNE = prune
+    reusing.REUSE = reuse
+    work, searching, classes = [0, 0], [False], []
+    descend, search = PlayerB.descend, PlayerA.search
+
+    def counted(self, batch, steps, *args, **kw):
+        work[searching[0]] += len(batch) * steps
+        return descend(self, batch, steps, *args, **kw)
+
+    def searched(self, *args, **kw):
+        searching[0] = True
+        try:
+            return search(self, *args, **kw)
+        finally:
+            searching[0] = False
+            if self.classes is not None:
+                classes.append([len(self.classes.entries), self.classes.placed])
+
+    PlayerB.descend, PlayerA.search = counted, searched
 
     t0 = time.perf_counter()
     sc = scene(count, screen, stand_in)
@@ -113,6 +143,10 @@ def run_one(
         "screen": screen,
         "stand_in": stand_in,
         "prune": prune,
+        "reuse": reuse,
+        "pose_steps": sum(work),
+        "search_pose_steps": work[1],
+        "classes": classes,
         "faces": int(sum(s.face_count for s in result.block_shapes)),
         "setup_s": round(setup, 1),
         "wall_s": round(wall, 1),
@@ -137,13 +171,13 @@ def plot(rows: list[dict], out: str) -> None:
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(8, 3.4))
 
     def kind(r):
-        return r["screen"], r.get("stand_in", 0.0), r.get("prune", True)
+        return r["screen"], r.get("stand_in", 0.0), r.get("prune", True), r.get("reuse", False)
 
     kinds = sorted({kind(r) for r in rows}, reverse=True)
-    for (screen, stand, prune), mark in zip(kinds, ("o-", "^-", "s-", "v-", "d-")):
-        got = [r for r in rows if kind(r) == (screen, stand, prune)]
+    for (screen, stand, prune, reuse), mark in zip(kinds, ("o-", "^-", "s-", "v-", "d-", "p-")):
+        got = [r for r in rows if kind(r) == (screen, stand, prune, reuse)]
         if got:
-            row = {"stand_in": stand, "prune": prune}
+            row = {"stand_in": stand, "prune": prune, "reuse": reuse}
             label = ("size screen" if screen else "screen = false") + _stand(row)
             n = [r["count"] for r in got]
             line = ax.plot(n, [r["cpu_s"] for r in got], mark, label=label + ", CPU s")[0]
@@ -177,6 +211,7 @@ def _child(count: int, args) -> dict | None:
     cmd += ["--no-screen"] if args.no_screen else []
     cmd += ["--stand-in", str(args.stand_in)]
     cmd += ["--no-prune"] if args.no_prune else []
+    cmd += ["--no-reuse"] if args.no_reuse else []
     before = os.getloadavg()[0]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     if proc.returncode != 0:
@@ -189,9 +224,11 @@ def _child(count: int, args) -> dict | None:
 
 def _stand(row: dict) -> str:
     """``, stand-in 0.2 mm`` for a row with a stand-in tolerance, ``, no pruning`` for one
-    without maximin pruning, else ``""``."""
+    without maximin pruning, ``, reuse`` for one with reuse across congruent holes (rows
+    without the key predate it), else ``""``."""
     out = f", stand-in {row['stand_in']:g} mm" if row.get("stand_in") else ""
-    return out + ("" if row.get("prune", True) else ", no pruning")
+    out += "" if row.get("prune", True) else ", no pruning"
+    return out + (", reuse" if row.get("reuse", False) else "")
 
 
 def main(argv=None) -> int:
@@ -203,12 +240,13 @@ def main(argv=None) -> int:
     p.add_argument("--no-screen", action="store_true", help="[solver] screen = false")
     p.add_argument("--stand-in", type=float, default=0.0, help="[solver] stand_in, mm")
     p.add_argument("--no-prune", action="store_true", help="no maximin pruning in the search")
+    p.add_argument("--no-reuse", action="store_true", help="no reuse across congruent holes")
     p.add_argument("--profile", type=int, help="profile this count in this process")
     p.add_argument("--one", type=int, help=argparse.SUPPRESS)  # the child process's count
     args = p.parse_args(argv)
     if args.one is not None:
         print(json.dumps(run_one(args.one, args.variant, not args.no_screen, args.stand_in,
-                                 not args.no_prune)))  # fmt: skip
+                                 not args.no_prune, not args.no_reuse)))  # fmt: skip
         return 0
     if args.profile is not None:
         import cProfile
@@ -217,15 +255,15 @@ def main(argv=None) -> int:
         prof = cProfile.Profile()
         prof.enable()
         row = run_one(args.profile, args.variant, not args.no_screen, args.stand_in,
-                      not args.no_prune)  # fmt: skip
+                      not args.no_prune, not args.no_reuse)  # fmt: skip
         prof.disable()
         print(json.dumps(row))
         pstats.Stats(prof).sort_stats("cumulative").print_stats(25)
         return 0
     rows = json.load(open(args.json)) if args.json and os.path.exists(args.json) else []
-    print("| B | screen | faces of B | wall s | CPU s | timings s | winner | unblocked | proved | "
-          "peak GB | load before → after |")  # fmt: skip
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| B | screen | faces of B | wall s | CPU s | pose-steps (search) | timings s | winner | unblocked | "
+          "proved | peak GB | load before → after |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for count in [int(c) for c in args.counts.split(",")]:
         r = _child(count, args)
         if r is None:
@@ -235,7 +273,7 @@ def main(argv=None) -> int:
             f"{k.removesuffix('_s')} {v:g}" for k, v in r["timings"].items() if v >= 0.05
         )  # noqa: E501
         print(f"| {r['count']} | {'on' if r['screen'] else 'off'}{_stand(r)} | {r['faces']:,} | {r['wall_s']} "
-              f"| {r['cpu_s']} | {stages} | {r['winner']} | {r['unblocked']} | {r['proved']} "
+              f"| {r['cpu_s']} | {r['pose_steps']:,} ({r['search_pose_steps']:,}) | {stages} | {r['winner']} | {r['unblocked']} | {r['proved']} "
               f"| {r['peak_gb']} | {r['load'][0]} → {r['load'][1]} |", flush=True)  # fmt: skip
         if args.json:
             with open(args.json, "w") as fh:

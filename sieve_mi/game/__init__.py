@@ -18,6 +18,9 @@ player_a
 maximin
     Player A's values with maximin pruning: B attacked in rounds, the most dangerous first, and
     a candidate already at or below the value it must beat attacked no further.
+reuse
+    Player B's attacks reused across congruent holes of the search: a short descent from the
+    best poses on the class's first hole, moved with the hole.
 screen
     Blocks proved before the game: a B holding a ball larger than any hole A can make.
 scoring
@@ -74,6 +77,7 @@ __all__ = [
     "player_a",
     "player_b",
     "result",
+    "reuse",
     "scoring",
     "solver",
     "verdict",

@@ -16,8 +16,10 @@ Every start is drawn up front, as one attack of every B draws them
 which other starts descend beside it (Adam is per parameter, the loss a sum of per-pose terms; see
 :meth:`~sieve_mi.game.player_b.PlayerB.descend`): a candidate that stays above its floor gets the
 value one attack of every B gives it, so the search takes the same steps with pruning as without
-(a test holds the two together, with ``FAR = inf``). The verdict is not pruned: it attacks every B on the printed
-polygon (:mod:`sieve_mi.game.verdict`).
+(a test holds the two together, with ``FAR = inf``). With player B's attacks reused across
+congruent holes (:mod:`sieve_mi.game.reuse`, the search's default) every pair of hole and B gets
+its β from its class alone, so the same holds (and every B gets every start). The verdict is not
+pruned: it attacks every B on the printed polygon (:mod:`sieve_mi.game.verdict`).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sieve_mi.backend import release_cached_memory
+from sieve_mi.game import reuse
 from sieve_mi.game.attack import Starts
 from sieve_mi.game.descent import Batch, settle_groups
 from sieve_mi.game.scoring import score_poses
@@ -103,6 +106,10 @@ class Pruned:
         :meth:`~sieve_mi.game.player_b.PlayerB.attack`'s ``settle``.
     progress : callable, optional
         Passed to the first descent (steps done), so a progress bar moves once per evaluation.
+    classes : Classes, optional
+        The search's classes of congruent holes (:mod:`sieve_mi.game.reuse`): every pair of
+        hole and B is then attacked as :func:`sieve_mi.game.reuse.attack` does, and every B
+        gets all its starts.
 
     Attributes
     ----------
@@ -113,20 +120,23 @@ class Pruned:
         How many rounds of :func:`groups` each candidate has been attacked in.
     """
 
-    def __init__(self, player_b, holes, starts, steps, learning_rate, rng, settle, progress=None):
+    def __init__(self, player_b, holes, starts, steps, learning_rate, rng, settle, progress=None,
+                 classes=None):  # fmt: skip
         self.player_b, self.holes, self.steps, self.rate = player_b, holes, steps, learning_rate
         self.settle, self.progress = settle, progress
         self.batch = player_b.start_batch(holes, Starts.of(starts), rng, settle)
+        count = Starts.of(starts).count
+        self.members = None if classes is None else classes.place(holes, self.batch, count)
         self.rounds = groups(player_b)
         self.value = np.full(len(holes), np.inf)
         self.value[[not h.mask.any() for h in holes]] = -1.0
         self.reached = np.where(self.value < 0, len(self.rounds), 0)
         self.low = np.full((len(holes), len(player_b.shapes)), np.inf)  # β per hole and B
-        count = Starts.of(starts).count
         self.start = np.arange(len(self.batch)) % count  # each pose's start, in hole x B x start
         danger = player_b.danger
         self.few = np.zeros(len(player_b.shapes), dtype=bool)  # B far from fitting
-        if danger is not None and np.isfinite(FAR) and len(danger) and danger.min() > 0:
+        far = classes is None and np.isfinite(FAR)  # with reuse, every B gets every start
+        if danger is not None and far and len(danger) and danger.min() > 0:
             self.few = danger > (1 + FAR) * danger.min()  # none while some B fits (β 0)
         self.few_starts = max(1, int(np.ceil(FEW * count)))
 
@@ -137,6 +147,11 @@ class Pruned:
         chosen = np.zeros(len(self.holes), dtype=bool)
         chosen[which] = True
         floor = np.broadcast_to(np.asarray(floor, dtype=np.float64), self.value.shape)
+        if self.members is not None and np.all(floor[chosen] == -np.inf):  # every B at once
+            for r in np.unique(self.reached[chosen & (self.reached < len(self.rounds))]):
+                todo = chosen & (self.reached == r)
+                self._attack(np.flatnonzero(todo), np.concatenate(self.rounds[r:]))
+                self.reached[todo] = len(self.rounds)
         for r, group in enumerate(self.rounds):
             todo = chosen & (self.reached == r) & (self.value > floor)
             if todo.any():
@@ -163,6 +178,9 @@ class Pruned:
 
     def _attack(self, holes: np.ndarray, shapes: np.ndarray) -> None:
         """One descent of the starts of B ``shapes`` against the candidates ``holes``, scored."""
+        if self.members is not None:
+            self._reuse(holes, shapes)
+            return
         b = self.batch
         sel = np.isin(b.pose_hole, holes) & np.isin(b.pose_shape, shapes)
         sel &= ~self.few[b.pose_shape] | (self.start < self.few_starts)
@@ -183,3 +201,13 @@ class Pruned:
         np.minimum.at(low, (pose_hole, pose_shape), beta)
         self.low[holes] = np.minimum(self.low[holes], low)
         self.value[holes] = np.minimum(self.value[holes], low.min(axis=1))
+
+    def _reuse(self, holes: np.ndarray, shapes: np.ndarray) -> None:
+        """:meth:`_attack` with reuse across congruent holes (:func:`sieve_mi.game.reuse.attack`)."""
+        hole_of = np.repeat(holes, len(shapes))
+        shape_of = np.tile(shapes, len(holes))
+        beta = reuse.attack(self.player_b, self.holes, self.members, hole_of, shape_of,
+                            self.steps, self.rate, self.settle, self.progress)  # fmt: skip
+        self.progress = None
+        self.low[hole_of, shape_of] = np.minimum(self.low[hole_of, shape_of], beta)
+        self.value[holes] = np.minimum(self.value[holes], self.low[holes].min(axis=1))

@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from sieve_mi.game import maximin
+from sieve_mi.game import maximin, reuse
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.game.scoring import with_core
 from sieve_mi.geometry.hole import Hole, build_hole
@@ -78,6 +78,8 @@ class PlayerA:
         #: Called with the candidate-steps done (candidates x Adam steps) as player B's attacks
         #: on this player's holes descend (progress bars); None: nothing reports.
         self.on_step: Callable[[int], None] | None = None
+        #: The last search's classes of congruent holes (:mod:`sieve_mi.game.reuse`), or None.
+        self.classes = None
 
     @classmethod
     def from_settings(
@@ -173,9 +175,11 @@ class PlayerA:
 
         s = solver
         seed = s.seed if seed is None else seed
+        self.classes = reuse.Classes() if reuse.REUSE else None
 
         def evaluate(qs: np.ndarray, floor=None) -> np.ndarray:
-            return self.values(player_b, qs, s.starts, s.steps, s.learning_rate, rng, floor)
+            return self.values(player_b, qs, s.starts, s.steps, s.learning_rate, rng, floor,
+                               classes=self.classes)  # fmt: skip
 
         def say(name: str) -> None:
             if stage is not None:
@@ -193,11 +197,11 @@ class PlayerA:
         history.extra = [float(v) for v in extra_values]
         if s.polish > 0:
             say("polish")
-            q, f, history.polish = self.polish(player_b, q, s, seed=seed)
+            q, f, history.polish = self.polish(player_b, q, s, seed=seed, classes=self.classes)
         return q, f, history
 
     def values(
-        self, player_b: PlayerB, quats, starts, steps, learning_rate, rng, floor=None
+        self, player_b: PlayerB, quats, starts, steps, learning_rate, rng, floor=None, classes=None
     ) -> np.ndarray:
         """The game value (min over B of β, eq. 10) of the holes of rotations (K, 4), one attack.
 
@@ -211,12 +215,19 @@ class PlayerA:
         :mod:`sieve_mi.game.maximin`). A :class:`~sieve_mi.game.maximin.Best`: only
         which candidates are its ``count`` best matters (and its ``exact`` ones' values). None:
         every B attacks every candidate.
+
+        ``classes`` (:class:`~sieve_mi.game.reuse.Classes`, optional): the search's classes of
+        congruent holes; a hole congruent to one attacked before is attacked from player B's
+        best poses there (:mod:`sieve_mi.game.reuse`).
         """
         holes = self.holes(quats)
         step = None if self.on_step is None else _per_candidate(self.on_step, len(holes))
-        if floor is not None and maximin.PRUNE and len(player_b.shapes) > 1:
+        prune = floor is not None and maximin.PRUNE and len(player_b.shapes) > 1
+        if prune or classes is not None:
             pruned = maximin.Pruned(player_b, holes, starts, steps, learning_rate, rng,
-                                    self.settle, step)  # fmt: skip
+                                    self.settle, step, classes)  # fmt: skip
+            if not prune:
+                return pruned.advance().copy()
             if isinstance(floor, maximin.Best):
                 return pruned.best(floor.count, floor.exact).copy()
             return pruned.advance(floor=floor).copy()
@@ -280,6 +291,7 @@ class PlayerA:
         first: float = 1.0,
         last: float = 0.05,
         gain: float = 0.01,
+        classes=None,
     ) -> tuple[np.ndarray, float, dict]:
         """Refine A's rotation locally: a batched compass search on the view direction.
 
@@ -304,6 +316,9 @@ class PlayerA:
             The first and the smallest tilt, degrees.
         gain : float
             Relative improvement a tilt must bring to be taken.
+        classes : Classes, optional
+            Classes of congruent holes to reuse attacks from (:mod:`sieve_mi.game.reuse`; the
+            search passes its own).
 
         Returns
         -------
@@ -320,9 +335,8 @@ class PlayerA:
 
         def values(qs, floor=None):
             common = np.random.default_rng([int(seed), 0x501])
-            return self.values(
-                player_b, qs, solver.starts, solver.steps, solver.learning_rate, common, floor
-            )
+            return self.values(player_b, qs, solver.starts, solver.steps, solver.learning_rate,
+                               common, floor, classes=classes)  # fmt: skip
 
         start = normalize(np.asarray(quat, dtype=np.float64))
         best, step, done = start, np.radians(first), 0

@@ -48,11 +48,15 @@ window
 stand_in
     A closed mesh simplified within a tolerance (Manifold's edge collapses): player A's search
     plays it, the verdict the full mesh.
+congruence
+    Whether two raster holes are one up to a rotation, mirror and shift of the plane (within a
+    fraction of a pixel), and that motion; shapes' poses moved with it.
 """
 
 __all__ = [
     "bodies",
     "canonical",
+    "congruence",
     "containment",
     "hole",
     "hole_image",

@@ -9,9 +9,10 @@ its own, the pruned search must take exactly the steps of the unpruned one, with
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from helpers import rng, sphere
 
-from sieve_mi.game import maximin
+from sieve_mi.game import maximin, reuse
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.geometry.meshes import shape_from_trimesh
@@ -61,11 +62,15 @@ def test_a_candidate_at_its_floor_meets_no_more_b(cube20):
     assert np.all(values[[1, 3]] == pruned.low[[1, 3]].min(axis=1))  # complete: every B's
 
 
-def test_pruning_never_changes_the_search(cube20, monkeypatch):
+@pytest.mark.parametrize("reusing", [False, True])
+def test_pruning_never_changes_the_search(cube20, monkeypatch, reusing):
     # Canonical views (ranked), the swarm (personal bests) and the polish (gain) all prune; the
-    # rotation, value and history are those of the unpruned search, for fewer descended poses.
+    # rotation, value and history are those of the unpruned search, for fewer descended poses;
+    # with reuse across congruent holes too (the cube's face views are congruent squares, and
+    # every pair of hole and B gets its β from its class alone, whatever else is attacked).
     got = {}
     monkeypatch.setattr(maximin, "FAR", np.inf)  # every B gets every start: pruning alone
+    monkeypatch.setattr(reuse, "REUSE", reusing)
     for prune in (False, True):
         monkeypatch.setattr(maximin, "PRUNE", prune)
         player_a, player_b = _players(cube20, _blocks())
@@ -79,6 +84,9 @@ def test_pruning_never_changes_the_search(cube20, monkeypatch):
         solver = tiny_solver(particles=4, iterations=3, starts=4, steps=30, canonical=6, polish=3)
         q, value, history = player_a.search(player_b, solver, rng=rng(1), seed=1)
         got[prune] = (q, value, history.best, history.polish, poses[0])
+        assert (player_a.classes is not None) == reusing
+        if reusing:
+            assert player_a.classes.reused > 0
     (q0, v0, b0, p0, n0), (q1, v1, b1, p1, n1) = got[False], got[True]
     np.testing.assert_array_equal(q0, q1)
     assert v0 == v1 and b0 == b1 and p0 == p1

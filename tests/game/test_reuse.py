@@ -1,0 +1,41 @@
+"""Player B's attacks reused across congruent holes (sieve_mi.game.reuse).
+
+Known answer: every view of a ball makes the same disk, so the search's holes form one class;
+its reference alone gets a full attack (the search's steps from random starts), every other
+hole a short descent from B's best poses there, and each such hole's value is the reference's
+up to the raster's noise. On the plate, a 20 mm ball's hole (radius 11 with the 1 mm tolerance)
+leaves 1 - (11 / 11.8)^2 = 0.131 of a 23.6 mm ball's shadow outside (β).
+"""
+
+from __future__ import annotations
+
+from helpers import rng, sphere
+
+from sieve_mi.game.player_a import PlayerA
+from sieve_mi.game.player_b import PlayerB
+from sieve_mi.geometry.meshes import shape_from_trimesh
+from sieve_mi.geometry.raster import Frame
+from sieve_mi.testing import shapes
+from sieve_mi.testing.settings import tiny_solver
+
+
+def test_a_balls_holes_get_one_full_attack():
+    box = shape_from_trimesh(shapes.box(24.0, 25.0, 26.0), name="box")
+    frame = Frame.covering(11.0, 64)
+    player_a, player_b = PlayerA(sphere(10.0), frame, 1.0), PlayerB([sphere(11.8), box], frame)
+    solver = tiny_solver(particles=3, iterations=1, starts=4, steps=30, canonical=4, polish=1)
+    full, descend = [], player_b.descend
+
+    def counted(batch, steps, *args, **kw):
+        if steps == solver.steps:
+            full.append(len(batch))
+        return descend(batch, steps, *args, **kw)
+
+    player_b.descend = counted
+    _, value, _ = player_a.search(player_b, solver, rng=rng(1), seed=1)
+    classes = player_a.classes
+    assert len(classes.entries) == 1 and classes.reused == classes.placed - 1 > 5
+    assert sum(full) == 2 * solver.starts  # the reference's starts of both B, once
+    ref = classes.entries[0].beta
+    assert abs(ref[0] - 0.131) < 0.02 and ref[1] > ref[0]  # the ball decides
+    assert abs(value - ref[0]) < 0.01
