@@ -373,6 +373,10 @@ def _unstack(fig, labels: list) -> None:
         return Text.get_window_extent(ann, renderer)
 
     for ann in labels:
+        x0, x1 = ann.axes.get_xlim()
+        if (ann.xy[0] - x0) > 0.75 * (x1 - x0):  # near the right edge: the label on the left
+            ann.set_horizontalalignment("right")
+            ann.xyann = (-4, 4)
         box = box_of(ann)
         step = (box.height + 1.0) * 72.0 / fig.dpi  # a line, in points
         up = ann.xy[1] < 0.5
@@ -385,7 +389,8 @@ def _unstack(fig, labels: list) -> None:
             ax = ann.axes
             ann.remove()
             ann = ax.annotate(ann.get_text(), ann.xy, xytext=ann.xyann, fontsize=7,
-                                    textcoords="offset points", arrowprops=_LEADER)  # fmt: skip
+                              textcoords="offset points", arrowprops=_LEADER,
+                              ha=ann.get_horizontalalignment())  # fmt: skip
             box = box_of(ann)
         placed.append(box)
     fig.set_layout_engine("none")
