@@ -26,6 +26,8 @@ __all__ = [
     "THREADS_ENV",
     "VARIANTS",
     "VARIANT_ENV",
+    "ALIGNMENT",
+    "aligned",
     "apply_threads",
     "available_memory",
     "bitmap_threads",
@@ -477,3 +479,41 @@ def pair_budget(memory_gb: float = 0.0, *, cap: bool = True) -> int:
     if cap and memory_gb <= 0 and not _on_gpu():
         budget = min(budget, CPU_MEMORY_CAP_GB * 2**30)
     return max(1, int(budget // BYTES_PER_PAIR))
+
+
+#: The alignment, bytes, that Dr.Jit's LLVM kernels assume of memory they load as packets.
+ALIGNMENT = 64
+
+
+def aligned(values, dtype):
+    """``values`` as a C-contiguous NumPy array of ``dtype`` that starts on a 64-byte boundary.
+
+    Dr.Jit's CPU backend reads a NumPy array in place (``mi.Float(a)`` copies nothing), and a
+    kernel that reads one is compiled for the array's alignment: one that starts on a 64-byte
+    boundary only by chance (NumPy's small arrays: one time in four) gives its kernels another
+    source, which the kernel cache has not seen when several such inputs meet (one descent's
+    seven pose columns: 2^7 sources). On 2 cores the authors' arch compiled 8-15 such kernels
+    afresh in every solve, 20-25 ms each (2026-12-07). Arrays made with this helper always read
+    as aligned; the values are the same.
+
+    Parameters
+    ----------
+    values : array_like
+    dtype : numpy dtype
+
+    Returns
+    -------
+    ndarray
+        ``values`` itself where it already is such an array, else an aligned copy (same shape).
+    """
+    import numpy as np
+
+    a = np.asarray(values, dtype=dtype)
+    if a.flags.c_contiguous and a.ctypes.data % ALIGNMENT == 0:
+        return a
+    size = max(a.size, 1)
+    buf = np.empty(size + ALIGNMENT // a.itemsize, dtype=a.dtype)
+    skip = (-buf.ctypes.data % ALIGNMENT) // a.itemsize
+    out = buf[skip : skip + a.size].reshape(a.shape)
+    out[...] = a
+    return out

@@ -54,10 +54,12 @@ def pose_adam(q0: np.ndarray, t0: np.ndarray, lr: float):
     import drjit as dr
     import mitsuba as mi
 
+    from sieve_mi.backend import aligned
+
     opt = dr.opt.Adam(lr=float(lr))
     x0 = np.concatenate([np.asarray(q0), np.asarray(t0)], axis=1).astype(np.float32)
     for i, key in enumerate(POSE_KEYS):
-        opt[key] = mi.Float(x0[:, i])
+        opt[key] = mi.Float(aligned(x0[:, i], np.float32))  # one kernel source: see aligned
     return opt
 
 

@@ -208,11 +208,12 @@ class SilhouetteRenderer:
 
     def _pose_arrays(self, quats: np.ndarray, trans: np.ndarray) -> list:
         """Per pose: R^T row-major (9 mi.Float), then the translation (2 mi.Float)."""
+        from sieve_mi.backend import aligned
+
         mi = self._mi
         rt = np.transpose(to_matrix(quats), (0, 2, 1)).reshape(len(quats), 9)
-        return [mi.Float(rt[:, i].astype(np.float32)) for i in range(9)] + [
-            mi.Float(trans[:, i].astype(np.float32)) for i in range(2)
-        ]
+        columns = [rt[:, i] for i in range(9)] + [trans[:, i] for i in range(2)]
+        return [mi.Float(aligned(c, np.float32)) for c in columns]  # one kernel source: aligned
 
     def _pixel_hits(self, per_pose: list, pose, row, col, frame: Frame):
         """Whether the rays through lattice pixels (row, col) hit: ``per_pose`` from

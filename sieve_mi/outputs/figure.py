@@ -38,6 +38,7 @@ __all__ = [
     "PASS_RGB",
     "PLATE_RGB",
     "PNG_LEVEL",
+    "RFILTER",
     "SAMPLER",
     "SKY_RGB",
     "SUN_AZIMUTH_OFFSET",
@@ -72,9 +73,14 @@ CREASE_ANGLE = 35.0
 #: PIL's default) for a file 10 % larger (2026-12-03).
 PNG_LEVEL = 1
 
-#: Light transport and sampling.
+#: Light transport and sampling. The film's reconstruction filter: ``box`` puts each sample in
+#: its own pixel; Mitsuba's ``gaussian`` (its default) splats every sample over 4 x 4 pixels with
+#: atomic adds, a third of the rendering's time, and its picture is no closer to a 64-spp one
+#: (RMS 3.2 instead of 3.5 grey levels at 8 spp, the default scene, 2026-12-07:
+#: docs/performance.md).
 INTEGRATOR = {"type": "path", "max_depth": 4}
 SAMPLER = "multijitter"
+RFILTER = "box"
 
 #: Lights (linear RGB): the sky's radiance and the sun's irradiance.
 SKY_RGB = (0.36, 0.37, 0.39)
@@ -147,8 +153,8 @@ def render_figure(
 
     Notes
     -----
-    Takes about 1.5 s for 1200 x 900 pixels at 8 spp on a 2-core CPU (``llvm_ad_rgb``, the
-    default scene; 2.8 s at 16 spp, whose grain is only a little finer:
+    Takes about 2 CPU s for 1200 x 900 pixels at 8 spp on a 2-core CPU (``llvm_ad_rgb``, the
+    default scene, box filter :data:`RFILTER`; 3 CPU s with Mitsuba's gaussian filter:
     docs/performance.md). Open,
     non-manifold and flat meshes render (every material is two-sided). The Mitsuba variant in
     effect before the call is in effect after it; if none was set, the RGB variant stays selected
@@ -328,7 +334,7 @@ def _scene(mi, plate, passes, blocks, blocked, picture: FigureSettings, title: b
             scene[f"mesh_{i}"] = _mesh(mi, f"mesh_{i}", t, rgb, smooth)
     sensor = stage.perspective(mi, (origin, target, up), FOV, size, far=1e3)
     sensor["sampler"] = {"type": SAMPLER, "sample_count": spp}
-    sensor["film"] = stage.film(mi, width, height, rfilter="gaussian")
+    sensor["film"] = stage.film(mi, width, height, rfilter=RFILTER)
     return mi.load_dict(scene), mi.load_dict(sensor)
 
 
