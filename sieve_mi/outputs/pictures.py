@@ -13,8 +13,8 @@ the same scene, sampler seed and settings give the same pixels.
 The command line forks that worker ahead of the save (:func:`ahead`: when the solve's
 ``screen`` stage ends), so its start (the fork, Mitsuba's RGB variant, the pictures' modules:
 about 0.4 s on 2 cores) overlaps the search instead of the save; :func:`start` then hands the
-pictures to it. matplotlib and PIL, which the save and the figure's title both use, are imported
-before that fork (:func:`_shared`), once for both processes. A solve from Python forks its worker in the save, as before.
+pictures to it (matplotlib included, for the figure's title: :func:`_ready`). A solve from
+Python forks its worker in the save, as before.
 
 Times: the worker's rendering overlaps the rest of the save, so ``figure_s`` and
 ``animation_s`` in report.json are the seconds the save *waited* for each (the part of its
@@ -103,20 +103,15 @@ def _rgb_once() -> None:
 
 def _ready() -> None:
     """The early worker's first job (:func:`ahead`): the pictures' modules imported, so the
-    save's job starts rendering at once."""
+    save's job starts rendering at once; matplotlib's too, for the figure's title (imported
+    at the title, it cost the save 0.3-0.5 s after the figure's rendering; here it runs
+    beside the search, which leaves part of a core idle on 2 cores)."""
+    import matplotlib.backends.backend_agg  # noqa: F401
+    import matplotlib.figure  # noqa: F401
     import PIL.Image  # noqa: F401
 
     import sieve_mi.outputs.animation  # noqa: F401
     import sieve_mi.outputs.figure  # noqa: F401
-
-
-def _shared() -> None:
-    """What both processes use, imported before the fork so that it is imported once: matplotlib
-    (the save's plots; the figure's title) and PIL (0.3-0.5 CPU s that the worker would spend
-    again beside the search; the save imports them anyway)."""
-    import matplotlib.backends.backend_agg  # noqa: F401
-    import matplotlib.figure  # noqa: F401
-    import PIL.Image  # noqa: F401
 
 
 def _forkable(variant: str | None) -> bool:
@@ -220,7 +215,6 @@ class _Ahead:
 
         if self._pool is not None or not _forkable(mi.variant()):
             return
-        _shared()
         dr.sync_thread()  # no kernel of this thread runs while the process is copied
         try:
             pool = self._stack.enter_context(
