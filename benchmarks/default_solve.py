@@ -5,7 +5,9 @@ Usage: ``python -m benchmarks.default_solve BEFORE AFTER [--runs 3] [--scene sce
 
 BEFORE and AFTER are sieve-mi checkouts (folders holding ``sieve_mi/``; e.g. ``/work/main`` and
 a worktree). Each run is ``python -m sieve_mi solve SCENE --out TMP --quiet`` in a process of its
-own with ``PYTHONPATH`` set to the checkout, the two alternating (before, after, before, ...), so
+own, in the checkout's folder and with ``PYTHONPATH`` set to it (``python -m`` puts the working
+folder first on ``sys.path``; the header prints which package each checkout imports), the two
+alternating (before, after, before, ...), so
 a machine's load falls on both alike. Per run: wall seconds, CPU seconds (user + system of the
 command and every process it waited for: the pictures' worker included), the load average
 before it, report.json's stage timings, the winner and each B's β. Then the medians per
@@ -13,7 +15,9 @@ checkout, and whether every run gave the same winner and the same β to 4 digits
 the outputs' pictures must not change the game).
 
 On 2 shared cores the wall time says little: compare the CPU seconds, and re-measure the wall
-time on a quiet machine (docs/performance.md, "Current timings: the default scene").
+time on a quiet machine (docs/performance.md, "Current timings: the default scene"). Dr.Jit's
+threads wait for work spinning, so on an overloaded machine CPU seconds grow too; ``--extra
+"--threads 1"`` measures the work with one kernel thread per process.
 """
 
 from __future__ import annotations
@@ -44,6 +48,15 @@ def _commit(tree: str) -> str:
     return (head or "?") + ("+" if dirty else "")
 
 
+def _package(tree: str) -> str:
+    """Where ``import sieve_mi`` finds the package when run as the solves are (``python -m``
+    puts the working folder first on ``sys.path``: each solve runs in its checkout)."""
+    env = {**os.environ, "PYTHONPATH": tree}
+    got = subprocess.run([sys.executable, "-c", "import sieve_mi; print(sieve_mi.__file__)"],
+                         env=env, cwd=tree, capture_output=True, text=True, timeout=60)  # fmt: skip
+    return os.path.dirname(got.stdout.strip()) or "?"
+
+
 def _children_cpu() -> float:
     """User + system CPU seconds of every child process waited for so far."""
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -59,7 +72,7 @@ def run_once(tree: str, scene: str, extra: list[str]) -> dict:
         cmd = [sys.executable, "-m", "sieve_mi", "solve", scene, "--out", out, "--quiet", *extra]
         load = os.getloadavg()[0]
         cpu0, t0 = _children_cpu(), time.perf_counter()
-        done = subprocess.run(cmd, env=env, capture_output=True, text=True)
+        done = subprocess.run(cmd, env=env, cwd=tree, capture_output=True, text=True)
         wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
         if done.returncode not in (0, 1):
             raise SystemExit(f"{tree}: exit {done.returncode}\n{done.stderr[-2000:]}")
@@ -90,7 +103,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC, {os.cpu_count()} cores, "
           f"load {os.getloadavg()[0]:.1f}")  # fmt: skip
     for lab, tree in zip(labels, trees):
-        print(f"  {lab}: {tree} at {_commit(tree)}")
+        print(f"  {lab}: {tree} at {_commit(tree)} (imports {_package(tree)})")
     rows: dict[str, list] = {lab: [] for lab in labels[: len(trees)]}
     head = " ".join(f"{s[:7]:>7}" for s in STAGES)
     print(f"{'tree':8} {'wall':>6} {'CPU':>6} {'load':>5} {head}  winner β")
