@@ -16,6 +16,7 @@ the same inputs give the same GIF (``tests/game/test_repro.py`` compares two pro
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 
@@ -248,10 +249,15 @@ def gif_frames(passage: Passage, phases: np.ndarray) -> tuple[list, str]:
     mode = "RGB" if images.ndim == 4 else "L"
     pics = [Image.fromarray(im, mode=mode) for im in images]
     if mode == "RGB":  # one adaptive palette per frame (PIL's default GIF palette tints greys)
-        pics = [
-            p.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
-            for p in pics
-        ]
+        from concurrent.futures import ThreadPoolExecutor
+
+        def palette(p):
+            return p.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+
+        # PIL quantizes without the GIL: the frames on every core (the same frames; 0.19 ->
+        # 0.10 s for the default scene's 20 on 2 cores, 2026-12-07)
+        with ThreadPoolExecutor(max(1, min(len(pics), os.cpu_count() or 1))) as pool:
+            pics = list(pool.map(palette, pics))
     return pics, variant
 
 
