@@ -171,11 +171,20 @@ def cmd_solve(args) -> int:
     # sm.solve's game, with a record whose times count from the process's start (Python, the
     # imports and reading the scene are "startup"); sm.solve's checks of the arguments ran above.
     run = Run.from_process_start()
-    with pictures.ahead(run) if not (args.no_figure and args.no_animation) else nullcontext():
+    figure, gif = not args.no_figure, not args.no_animation
+    with pictures.ahead(run) if figure or gif else nullcontext() as early:
+        start = early and (lambda r: early.prerender(r, figure, gif))  # before the margins
         result = sm.Result.of(
-            play(scene, variant=args.variant, seed=args.seed, progress=not args.quiet, run=run)
+            play(
+                scene,
+                variant=args.variant,
+                seed=args.seed,
+                progress=not args.quiet,
+                run=run,
+                early=start,
+            )  # fmt: skip
         )
-        report = result.save(out_dir, figure=not args.no_figure, animation=not args.no_animation)
+        report = result.save(out_dir, figure=figure, animation=gif)
     if not args.json:
         print(summary_table(report))
     for w in report["warnings"] + report.get("fabrication", {}).get("warnings", []):

@@ -281,13 +281,16 @@ def solve(
     seed: int | None = None,
     progress: bool = True,
     run: Run | None = None,
+    early=None,
 ) -> Result:
     """Play the sieve game for a scene; parameters as :func:`sieve_mi.api.solve`, which checks
     them and returns this game's :class:`~sieve_mi.game.result.Result` as a
     :class:`sieve_mi.api.Result` (one that can save its outputs).
 
     ``run`` is the record that gets the solve's stages and memory (default a new one, counted
-    from here): the command line passes one counted from the process's start.
+    from here): the command line passes one counted from the process's start. ``early``, if
+    given, is called with the game's Result before the margins stage (everything but
+    ``margins``, ``overhangs`` and ``rest``): the command line starts the pictures there.
     """
     from sieve_mi.backend import use_variant
 
@@ -318,12 +321,22 @@ def solve(
     with run.stage("thin", mark=False):  # its memory stage ends after the margins'
         sheet = _sheet(play, passes, blocks, v, certified, seed, progress)
     certified = on_sheet(certified, sheet.thickness)  # a cell proof needs a plate >= B's diameter
+    game = (scene, passes, blocks, found, v, variant, run, seed, certified, sheet, window, feasible)
+    if early is not None:
+        early(_outcome(*game))
     with run.stage("margins", mark=False):  # exact overhangs and their proved bounds
         grown = scene.fabrication.block_margin
         margins = block_margins(blocks, v.outline, v.attack, certified, grown)
         overhangs = _overhangs(blocks, v, margins, certified, progress, skip=set(sure))
     run.mark("thin")
     run.stop()
+    return _outcome(*game, margins=margins, overhangs=overhangs, rest=_rest(scene, passes, found))
+
+
+def _outcome(scene, passes, blocks, found, v, variant, run, seed, certified, sheet, window,
+             feasible, **more) -> Result:  # fmt: skip
+    """The game's :class:`Result` from the solve's parts; ``more``: ``margins``, ``overhangs``
+    and ``rest`` (left empty in the one :func:`solve` gives ``early``)."""
     return Result(
         scene=scene,
         pass_shapes=passes,
@@ -344,15 +357,13 @@ def solve(
         seed=seed,
         certified=certified,
         sheet=sheet,
-        margins=margins,
-        overhangs=overhangs,
         outline=v.outline,
         polish=found.polish,
         started=run.started,
         memory=run.memory,
         window=window,
         feasibility=feasible,
-        rest=_rest(scene, passes, found),
+        **more,
     )
 
 

@@ -13,8 +13,11 @@ the same scene, sampler seed and settings give the same pixels.
 The command line forks that worker ahead of the save (:func:`ahead`: when the solve's
 ``screen`` stage ends), so its start (the fork, Mitsuba's RGB variant, the pictures' modules:
 about 0.4 s on 2 cores) overlaps the search instead of the save; :func:`start` then hands the
-pictures to it (matplotlib included, for the figure's title: :func:`_ready`). A solve from
-Python forks its worker in the save, as before.
+pictures to it (matplotlib included, for the figure's title: :func:`_ready`). The command line
+also hands the solver :meth:`_Ahead.prerender`, which the solver calls before its ``margins``
+stage: the worker then renders the figure and the GIF while the margins are measured and the
+rest of the save is written, into a folder of its own, and :func:`start` takes them over (the
+same plate, so the same pictures). A solve from Python forks its worker in the save, as before.
 
 Times: the worker's rendering overlaps the rest of the save, so ``figure_s`` and
 ``animation_s`` in report.json are the seconds the save *waited* for each (the part of its
@@ -26,7 +29,9 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import sys
+import tempfile
 import time
 
 __all__ = ["Pictures", "ahead", "render", "start"]
@@ -131,8 +136,8 @@ class Pictures:
         After :meth:`wait`: :func:`render`'s answer (the seconds each picture took).
     """
 
-    def __init__(self, job: tuple, future=None):
-        self._job, self._future, self.rendered = job, future, {}
+    def __init__(self, job: tuple, future=None, folder: str | None = None):
+        self._job, self._future, self._folder, self.rendered = job, future, folder, {}
 
     def wait(self) -> dict:
         """Wait for both pictures; return the seconds the save waited for each.
@@ -152,6 +157,10 @@ class Pictures:
                 k: self.rendered[k] for k in ("figure_s", "animation_s", "animation", "peak_gb")
             }
         self.rendered = self._future.result()
+        if self._folder is not None:  # rendered before the save began (:meth:`_Ahead.prerender`)
+            for name in ("figure.png", "passage.gif"):
+                if os.path.exists(os.path.join(self._folder, name)):
+                    shutil.move(os.path.join(self._folder, name), os.path.join(self._job[0], name))
         t_end = time.perf_counter()
         end = self.rendered["figure_end"]
         figure_s = 0.0 if end is None else min(max(end - t_wait, 0.0), t_end - t_wait)
@@ -187,8 +196,10 @@ def start(tmp: str, figure_args: tuple | None, passage, variant: str | None):
             return
         early = _AHEAD.take() if _AHEAD is not None else None
         if early is not None:  # forked ahead (:func:`ahead`): stopped at once on an exception
+            wanted = (figure_args is not None, passage is not None)
+            folder, future = _AHEAD.prerendered(wanted)
             try:
-                yield Pictures(job, early.submit(render, *job))
+                yield Pictures(job, future or early.submit(render, *job), folder)
             except BaseException:
                 _AHEAD.stop()
                 raise
@@ -203,7 +214,7 @@ class _Ahead:
     """The worker of :func:`ahead`: forked by :meth:`fork`, taken by :func:`start`."""
 
     def __init__(self, stack):
-        self._stack, self._pool = stack, None
+        self._stack, self._pool, self._early = stack, None, None
 
     def fork(self) -> None:
         """Fork the worker now (once; not with a CUDA variant or without ``fork``). Where the
@@ -216,6 +227,7 @@ class _Ahead:
         if self._pool is not None or not _forkable(mi.variant()):
             return
         dr.sync_thread()  # no kernel of this thread runs while the process is copied
+        self._stack.callback(self._forget)  # after the worker stops (callbacks run last first)
         try:
             pool = self._stack.enter_context(
                 worker_pool(1, initializer=_rgb_once, what="figure and GIF rendering")
@@ -229,6 +241,51 @@ class _Ahead:
     def take(self):
         """The forked worker's pool (None where none was forked)."""
         return self._pool
+
+    def prerender(self, result, figure: bool, animation: bool) -> None:
+        """Start ``result``'s figure (with ``figure``) and GIF (with ``animation``) in the worker
+        now, into a folder of their own, before the save (the solver calls this before its
+        ``margins`` stage, which the pictures do not show: 0.4 s of the default scene that the
+        worker renders beside). The plate is built as the save builds it
+        (:func:`~sieve_mi.outputs.fabrication.plate_files`), so the pictures are the save's;
+        :func:`start` takes them over (:meth:`prerendered`). Nothing happens without a forked
+        worker; where building the plate fails, the save builds it again and says why.
+
+        Parameters
+        ----------
+        result : sieve_mi.game.result.Result
+            The game's result without its margins (:func:`sieve_mi.game.solver.solve`'s
+            ``early``).
+        figure, animation : bool
+            Whether the save writes figure.png and passage.gif.
+        """
+        from sieve_mi.outputs.fabrication import figure_args, plate_files
+        from sieve_mi.outputs.passage import build
+
+        if self._pool is None or self._early is not None or not (figure or animation):
+            return
+        folder = tempfile.mkdtemp(prefix=".sieve-mi-pictures-")
+        self._early = (folder, (figure, animation), None)
+        try:
+            meshes = plate_files(result, folder)[1]
+            job = (folder, figure_args(result, meshes) if figure else None,
+                   build(result, meshes[0]) if animation else None)  # fmt: skip
+        except Exception:  # noqa: BLE001 - the save builds the plate again and reports it
+            return
+        self._early = (folder, (figure, animation), self._pool.submit(render, *job))
+
+    def prerendered(self, wanted: tuple) -> tuple:
+        """``(folder, future)`` of :meth:`prerender`'s pictures where they are the ones
+        ``wanted`` (``(figure, gif)``: the save's), else ``(None, None)``."""
+        if self._early is None or self._early[2] is None or self._early[1] != wanted:
+            return None, None
+        return self._early[0], self._early[2]
+
+    def _forget(self) -> None:
+        """Remove :meth:`prerender`'s folder (once the worker has stopped)."""
+        if self._early is not None:
+            shutil.rmtree(self._early[0], ignore_errors=True)
+            self._early = None
 
     def stop(self) -> None:
         """Stop the worker at once (the save was left by an exception)."""

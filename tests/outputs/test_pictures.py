@@ -72,3 +72,43 @@ def test_the_worker_forked_ahead_renders_the_save_and_stops_with_an_error(mi, tm
     assert pictures._AHEAD is None
     with pytest.raises(ProcessLookupError):  # killed and reaped
         os.kill(pid, 0)
+
+
+def _fake_render(folder: str, figure_args, passage) -> dict:
+    """A stand-in for pictures.render: each picture's file holds its job and the process."""
+    for name, what in (("figure.png", figure_args), ("passage.gif", passage)):
+        if what is not None:
+            with open(os.path.join(folder, name), "w") as fh:
+                fh.write(f"{what} {os.getpid()}")
+    return {"figure_end": None, "figure_s": 0.0, "animation_s": 0.0, "animation": None,
+            "peak_gb": 0.0}  # fmt: skip
+
+
+def test_pictures_started_before_the_margins_become_the_saves(mi, tmp_path, monkeypatch):
+    # The solver hands its result to prerender before the margins stage; the save takes those
+    # pictures over (moved into its folder: rendered once, by the worker) and the worker's own
+    # folder is gone when the block ends.
+    from sieve_mi.outputs import fabrication, passage
+    from sieve_mi.telemetry import Run
+
+    if mi.variant().startswith("cuda"):
+        pytest.skip("the pictures render in-process with a CUDA variant")
+    monkeypatch.setattr(pictures, "render", _fake_render)
+    monkeypatch.setattr(fabrication, "plate_files", lambda result, folder: ({}, ("plate",)))
+    monkeypatch.setattr(fabrication, "figure_args", lambda result, meshes: "figure-job")
+    monkeypatch.setattr(passage, "build", lambda result, plate: f"gif-job-{plate}")
+    run = Run().start()
+    save = tmp_path / "save"
+    save.mkdir()
+    with pictures.ahead(run) as early:
+        with run.stage("screen"):
+            pass
+        early.prerender(object(), True, True)
+        folder, future = early.prerendered((True, True))
+        assert future is not None and early.prerendered((True, False)) == (None, None)
+        with pictures.start(str(save), "figure-job", "gif-job-plate", mi.variant()) as pics:
+            pics.wait()
+        figure, gif = (save / "figure.png").read_text(), (save / "passage.gif").read_text()
+        assert figure.startswith("figure-job ") and gif.startswith("gif-job-plate ")
+        assert figure.split()[1] != str(os.getpid())  # the worker rendered them
+    assert not os.path.exists(folder)
