@@ -34,6 +34,7 @@ __all__ = [
     "figure_file",
     "plate",
     "plate_files",
+    "plate_meshes",
     "plate_thickness",
     "shape_mesh",
     "sheet",
@@ -321,15 +322,14 @@ def fabricate(result, out_dir: str, *, figure: bool = True) -> dict:
     return made
 
 
-def plate_files(result, out_dir: str) -> tuple[dict, tuple]:
-    """The plate and placed-shape files of :func:`fabricate` (everything but the figure).
+def plate_meshes(result) -> tuple:
+    """The plate and the placed shapes of :func:`plate_files`, written nowhere.
 
     Returns
     -------
-    made : dict
-        The ``fabrication`` section of ``report.json`` (without ``figure_s``).
-    meshes : tuple
-        ``(plate, passes, blocks, lift)`` for :func:`figure_file`.
+    tuple
+        ``(sieve, pattern, required, meshes)``: the :class:`Plate`, its perforation pattern (or
+        None), the safe thickness (scene units) and ``(plate mesh, passes, blocks, lift)``.
     """
     scene = result.scene
     fab = scene.fabrication
@@ -341,6 +341,35 @@ def plate_files(result, out_dir: str) -> tuple[dict, tuple]:
     else:
         sieve = sheet(pattern, thickness, required_thickness=required)
         sieve.warnings += sheet_warnings(result.block_shapes)
+    lift = 0.25 * thickness
+    passes = [
+        shape_mesh(shape, result.pass_quats[i], result.pass_trans[i], lift)
+        for i, shape in enumerate(result.pass_shapes)
+    ]
+    blocks = [
+        shape_mesh(shape, result.attack.quats[0, j], result.attack.trans[0, j], lift)
+        for j, shape in enumerate(result.block_shapes)
+    ]
+    return sieve, pattern, required, (sieve.mesh, passes, blocks, lift)
+
+
+def plate_files(result, out_dir: str, built: tuple | None = None) -> tuple[dict, tuple]:
+    """The plate and placed-shape files of :func:`fabricate` (everything but the figure).
+
+    ``built`` is :func:`plate_meshes`' answer for ``result`` where it was made already (the
+    pictures' worker got them before the save); else they are built here.
+
+    Returns
+    -------
+    made : dict
+        The ``fabrication`` section of ``report.json`` (without ``figure_s``).
+    meshes : tuple
+        ``(plate, passes, blocks, lift)`` for :func:`figure_file`.
+    """
+    scene = result.scene
+    outline = result.outline
+    sieve, pattern, required, meshes = plate_meshes(result) if built is None else built
+    _, passes, blocks, _ = meshes
     sieve.mesh.export(os.path.join(out_dir, "sieve.stl"))
     write_3mf(
         os.path.join(out_dir, "sieve.3mf"), sieve.mesh, UNIT_NAMES.get(scene.units, "millimeter")
@@ -349,17 +378,10 @@ def plate_files(result, out_dir: str) -> tuple[dict, tuple]:
     if pattern is not None:
         write_svg(os.path.join(out_dir, "sheet.svg"), pattern.holes(), scene.units,
                   plate=pattern.plate)  # fmt: skip
-    lift = 0.25 * thickness
-    passes = []
-    for i, shape in enumerate(result.pass_shapes):
-        m = shape_mesh(shape, result.pass_quats[i], result.pass_trans[i], lift)
+    for i, m in enumerate(passes):
         m.export(os.path.join(out_dir, f"pass_{i}.stl"))
-        passes.append(m)
-    blocks = []
-    for j, shape in enumerate(result.block_shapes):
-        m = shape_mesh(shape, result.attack.quats[0, j], result.attack.trans[0, j], lift)
+    for j, m in enumerate(blocks):
         m.export(os.path.join(out_dir, f"block_{j}.stl"))
-        blocks.append(m)
     files = (
         ["sieve.stl", "sieve.3mf", "hole.svg"]
         + (["sheet.svg"] if pattern is not None else [])
@@ -378,9 +400,9 @@ def plate_files(result, out_dir: str) -> tuple[dict, tuple]:
         "outline": raster_agreement(outline, result.hole.mask, result.hole.frame),
         "outline_vertices": int(outline.num_vert()),
         "files": files,
-        "warnings": sieve.warnings,
+        "warnings": list(sieve.warnings),
     }
-    return made, (sieve.mesh, passes, blocks, lift)
+    return made, meshes
 
 
 def figure_file(result, out_dir: str, made: dict, meshes: tuple) -> float:

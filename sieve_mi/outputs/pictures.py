@@ -34,7 +34,7 @@ import sys
 import tempfile
 import time
 
-__all__ = ["Pictures", "ahead", "render", "start"]
+__all__ = ["Pictures", "ahead", "built", "render", "start"]
 
 #: The worker forked ahead of the save (:func:`ahead`), while its block runs; else None.
 _AHEAD = None
@@ -210,11 +210,17 @@ def start(tmp: str, figure_args: tuple | None, passage, variant: str | None):
     return pictures()
 
 
+def built(result) -> tuple | None:
+    """The plate meshes that the worker forked ahead rendered ``result``'s pictures from
+    (:meth:`_Ahead.built`), for the save to write instead of building them again; else None."""
+    return _AHEAD.built(result) if _AHEAD is not None else None
+
+
 class _Ahead:
     """The worker of :func:`ahead`: forked by :meth:`fork`, taken by :func:`start`."""
 
     def __init__(self, stack):
-        self._stack, self._pool, self._early = stack, None, None
+        self._stack, self._pool, self._early, self._built = stack, None, None, None
 
     def fork(self) -> None:
         """Fork the worker now (once; not with a CUDA variant or without ``fork``). Where the
@@ -259,7 +265,7 @@ class _Ahead:
         figure, animation : bool
             Whether the save writes figure.png and passage.gif.
         """
-        from sieve_mi.outputs.fabrication import figure_args, plate_files
+        from sieve_mi.outputs.fabrication import figure_args, plate_meshes
         from sieve_mi.outputs.passage import build
 
         if self._pool is None or self._early is not None or not (figure or animation):
@@ -267,12 +273,27 @@ class _Ahead:
         folder = tempfile.mkdtemp(prefix=".sieve-mi-pictures-")
         self._early = (folder, (figure, animation), None)
         try:
-            meshes = plate_files(result, folder)[1]
+            built = plate_meshes(result)
+            meshes = built[3]
             job = (folder, figure_args(result, meshes) if figure else None,
                    build(result, meshes[0]) if animation else None)  # fmt: skip
         except Exception:  # noqa: BLE001 - the save builds the plate again and reports it
             return
         self._early = (folder, (figure, animation), self._pool.submit(render, *job))
+        self._built = (result.outline, getattr(result, "sheet", None), built)
+
+    def built(self, result) -> tuple | None:
+        """:func:`~sieve_mi.outputs.fabrication.plate_meshes`' answer that :meth:`prerender`
+        made, where ``result`` has the same hole and sheet (the save's result: the same game
+        with its margins), else None."""
+        got = self._built
+        if (
+            got is None
+            or got[0] is not result.outline
+            or got[1] is not getattr(result, "sheet", None)
+        ):
+            return None
+        return got[2]
 
     def prerendered(self, wanted: tuple) -> tuple:
         """``(folder, future)`` of :meth:`prerender`'s pictures where they are the ones

@@ -229,10 +229,11 @@ def write_outputs(
         _write_certificates(result, report, tmp)
         meshes = None
         if fabricate:
+            from sieve_mi.outputs import pictures
             from sieve_mi.outputs.fabrication import plate_files
 
             t0 = time.perf_counter()
-            report["fabrication"], meshes = plate_files(result, tmp)
+            report["fabrication"], meshes = plate_files(result, tmp, pictures.built(result))
             timings["fabrication_s"] = round(time.perf_counter() - t0, 4)
             mark("fabrication")
         done.append("verdict")  # report.json and the plate, from here on kept if stopped

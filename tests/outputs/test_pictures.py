@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import sys
+import types
 
 import numpy as np
 import pytest
@@ -86,15 +87,16 @@ def _fake_render(folder: str, figure_args, passage) -> dict:
 
 def test_pictures_started_before_the_margins_become_the_saves(mi, tmp_path, monkeypatch):
     # The solver hands its result to prerender before the margins stage; the save takes those
-    # pictures over (moved into its folder: rendered once, by the worker) and the worker's own
-    # folder is gone when the block ends.
+    # pictures over (moved into its folder: rendered once, by the worker) and the plate built
+    # for them; the worker's own folder is gone when the block ends.
     from sieve_mi.outputs import fabrication, passage
     from sieve_mi.telemetry import Run
 
     if mi.variant().startswith("cuda"):
         pytest.skip("the pictures render in-process with a CUDA variant")
     monkeypatch.setattr(pictures, "render", _fake_render)
-    monkeypatch.setattr(fabrication, "plate_files", lambda result, folder: ({}, ("plate",)))
+    built = ("sieve", None, 1.0, ("plate",))
+    monkeypatch.setattr(fabrication, "plate_meshes", lambda result: built)
     monkeypatch.setattr(fabrication, "figure_args", lambda result, meshes: "figure-job")
     monkeypatch.setattr(passage, "build", lambda result, plate: f"gif-job-{plate}")
     run = Run().start()
@@ -103,9 +105,13 @@ def test_pictures_started_before_the_margins_become_the_saves(mi, tmp_path, monk
     with pictures.ahead(run) as early:
         with run.stage("screen"):
             pass
-        early.prerender(object(), True, True)
+        game = types.SimpleNamespace(outline=object(), sheet=None)
+        early.prerender(game, True, True)
         folder, future = early.prerendered((True, True))
         assert future is not None and early.prerendered((True, False)) == (None, None)
+        # the save writes the plate built for the pictures: its result has the same hole
+        assert pictures.built(types.SimpleNamespace(outline=game.outline, sheet=None)) is built
+        assert pictures.built(types.SimpleNamespace(outline=object(), sheet=None)) is None
         with pictures.start(str(save), "figure-job", "gif-job-plate", mi.variant()) as pics:
             pics.wait()
         figure, gif = (save / "figure.png").read_text(), (save / "passage.gif").read_text()
