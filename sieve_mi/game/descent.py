@@ -32,6 +32,7 @@ __all__ = [
     "FrozenStepFailed",
     "Settle",
     "adam_step",
+    "halving_live",
     "pose_loss",
     "settle_groups",
 ]
@@ -186,6 +187,38 @@ class Settle:
         return Settle(dr.gather(mi.UInt32, self.group, keep), self.groups, self.fit_loss)
 
 
+def halving_live(best_loss: np.ndarray, pose_hole: np.ndarray, pose_shape: np.ndarray):
+    """One rung of successive halving: of each (hole, shape)'s poses, the better half (rounded
+    up: 10 -> 5 -> 3 -> 2 -> 1) by best loss so far, ties in order.
+
+    Parameters
+    ----------
+    best_loss : (K,) ndarray
+        Each pose's best loss so far.
+    pose_hole, pose_shape : (K,) ndarrays of int
+
+    Returns
+    -------
+    (K,) ndarray of bool
+        The poses that go on descending.
+
+    Examples
+    --------
+    >>> halving_live(np.array([3.0, 1.0, 2.0, 0.5]), np.zeros(4, int), np.zeros(4, int)).tolist()
+    [False, True, False, True]
+    """
+    group = np.asarray(pose_hole, np.int64) * (int(np.max(pose_shape, initial=0)) + 1)
+    group = group + np.asarray(pose_shape, np.int64)
+    order = np.lexsort((np.arange(len(group)), np.asarray(best_loss, np.float64), group))
+    first = np.r_[True, group[order][1:] != group[order][:-1]]
+    begins = np.maximum.accumulate(np.where(first, np.arange(len(order)), 0))
+    rank = np.arange(len(order)) - begins  # place within its group, best first
+    size = np.bincount(np.cumsum(first) - 1)[np.cumsum(first) - 1]
+    live = np.empty(len(group), dtype=bool)
+    live[order] = rank < -(-size // 2)
+    return live
+
+
 def settle_groups(settle, pose_hole, pose_shape, n_b: int):
     """Each pose's settling group for :meth:`~sieve_mi.game.player_b.PlayerB.attack`'s
     ``settle`` (None: no settling)."""
@@ -221,6 +254,10 @@ class Batch:
     converged : tuple of (int, float), optional
         ``(window, rtol)``: its starts leave the descent once converged (:data:`CONVERGED`, which
         overrides it when set); None: every start runs every step.
+    halving : float
+        Successive halving of the starts (:func:`halving_live`): after every ``halving`` of the
+        descent's steps, the worse half of each (hole, shape)'s starts still descending leave it
+        (lowest best loss first). 0: every start runs every step.
     """
 
     holes: list
@@ -231,6 +268,7 @@ class Batch:
     group: np.ndarray | None = None
     starts: int | None = None
     converged: tuple | None = None
+    halving: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("pose_hole", "pose_shape", "q0", "t0"):
@@ -321,6 +359,8 @@ class Descent:
         self.where = np.arange(len(batch))  # the original index of each pose still descending
         self._last = None  # each pose's best loss at the last convergence check (CONVERGED)
         self.converged = CONVERGED or batch.converged
+        self.halving = float(batch.halving)
+        self._rung, self._steps, self._forced = 0, 0, False  # halving's rung, set by run()
         self._bind()
 
     def _bind(self) -> None:
@@ -346,7 +386,9 @@ class Descent:
         :data:`CONVERGED`)."""
         settle = self.settle is not None and self.settle.due(step)
         converge = self.converged is not None and (step + 1) % self.converged[0] == 0
-        if not (settle or converge):
+        halve = self._rung > 0 and (step + 1) % self._rung == 0 and step + 1 < self._steps
+        self._forced = False
+        if not (settle or converge or halve):
             return None
         live = np.ones(len(self.where), dtype=bool)
         if settle:
@@ -358,6 +400,10 @@ class Descent:
                 with np.errstate(invalid="ignore"):
                     live &= ~np.isfinite(last) | (now < last - self.converged[1] * np.abs(last))
             self._last = now
+        if halve:
+            now = np.asarray(self.best_loss, dtype=np.float64)
+            live &= halving_live(now, self.pose_hole[self.where], self.pose_shape[self.where])
+            self._forced = not live.all()  # a halving rung shrinks the batch however few leave
         return live
 
     def shrink(self, live: np.ndarray) -> bool:
@@ -417,6 +463,8 @@ class Descent:
         """
         frozen = None if freeze is None else freeze(self)
         first_frozen = 2  # steps 1, 2 differ in layout: traced
+        self._steps = steps
+        self._rung = max(1, round(self.halving * steps)) if self.halving > 0 else 0
         try:
             for step in range(steps):
                 if frozen is not None and step >= first_frozen:
@@ -426,10 +474,8 @@ class Descent:
                 if progress:
                     progress(step + 1)
                 live = self._live(step)
-                if live is None or 2 * live.sum() > len(
-                    live
-                ):  # too few left to pay for a smaller batch
-                    continue
+                if live is None or (not self._forced and 2 * live.sum() > len(live)):
+                    continue  # too few left to pay for a smaller batch
                 if frozen is not None and frozen.overflowed():
                     raise BufferOverflow
                 if self._last is not None:
