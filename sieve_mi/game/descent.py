@@ -256,8 +256,9 @@ class Batch:
         overrides it when set); None: every start runs every step.
     halving : float
         Successive halving of the starts (:func:`halving_live`): after every ``halving`` of the
-        descent's steps, the worse half of each (hole, shape)'s starts still descending leave it
-        (lowest best loss first). 0: every start runs every step.
+        descent's steps, the worse half of each (hole, shape)'s starts still descending stop
+        (masked out of the step like settled ones; they leave the batch once at most half of it
+        descends). 0: every start runs every step.
     """
 
     holes: list
@@ -360,7 +361,10 @@ class Descent:
         self._last = None  # each pose's best loss at the last convergence check (CONVERGED)
         self.converged = CONVERGED or batch.converged
         self.halving = float(batch.halving)
-        self._rung, self._steps, self._forced = 0, 0, False  # halving's rung, set by run()
+        self._rung, self._steps = 0, 0  # halving's rung and the descent's steps, set by run()
+        #: With halving: which poses still descend ((K,) bool, and as an mi.Bool for the step);
+        #: the others are masked out of the step, as settled ones, until the batch shrinks.
+        self.alive, self.alive_mask = None, None
         self._bind()
 
     def _bind(self) -> None:
@@ -376,6 +380,8 @@ class Descent:
     def step(self) -> None:
         """One :func:`adam_step`, traced."""
         live = None if self.settle is None else self.settle.live(self.best_loss)
+        if self.alive_mask is not None:
+            live = self.alive_mask if live is None else live & self.alive_mask
         self.best, self.best_loss, _ = adam_step(
             self.opt, self.best, self.best_loss, lambda: self.evaluate(live)
         )
@@ -387,10 +393,9 @@ class Descent:
         settle = self.settle is not None and self.settle.due(step)
         converge = self.converged is not None and (step + 1) % self.converged[0] == 0
         halve = self._rung > 0 and (step + 1) % self._rung == 0 and step + 1 < self._steps
-        self._forced = False
         if not (settle or converge or halve):
             return None
-        live = np.ones(len(self.where), dtype=bool)
+        live = np.ones(len(self.where), dtype=bool) if self.alive is None else self.alive.copy()
         if settle:
             live &= np.asarray(self.settle.live(self.best_loss), dtype=bool)
         if converge:
@@ -401,10 +406,22 @@ class Descent:
                     live &= ~np.isfinite(last) | (now < last - self.converged[1] * np.abs(last))
             self._last = now
         if halve:
-            now = np.asarray(self.best_loss, dtype=np.float64)
-            live &= halving_live(now, self.pose_hole[self.where], self.pose_shape[self.where])
-            self._forced = not live.all()  # a halving rung shrinks the batch however few leave
+            self._halve(np.asarray(self.best_loss, dtype=np.float64))
+            live &= self.alive
         return live
+
+    def _halve(self, best_loss: np.ndarray) -> None:
+        """One rung of successive halving (:func:`halving_live`) among the poses still alive:
+        the others are masked out of the step from now on (:attr:`alive_mask`)."""
+        import mitsuba as mi
+
+        alive = np.ones(len(self.where), dtype=bool) if self.alive is None else self.alive
+        idx = np.flatnonzero(alive)
+        where = self.where[idx]
+        keep = halving_live(best_loss[idx], self.pose_hole[where], self.pose_shape[where])
+        alive = alive.copy()
+        alive[idx[~keep]] = False
+        self.alive, self.alive_mask = alive, mi.Bool(alive)
 
     def shrink(self, live: np.ndarray) -> bool:
         """Keep descending only the ``live`` poses ((K,) bool); the others' best poses are
@@ -419,6 +436,9 @@ class Descent:
         self.best, self.best_loss, self.settle = _keep_poses(
             self.opt, keep, self.best, self.best_loss, self.settle
         )
+        if self.alive is not None:
+            self.alive = self.alive[live]
+            self.alive_mask = mi.Bool(self.alive)
         self._bind()
         return True
 
@@ -474,7 +494,7 @@ class Descent:
                 if progress:
                     progress(step + 1)
                 live = self._live(step)
-                if live is None or (not self._forced and 2 * live.sum() > len(live)):
+                if live is None or 2 * live.sum() > len(live):
                     continue  # too few left to pay for a smaller batch
                 if frozen is not None and frozen.overflowed():
                     raise BufferOverflow
