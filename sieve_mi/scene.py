@@ -194,7 +194,7 @@ class Solver:
     starts: int = setting(10, "random starts of each B per evaluation", minimum=1, maximum=10_000)
     steps: int = setting(100, "Adam steps per start", minimum=0, maximum=1_000_000)
     halving: float = setting(
-        0.0,
+        0.25,
         "successive halving of player B's starts in the search: after every this fraction of "
         "the steps, the worse half (by loss so far) of each candidate hole and B's starts stop "
         "(0: every start runs every step, as the paper; the verdict never halves)",
