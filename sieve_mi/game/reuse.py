@@ -30,7 +30,7 @@ import numpy as np
 
 from sieve_mi.game.descent import Batch, settle_groups
 from sieve_mi.game.scoring import score_poses
-from sieve_mi.geometry.congruence import Motion, Outline, congruent
+from sieve_mi.geometry.congruence import Motion, Outline, areas_plausible, congruent
 
 __all__ = ["LIMIT", "POSES", "REUSE", "STEPS", "Classes", "Entry", "Member", "attack"]
 
@@ -101,7 +101,7 @@ class Classes:
         for h, hole in enumerate(holes):
             outline = Outline.of(hole)
             found = None
-            for entry in self.entries:
+            for entry in self._plausible(outline):
                 motion = congruent(entry.outline, outline)
                 if motion is not None:
                     found = Member(entry, motion, ref=False)
@@ -115,6 +115,18 @@ class Classes:
             self.reused += not found.ref
             out.append(found)
         return out
+
+    def _plausible(self, outline: Outline) -> list[Entry]:
+        """The classes, oldest first, whose reference passes
+        :func:`~sieve_mi.geometry.congruence.areas_plausible` against ``outline`` (one array
+        test instead of a call of :func:`congruent` per class; it refuses the others)."""
+        if not self.entries:
+            return []
+        area = np.array([e.outline.area for e in self.entries])
+        border = np.array([e.outline.border for e in self.entries])
+        near = areas_plausible(area, border, outline)
+        near |= (area == 0) | (outline.area == 0)  # empty holes: congruent's own rule
+        return [e for e, ok in zip(self.entries, near) if ok]
 
 
 def attack(player_b, holes, members, hole_of, shape_of, steps, rate, settle, progress=None, *,
