@@ -421,7 +421,14 @@ class Descent:
         keep = halving_live(best_loss[idx], self.pose_hole[where], self.pose_shape[where])
         alive = alive.copy()
         alive[idx[~keep]] = False
-        self.alive, self.alive_mask = alive, mi.Bool(alive)
+        masks = self.loss.fit_loss is not None  # objectives without one take no live mask
+        self.alive, self.alive_mask = alive, (mi.Bool(alive) if masks else None)
+
+    def _stays(self, live: np.ndarray) -> bool:
+        """Whether the batch goes on whole after a check that left ``live`` poses: more than half
+        descend, and no halved pose is left unmasked (an objective that takes no live mask)."""
+        unmasked = self.alive is not None and self.alive_mask is None and not self.alive.all()
+        return 2 * live.sum() > len(live) and not unmasked
 
     def shrink(self, live: np.ndarray) -> bool:
         """Keep descending only the ``live`` poses ((K,) bool); the others' best poses are
@@ -438,7 +445,7 @@ class Descent:
         )
         if self.alive is not None:
             self.alive = self.alive[live]
-            self.alive_mask = mi.Bool(self.alive)
+            self.alive_mask = None if self.alive_mask is None else mi.Bool(self.alive)
         self._bind()
         return True
 
@@ -494,7 +501,7 @@ class Descent:
                 if progress:
                     progress(step + 1)
                 live = self._live(step)
-                if live is None or 2 * live.sum() > len(live):
+                if live is None or self._stays(live):
                     continue  # too few left to pay for a smaller batch
                 if frozen is not None and frozen.overflowed():
                     raise BufferOverflow
