@@ -69,6 +69,8 @@ UNITS = ("mm", "cm", "m", "in", "um")
 OUTERS = ("pso", *NLOPT_METHODS)
 #: Accepted ``[layout] mode`` values.
 LAYOUT_MODES = ("merged", "separate")
+#: Bounds of a time budget in seconds (more than 0, at most a day).
+_SECONDS = {"minimum": 0, "exclusive_min": True, "maximum": 86_400}
 
 
 @checked("shape")
@@ -191,6 +193,14 @@ class Solver:
     )
     starts: int = setting(10, "random starts of each B per evaluation", minimum=1, maximum=10_000)
     steps: int = setting(100, "Adam steps per start", minimum=0, maximum=1_000_000)
+    halving: float = setting(
+        0.25,
+        "successive halving of player B's starts in the search: after every this fraction of "
+        "the steps, the worse half (by loss so far) of each candidate hole and B's starts stop "
+        "(0: every start runs every step, as the paper; the verdict never halves)",
+        minimum=0,
+        maximum=1,
+    )
     settle: bool = setting(
         True,
         "in the search's attacks, stop a hole's other B starts once one B fits it (the hole's "
@@ -264,27 +274,17 @@ class Verdict:
         "after the verdict, try to prove that each blocked B cannot pass the exact hole "
         "(in parallel over B; false turns it off)",
     )
-    certify_budget: float = setting(
-        30.0,
-        "time budget of each proof, seconds",
-        minimum=0,
-        exclusive_min=True,
-        maximum=86_400,
-    )
+    certify_budget: float = setting(30.0, "time budget of each proof, seconds", **_SECONDS)
     section_budget: float = setting(
         10.0,
         "seconds per blocked B for the slab-section proofs that bisect the thinnest proved plate "
         "(in parallel over B, after its proof)",
-        minimum=0,
-        exclusive_min=True,
-        maximum=86_400,
+        **_SECONDS,
     )
     thin_budget: float = setting(
         10.0,
         "seconds of motion search (OMPL) per B thicker than the plate, searched in parallel",
-        minimum=0,
-        exclusive_min=True,
-        maximum=86_400,
+        **_SECONDS,
     )
 
 

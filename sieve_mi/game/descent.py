@@ -32,6 +32,7 @@ __all__ = [
     "FrozenStepFailed",
     "Settle",
     "adam_step",
+    "halving_live",
     "pose_loss",
     "settle_groups",
 ]
@@ -186,6 +187,38 @@ class Settle:
         return Settle(dr.gather(mi.UInt32, self.group, keep), self.groups, self.fit_loss)
 
 
+def halving_live(best_loss: np.ndarray, pose_hole: np.ndarray, pose_shape: np.ndarray):
+    """One rung of successive halving: of each (hole, shape)'s poses, the better half (rounded
+    up: 10 -> 5 -> 3 -> 2 -> 1) by best loss so far, ties in order.
+
+    Parameters
+    ----------
+    best_loss : (K,) ndarray
+        Each pose's best loss so far.
+    pose_hole, pose_shape : (K,) ndarrays of int
+
+    Returns
+    -------
+    (K,) ndarray of bool
+        The poses that go on descending.
+
+    Examples
+    --------
+    >>> halving_live(np.array([3.0, 1.0, 2.0, 0.5]), np.zeros(4, int), np.zeros(4, int)).tolist()
+    [False, True, False, True]
+    """
+    group = np.asarray(pose_hole, np.int64) * (int(np.max(pose_shape, initial=0)) + 1)
+    group = group + np.asarray(pose_shape, np.int64)
+    order = np.lexsort((np.arange(len(group)), np.asarray(best_loss, np.float64), group))
+    first = np.r_[True, group[order][1:] != group[order][:-1]]
+    begins = np.maximum.accumulate(np.where(first, np.arange(len(order)), 0))
+    rank = np.arange(len(order)) - begins  # place within its group, best first
+    size = np.bincount(np.cumsum(first) - 1)[np.cumsum(first) - 1]
+    live = np.empty(len(group), dtype=bool)
+    live[order] = rank < -(-size // 2)
+    return live
+
+
 def settle_groups(settle, pose_hole, pose_shape, n_b: int):
     """Each pose's settling group for :meth:`~sieve_mi.game.player_b.PlayerB.attack`'s
     ``settle`` (None: no settling)."""
@@ -221,6 +254,11 @@ class Batch:
     converged : tuple of (int, float), optional
         ``(window, rtol)``: its starts leave the descent once converged (:data:`CONVERGED`, which
         overrides it when set); None: every start runs every step.
+    halving : float
+        Successive halving of the starts (:func:`halving_live`): after every ``halving`` of the
+        descent's steps, the worse half of each (hole, shape)'s starts still descending stop
+        (masked out of the step like settled ones; they leave the batch once at most half of it
+        descends). 0: every start runs every step.
     """
 
     holes: list
@@ -231,6 +269,7 @@ class Batch:
     group: np.ndarray | None = None
     starts: int | None = None
     converged: tuple | None = None
+    halving: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("pose_hole", "pose_shape", "q0", "t0"):
@@ -321,6 +360,11 @@ class Descent:
         self.where = np.arange(len(batch))  # the original index of each pose still descending
         self._last = None  # each pose's best loss at the last convergence check (CONVERGED)
         self.converged = CONVERGED or batch.converged
+        self.halving = float(batch.halving)
+        self._rung, self._steps = 0, 0  # halving's rung and the descent's steps, set by run()
+        #: With halving: which poses still descend ((K,) bool, and as an mi.Bool for the step);
+        #: the others are masked out of the step, as settled ones, until the batch shrinks.
+        self.alive, self.alive_mask = None, None
         self._bind()
 
     def _bind(self) -> None:
@@ -336,6 +380,8 @@ class Descent:
     def step(self) -> None:
         """One :func:`adam_step`, traced."""
         live = None if self.settle is None else self.settle.live(self.best_loss)
+        if self.alive_mask is not None:
+            live = self.alive_mask if live is None else live & self.alive_mask
         self.best, self.best_loss, _ = adam_step(
             self.opt, self.best, self.best_loss, lambda: self.evaluate(live)
         )
@@ -346,9 +392,10 @@ class Descent:
         :data:`CONVERGED`)."""
         settle = self.settle is not None and self.settle.due(step)
         converge = self.converged is not None and (step + 1) % self.converged[0] == 0
-        if not (settle or converge):
+        halve = self._rung > 0 and (step + 1) % self._rung == 0 and step + 1 < self._steps
+        if not (settle or converge or halve):
             return None
-        live = np.ones(len(self.where), dtype=bool)
+        live = np.ones(len(self.where), dtype=bool) if self.alive is None else self.alive.copy()
         if settle:
             live &= np.asarray(self.settle.live(self.best_loss), dtype=bool)
         if converge:
@@ -358,7 +405,30 @@ class Descent:
                 with np.errstate(invalid="ignore"):
                     live &= ~np.isfinite(last) | (now < last - self.converged[1] * np.abs(last))
             self._last = now
+        if halve:
+            self._halve(np.asarray(self.best_loss, dtype=np.float64))
+            live &= self.alive
         return live
+
+    def _halve(self, best_loss: np.ndarray) -> None:
+        """One rung of successive halving (:func:`halving_live`) among the poses still alive:
+        the others are masked out of the step from now on (:attr:`alive_mask`)."""
+        import mitsuba as mi
+
+        alive = np.ones(len(self.where), dtype=bool) if self.alive is None else self.alive
+        idx = np.flatnonzero(alive)
+        where = self.where[idx]
+        keep = halving_live(best_loss[idx], self.pose_hole[where], self.pose_shape[where])
+        alive = alive.copy()
+        alive[idx[~keep]] = False
+        masks = self.loss.fit_loss is not None  # objectives without one take no live mask
+        self.alive, self.alive_mask = alive, (mi.Bool(alive) if masks else None)
+
+    def _stays(self, live: np.ndarray) -> bool:
+        """Whether the batch goes on whole after a check that left ``live`` poses: more than half
+        descend, and no halved pose is left unmasked (an objective that takes no live mask)."""
+        unmasked = self.alive is not None and self.alive_mask is None and not self.alive.all()
+        return 2 * live.sum() > len(live) and not unmasked
 
     def shrink(self, live: np.ndarray) -> bool:
         """Keep descending only the ``live`` poses ((K,) bool); the others' best poses are
@@ -373,6 +443,9 @@ class Descent:
         self.best, self.best_loss, self.settle = _keep_poses(
             self.opt, keep, self.best, self.best_loss, self.settle
         )
+        if self.alive is not None:
+            self.alive = self.alive[live]
+            self.alive_mask = None if self.alive_mask is None else mi.Bool(self.alive)
         self._bind()
         return True
 
@@ -417,6 +490,8 @@ class Descent:
         """
         frozen = None if freeze is None else freeze(self)
         first_frozen = 2  # steps 1, 2 differ in layout: traced
+        self._steps = steps
+        self._rung = max(1, round(self.halving * steps)) if self.halving > 0 else 0
         try:
             for step in range(steps):
                 if frozen is not None and step >= first_frozen:
@@ -426,10 +501,8 @@ class Descent:
                 if progress:
                     progress(step + 1)
                 live = self._live(step)
-                if live is None or 2 * live.sum() > len(
-                    live
-                ):  # too few left to pay for a smaller batch
-                    continue
+                if live is None or self._stays(live):
+                    continue  # too few left to pay for a smaller batch
                 if frozen is not None and frozen.overflowed():
                     raise BufferOverflow
                 if self._last is not None:

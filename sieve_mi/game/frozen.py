@@ -34,13 +34,16 @@ __all__ = ["CPU_FREEZE_PAIRS", "frozen_step", "pays", "replay"]
 CPU_FREEZE_PAIRS = 5_000_000
 
 
-def _step(opt, best, best_loss, overflow, loss, holes, key, settle=None):
+def _step(opt, best, best_loss, overflow, loss, holes, key, settle=None, alive=None):
     """One :func:`~sieve_mi.game.descent.adam_step` with the objective's fixed-size loss;
     ``holes`` = (stack, pose_hole) the hole stack and each pose's hole; ``key`` = (scale,
     capacity, poses, pairs) are Python values (recording key); ``settle`` = (group, groups,
-    fit_loss), the poses' settling groups (mi.UInt32, K) and two Python values, or None."""
+    fit_loss), the poses' settling groups (mi.UInt32, K) and two Python values, or None;
+    ``alive`` (mi.Bool, K, or None): the poses successive halving keeps descending."""
     scale, capacity = key[0], key[1]
     live = None if settle is None else live_poses(best_loss, *settle)
+    if alive is not None:
+        live = alive if live is None else live & alive
 
     def evaluate():
         return pose_loss(opt, loss, *holes, scale, live, capacity)
@@ -51,7 +54,7 @@ def _step(opt, best, best_loss, overflow, loss, holes, key, settle=None):
 
 def frozen_step():
     """A new frozen Adam step: ``step(opt, best, best_loss, overflow, loss, holes, key,
-    settle)`` returns the new ``(best, best_loss, overflow)`` and updates ``opt`` in place.
+    settle, alive)`` returns the new ``(best, best_loss, overflow)`` and updates ``opt`` in place.
 
     Parameters of the returned callable
     -----------------------------------
@@ -75,6 +78,8 @@ def frozen_step():
         (group, groups, fit_loss): each pose's settling group (mi.UInt32, K;
         :meth:`sieve_mi.game.player_b.PlayerB.attack`'s ``settle``), the number of groups and
         the objective's ``fit_loss`` (Python values, part of the key); None without settling.
+    alive : mi.Bool, optional
+        (K,): the poses successive halving keeps descending (``[solver] halving``); None: all.
     """
     import drjit as dr
 
@@ -125,8 +130,9 @@ def replay(step, descent):
         # the first frozen step has the layout of the later ones (else it is recorded twice).
         dr.make_opaque(opt.state, best, best_loss)
         best, best_loss, state["overflow"] = step(
-            opt, best, best_loss, state["overflow"], loss, holes, record, settling
-        )
+            opt, best, best_loss, state["overflow"], loss, holes, record, settling,
+            descent.alive_mask,
+        )  # fmt: skip
         return best, best_loss
 
     steps.overflowed = lambda: bool(state["overflow"][0])

@@ -110,6 +110,9 @@ class Pruned:
         The search's classes of congruent holes (:mod:`sieve_mi.game.reuse`): every pair of
         hole and B is then attacked as :func:`sieve_mi.game.reuse.attack` does, and every B
         gets all its starts.
+    halving : float
+        Successive halving of each hole and B's starts in every descent (``[solver] halving``,
+        :func:`~sieve_mi.game.descent.halving_live`; 0: off).
 
     Attributes
     ----------
@@ -121,8 +124,9 @@ class Pruned:
     """
 
     def __init__(self, player_b, holes, starts, steps, learning_rate, rng, settle, progress=None,
-                 classes=None):  # fmt: skip
+                 classes=None, halving=0.0):  # fmt: skip
         self.player_b, self.holes, self.steps, self.rate = player_b, holes, steps, learning_rate
+        self.halving = halving
         self.settle, self.progress = settle, progress
         self.batch = player_b.start_batch(holes, Starts.of(starts), rng, settle)
         count = Starts.of(starts).count
@@ -189,7 +193,8 @@ class Pruned:
         pose_hole, pose_shape = local[b.pose_hole[sel]], b.pose_shape[sel]
         n_b = len(self.player_b.shapes)
         sub = Batch([self.holes[h] for h in holes], pose_hole, pose_shape, b.q0[sel], b.t0[sel],
-                    settle_groups(self.settle, pose_hole, pose_shape, n_b))  # fmt: skip
+                    settle_groups(self.settle, pose_hole, pose_shape, n_b),
+                    halving=self.halving)  # fmt: skip
         quats, trans = self.player_b.descend(sub, self.steps, self.rate, self.progress)
         self.progress = None  # the bar counts one descent per evaluation
         beta = np.ones(len(quats))
@@ -207,7 +212,8 @@ class Pruned:
         hole_of = np.repeat(holes, len(shapes))
         shape_of = np.tile(shapes, len(holes))
         beta = reuse.attack(self.player_b, self.holes, self.members, hole_of, shape_of,
-                            self.steps, self.rate, self.settle, self.progress)  # fmt: skip
+                            self.steps, self.rate, self.settle, self.progress,
+                            halving=self.halving)  # fmt: skip
         self.progress = None
         self.low[hole_of, shape_of] = np.minimum(self.low[hole_of, shape_of], beta)
         self.value[holes] = np.minimum(self.value[holes], self.low[holes].min(axis=1))

@@ -182,15 +182,16 @@ class _PlacementGame:
     context: PlacementContext
 
     def energy(
-        self, x: np.ndarray, starts: int, steps: int, converged: tuple | None = None
+        self, x: np.ndarray, starts: int, steps: int, converged=None, halving: float = 0.0
     ) -> tuple[np.ndarray, np.ndarray]:
         """Eq. 14 energy and the weakest B's β of placements ``x`` (P, 6): (P,) and (P,);
-        ``converged``: the attack's converged stop (:meth:`PlayerB.attack`)."""
+        ``converged``, ``halving``: the attack's converged stop and successive halving
+        (:meth:`PlayerB.attack`)."""
         c = self.context
         holes = self.player.holes(x[:, :4], x[:, 4:] * self.reach, base=self.base)
         attack = c.player_b.attack(
             holes, Starts(starts, memory=c.memory), steps, c.solver.learning_rate, c.rng,
-            settle=self.player.settle, converged=converged,
+            settle=self.player.settle, converged=converged, halving=halving,
         )  # fmt: skip
         area = np.array([hh.mask.mean() for hh in holes])
         n = np.array([pieces(hh.mask) for hh in holes])
@@ -206,7 +207,7 @@ class _PlacementGame:
         particles, iterations = c.solver.particles, c.solver.iterations
 
         def evaluate(x):
-            return self.energy(x, c.solver.starts, c.solver.steps)[0]
+            return self.energy(x, c.solver.starts, c.solver.steps, halving=c.solver.halving)[0]
 
         history = SwarmHistory()
         best, value, best_beta = pool[0], -np.inf, -np.inf

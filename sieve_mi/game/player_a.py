@@ -179,7 +179,7 @@ class PlayerA:
 
         def evaluate(qs: np.ndarray, floor=None) -> np.ndarray:
             return self.values(player_b, qs, s.starts, s.steps, s.learning_rate, rng, floor,
-                               classes=self.classes)  # fmt: skip
+                               classes=self.classes, halving=s.halving)  # fmt: skip
 
         def say(name: str) -> None:
             if stage is not None:
@@ -201,7 +201,16 @@ class PlayerA:
         return q, f, history
 
     def values(
-        self, player_b: PlayerB, quats, starts, steps, learning_rate, rng, floor=None, classes=None
+        self,
+        player_b: PlayerB,
+        quats,
+        starts,
+        steps,
+        learning_rate,
+        rng,
+        floor=None,
+        classes=None,
+        halving: float = 0.0,
     ) -> np.ndarray:
         """The game value (min over B of β, eq. 10) of the holes of rotations (K, 4), one attack.
 
@@ -219,21 +228,23 @@ class PlayerA:
         ``classes`` (:class:`~sieve_mi.game.reuse.Classes`, optional): the search's classes of
         congruent holes; a hole congruent to one attacked before is attacked from player B's
         best poses there (:mod:`sieve_mi.game.reuse`).
+
+        ``halving`` (``[solver] halving``; 0: off): successive halving of each hole and B's
+        starts (:func:`~sieve_mi.game.descent.halving_live`).
         """
         holes = self.holes(quats)
         step = None if self.on_step is None else _per_candidate(self.on_step, len(holes))
         prune = floor is not None and maximin.PRUNE and len(player_b.shapes) > 1
         if prune or classes is not None:
             pruned = maximin.Pruned(player_b, holes, starts, steps, learning_rate, rng,
-                                    self.settle, step, classes)  # fmt: skip
+                                    self.settle, step, classes, halving)  # fmt: skip
             if not prune:
                 return pruned.advance().copy()
             if isinstance(floor, maximin.Best):
                 return pruned.best(floor.count, floor.exact).copy()
             return pruned.advance(floor=floor).copy()
-        attack = player_b.attack(
-            holes, starts, steps, learning_rate, rng, progress=step, settle=self.settle
-        )
+        attack = player_b.attack(holes, starts, steps, learning_rate, rng, progress=step,
+                                 settle=self.settle, halving=halving)  # fmt: skip
         maximin.note(player_b, attack.beta)
         values = attack.value()
         return np.where([h.mask.any() for h in holes], values, -1.0)
@@ -336,7 +347,7 @@ class PlayerA:
         def values(qs, floor=None):
             common = np.random.default_rng([int(seed), 0x501])
             return self.values(player_b, qs, solver.starts, solver.steps, solver.learning_rate,
-                               common, floor, classes=classes)  # fmt: skip
+                               common, floor, classes=classes, halving=solver.halving)  # fmt: skip
 
         start = normalize(np.asarray(quat, dtype=np.float64))
         best, step, done = start, np.radians(first), 0

@@ -114,6 +114,7 @@ class PlayerB:
         keep: int = 0,
         settle: str | None = None,
         converged: tuple | None = None,
+        halving: float = 0.0,
     ) -> Attack:
         """Player B's best attempt on each hole, for each shape.
 
@@ -150,9 +151,14 @@ class PlayerB:
         converged : (int, float), optional
             ``(window, rtol)``: every ``window`` steps, starts whose best loss fell by less than
             ``rtol`` of itself leave the descent (:data:`sieve_mi.game.descent.CONVERGED`).
+        halving : float
+            Successive halving of the starts (``[solver] halving``): after every this fraction
+            of ``steps``, the worse half of each hole and shape's starts leave the descent
+            (:func:`~sieve_mi.game.descent.halving_live`). 0: every start runs every step.
         """
         starts = Starts.of(starts)
-        batch = replace(self.start_batch(holes, starts, rng, settle), converged=converged)
+        batch = self.start_batch(holes, starts, rng, settle)
+        batch = replace(batch, converged=converged, halving=halving)
         quats, trans = self.descend(batch, steps, learning_rate, progress)
         attack = self._score(batch, quats, trans, keep)
         if starts.memory is not None:

@@ -30,7 +30,7 @@ import numpy as np
 
 from sieve_mi.game.descent import Batch, settle_groups
 from sieve_mi.game.scoring import score_poses
-from sieve_mi.geometry.congruence import Motion, Outline, congruent
+from sieve_mi.geometry.congruence import Motion, Outline, areas_plausible, congruent
 
 __all__ = ["LIMIT", "POSES", "REUSE", "STEPS", "Classes", "Entry", "Member", "attack"]
 
@@ -101,7 +101,7 @@ class Classes:
         for h, hole in enumerate(holes):
             outline = Outline.of(hole)
             found = None
-            for entry in self.entries:
+            for entry in self._plausible(outline):
                 motion = congruent(entry.outline, outline)
                 if motion is not None:
                     found = Member(entry, motion, ref=False)
@@ -116,8 +116,21 @@ class Classes:
             out.append(found)
         return out
 
+    def _plausible(self, outline: Outline) -> list[Entry]:
+        """The classes, oldest first, whose reference passes
+        :func:`~sieve_mi.geometry.congruence.areas_plausible` against ``outline`` (one array
+        test instead of a call of :func:`congruent` per class; it refuses the others)."""
+        if not self.entries:
+            return []
+        area = np.array([e.outline.area for e in self.entries])
+        border = np.array([e.outline.border for e in self.entries])
+        near = areas_plausible(area, border, outline)
+        near |= (area == 0) | (outline.area == 0)  # empty holes: congruent's own rule
+        return [e for e, ok in zip(self.entries, near) if ok]
 
-def attack(player_b, holes, members, hole_of, shape_of, steps, rate, settle, progress=None):
+
+def attack(player_b, holes, members, hole_of, shape_of, steps, rate, settle, progress=None, *,
+           halving=0.0):  # fmt: skip
     """Player B's lowest β on each pair (hole ``hole_of[p]``, B ``shape_of[p]``), with reuse.
 
     A pair whose hole is its class's reference, or whose class has not met the B yet, gets the
@@ -138,6 +151,8 @@ def attack(player_b, holes, members, hole_of, shape_of, steps, rate, settle, pro
         ``"hole"`` settles per hole and B here (see the module docstring).
     progress : callable, optional
         Passed to the first descent.
+    halving : float
+        Successive halving of the references' starts (``[solver] halving``; 0: off).
 
     Returns
     -------
@@ -152,26 +167,8 @@ def attack(player_b, holes, members, hole_of, shape_of, steps, rate, settle, pro
         if j not in entry.poses and (entry, j) not in need:
             need.append((entry, j))
     if need:
-        refs = list(dict.fromkeys(id(e) for e, _ in need))
-        by_id = {id(e): e for e, _ in need}
-        local = [by_id[i].outline.hole for i in refs]
-        count = need[0][0].q0.shape[1]
-        rows = []
-        for e, j in need:
-            rows += [(refs.index(id(e)), j, s) for s in range(count)]
-        ph, ps = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
-        q0 = np.array([by_id[refs[a]].q0[j, s] for a, j, s in rows])
-        t0 = np.array([by_id[refs[a]].t0[j, s] for a, j, s in rows])
-        batch = Batch(local, ph, ps, q0, t0, settle_groups(settle, ph, ps, n_b))
-        quats, trans = player_b.descend(batch, steps, rate, progress)
+        _references(player_b, need, steps, rate, settle, progress, halving)
         progress = None
-        beta, prot = _scores(player_b, local, ph, ps, quats, trans)
-        key = beta + 1e-9 * prot / (1.0 + prot)
-        for e, j in need:
-            on = np.flatnonzero((ph == refs.index(id(e))) & (ps == j))
-            best = on[np.argsort(key[on], kind="stable")[:POSES]]
-            e.poses[j] = (quats[best], trans[best])
-            e.beta[j] = float(beta[best[0]])
     # 2. the references' βs, and the other pairs from their classes' best poses
     out = np.empty(len(hole_of))
     rows = []
@@ -196,6 +193,31 @@ def attack(player_b, holes, members, hole_of, shape_of, steps, rate, settle, pro
         done = np.isfinite(low)
         out[done] = low[done]
     return out
+
+
+def _references(player_b, need: list, steps: int, rate, settle, progress, halving: float) -> None:
+    """The full attacks of :func:`attack` still missing, one descent: ``need`` lists (class
+    entry, B index) pairs; each entry gets that B's :data:`POSES` best poses and lowest β."""
+    n_b = len(player_b.shapes)
+    refs = list(dict.fromkeys(id(e) for e, _ in need))
+    by_id = {id(e): e for e, _ in need}
+    local = [by_id[i].outline.hole for i in refs]
+    count = need[0][0].q0.shape[1]
+    rows = []
+    for e, j in need:
+        rows += [(refs.index(id(e)), j, s) for s in range(count)]
+    ph, ps = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+    q0 = np.array([by_id[refs[a]].q0[j, s] for a, j, s in rows])
+    t0 = np.array([by_id[refs[a]].t0[j, s] for a, j, s in rows])
+    batch = Batch(local, ph, ps, q0, t0, settle_groups(settle, ph, ps, n_b), halving=halving)
+    quats, trans = player_b.descend(batch, steps, rate, progress)
+    beta, prot = _scores(player_b, local, ph, ps, quats, trans)
+    key = beta + 1e-9 * prot / (1.0 + prot)
+    for e, j in need:
+        on = np.flatnonzero((ph == refs.index(id(e))) & (ps == j))
+        best = on[np.argsort(key[on], kind="stable")[:POSES]]
+        e.poses[j] = (quats[best], trans[best])
+        e.beta[j] = float(beta[best[0]])
 
 
 def _scores(player_b, holes, pose_hole, pose_shape, quats, trans):

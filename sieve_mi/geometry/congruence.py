@@ -42,7 +42,7 @@ from scipy import ndimage
 
 from sieve_mi.geometry.hole import Hole
 
-__all__ = ["FRACTION", "LOCAL", "Motion", "Outline", "congruent"]
+__all__ = ["FRACTION", "LOCAL", "Motion", "Outline", "areas_plausible", "congruent"]
 
 #: Symmetric difference allowed after alignment, in pixels per pixel of border length.
 FRACTION = 0.6
@@ -214,11 +214,20 @@ class Outline:
         )
 
 
+def areas_plausible(area, border, b: Outline) -> np.ndarray:
+    """The first of :func:`congruent`'s necessary conditions for many outlines at once (their
+    ``area`` and ``border``, arrays, pixels) against ``b``: areas within the area tolerance
+    (twice it, since both are quantised). A class of :mod:`sieve_mi.game.reuse` whose reference
+    fails it is not tried."""
+    tol = FRACTION * np.maximum(border, b.border) + 4
+    return np.abs(np.asarray(area) - b.area) <= tol
+
+
 def _plausible(a: Outline, b: Outline) -> bool:
-    """Necessary conditions, cheap: areas and radial profiles within the area tolerance (twice
-    it, since both are quantised)."""
+    """Necessary conditions, cheap: areas (:func:`areas_plausible`) and radial profiles within
+    the area tolerance."""
     tol = FRACTION * max(a.border, b.border) + 4
-    if abs(a.area - b.area) > tol:
+    if not areas_plausible(a.area, a.border, b):
         return False
     n = max(len(a.radial), len(b.radial))
     ra = np.pad(a.radial, (0, n - len(a.radial)), mode="edge")
