@@ -5,11 +5,9 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import subprocess
-import sys
 
 import pytest
-from helpers import REPO
+from helpers import REPO, cli_run
 
 import sieve_mi as sm
 from sieve_mi.authors_config import NO_EFFECT, SETTINGS, load_authors_config
@@ -170,12 +168,6 @@ def test_two_a_offsets_must_agree(authors_repo):
         load_authors_config(authors_repo(meshes_A=meshes))
 
 
-def _cli(*args):
-    return subprocess.run(
-        [sys.executable, "-m", "sieve_mi", *args], capture_output=True, text=True, timeout=600
-    )
-
-
 def test_cli_refuses_an_unknown_key_in_one_line(authors_repo, tmp_path, capsys):
     from sieve_mi.cli import main  # in this process: any other exception fails the test
 
@@ -187,11 +179,19 @@ def test_cli_refuses_an_unknown_key_in_one_line(authors_repo, tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_solve_reads_a_configuration(authors_repo, tmp_path):
+def test_solve_reads_a_configuration(authors_repo, tmp_path, capsys):
     out = tmp_path / "o"
     config = authors_repo(mesh_A_opt_num_posns=4, mesh_A_pso_iters=1, mesh_B_opt_num_posns=4)
-    run = _cli(
-        "solve", config, "--out", str(out), "--quiet", "--json", "--no-figure", "--no-animation"
+    run = cli_run(  # in this process: the reading is the subject, not the process
+        capsys,
+        "solve",
+        config,
+        "--out",
+        str(out),
+        "--quiet",
+        "--json",
+        "--no-figure",
+        "--no-animation",
     )
     report = json.loads(run.stdout)
     assert run.returncode == (0 if report["winner"] == "A" else 3), run.stderr

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 import trimesh
-from helpers import REPO, exr_bitmap
+from helpers import REPO, cli_run, exr_bitmap
 
 from sieve_mi.errors import SieveError
 from sieve_mi.testing.settings import TINY
@@ -39,7 +39,7 @@ def _good_scene(write_scene, extra=""):
 
 
 @pytest.mark.slow
-def test_solve_writes_every_output(write_scene, tmp_path):
+def test_solve_writes_every_output(write_scene, tmp_path, capsys):
     import time
 
     scene = _good_scene(write_scene)
@@ -89,7 +89,8 @@ def test_solve_writes_every_output(write_scene, tmp_path):
     area = float(hole.sum()) * report["pixel_size"] ** 2
     assert abs(area - report["hole"]["area"]) < 0.05 * report["hole"]["area"]
     # check reads hole.png's pixel size from its pHYs: no --pixel-size; A (cube) passes: exit 0
-    fits = run_cli("check", os.path.join(SCENES, "meshes", "cube.stl"), "--hole",
+    # (in this process: the solve above is this test's process)
+    fits = cli_run(capsys, "check", os.path.join(SCENES, "meshes", "cube.stl"), "--hole",
                    str(out / "hole.png"), "--starts", "8", "--steps", "60", "--no-fit", "--json")  # fmt: skip
     assert fits.returncode == 0, fits.stderr
     assert json.loads(fits.stdout)["pixel_size"] == report["pixel_size"]

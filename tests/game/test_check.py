@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 
 import manifold3d
 import numpy as np
 import pytest
 import trimesh
+from helpers import cli_run
 from PIL import Image
 
 from sieve_mi.errors import SieveError
@@ -187,17 +186,12 @@ def test_fit_scale_bisection_on_a_known_threshold():
 # ------------------------------------------------------------------------------------------------
 
 
-def run_cli(*args: str):
-    return subprocess.run(
-        [sys.executable, "-m", "sieve_mi", *args], capture_output=True, text=True, timeout=600
-    )
-
-
 @pytest.mark.slow
-def test_check_command_json(tmp_path):
+def test_check_command_json(tmp_path, capsys):
     path = square_plate(str(tmp_path / "p.stl"), 15.0)
     trimesh.creation.box((10, 10, 10)).export(str(tmp_path / "cube.stl"))
-    p = run_cli(
+    p = cli_run(
+        capsys,
         "check",
         str(tmp_path / "cube.stl"),
         "--sieve",
@@ -213,7 +207,8 @@ def test_check_command_json(tmp_path):
     assert rep["passes"] is True
     assert rep["fit_scale"] == pytest.approx(1.5, abs=0.03)
     # --scale applies before the test: the 10 mm cube at scale 1.6 is blocked
-    p = run_cli(
+    p = cli_run(
+        capsys,
         "check",
         str(tmp_path / "cube.stl"),
         "--sieve",
@@ -241,14 +236,16 @@ def test_check_command_json(tmp_path):
         (["--sieve", "{tmp}/solid.stl", "--scale", "0"], "--scale"),
     ],
 )
-def test_check_bad_input_is_one_line(tmp_path, args, needle):
+def test_check_bad_input_is_one_line(tmp_path, capsys, args, needle):
     trimesh.creation.box((10, 10, 10)).export(str(tmp_path / "cube.stl"))
     trimesh.creation.box((20, 20, 5)).export(str(tmp_path / "solid.stl"))
     Image.fromarray(np.zeros((10, 10), np.uint8)).save(tmp_path / "black.png")
     img = np.zeros((10, 10), np.uint8)
     img[3:7, 3:7] = 255
     Image.fromarray(img).save(tmp_path / "h.png")
-    p = run_cli("check", str(tmp_path / "cube.stl"), *[a.format(tmp=tmp_path) for a in args])
+    p = cli_run(
+        capsys, "check", str(tmp_path / "cube.stl"), *[a.format(tmp=tmp_path) for a in args]
+    )
     assert p.returncode == 2, (p.stdout, p.stderr)
     lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "Traceback" not in p.stderr

@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 import trimesh
-from helpers import REPO, sphere
+from helpers import REPO, cli_run, sphere
 
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.geometry.hole import HoleStack
@@ -103,8 +103,11 @@ def run_cli(*args, cwd=None):
     )
 
 
-def _solve(scene, out, *extra):
-    p = run_cli("solve", scene, "--out", str(out), "--quiet", "--no-figure", *extra)
+def _solve(scene, out, *extra, capsys=None):
+    """``sieve-mi solve`` in a process of its own, or in this one (``sieve_mi.cli.main``) when
+    given ``capsys``: its report.json."""
+    args = ("solve", scene, "--out", str(out), "--quiet", "--no-figure", *extra)
+    p = run_cli(*args) if capsys is None else cli_run(capsys, *args)
     report = json.loads((out / "report.json").read_text())
     assert p.returncode == (0 if report["winner"] == "A" else 3), p.stderr
     return report
@@ -127,6 +130,9 @@ def _same_outputs(a, b):
     ra, rb = (json.loads((x / "report.json").read_text()) for x in (a, b))
     ra.pop("timings"), rb.pop("timings")
     ra.pop("memory"), rb.pop("memory")  # resident memory, measured like the times
+    # each process's Dr.Jit pool (a pytest worker runs one thread): the same bits whatever it is
+    pools = [r["provenance"]["machine"].pop("threads") for r in (ra, rb)]
+    assert all(isinstance(n, int) and n >= 1 for n in pools), pools
     for block in ra["block"] + rb["block"]:  # a proof's wall-clock time, like the timings
         block.get("certification", {}).pop("seconds", None)
     for r in (ra, rb):  # the feasibility test's wall-clock time
@@ -146,10 +152,12 @@ def _same_outputs(a, b):
     ],
     ids=["default", "merged-two-pass"],
 )
-def test_two_solve_processes_give_identical_outputs(write_scene, tmp_path, body):
+def test_two_solve_processes_give_identical_outputs(write_scene, tmp_path, capsys, body):
+    # One solve in a process of its own, one in this process (after whatever this worker ran
+    # before, with its own Dr.Jit threads): two processes, the same bits.
     scene = write_scene(body + TINY)
     first = _solve(scene, tmp_path / "a")
-    _solve(scene, tmp_path / "b")
+    _solve(scene, tmp_path / "b", capsys=capsys)
     _same_outputs(tmp_path / "a", tmp_path / "b")
     if "two-pass" in body:
         return  # the default scene checks that another seed is another search

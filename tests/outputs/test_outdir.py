@@ -18,7 +18,7 @@ import time
 import numpy as np
 import pytest
 import trimesh
-from helpers import REPO
+from helpers import REPO, cli_run
 from PIL import Image
 
 from sieve_mi import cli
@@ -453,20 +453,22 @@ def check_files(tmp_path):
 
 
 @pytest.mark.slow
-def test_check_out_writes_and_replaces_its_report(check_files, precious, tmp_path):
+def test_check_out_writes_and_replaces_its_report(check_files, precious, tmp_path, capsys):
     shape, hole = check_files
     out = tmp_path / "checked"
-    p = run_cli("check", shape, *hole, *CHECK_SMALL, "--json", "--out", str(out))
+    p = cli_run(capsys, "check", shape, *hole, *CHECK_SMALL, "--json", "--out", str(out))
     assert p.returncode == 0, p.stderr
     report = assert_complete(out)
     assert report == json.loads(p.stdout) and report["passes"] is True
     assert outdir.read_marker(str(out))["command"] == "check"
-    p = run_cli("check", shape, *hole, *CHECK_SMALL, "--scale", "2", "--json", "--out", str(out))
+    p = cli_run(
+        capsys, "check", shape, *hole, *CHECK_SMALL, "--scale", "2", "--json", "--out", str(out)
+    )
     assert p.returncode == 3, p.stderr  # blocked
     assert assert_complete(out)["passes"] is False  # 20 mm cube, 16 mm hole: replaced
     before = snapshot(tmp_path)
     for target, needle in ((precious, REFUSED), (tmp_path / "in", "holds the input file")):
-        p = run_cli("check", shape, *hole, *CHECK_SMALL, "--out", str(target))
+        p = cli_run(capsys, "check", shape, *hole, *CHECK_SMALL, "--out", str(target))
         assert_one_line_error(p, needle)
     assert snapshot(tmp_path) == before
 

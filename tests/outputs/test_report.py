@@ -29,10 +29,24 @@ mesh = "{MESHES}/small_sphere.stl"
 
 
 @pytest.fixture(scope="module")
-def solved(tmp_path_factory):
+def timed(tmp_path_factory):
+    """A fresh solve of :data:`SCENE` (its start is recorded), saved with the plate, the figure
+    and the GIF: (the result, the report ``save`` returned, the wall time of both, s, and the
+    output folder). One solve for the timing test and the tests of ``solved`` (about 4 CPU s)."""
+    import time
+
     path = tmp_path_factory.mktemp("scene") / "scene.toml"
     path.write_text(SCENE)
-    return solve(load_scene(str(path)), progress=False)
+    out = tmp_path_factory.mktemp("timed") / "out"
+    t0 = time.perf_counter()
+    result = solve(load_scene(str(path)), progress=False)
+    report = result.save(str(out), figure=True, animation=True)
+    return result, report, time.perf_counter() - t0, out
+
+
+@pytest.fixture(scope="module")
+def solved(timed):
+    return timed[0]
 
 
 @pytest.fixture(scope="module")
@@ -200,17 +214,10 @@ def test_layered_exr_has_every_layer_on_one_lattice(solved, written):
 
 
 @pytest.mark.slow
-def test_every_stage_is_timed_and_they_sum_to_the_wall_time(tmp_path):
-    # A fresh solve (its start is recorded), saved with the plate, the figure and the GIF: the
-    # stages in report.json add up to its total within 5 %, and the console's line says so.
-    import time
-
-    scene_path = tmp_path / "scene.toml"
-    scene_path.write_text(SCENE)
-    t0 = time.perf_counter()
-    result = solve(load_scene(str(scene_path)), progress=False)
-    report = result.save(str(tmp_path / "out"), figure=True, animation=True)
-    wall = time.perf_counter() - t0
+def test_every_stage_is_timed_and_they_sum_to_the_wall_time(timed):
+    # A fresh solve, saved with the plate, the figure and the GIF (``timed``): the stages in
+    # report.json add up to its total within 5 %, and the console's line says so.
+    _, report, wall, out = timed
     t = report["timings"]
     for key in ("load_s", "search_s", "verdict_s", "images_s", "fabrication_s", "figure_s",
                 "passage_s", "animation_s", "page_s", "total_s"):  # fmt: skip
@@ -219,7 +226,7 @@ def test_every_stage_is_timed_and_they_sum_to_the_wall_time(tmp_path):
     assert stages == pytest.approx(t["total_s"], rel=0.05)
     assert t["total_s"] <= wall + 0.01  # the total is measured inside this wall time
     assert t["total_s"] >= 0.9 * wall
-    with open(tmp_path / "out" / "report.json") as fh:
+    with open(out / "report.json") as fh:
         assert json.load(fh)["timings"] == t
     lines = summary_table(report).splitlines()
     line = next(x for x in lines if x.startswith("time: "))
