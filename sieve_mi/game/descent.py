@@ -300,6 +300,13 @@ class Batch:
         return [self.part(p) for p in parts]
 
 
+def _start_rows(batch, scale: float) -> list:
+    """The starting poses of ``batch`` as :func:`~sieve_mi.optim.pose_adam` holds them: 6 (K,)
+    float32 columns, :data:`~sieve_mi.optim.POSE_KEYS` order, translations in units of ``scale``."""
+    x0 = np.concatenate([np.asarray(batch.q0), np.asarray(batch.t0) / scale], axis=1)
+    return list(x0.astype(np.float32).T)
+
+
 def _rows(best) -> np.ndarray:
     """A descent's best poses (list of 6 mi.Float, :data:`~sieve_mi.optim.POSE_KEYS` order) as
     a (K, 6) float64 array."""
@@ -346,6 +353,7 @@ class Descent:
         import drjit as dr
         import mitsuba as mi
 
+        from sieve_mi.backend import aligned
         from sieve_mi.geometry.hole import HoleStack
 
         self.loss = player.objective
@@ -353,7 +361,9 @@ class Descent:
         self.pose_hole, self.pose_shape = batch.pose_hole, batch.pose_shape
         self.scale = player.frame.half_extent
         self.opt = pose_adam(batch.q0, batch.t0 / self.scale, learning_rate)
-        self.best = [dr.detach(self.opt[key]) for key in POSE_KEYS]
+        # copies, not the optimiser's own variables: the first frozen step then has the layout
+        # of the later ones (no aliased inputs), and is recorded once, not traced
+        self.best = [mi.Float(aligned(x, np.float32)) for x in _start_rows(batch, self.scale)]
         self.best_loss = dr.opaque(mi.Float, np.inf, len(batch))
         self.settle = Settle.make(batch.group, self.loss)
         self.final = np.empty((len(batch), len(POSE_KEYS)))
@@ -475,7 +485,8 @@ class Descent:
         freeze : callable, optional
             ``freeze(descent)`` returns this descent's frozen steps
             (:func:`sieve_mi.game.frozen.replay`) or None (traced). Called again whenever the
-            batch shrinks. The first two steps, and the first after a shrink, are traced.
+            batch shrinks. Every step is frozen: the first step of a descent (and the first
+            after a shrink) records, or replays a recording of the same sizes.
 
         Raises
         ------
@@ -489,12 +500,11 @@ class Descent:
         goes on as a smaller batch, with its Adam state, so that settled poses cost nothing.
         """
         frozen = None if freeze is None else freeze(self)
-        first_frozen = 2  # steps 1, 2 differ in layout: traced
         self._steps = steps
         self._rung = max(1, round(self.halving * steps)) if self.halving > 0 else 0
         try:
             for step in range(steps):
-                if frozen is not None and step >= first_frozen:
+                if frozen is not None:
                     self.best, self.best_loss = frozen(self.best, self.best_loss)
                 else:
                     self.step()
@@ -511,7 +521,7 @@ class Descent:
                     if progress:
                         progress(steps)
                     break
-                frozen, first_frozen = (None if freeze is None else freeze(self)), step + 1
+                frozen = None if freeze is None else freeze(self)
         except Exception as exc:  # drjit.freeze is experimental: trace instead of failing
             if frozen is None or isinstance(exc, BufferOverflow):
                 raise
