@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from sieve_mi.backend import aligned
 from sieve_mi.errors import interruption
 from sieve_mi.geometry.rotations import normalize
 from sieve_mi.optim import POSE_KEYS, QUAT_KEYS, live_poses, pose_adam, renormalise_quaternions
@@ -168,7 +169,7 @@ class Settle:
         if group is None or fit_loss is None or len(group) == 0:
             return None
         _, dense = np.unique(np.asarray(group), return_inverse=True)
-        return cls(mi.UInt32(dense.astype(np.uint32)), int(dense.max()) + 1, fit_loss)
+        return cls(mi.UInt32(aligned(dense, np.uint32)), int(dense.max()) + 1, fit_loss)
 
     def live(self, best_loss):
         """(K,) mi.Bool: the poses whose group has not settled."""
@@ -353,7 +354,6 @@ class Descent:
         import drjit as dr
         import mitsuba as mi
 
-        from sieve_mi.backend import aligned
         from sieve_mi.geometry.hole import HoleStack
 
         self.loss = player.objective
@@ -381,7 +381,7 @@ class Descent:
         import mitsuba as mi
 
         self.loss.bind(self.pose_shape[self.where])
-        self.hole_idx = mi.UInt32(self.pose_hole[self.where].astype(np.uint32))
+        self.hole_idx = mi.UInt32(aligned(self.pose_hole[self.where], np.uint32))
 
     def evaluate(self, live=None):
         """:func:`pose_loss` at the optimiser's poses (``live``: mi.Bool, the poses not settled)."""
@@ -432,7 +432,7 @@ class Descent:
         alive = alive.copy()
         alive[idx[~keep]] = False
         masks = self.loss.fit_loss is not None  # objectives without one take no live mask
-        self.alive, self.alive_mask = alive, (mi.Bool(alive) if masks else None)
+        self.alive, self.alive_mask = alive, (mi.Bool(aligned(alive, bool)) if masks else None)
 
     def _stays(self, live: np.ndarray) -> bool:
         """Whether the batch goes on whole after a check that left ``live`` poses: more than half
@@ -449,13 +449,15 @@ class Descent:
         self.where = self.where[live]
         if not len(self.where):
             return False
-        keep = mi.UInt32(np.flatnonzero(live).astype(np.uint32))
+        keep = mi.UInt32(aligned(np.flatnonzero(live), np.uint32))
         self.best, self.best_loss, self.settle = _keep_poses(
             self.opt, keep, self.best, self.best_loss, self.settle
         )
         if self.alive is not None:
             self.alive = self.alive[live]
-            self.alive_mask = None if self.alive_mask is None else mi.Bool(self.alive)
+            self.alive_mask = (
+                None if self.alive_mask is None else mi.Bool(aligned(self.alive, bool))
+            )
         self._bind()
         return True
 
