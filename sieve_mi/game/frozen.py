@@ -34,8 +34,6 @@ __all__ = ["CPU_FREEZE_PAIRS", "frozen_step", "pays", "replay"]
 #: buffer passes cost more than tracing saves (benchmarks/notes/performance-history.md: a 70k-face bunny at 100 poses,
 #: 15M pairs, steps 15 % slower frozen; spot/cow's verdict, 2.7M pairs, is 1.1x faster frozen).
 CPU_FREEZE_PAIRS = 5_000_000
-#: Recordings a player's frozen step keeps (least recently used dropped).
-LIMIT = 8
 
 
 def _step(opt, best, best_loss, overflow, loss, holes, key, settle=None, alive=None):
@@ -89,7 +87,7 @@ def frozen_step():
 
     # Each descent records its first frozen step once (docs/method.md), so a long solve (many A,
     # restarts) passes Dr.Jit's default warning threshold without anything being wrong.
-    return dr.freeze(_step, limit=LIMIT, warn_after=100_000)
+    return dr.freeze(_step, limit=8, warn_after=100_000)
 
 
 def pays(loss) -> bool:
