@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from sieve_mi.backend import aligned
 from sieve_mi.errors import interruption
 from sieve_mi.geometry.rotations import normalize
 from sieve_mi.optim import POSE_KEYS, QUAT_KEYS, live_poses, pose_adam, renormalise_quaternions
@@ -168,7 +169,7 @@ class Settle:
         if group is None or fit_loss is None or len(group) == 0:
             return None
         _, dense = np.unique(np.asarray(group), return_inverse=True)
-        return cls(mi.UInt32(dense.astype(np.uint32)), int(dense.max()) + 1, fit_loss)
+        return cls(mi.UInt32(aligned(dense, np.uint32)), int(dense.max()) + 1, fit_loss)
 
     def live(self, best_loss):
         """(K,) mi.Bool: the poses whose group has not settled."""
@@ -300,6 +301,13 @@ class Batch:
         return [self.part(p) for p in parts]
 
 
+def _start_rows(batch, scale: float) -> list:
+    """The starting poses of ``batch`` as :func:`~sieve_mi.optim.pose_adam` holds them: 6 (K,)
+    float32 columns, :data:`~sieve_mi.optim.POSE_KEYS` order, translations in units of ``scale``."""
+    x0 = np.concatenate([np.asarray(batch.q0), np.asarray(batch.t0) / scale], axis=1)
+    return list(x0.astype(np.float32).T)
+
+
 def _rows(best) -> np.ndarray:
     """A descent's best poses (list of 6 mi.Float, :data:`~sieve_mi.optim.POSE_KEYS` order) as
     a (K, 6) float64 array."""
@@ -353,7 +361,9 @@ class Descent:
         self.pose_hole, self.pose_shape = batch.pose_hole, batch.pose_shape
         self.scale = player.frame.half_extent
         self.opt = pose_adam(batch.q0, batch.t0 / self.scale, learning_rate)
-        self.best = [dr.detach(self.opt[key]) for key in POSE_KEYS]
+        # copies, not the optimiser's own variables: the first frozen step then has the layout
+        # of the later ones (no aliased inputs), and is recorded once, not traced
+        self.best = [mi.Float(aligned(x, np.float32)) for x in _start_rows(batch, self.scale)]
         self.best_loss = dr.opaque(mi.Float, np.inf, len(batch))
         self.settle = Settle.make(batch.group, self.loss)
         self.final = np.empty((len(batch), len(POSE_KEYS)))
@@ -371,7 +381,7 @@ class Descent:
         import mitsuba as mi
 
         self.loss.bind(self.pose_shape[self.where])
-        self.hole_idx = mi.UInt32(self.pose_hole[self.where].astype(np.uint32))
+        self.hole_idx = mi.UInt32(aligned(self.pose_hole[self.where], np.uint32))
 
     def evaluate(self, live=None):
         """:func:`pose_loss` at the optimiser's poses (``live``: mi.Bool, the poses not settled)."""
@@ -422,7 +432,7 @@ class Descent:
         alive = alive.copy()
         alive[idx[~keep]] = False
         masks = self.loss.fit_loss is not None  # objectives without one take no live mask
-        self.alive, self.alive_mask = alive, (mi.Bool(alive) if masks else None)
+        self.alive, self.alive_mask = alive, (mi.Bool(aligned(alive, bool)) if masks else None)
 
     def _stays(self, live: np.ndarray) -> bool:
         """Whether the batch goes on whole after a check that left ``live`` poses: more than half
@@ -439,13 +449,15 @@ class Descent:
         self.where = self.where[live]
         if not len(self.where):
             return False
-        keep = mi.UInt32(np.flatnonzero(live).astype(np.uint32))
+        keep = mi.UInt32(aligned(np.flatnonzero(live), np.uint32))
         self.best, self.best_loss, self.settle = _keep_poses(
             self.opt, keep, self.best, self.best_loss, self.settle
         )
         if self.alive is not None:
             self.alive = self.alive[live]
-            self.alive_mask = None if self.alive_mask is None else mi.Bool(self.alive)
+            self.alive_mask = (
+                None if self.alive_mask is None else mi.Bool(aligned(self.alive, bool))
+            )
         self._bind()
         return True
 
@@ -475,7 +487,8 @@ class Descent:
         freeze : callable, optional
             ``freeze(descent)`` returns this descent's frozen steps
             (:func:`sieve_mi.game.frozen.replay`) or None (traced). Called again whenever the
-            batch shrinks. The first two steps, and the first after a shrink, are traced.
+            batch shrinks. Every step is frozen: the first step of a descent (and the first
+            after a shrink) records, or replays a recording of the same sizes.
 
         Raises
         ------
@@ -489,12 +502,11 @@ class Descent:
         goes on as a smaller batch, with its Adam state, so that settled poses cost nothing.
         """
         frozen = None if freeze is None else freeze(self)
-        first_frozen = 2  # steps 1, 2 differ in layout: traced
         self._steps = steps
         self._rung = max(1, round(self.halving * steps)) if self.halving > 0 else 0
         try:
             for step in range(steps):
-                if frozen is not None and step >= first_frozen:
+                if frozen is not None:
                     self.best, self.best_loss = frozen(self.best, self.best_loss)
                 else:
                     self.step()
@@ -511,7 +523,7 @@ class Descent:
                     if progress:
                         progress(steps)
                     break
-                frozen, first_frozen = (None if freeze is None else freeze(self)), step + 1
+                frozen = None if freeze is None else freeze(self)
         except Exception as exc:  # drjit.freeze is experimental: trace instead of failing
             if frozen is None or isinstance(exc, BufferOverflow):
                 raise

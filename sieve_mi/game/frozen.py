@@ -10,9 +10,11 @@ objective must offer ``loss_fixed(q, t, holes, pose_hole, capacity)`` (a fixed-s
 ``freezable = True``; its Dr.Jit arrays must be listed in ``DRJIT_STRUCT`` (frozen functions see
 only what they can traverse).
 
-The first two steps of a descent are traced: their inputs are laid out differently (the best
-poses are Adam's parameters themselves, then Adam's state is new), and would be recorded anew
-in every descent. A recording is reused by every call with the same Python values (frame scale, buffer capacity,
+Every step of a descent is frozen, the first too: its inputs have the layout of the later
+ones, since :class:`~sieve_mi.game.descent.Descent` keeps the best poses in arrays of their own
+(not the optimiser's, which an input may not alias) and :func:`replay` makes Adam's state
+opaque (until 2026-12-07 the first two steps were traced: 2 x 21 ms a descent on the CPU).
+A recording is reused by every call with the same Python values (frame scale, buffer capacity,
 pose count): every Adam step of an attack, and the attacks of later PSO iterations of the same
 size. The results are the same as unfrozen (a test holds them together); when the buffer
 overflows, :meth:`~sieve_mi.game.player_b.PlayerB.descend` runs the descent again unfrozen.

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from sieve_mi.backend import aligned
 from sieve_mi.geometry.raster import Frame, crop_window
 
 __all__ = [
@@ -170,7 +171,7 @@ class HoleStack:
         self.frame = frame
         self.count = len(holes)
         stack = np.stack([h.outside for h in holes]) / frame.pixel_size
-        self.texture = mi.Float(stack.astype(np.float32).ravel())
+        self.texture = mi.Float(aligned(stack.ravel(), np.float32))
         self.corners = self._corner_table() if corners else None
 
     def _corner_table(self):

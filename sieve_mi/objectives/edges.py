@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sieve_mi.backend import aligned
 from sieve_mi.geometry.meshes import Shape, segments
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.geometry.rotations import quat_rows
@@ -236,8 +237,8 @@ class EdgeSampledObjective(Objective):
         # Each pose's first pair and one past its last (pairs are pose-major).
         ends = np.cumsum(n)
         self._pose_ends = (
-            mi.UInt32((ends - n).astype(np.uint32)),
-            mi.UInt32(ends.astype(np.uint32)),
+            mi.UInt32(aligned(ends - n, np.uint32)),
+            mi.UInt32(aligned(ends, np.uint32)),
         )
         self.pose_count = len(pose_shape)
         self._bind_edges(pose_shape, ends - n)
@@ -254,8 +255,8 @@ class EdgeSampledObjective(Objective):
         # Each pose's first (pose, edge) pair and one past its last (pose-major, as for segments).
         ends = np.cumsum(n)
         self._edge_pose_ends = (
-            mi.UInt32((ends - n).astype(np.uint32)),
-            mi.UInt32(ends.astype(np.uint32)),
+            mi.UInt32(aligned(ends - n, np.uint32)),
+            mi.UInt32(aligned(ends, np.uint32)),
         )
         self._edge_pairs = (pair_pose, pair_edge, first, pieces)
         dr.eval(self._edge_pairs)
