@@ -11,6 +11,11 @@ blocked) and that bound against the verdict's attack on the exact polygon, as
 (:func:`sieve_mi.game.frames.separate_layout`) moves the holes apart as they grow, which only
 adds material between them. The bisection is a search: a tolerance is *proved* only where
 certify proves every B on the hole it makes.
+
+Separate holes need not share one tolerance (:mod:`sieve_mi.game.holes`): a B passes the sieve
+when it passes one of them, so each hole's widest tolerance is that hole's alone, against B's
+least overhang *on that hole* (:func:`hole_margin`). :func:`widest_tolerances` bisects each
+A's on its own hole, every other hole left out.
 """
 
 from __future__ import annotations
@@ -20,11 +25,15 @@ import sys
 
 import numpy as np
 
+from sieve_mi.game.exact import ExactAttempt, ExactScore
+from sieve_mi.game.holes import hole_tolerances
+from sieve_mi.game.overhang import least_overhang
 from sieve_mi.game.verdict import judge
 from sieve_mi.game.window import passage_found
 from sieve_mi.scene import Scene
 
-__all__ = ["STEPS", "at_tolerance", "widest_tolerance"]
+__all__ = ["STEPS", "at_tolerance", "hole_margin", "one_hole", "widest_tolerance",
+           "widest_tolerances"]  # fmt: skip
 
 #: Bisection steps: the bracket shrinks to the B margin / 2^STEPS.
 STEPS = 6
@@ -85,10 +94,95 @@ def widest_tolerance(scene: Scene, passes: list, blocks: list, quats, trans, mar
                   np.random.default_rng([seed, k]))  # fmt: skip
         ok = bool(np.all(v.attack.blocked()[0]))
         if ok and scene.verdict.certify:  # certify's cell search finds passages the attack missed
-            ok = not passage_found(play, passes, blocks, np.asarray(quats), v.trans)
+            ok = not passage_found(play, passes, blocks, np.asarray(quats), v.trans, v.outline)
         tries.append({"tolerance": t, "blocked": ok})
         if progress:
             word = "every B blocked" if ok else "a B passes"
             print(f"tolerance: {t:g}: {word}", file=sys.stderr, flush=True)
         lo, hi = (t, hi) if ok else (lo, t)
     return lo, tries
+
+
+def one_hole(scene: Scene, i: int) -> Scene:
+    """A copy of ``scene`` with A number ``i`` alone (its own hole, no mirrored one) at its own
+    tolerance as ``[fabrication] tolerance``."""
+    out = at_tolerance(scene, float(hole_tolerances(scene)[i]))
+    entry = copy.copy(scene.passes[i])
+    entry.tolerance = None
+    lay = copy.copy(scene.layout)
+    lay.mirrored = False
+    object.__setattr__(out, "passes", [entry])
+    object.__setattr__(out, "layout", lay)
+    return out
+
+
+def hole_margin(scene: Scene, shape, blocks: list, quat, seed: int) -> float:
+    """B's least overhang found on one A's hole: 0 when the verdict lets a B through.
+
+    Parameters
+    ----------
+    scene : Scene
+        One A (:func:`one_hole`).
+    shape : Shape
+        That A.
+    blocks : list of Shape
+    quat : (4,) ndarray
+        A's rotation (w, x, y, z).
+    seed : int
+
+    Returns
+    -------
+    float
+        The least over B of the least overhang found (:func:`~sieve_mi.game.overhang.least_overhang`
+        from the verdict's pose), scene units.
+    """
+    q = np.asarray(quat, dtype=np.float64)[None]
+    v = judge(scene, [shape], blocks, q, np.zeros((1, 2)), np.random.default_rng([seed, 99]))
+    a = v.attack
+    if not np.all(a.blocked()[0]):
+        return 0.0
+    least = np.inf
+    for j, b in enumerate(blocks):
+        sc = ExactScore(float(a.beta[0, j]), float(a.protrusion[0, j]), np.nan)
+        start = ExactAttempt(a.quats[0, j].copy(), a.trans[0, j].copy(), sc)
+        least = min(least, least_overhang(b, v.outline, start).score.protrusion)
+    return float(least)
+
+
+def widest_tolerances(scene: Scene, passes: list, blocks: list, quats, seed: int,
+                      progress: bool = False) -> tuple[list, list]:  # fmt: skip
+    """Each separate hole's widest tolerance: :func:`widest_tolerance` of each A alone on its
+    own hole (:func:`one_hole`), from its own tolerance, against B's least overhang on that hole
+    (:func:`hole_margin`).
+
+    Parameters
+    ----------
+    scene : Scene
+        ``[layout] mode = "separate"``.
+    passes, blocks : list of Shape
+    quats : (m, 4) ndarray
+        Each A's rotation, held fixed.
+    seed : int
+    progress : bool
+        One line per hole and try on stderr.
+
+    Returns
+    -------
+    tolerances : list of float
+        Per A, scene units (its own tolerance where no wider one keeps every B blocked).
+    tries : list of dict
+        Per A: ``name``, ``margin`` (B's least overhang found on its hole at its own tolerance)
+        and ``bisection`` (:func:`widest_tolerance`'s tries).
+    """
+    out, tries = [], []
+    for i, a in enumerate(passes):
+        one = one_hole(scene, i)
+        margin = hole_margin(one, a, blocks, quats[i], seed)
+        if progress:
+            print(f"tolerance: {a.name}'s hole: B overhangs by {margin:.4g} at tolerance "
+                  f"{one.fabrication.tolerance:g}", file=sys.stderr, flush=True)  # fmt: skip
+        t, got = widest_tolerance(one, [a], blocks, np.asarray(quats[i])[None], np.zeros((1, 2)),
+                                  margin, seed, progress)  # fmt: skip
+        out.append(t)
+        tries.append({"name": a.name, "margin": margin, "bisection": got})
+    return out, tries
