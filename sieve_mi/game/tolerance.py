@@ -15,13 +15,17 @@ certify proves every B on the hole it makes.
 Separate holes need not share one tolerance (:mod:`sieve_mi.game.holes`): a B passes the sieve
 when it passes one of them, so each hole's widest tolerance is that hole's alone, against B's
 least overhang *on that hole* (:func:`hole_margin`). :func:`widest_tolerances` bisects each
-A's on its own hole, every other hole left out.
+A's on its own hole, every other hole left out, then judges the whole plate at those
+tolerances: a bisection's "blocked" is one attack's, and on the letters the S's widest try
+(3.2122 mm) let R, P and H through on the five-hole plate's verdict (other starts); a hole
+whose B the plate's verdict finds passing steps back to its next narrower blocked try.
 """
 
 from __future__ import annotations
 
 import copy
 import sys
+from dataclasses import replace
 
 import numpy as np
 
@@ -33,7 +37,7 @@ from sieve_mi.game.window import passage_found
 from sieve_mi.scene import Scene
 
 __all__ = ["STEPS", "at_tolerance", "hole_margin", "one_hole", "widest_tolerance",
-           "widest_tolerances"]  # fmt: skip
+           "widest_tolerances", "with_tolerances"]  # fmt: skip
 
 #: Bisection steps: the bracket shrinks to the B margin / 2^STEPS.
 STEPS = 6
@@ -171,8 +175,10 @@ def widest_tolerances(scene: Scene, passes: list, blocks: list, quats, seed: int
     tolerances : list of float
         Per A, scene units (its own tolerance where no wider one keeps every B blocked).
     tries : list of dict
-        Per A: ``name``, ``margin`` (B's least overhang found on its hole at its own tolerance)
-        and ``bisection`` (:func:`widest_tolerance`'s tries).
+        Per A: ``name``, ``margin`` (B's least overhang found on its hole at its own tolerance),
+        ``bisection`` (:func:`widest_tolerance`'s tries) and ``on_plate`` (the tolerance kept
+        once the whole plate's verdict blocks every B: a hole it finds a B passing steps back
+        to its next narrower blocked try).
     """
     out, tries = [], []
     for i, a in enumerate(passes):
@@ -185,4 +191,40 @@ def widest_tolerances(scene: Scene, passes: list, blocks: list, quats, seed: int
                                   margin, seed, progress)  # fmt: skip
         out.append(t)
         tries.append({"name": a.name, "margin": margin, "bisection": got})
-    return out, tries
+    return _on_the_plate(scene, passes, blocks, quats, out, tries, seed, progress), tries
+
+
+def with_tolerances(scene: Scene, tolerances) -> Scene:
+    """A copy of ``scene`` whose A have the given ``[[pass]] tolerance`` each (scene units)."""
+    out = copy.copy(scene)
+    passes = [replace(e, tolerance=float(t)) for e, t in zip(scene.passes, tolerances)]
+    object.__setattr__(out, "passes", passes)
+    return out
+
+
+def _on_the_plate(scene, passes, blocks, quats, widest, tries, seed, progress) -> list:
+    """Each hole's widest tolerance, checked on the whole plate (mirrored holes too): each hole's
+    bisection is a search, and the plate's verdict (other random starts) may find a B passing
+    a hole its own bisection held. While it does, that hole steps back to its next narrower
+    blocked try (its own tolerance at last). Returns the tolerances (each ``tries`` entry gets
+    ``on_plate``: the tolerance kept)."""
+    own = hole_tolerances(scene)
+    out = list(widest)
+    for k in range(len(passes) * (STEPS + 1)):
+        v = judge(with_tolerances(scene, out), passes, blocks, np.asarray(quats),
+                  np.zeros((len(passes), 2)), np.random.default_rng([seed, 1000 + k]))  # fmt: skip
+        through = np.flatnonzero(~v.attack.blocked()[0])
+        if not len(through):
+            break
+        owner = list(range(len(passes))) + [m["of"] for m in v.mirrored]
+        places = np.vstack([v.trans, *[[m["translation"]] for m in v.mirrored]])
+        for j in through:  # the hole nearest the B's place
+            i = owner[int(np.argmin(np.linalg.norm(places - v.attack.trans[0, j], axis=1)))]
+            held = [t["tolerance"] for t in tries[i]["bisection"] if t["blocked"]]
+            out[i] = max([t for t in held if t < out[i]], default=float(own[i]))
+            if progress:
+                print(f"tolerance: on the plate, {blocks[j].name} passes {passes[i].name}'s hole: "
+                      f"back to {out[i]:g}", file=sys.stderr, flush=True)  # fmt: skip
+    for t, row in zip(out, tries):
+        row["on_plate"] = t
+    return out
