@@ -149,9 +149,11 @@ def separate_holes(scene, passes: list, quats: np.ndarray, resolution: int) -> S
     fab, quats = scene.fabrication, np.asarray(quats, dtype=np.float64)
     tols = hole_tolerances(scene)
     reach = tols * (1 + GROWTH) if fab.window else tols  # a window's chord bound
-    origin = np.zeros(2)
-    mirror = [bool(scene.layout.mirrored)
-              and is_chiral(_own_hole(p, q, origin, t, fab)) for p, q, t in zip(passes, quats, tols)]  # fmt: skip
+    origin, zipped = np.zeros(2), list(zip(passes, quats, tols))
+    centred = (
+        [_own_hole(p, q, origin, t, fab) for p, q, t in zipped] if scene.layout.mirrored else []
+    )
+    mirror = [is_chiral(o) for o in centred] or [False] * len(passes)
     owner = [i for i in range(len(passes)) for _ in range(1 + mirror[i])]  # each hole's A
     radii = [passes[i].radius for i in owner]
     places, frame = separate_layout(radii, reach[owner], fab.border, resolution)
@@ -163,8 +165,7 @@ def separate_holes(scene, passes: list, quats: np.ndarray, resolution: int) -> S
             outlines.append(_own_hole(passes[i], quats[i], trans[i], tols[i], fab))
             groups.append([i])
             continue
-        own = _own_hole(passes[i], quats[i], origin, tols[i], fab)
-        outlines.append(own.mirror([1.0, 0.0]).translate(places[k].tolist()))
+        outlines.append(centred[i].mirror([1.0, 0.0]).translate(places[k].tolist()))
         groups.append([len(passes) + len(mirrored)])
         mirrored.append({"of": i, "name": passes[i].name,
                          "translation": [float(x) for x in places[k]]})  # fmt: skip

@@ -218,8 +218,9 @@ def _on_the_plate(scene, passes, blocks, quats, widest, tries, seed, progress) -
             break
         owner = list(range(len(passes))) + [m["of"] for m in v.mirrored]
         places = np.vstack([v.trans, *[[m["translation"]] for m in v.mirrored]])
-        near = {owner[int(np.argmin(np.linalg.norm(places - v.attack.trans[0, j], axis=1)))]: j
-                for j in through}  # the hole nearest each B's place: one step back each  # fmt: skip
+        near = {}  # the hole nearest each B's place: one step back each
+        for j in through:
+            near[owner[int(np.argmin(np.linalg.norm(places - v.attack.trans[0, j], axis=1)))]] = j
         for i, j in near.items():
             held = [t["tolerance"] for t in tries[i]["bisection"] if t["blocked"]]
             out[i] = max([t for t in held if t < out[i]], default=float(own[i]))

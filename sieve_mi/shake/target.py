@@ -303,8 +303,6 @@ def _widest_tolerance(scene, result, first: dict, flags: dict) -> tuple[float | 
                       scene.fabrication.tolerance)  # fmt: skip
     seed = flags["seed"] if flags["seed"] is not None else scene.solver.seed
     if scene.layout.mode == "separate" and len(result.pass_shapes) > 1:
-        object.__setattr__(play, "passes", [replace(e, tolerance=o.tolerance)
-                                            for e, o in zip(play.passes, scene.passes)])  # fmt: skip
         return widest_tolerances(play, result.pass_shapes, result.block_shapes,
                                  result.pass_quats, seed or 0, not flags["quiet"])  # fmt: skip
     return widest_tolerance(play, result.pass_shapes, result.block_shapes, result.pass_quats,
