@@ -25,10 +25,13 @@ from sieve_mi.parsing import parse_toml
 from sieve_mi.settings import (
     ANGLES,
     LENGTH_MAX,
+    NAME_MAX,
     SEED_MAX,
     SIZE,
     Reader,
     UnknownSettingError,
+    check_folder_name,
+    check_name,
     checked,
     documented,
     key_of,
@@ -45,6 +48,7 @@ __all__ = [
     "LAYOUT_MODES",
     "NAME_MAX",
     "OUTERS",
+    "PASS_ONLY",
     "SCENE_FILE_MAX",
     "UNITS",
     "Fabrication",
@@ -71,6 +75,13 @@ OUTERS = ("pso", *NLOPT_METHODS)
 LAYOUT_MODES = ("merged", "separate")
 #: Bounds of a time budget in seconds (more than 0, at most a day).
 _SECONDS = {"minimum": 0, "exclusive_min": True, "maximum": 86_400}
+
+
+#: The bounds of a length that may be 0 (a tolerance).
+_LENGTH0 = {"unit": "scene units", "minimum": 0, "maximum": LENGTH_MAX}
+#: Keys only a ``[[pass]]`` table may have, and why a ``[[block]]`` has none.
+PASS_ONLY = {"rotation": "shapes to block are tried in every orientation",
+             "tolerance": "a shape to block has no hole of its own"}  # fmt: skip
 
 
 @checked("shape")
@@ -100,6 +111,9 @@ class ShapeEntry:
         default_doc="none",
     )
     name: str | None = setting(None, "label in reports and file names", default_doc="file stem")
+    tolerance: float | None = setting(None, "[[pass]] only: this A's own hole is its silhouette "
+                                      'dilated by this much ([layout] mode = "separate")',
+                                      default_doc="[fabrication] tolerance", **_LENGTH0)  # fmt: skip
     data: object = field(default=None, repr=False, compare=False)
 
 
@@ -311,6 +325,8 @@ class Layout:
     alternatives: int = setting(
         2, "next-best rotations of a shape tried after that", minimum=0, maximum=100
     )
+    mirrored: bool = setting(False, 'mode = "separate": each A that is not its own mirror image '
+                             "also gets its mirrored hole (a flat part lying face up)")  # fmt: skip
     restarts: int = setting(
         1,
         "when the merged hole still lets some B through, search every A again from another seed",
@@ -361,7 +377,7 @@ class Scene:
         passes, blocks : list
             One or more each: a ``trimesh.Trimesh``, a mesh file's path, or a dict with ``"mesh"``
             (either) and optional ``"name"``, ``"scale"`` and (``passes`` only) ``"rotation"``
-            (w, x, y, z).
+            (w, x, y, z) and ``"tolerance"`` (scene units).
         name : str
             The scene's name (output folder ``out/<name>``).
         directory : str, optional
@@ -441,15 +457,15 @@ def _entry(item, where: str, role: str) -> ShapeEntry:
 
     at = f"Scene.from_meshes: {where}"
     spec = dict(item) if isinstance(item, dict) else {"mesh": item}
-    unknown = set(spec) - {"mesh", "name", "scale", "rotation"}
-    if unknown or "mesh" not in spec:
-        raise SieveError(f"{at}: expected 'mesh' and optional 'name', 'scale', 'rotation', got "
-                         f"{sorted(map(str, spec))}")  # fmt: skip
+    keys = ("name", "scale", "rotation", "tolerance")
+    if set(spec) - {"mesh", *keys} or "mesh" not in spec:
+        raise SieveError(f"{at}: expected 'mesh' and optional 'name', 'scale', 'rotation', "
+                         f"'tolerance', got {sorted(map(str, spec))}")  # fmt: skip
     mesh = spec["mesh"]
-    if role == "block" and spec.get("rotation") is not None:
-        raise SieveError(f"{at}.rotation: shapes to block are tried in every orientation")
-    values = {k: read_value(ShapeEntry, k, spec[k], at) for k in ("name", "scale", "rotation")
-              if spec.get(k) is not None}  # fmt: skip
+    for key, why in PASS_ONLY.items() if role == "block" else ():
+        if spec.get(key) is not None:
+            raise SieveError(f"{at}.{key}: {why}")
+    values = {k: read_value(ShapeEntry, k, spec[k], at) for k in keys if spec.get(k) is not None}
     if "name" in values:
         check_name(at, "name", values["name"])
     if isinstance(mesh, str | os.PathLike):
@@ -488,30 +504,6 @@ def _read_shapes(path: str, data: dict, key: str) -> list[ShapeEntry]:
 
 #: Largest scene file read, bytes (a scene is a few hundred bytes; meshes are separate files).
 SCENE_FILE_MAX = 10 << 20
-#: Longest name a scene or shape may have (names go into file and folder names, 255 bytes at most).
-NAME_MAX = 100
-
-
-def check_name(path: str, where: str, name: str) -> None:
-    """Raise unless ``name`` is a usable label: at most :data:`NAME_MAX` characters, no control
-    characters (newlines, tabs, NUL), not blank and not padded with spaces."""
-    if len(name) > NAME_MAX:
-        raise SieveError(f"{path}: {where}: {len(name)} characters; use at most {NAME_MAX}")
-    if any(ord(c) < 32 or ord(c) == 127 for c in name) or name != name.strip() or not name:
-        raise SieveError(
-            f"{path}: {where}: {name[:40]!r} has control characters or blank space at its ends; "
-            "use letters, digits, '-' and '_'"
-        )
-
-
-def check_folder_name(path: str, name: str, key: str = "name") -> None:
-    """Raise unless ``name`` (given as ``key``) can be one folder's name: a usable label
-    (:func:`check_name`) with no separators, NUL, '.' or '..'."""
-    check_name(path, key, name)
-    if any(c in name for c in "/\\\0") or name in (".", ".."):
-        raise SieveError(
-            f"{path}: {key}: {name!r} is used as a folder name; use letters, digits, '-' and '_'"
-        )
 
 
 def read_file(path: str) -> dict:
@@ -559,10 +551,9 @@ def load_scene(path: str) -> Scene:
     check_folder_name(path, values["name"])
     passes, blocks = _read_shapes(path, data, "pass"), _read_shapes(path, data, "block")
     for i, b in enumerate(blocks):
-        if b.rotation is not None:
-            raise SieveError(
-                f"{path}: block[{i}].rotation: shapes to block are tried in every orientation; remove 'rotation'"
-            )
+        for key, why in PASS_ONLY.items():
+            if getattr(b, key) is not None:
+                raise SieveError(f"{path}: block[{i}].{key}: {why}; remove '{key}'")
     values.update(read_tables(path, data))
     return Scene(path=path, passes=passes, blocks=blocks, **values)
 

@@ -37,6 +37,9 @@ import numpy as np
 from sieve_mi.errors import SieveError
 
 __all__ = [
+    "NAME_MAX",
+    "check_folder_name",
+    "check_name",
     "ANGLES",
     "ANGLES_MAX",
     "LENGTH_MAX",
@@ -551,3 +554,29 @@ def read_value(
     """
     key = key or key_of(field_of(cls, name))
     return Reader(where, {key: value}, "", spelling).value(cls, name, key)
+
+
+#: Longest name a scene or shape may have (names go into file and folder names, 255 bytes at most).
+NAME_MAX = 100
+
+
+def check_name(path: str, where: str, name: str) -> None:
+    """Raise unless ``name`` is a usable label: at most :data:`NAME_MAX` characters, no control
+    characters (newlines, tabs, NUL), not blank and not padded with spaces."""
+    if len(name) > NAME_MAX:
+        raise SieveError(f"{path}: {where}: {len(name)} characters; use at most {NAME_MAX}")
+    if any(ord(c) < 32 or ord(c) == 127 for c in name) or name != name.strip() or not name:
+        raise SieveError(
+            f"{path}: {where}: {name[:40]!r} has control characters or blank space at its ends; "
+            "use letters, digits, '-' and '_'"
+        )
+
+
+def check_folder_name(path: str, name: str, key: str = "name") -> None:
+    """Raise unless ``name`` (given as ``key``) can be one folder's name: a usable label
+    (:func:`check_name`) with no separators, NUL, '.' or '..'."""
+    check_name(path, key, name)
+    if any(c in name for c in "/\\\0") or name in (".", ".."):
+        raise SieveError(
+            f"{path}: {key}: {name!r} is used as a folder name; use letters, digits, '-' and '_'"
+        )

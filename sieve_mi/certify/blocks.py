@@ -118,7 +118,8 @@ def on_sheet(certified: list, thickness: float) -> list:
     return [None if c is None else c.on_plate(thickness) for c in certified]
 
 
-def printed_hole(scene: Scene, pass_shapes: list[Shape], quats: np.ndarray, trans: np.ndarray):
+def printed_hole(scene: Scene, pass_shapes: list[Shape], quats: np.ndarray, trans: np.ndarray,
+                 outline=None):  # fmt: skip
     """The hole a block's proof is against: the exact outline the plate is cut from, grown by the
     block margin.
 
@@ -136,6 +137,10 @@ def printed_hole(scene: Scene, pass_shapes: list[Shape], quats: np.ndarray, tran
         A's rotations.
     trans : (m, 2) ndarray
         A's translations, scene units.
+    outline : manifold3d.CrossSection, optional
+        The verdict's exact hole (:attr:`sieve_mi.game.verdict.Judgement.outline`), used as it
+        is where given: separate holes, each at its own tolerance and with the mirrored holes
+        (:mod:`sieve_mi.game.holes`), are the verdict's to lay out.
 
     Returns
     -------
@@ -143,8 +148,10 @@ def printed_hole(scene: Scene, pass_shapes: list[Shape], quats: np.ndarray, tran
     """
     fab = scene.fabrication
     closed = [is_closed(s) for s in pass_shapes]
-    hole, _ = windowed_hole(pass_shapes, quats, trans, fab.tolerance, math.radians(fab.window),
-                            fab.fill_holes, closed)  # fmt: skip
+    hole = outline
+    if hole is None:
+        hole, _ = windowed_hole(pass_shapes, quats, trans, fab.tolerance,
+                                math.radians(fab.window), fab.fill_holes, closed)  # fmt: skip
     if fab.block_margin > 0:
         hole = dilated(hole, fab.block_margin)
     return hole

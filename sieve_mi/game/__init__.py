@@ -57,6 +57,8 @@ window
     The turning window: ``[fabrication] window``, given or bisected against the verdict.
 tolerance
     The widest tolerance of a solved hole: B's margin spent on ``[fabrication] tolerance``.
+holes
+    Separate holes, each its own: a tolerance per A, and a mirrored hole for a chiral A.
 rest
     A's likely resting poses as candidates, and the preference for one (``[solver] rest_poses``).
 """
@@ -71,6 +73,7 @@ __all__ = [
     "fit",
     "frames",
     "frozen",
+    "holes",
     "layout",
     "maximin",
     "placement",

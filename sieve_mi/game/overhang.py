@@ -9,7 +9,8 @@ H. This module brackets it:
 
 * :func:`least_overhang` searches for the pose that sticks out least: the verdict's pose and B's
   canonical views (:func:`sieve_mi.geometry.canonical.canonical_orientations`, each turned in the
-  plane to several angles and to the hole's principal axes) are ranked by the outside distance of
+  plane to several angles and to the hole's principal axes, centred on the hole, or on each of
+  its pieces where it has several: separate holes) are ranked by the outside distance of
   B's hull vertices; the best few whose hull alone does not already stick out further than the
   best pose so far slide to their minimax pose
   (:func:`sieve_mi.game.exact.polish_margin`), and each is scored on the exact polygon
@@ -216,7 +217,13 @@ def least_overhang(
         return start  # nothing to find: it fits, or no pose can do much better
     closed = is_closed(shape) if closed is None else closed
     boundary = Boundary(hole)
-    quats, trans = _starts(shape, boundary)
+    pieces = hole.decompose()  # separate holes: start over each one, not between them
+    got = (
+        [_starts(shape, Boundary(h)) for h in pieces]
+        if len(pieces) > 1
+        else [_starts(shape, boundary)]
+    )
+    quats, trans = np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got])
     ranked, estimate = _ranked(shape, quats, trans, hole)
     coarse = Boundary(hole, spacing=boundary.size / POLISH_SAMPLES)  # the polish's distances
     best, tried = start, [(start.quat, start.trans)]  # the verdict already polished its pose

@@ -226,6 +226,9 @@ class Result:
     #: Per A, its pass pose's nearest resting pose (:func:`sieve_mi.game.rest.nearest_rest`, with
     #: ``preferred``), None for a flat part; empty without ``[solver] rest_poses``.
     rest: list = field(default_factory=list)
+    #: Separate holes with ``[layout] mirrored``: each chiral A's mirrored hole (``of``, ``name``,
+    #: ``translation``; :class:`sieve_mi.game.holes.SeparateHoles`).
+    mirrored: list = field(default_factory=list)
     #: :meth:`overlay_sections`' polygons, made on first use (a 500k-face B's projection takes
     #: minutes; the images and the page both draw it).
     _sections: tuple | None = field(default=None, repr=False, compare=False)

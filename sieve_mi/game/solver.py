@@ -19,6 +19,7 @@ from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import AttackMemory
 from sieve_mi.game.feasible import feasibility, with_certificates
 from sieve_mi.game.frames import hole_frame, union_frame
+from sieve_mi.game.holes import hole_tolerances
 from sieve_mi.game.layout import alternative_rotations, merge
 from sieve_mi.game.overhang import block_overhangs
 from sieve_mi.game.placement import PlacementContext
@@ -29,6 +30,7 @@ from sieve_mi.game.result import Result, block_margins, is_blocked
 from sieve_mi.game.scoring import mask_window
 from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved
 from sieve_mi.game.sheet import plate_sheet
+from sieve_mi.game.tolerance import at_tolerance
 from sieve_mi.game.verdict import CONVERGED, judge
 from sieve_mi.game.window import at_window, widest_window, window_record
 from sieve_mi.geometry.meshes import Shape, load_shape, shape_from_trimesh
@@ -233,7 +235,7 @@ def _rotate_each(
     scene: Scene, passes, blocks, rng, seed: int, bar: Progress, tag: str = ""
 ) -> SearchOutcome:
     """Every A's rotation searched alone against all of B (fixed ones taken from the scene)."""
-    lay, m = scene.layout, len(passes)
+    lay, m, own = scene.layout, len(passes), hole_tolerances(scene)  # each A's own tolerance
     out = SearchOutcome(
         np.zeros((m, 4)), np.zeros((m, 2)), float("nan"), SwarmHistory(), [], [None] * m
     )
@@ -242,7 +244,7 @@ def _rotate_each(
             out.quats[i] = normalize(np.asarray(entry.rotation))
             continue
         out.quats[i], out.value, h, choice = _search_one(
-            passes[i], blocks, scene, rng, seed, bar, passes[i].name
+            passes[i], blocks, at_tolerance(scene, own[i]), rng, seed, bar, passes[i].name
         )
         if choice is not None:
             out.rest_choice[i] = choice
@@ -302,8 +304,7 @@ def solve(
     seed = scene.solver.seed if seed is None else seed
     rng = np.random.default_rng(seed)
     with run.stage("screen"):
-        sure = proved_by_size(scene, passes, blocks)
-        feasible = feasibility(scene, passes, blocks)
+        sure, feasible = _screen(scene, passes, blocks)
     _announce(feasible, progress)
     skip = set(sure) | set(feasible.impossible)  # decided before the game: not searched
     open_blocks = [b for j, b in enumerate(blocks) if j not in skip]
@@ -363,8 +364,17 @@ def _outcome(scene, passes, blocks, found, v, variant, run, seed, certified, she
         memory=run.memory,
         window=window,
         feasibility=feasible,
+        mirrored=v.mirrored,
         **more,
     )
+
+
+def _screen(scene: Scene, passes: list, blocks: list) -> tuple:
+    """The B proved blocked by size (:func:`~sieve_mi.game.screen.proved_by_size`) and the
+    feasibility test (:func:`~sieve_mi.game.feasible.feasibility`), both at the widest hole's
+    tolerance (``[[pass]] tolerance``: a B that the widest hole cannot hold is held by all)."""
+    wide = at_tolerance(scene, hole_tolerances(scene).max())
+    return proved_by_size(wide, passes, blocks), feasibility(wide, passes, blocks)
 
 
 def _searched(scene: Scene, passes: list, open_blocks: list) -> list:
@@ -542,7 +552,7 @@ def _certify(scene, passes, blocks, quats, v, progress: bool, proved=()) -> list
         bar.write(line + (f"; {left}" if left else ""))
 
     found = v.attack.protrusion[0]
-    hole = printed_hole(scene, passes, quats, v.trans)
+    hole = printed_hole(scene, passes, quats, v.trans, v.outline)
     sheet = from_settings(v.outline, scene.fabrication, scene.units)  # None: one hole
     certified = certify_blocks(scene, hole, blocks, todo, say, found=found, pattern=sheet)
     bar.close()

@@ -10,16 +10,18 @@ attacked on every hole and passes the sieve if it passes any one of them.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from sieve_mi.errors import SieveError
 from sieve_mi.game.attack import Attack, AttackMemory, Starts
 from sieve_mi.game.exact import CANDIDATES, exact_rescore
-from sieve_mi.game.frames import frame_for, separate_layout
+from sieve_mi.game.frames import frame_for
+from sieve_mi.game.holes import hole_tolerances, separate_holes
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.game.scoring import mask_window
@@ -52,6 +54,9 @@ class Judgement:
     block_masks : list of MaskWindow
         Each B's silhouette in that attempt.
     warnings : list of str
+    mirrored : list of dict
+        Separate holes with ``[layout] mirrored``: one per chiral A's mirrored hole
+        (:class:`~sieve_mi.game.holes.SeparateHoles`).
     """
 
     hole: Hole
@@ -61,6 +66,7 @@ class Judgement:
     attack: Attack
     block_masks: list
     warnings: list
+    mirrored: list = field(default_factory=list)
 
     @property
     def winner(self) -> str:
@@ -134,17 +140,38 @@ def start_centres(outlines: list, trans: np.ndarray, groups: list[list[int]]) ->
     return np.stack([np.resize(p, (c, 2)) for p in per_hole])
 
 
-def _holes(passes, quats, trans, frame, groups, fab):
-    """A's silhouettes, the exact holes, their union H, its raster and the warnings about it."""
+def _holes(passes, quats, trans, frame, groups, fab, outlines=None):
+    """A's silhouettes, the exact holes (``outlines`` where given), their union H, its raster
+    and the warnings about it."""
     players = [PlayerA.from_settings(p, frame, fab) for p in passes]
     a_masks = [p.silhouettes(q[None], t[None])[0] for p, q, t in zip(players, quats, trans)]
-    outlines = exact_holes(passes, np.asarray(quats), trans, groups, fab)
+    if outlines is None:
+        outlines = exact_holes(passes, np.asarray(quats), trans, groups, fab)
     outline = union(outlines)
     hole = Hole.from_outline(outline, frame)
     warnings = []
     if len(passes) > 1 and len(groups) == 1 and len(outline.decompose()) > 1:
         warnings.append("the merged hole is not connected")
     return a_masks, outlines, outline, hole, warnings
+
+
+def _placed(scene: Scene, passes: list, quats, trans):
+    """Where the holes lie: each A's place, the verdict's frame, the groups of A per hole, the
+    exact holes (separate holes, :func:`~sieve_mi.game.holes.separate_holes`; None: made from
+    the groups), where each hole's starts are centred, the mirrored holes and the
+    ``[fabrication]`` table the holes are made with (one A's own tolerance)."""
+    fab, res = scene.fabrication, scene.verdict.resolution
+    if scene.layout.mode == "separate" and (len(passes) > 1 or scene.layout.mirrored):
+        sep = separate_holes(scene, passes, quats, res)  # each A's own tolerance, its mirror
+        return sep.trans, sep.frame, sep.groups, sep.outlines, sep.places, sep.mirrored, fab
+    tolerance = float(hole_tolerances(scene).max())  # a single A's own, or the scene's
+    if tolerance != fab.tolerance:
+        fab = copy.copy(fab)
+        fab.tolerance = tolerance
+    reach = tolerance * (1 + GROWTH) if fab.window else tolerance  # a window's chord bound
+    trans = np.zeros((1, 2)) if len(passes) == 1 else np.asarray(trans, dtype=np.float64)
+    frame = frame_for(passes, reach, res, trans)
+    return trans, frame, _groups(len(passes), False), None, trans, [], fab
 
 
 def _no_attack(margin: bool) -> Attack:
@@ -193,21 +220,16 @@ def judge(
     -------
     Judgement
     """
-    fab, v = scene.fabrication, scene.verdict
-    separate = len(passes) > 1 and scene.layout.mode == "separate"
-    reach = fab.tolerance * (1 + GROWTH) if fab.window else fab.tolerance  # a window's chord bound
-    if separate:
-        radii = [p.radius for p in passes]
-        trans, frame = separate_layout(radii, reach, fab.border, v.resolution)
-    else:
-        trans = np.zeros((1, 2)) if len(passes) == 1 else np.asarray(trans, dtype=np.float64)
-        frame = frame_for(passes, reach, v.resolution, trans)
-    groups = _groups(len(passes), separate)
-    a_masks, outlines, outline, hole, warnings = _holes(passes, quats, trans, frame, groups, fab)
+    v = scene.verdict
+    trans, frame, groups, own, places, mirrored, fab = _placed(scene, passes, quats, trans)
+    separate = own is not None
+    a_masks, outlines, outline, hole, warnings = _holes(
+        passes, quats, trans, frame, groups, fab, own
+    )
     grown = [dilated(o, fab.block_margin) for o in outlines] if fab.block_margin > 0 else outlines
     if not blocks:  # every B was proved before the game (sieve_mi.game.screen)
         attack = _no_attack(fab.block_margin > 0)
-        return Judgement(hole, outline, trans, a_masks, attack, [], warnings)
+        return Judgement(hole, outline, trans, a_masks, attack, [], warnings, mirrored)
     player_b = PlayerB.from_settings(blocks, frame, scene.solver, objective="clearance")
     # without a margin, one merged hole's raster is the one already built
     same = fab.block_margin == 0 and not separate
@@ -215,7 +237,7 @@ def judge(
         [hole] if same else [Hole.from_outline(g, frame) for g in grown],
         Starts(
             v.starts,
-            centres=start_centres(grown, trans, groups),
+            centres=start_centres(grown, places, groups),
             memory=None if separate else memory,
         ),
         v.steps,
@@ -234,4 +256,4 @@ def judge(
         mask_window(r, hole, attack.quats[0, j], attack.trans[0, j])
         for j, r in enumerate(player_b.renderers)
     ]
-    return Judgement(hole, outline, trans, a_masks, attack, block_masks, warnings)
+    return Judgement(hole, outline, trans, a_masks, attack, block_masks, warnings, mirrored)

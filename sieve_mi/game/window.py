@@ -78,7 +78,9 @@ def widest_window(scene: Scene, passes: list, blocks: list, found, seed: int,
                   memory=found.memory)  # fmt: skip
         ok = bool(np.all(v.attack.blocked()[0]))
         if ok and scene.verdict.certify:  # certify's cell search finds passages the attack missed
-            ok = not passage_found(at_window(scene, d), passes, blocks, found.quats, v.trans)
+            ok = not passage_found(
+                at_window(scene, d), passes, blocks, found.quats, v.trans, v.outline
+            )
         tries.append({"degrees": d, "blocked": ok})
         if progress:
             word = "every B blocked" if ok else "a B passes"
@@ -112,12 +114,13 @@ def window_record(scene: Scene, passes: list, mode: str, tries: list | None = No
     return out
 
 
-def passage_found(scene: Scene, passes: list, blocks: list, quats, trans) -> bool:
+def passage_found(scene: Scene, passes: list, blocks: list, quats, trans, outline=None) -> bool:
     """Whether certify's search (:data:`CERTIFY_S` per B, at most the certify budget) finds a
-    passage of some B through the scene's printed hole."""
+    passage of some B through the scene's printed hole (the verdict's ``outline`` where given,
+    :func:`sieve_mi.certify.blocks.printed_hole`)."""
     from sieve_mi.certify import certify
     from sieve_mi.certify.blocks import printed_hole
 
-    hole = printed_hole(scene, passes, quats, trans)
+    hole = printed_hole(scene, passes, quats, trans, outline)
     budget = min(CERTIFY_S, scene.verdict.certify_budget)
     return any(certify(b, [hole], budget_s=budget).status == "passage" for b in blocks)

@@ -104,6 +104,11 @@ def report_dict(result: Result) -> dict:
         )
         if i < len(result.alone) and result.alone[i] is not None:
             passes[-1]["alone_loss"] = float(result.alone[i])
+        if entry.tolerance is not None:  # its own hole's ([[pass]] tolerance)
+            passes[-1]["tolerance"] = float(entry.tolerance)
+        for m in getattr(result, "mirrored", None) or []:  # its mirrored hole ([layout] mirrored)
+            if m["of"] == i:
+                passes[-1]["mirrored_translation"] = list(m["translation"])
         rest = getattr(result, "rest", None) or []
         if i < len(rest):  # the nearest resting pose (sieve_mi.game.rest)
             passes[-1]["rest"] = rest[i]

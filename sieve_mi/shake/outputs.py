@@ -411,6 +411,8 @@ def target_card(target: dict, units: str) -> str:
         if None not in t.get("plate_size", [None]):
             holes += " on {:.4g} x {:.4g}".format(*t["plate_size"])
         tol = "-" if t.get("tolerance") is None else f"{t['tolerance']:g}"
+        if None not in t.get("tolerances", [None]):  # each separate hole its own
+            tol = "/".join(f"{x:g}" for x in t["tolerances"])
         rows += (f"<tr><td>{k}{mark}</td><td>{escape(t['step'])}</td><td>{tol}</td>"
                  f"<td>±{t['window_deg']:g}°</td><td>{holes}</td><td>{rate}</td><td>{margin}</td>"
                  f"<td>{'yes' if t['b_proved'] else 'no'}</td></tr>")  # fmt: skip

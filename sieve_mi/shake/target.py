@@ -8,6 +8,9 @@ of :data:`PLAN`, each a whole solve with A's rotations fixed at the first solve'
    (:mod:`sieve_mi.game.tolerance`): the widest tolerance at which the verdict's attack and
    certify's search still block every B, bisected below the first solve's tolerance plus its
    least overhang found (skipped when that bracket is empty or no wider tolerance holds);
+   with separate holes (``[layout] mode = "separate"``), each hole's own tolerance
+   (``[[pass]] tolerance``, :func:`~sieve_mi.game.tolerance.widest_tolerances`): each A alone on
+   its hole, against B's least overhang on that hole;
 2. ``window``: the first solve's tolerance with ``[fabrication] window = "auto"``
    (:mod:`sieve_mi.game.window`): the widest turn ±δ at which every B is still blocked (the
    same margin spent on the turn instead);
@@ -116,7 +119,8 @@ def try_row(step: str, report: dict, shaken: dict) -> dict:
         (width and height of the plate or sheet, scene units; None where report.json has
         none), ``pass`` (per A:
         ``name``, ``passed``, ``trials``, ``fraction``, ``ci95``, ``median_time_s``), ``tolerance``
-        (``[fabrication] tolerance``, scene units), ``b_margin`` (the least overhang found over
+        (``[fabrication] tolerance``, scene units), ``tolerances`` (per A its own
+        ``[[pass]] tolerance``, None where it has none), ``b_margin`` (the least overhang found over
         B, :func:`_least_overhang`, scene units), ``b_margin_proved`` (the least
         ``margin.proved_at_least``; None where one is missing), ``b_proved`` (every B certified
         proved).
@@ -131,6 +135,7 @@ def try_row(step: str, report: dict, shaken: dict) -> dict:
         "step": step,
         "blocked": report["winner"] == "A",
         "tolerance": (report.get("settings") or {}).get("fabrication", {}).get("tolerance"),
+        "tolerances": [p.get("tolerance") for p in report["pass"]],
         "window_deg": window.get("degrees", 0.0),
         "holes": pattern.get("count", 1),
         "turns": pattern.get("turns", [0.0]),
@@ -161,7 +166,10 @@ def _scene_for(scene, step: str, quats, degrees: float, tolerance: float | None 
     copies mirrored)."""
     out, fab = copy.copy(scene), copy.copy(scene.fabrication)
     passes = [replace(e, rotation=[float(x) for x in q]) for e, q in zip(scene.passes, quats)]
-    if step == "tolerance":  # at the first solve's window
+    if step == "tolerance" and isinstance(tolerance, list):  # each separate hole its own
+        passes = [replace(e, tolerance=float(t)) for e, t in zip(passes, tolerance)]
+        fab.window = float(degrees)
+    elif step == "tolerance":  # at the first solve's window
         fab.tolerance, fab.window = float(tolerance), float(degrees)
     elif step == "window":
         fab.window = "auto"
@@ -192,7 +200,9 @@ def _tell(k: int, row: dict, target: float, to_stderr: bool) -> None:
     parts = [f"{a['name']} {a['passed']}/{a['trials']} ({100 * a['fraction']:.1f} %)"
              for a in row["pass"]]  # fmt: skip
     where = f"±{row['window_deg']:g}°, {row['holes']} hole{'s' * (row['holes'] != 1)}"
-    if row.get("tolerance") is not None:
+    if None not in row.get("tolerances", [None]):  # each hole its own
+        where = "tolerances " + "/".join(f"{t:g}" for t in row["tolerances"]) + ", " + where
+    elif row.get("tolerance") is not None:
         where = f"tolerance {row['tolerance']:g}, " + where
     if None not in row.get("plate_size", [None]):  # the tray a shaken part must search
         where += " on {:.4g} x {:.4g}".format(*row["plate_size"])
@@ -245,7 +255,7 @@ def reach_target(scene, result, out_dir: str, settings, flags: dict) -> dict:
         step = next_step(rows, target, skip)
         if step == "tolerance":
             widest, bisection = _widest_tolerance(scene, result, rows[0], flags)
-            if widest <= fab.tolerance:
+            if _no_wider(scene, widest):
                 _say(f"target: no tolerance above {fab.tolerance:g} keeps every B blocked", loud)
                 skip += ("tolerance",)
                 step = next_step(rows, target, skip)
@@ -269,12 +279,22 @@ def reach_target(scene, result, out_dir: str, settings, flags: dict) -> dict:
     return {"run": run, "report": report, "met": step == "met", "chosen": chosen, "tries": rows}
 
 
-def _widest_tolerance(scene, result, first: dict, flags: dict) -> tuple[float, list]:
+def _no_wider(scene, widest) -> bool:
+    """Whether the tolerance step found nothing wider than the scene's (each hole's own)."""
+    from sieve_mi.game.holes import hole_tolerances
+
+    if isinstance(widest, list):
+        return all(w <= t for w, t in zip(widest, hole_tolerances(scene)))
+    return widest <= scene.fabrication.tolerance
+
+
+def _widest_tolerance(scene, result, first: dict, flags: dict) -> tuple[float | list, list]:
     """The tolerance step's bisection (:func:`~sieve_mi.game.tolerance.widest_tolerance`) on the
     first solve ``result`` (its rotations, translations and window; ``first`` its
     :func:`try_row`): the widest tolerance and the tries; the scene's tolerance and no tries
-    when the first try has no B margin."""
-    from sieve_mi.game.tolerance import widest_tolerance
+    when the first try has no B margin. Several separate holes: each hole's widest
+    (:func:`~sieve_mi.game.tolerance.widest_tolerances`, a list) and per hole its tries."""
+    from sieve_mi.game.tolerance import widest_tolerance, widest_tolerances
 
     margin = first["b_margin"]
     if not first["blocked"] or margin is None or margin <= 0:
@@ -282,6 +302,9 @@ def _widest_tolerance(scene, result, first: dict, flags: dict) -> tuple[float, l
     play = _scene_for(scene, "tolerance", result.pass_quats, first["window_deg"],
                       scene.fabrication.tolerance)  # fmt: skip
     seed = flags["seed"] if flags["seed"] is not None else scene.solver.seed
+    if scene.layout.mode == "separate" and len(result.pass_shapes) > 1:
+        return widest_tolerances(play, result.pass_shapes, result.block_shapes,
+                                 result.pass_quats, seed or 0, not flags["quiet"])  # fmt: skip
     return widest_tolerance(play, result.pass_shapes, result.block_shapes, result.pass_quats,
                             result.pass_trans, margin, seed or 0, not flags["quiet"])  # fmt: skip
 

@@ -99,6 +99,10 @@ def test_the_mirror_step_lays_the_sheet_with_mirrored_copies(tmp_path):
     assert (grown.fabrication.tolerance, grown.fabrication.window) == (2.125, 5.0)
     assert grown.fabrication.pattern == "single" and grown.passes[0].rotation == [1, 0, 0, 0]
     assert scene.fabrication.tolerance == 1.0
+    # separate holes: each A's own tolerance (the scene's [fabrication] tolerance kept)
+    own = target._scene_for(scene, "tolerance", [[1.0, 0.0, 0.0, 0.0]], 5.0, [3.25])
+    assert (own.passes[0].tolerance, own.fabrication.tolerance) == (3.25, 1.0)
+    assert scene.passes[0].tolerance is None
 
 
 def test_the_loop_stops_at_the_target_and_skips_a_window_already_auto():
