@@ -1,5 +1,5 @@
-import sys
+"""``python -m sieve_mi``: the ``sieve-mi`` command."""
 
-from sieve_mi.cli import main
+from sieve_mi.cli import run
 
-sys.exit(main())
+run()
