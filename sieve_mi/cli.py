@@ -22,7 +22,16 @@ from sieve_mi.errors import (
     signals_received,
 )
 
-__all__ = ["COMMANDS", "Terminated", "cmd_certify", "cmd_check", "cmd_solve", "cmd_view", "main", "run"]
+__all__ = [
+    "COMMANDS",
+    "Terminated",
+    "cmd_certify",
+    "cmd_check",
+    "cmd_solve",
+    "cmd_view",
+    "main",
+    "run",
+]
 
 
 def _parser() -> argparse.ArgumentParser:
