@@ -50,8 +50,9 @@ def stop_workers(pool, others=()) -> None:
 
     ``shutdown(wait=True)`` (what leaving a ``with`` block does) waits for every submitted job,
     which after an interrupt may be many minutes of proofs or searches. The workers compute
-    only (they write no file), so they are killed, pending jobs are cancelled, and the dead
-    processes are reaped (at most a second each).
+    only (they write no file), so they are killed, pending jobs are cancelled, the dead
+    processes are reaped (at most a second each) and the pool's manager thread is given up to
+    5 s to mark the jobs that were running failed: on return every job is done or cancelled.
 
     Parameters
     ----------
@@ -65,10 +66,13 @@ def stop_workers(pool, others=()) -> None:
     for proc in processes:
         with contextlib.suppress(Exception):
             proc.kill()
+    manager = getattr(pool, "_executor_manager_thread", None)  # shutdown forgets it
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in processes:
         with contextlib.suppress(Exception):
             proc.join(timeout=1.0)
+    if manager is not None:  # it marks the killed workers' running jobs failed, then ends
+        manager.join(timeout=5.0)
 
 
 class _Pool(ProcessPoolExecutor):
