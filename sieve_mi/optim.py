@@ -18,6 +18,7 @@ __all__ = [
     "nlopt_maximise",
     "particle_swarm",
     "pose_adam",
+    "pose_columns",
     "renormalise_quaternions",
 ]
 
@@ -54,13 +55,32 @@ def pose_adam(q0: np.ndarray, t0: np.ndarray, lr: float):
     import drjit as dr
     import mitsuba as mi
 
+    opt = dr.opt.Adam(lr=float(lr))
+    for key, column in zip(POSE_KEYS, pose_columns(q0, t0)):
+        opt[key] = mi.Float(column)
+    return opt
+
+
+def pose_columns(q0: np.ndarray, t0: np.ndarray) -> list:
+    """Poses as :func:`pose_adam` holds them: one new (K,) float32 array per parameter,
+    :data:`POSE_KEYS` order, each 64-byte aligned (one kernel source:
+    :func:`sieve_mi.backend.aligned`).
+
+    Parameters
+    ----------
+    q0 : (K, 4) ndarray
+        Quaternions (w, x, y, z).
+    t0 : (K, 2) ndarray
+        Translations (in the units the caller optimises in).
+
+    Returns
+    -------
+    list of 6 (K,) ndarray
+    """
     from sieve_mi.backend import aligned
 
-    opt = dr.opt.Adam(lr=float(lr))
     x0 = np.concatenate([np.asarray(q0), np.asarray(t0)], axis=1).astype(np.float32)
-    for i, key in enumerate(POSE_KEYS):
-        opt[key] = mi.Float(aligned(x0[:, i], np.float32))  # one kernel source: see aligned
-    return opt
+    return [aligned(x0[:, i], np.float32) for i in range(len(POSE_KEYS))]
 
 
 def renormalise_quaternions(opt, *also) -> None:

@@ -22,7 +22,14 @@ import numpy as np
 from sieve_mi.backend import aligned
 from sieve_mi.errors import interruption
 from sieve_mi.geometry.rotations import normalize
-from sieve_mi.optim import POSE_KEYS, QUAT_KEYS, live_poses, pose_adam, renormalise_quaternions
+from sieve_mi.optim import (
+    POSE_KEYS,
+    QUAT_KEYS,
+    live_poses,
+    pose_adam,
+    pose_columns,
+    renormalise_quaternions,
+)
 
 __all__ = [
     "CONVERGED",
@@ -301,13 +308,6 @@ class Batch:
         return [self.part(p) for p in parts]
 
 
-def _start_rows(batch, scale: float) -> list:
-    """The starting poses of ``batch`` as :func:`~sieve_mi.optim.pose_adam` holds them: 6 (K,)
-    float32 columns, :data:`~sieve_mi.optim.POSE_KEYS` order, translations in units of ``scale``."""
-    x0 = np.concatenate([np.asarray(batch.q0), np.asarray(batch.t0) / scale], axis=1)
-    return list(x0.astype(np.float32).T)
-
-
 def _rows(best) -> np.ndarray:
     """A descent's best poses (list of 6 mi.Float, :data:`~sieve_mi.optim.POSE_KEYS` order) as
     a (K, 6) float64 array."""
@@ -363,7 +363,7 @@ class Descent:
         self.opt = pose_adam(batch.q0, batch.t0 / self.scale, learning_rate)
         # copies, not the optimiser's own variables: the first frozen step then has the layout
         # of the later ones (no aliased inputs), and is recorded once, not traced
-        self.best = [mi.Float(aligned(x, np.float32)) for x in _start_rows(batch, self.scale)]
+        self.best = [mi.Float(x) for x in pose_columns(batch.q0, batch.t0 / self.scale)]
         self.best_loss = dr.opaque(mi.Float, np.inf, len(batch))
         self.settle = Settle.make(batch.group, self.loss)
         self.final = np.empty((len(batch), len(POSE_KEYS)))
