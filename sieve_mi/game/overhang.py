@@ -218,12 +218,8 @@ def least_overhang(
     closed = is_closed(shape) if closed is None else closed
     boundary = Boundary(hole)
     pieces = hole.decompose()  # separate holes: start over each one, not between them
-    got = (
-        [_starts(shape, Boundary(h)) for h in pieces]
-        if len(pieces) > 1
-        else [_starts(shape, boundary)]
-    )
-    quats, trans = np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got])
+    bounds = [Boundary(h) for h in pieces] if len(pieces) > 1 else [boundary]
+    quats, trans = (np.concatenate(x) for x in zip(*(_starts(shape, b) for b in bounds)))
     ranked, estimate = _ranked(shape, quats, trans, hole)
     coarse = Boundary(hole, spacing=boundary.size / POLISH_SAMPLES)  # the polish's distances
     best, tried = start, [(start.quat, start.trans)]  # the verdict already polished its pose
