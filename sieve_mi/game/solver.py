@@ -324,20 +324,22 @@ def solve(
     certified = on_sheet(certified, sheet.thickness)  # a cell proof needs a plate >= B's diameter
     game = (scene, passes, blocks, found, v, variant, run, seed, certified, sheet, window, feasible)
     if early is not None:
-        early(_outcome(*game))
+        early(_outcome(game))
     with run.stage("margins", mark=False):  # exact overhangs and their proved bounds
         grown = scene.fabrication.block_margin
         margins = block_margins(blocks, v.outline, v.attack, certified, grown)
         overhangs = _overhangs(blocks, v, margins, certified, progress, skip=set(sure))
     run.mark("thin")
     run.stop()
-    return _outcome(*game, margins=margins, overhangs=overhangs, rest=_rest(scene, passes, found))
+    return _outcome(game, margins=margins, overhangs=overhangs, rest=_rest(scene, passes, found))
 
 
-def _outcome(scene, passes, blocks, found, v, variant, run, seed, certified, sheet, window,
-             feasible, **more) -> Result:  # fmt: skip
-    """The game's :class:`Result` from the solve's parts; ``more``: ``margins``, ``overhangs``
-    and ``rest`` (left empty in the one :func:`solve` gives ``early``)."""
+def _outcome(game: tuple, **more) -> Result:
+    """The game's :class:`Result` from the solve's parts ``game`` = (scene, passes, blocks,
+    found, judgement, variant, run, seed, certified, sheet, window, feasible); ``more``:
+    ``margins``, ``overhangs`` and ``rest`` (left empty in the one :func:`solve` gives
+    ``early``)."""
+    scene, passes, blocks, found, v, variant, run, seed, certified, sheet, window, feasible = game
     return Result(
         scene=scene,
         pass_shapes=passes,
