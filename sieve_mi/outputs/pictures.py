@@ -33,6 +33,7 @@ import shutil
 import sys
 import tempfile
 import time
+from typing import NamedTuple
 
 __all__ = ["Pictures", "ahead", "built", "render", "start"]
 
@@ -216,6 +217,26 @@ def built(result) -> tuple | None:
     return _AHEAD.built(result) if _AHEAD is not None else None
 
 
+class _Early(NamedTuple):
+    """What :meth:`_Ahead.prerender` started: the pictures rendered before the save.
+
+    Attributes
+    ----------
+    folder : str
+        The folder of their own the worker renders them into (removed once the worker stops).
+    wanted : tuple of bool
+        ``(figure, gif)``: which of figure.png and passage.gif were asked for; the save takes
+        them over only where it wants the same (:meth:`_Ahead.prerendered`).
+    future : concurrent.futures.Future or None
+        The worker's :func:`render` job; None where building the plate failed (the save
+        renders them itself).
+    """
+
+    folder: str
+    wanted: tuple
+    future: object = None
+
+
 class _Ahead:
     """The worker of :func:`ahead`: forked by :meth:`fork`, taken by :func:`start`."""
 
@@ -271,7 +292,7 @@ class _Ahead:
         if self._pool is None or self._early is not None or not (figure or animation):
             return
         folder = tempfile.mkdtemp(prefix=".sieve-mi-pictures-")
-        self._early = (folder, (figure, animation), None)
+        self._early = _Early(folder, (figure, animation))
         try:
             built = plate_meshes(result)
             meshes = built[3]
@@ -279,7 +300,7 @@ class _Ahead:
                    build(result, meshes[0]) if animation else None)  # fmt: skip
         except Exception:  # noqa: BLE001 - the save builds the plate again and reports it
             return
-        self._early = (folder, (figure, animation), self._pool.submit(render, *job))
+        self._early = self._early._replace(future=self._pool.submit(render, *job))
         self._built = (result.outline, getattr(result, "sheet", None), built)
 
     def built(self, result) -> tuple | None:
@@ -298,14 +319,15 @@ class _Ahead:
     def prerendered(self, wanted: tuple) -> tuple:
         """``(folder, future)`` of :meth:`prerender`'s pictures where they are the ones
         ``wanted`` (``(figure, gif)``: the save's), else ``(None, None)``."""
-        if self._early is None or self._early[2] is None or self._early[1] != wanted:
+        early = self._early
+        if early is None or early.future is None or early.wanted != wanted:
             return None, None
-        return self._early[0], self._early[2]
+        return early.folder, early.future
 
     def _forget(self) -> None:
         """Remove :meth:`prerender`'s folder (once the worker has stopped)."""
         if self._early is not None:
-            shutil.rmtree(self._early[0], ignore_errors=True)
+            shutil.rmtree(self._early.folder, ignore_errors=True)
             self._early = None
 
     def stop(self) -> None:

@@ -131,11 +131,12 @@ _HINT = "use shake --sieve PLATE PART... --out DIR instead"
 
 
 def _contents(report: dict, clip: str | None = None) -> dict[str, bytes]:
-    """``shake.json``, ``shake.png`` and (from the rendered ``clip``) ``shake.gif`` as bytes."""
+    """``shake.json``, ``shake.png`` and (from the rendered ``clip``, where the run made it:
+    its ``clip`` entry) ``shake.gif`` as bytes."""
     png = io.BytesIO()
     plot(report, png)
     contents = {"shake.json": to_json(report).encode("utf-8"), "shake.png": png.getvalue()}
-    if clip is not None:
+    if clip is not None and "clip" in report:
         with open(clip, "rb") as fh:
             contents["shake.gif"] = fh.read()
     return contents

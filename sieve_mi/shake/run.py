@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from sieve_mi.errors import SieveError
+from sieve_mi.errors import SieveError, interruption
 from sieve_mi.progress import Progress
 from sieve_mi.shake.fidelity import judge, measure_sink
 from sieve_mi.shake.geometry import Plate, part_from_mesh, plate_from_mesh
@@ -126,7 +126,8 @@ def shake(
     progress : bool
         Progress on stderr.
     clip : str, optional
-        Also render one trial per shape into this GIF (:mod:`sieve_mi.shake.clip`).
+        Also render one trial per shape into this GIF (:mod:`sieve_mi.shake.clip`); where
+        Mitsuba cannot be loaded, the GIF is not made and a line of ``warnings`` says why.
 
     Returns
     -------
@@ -135,7 +136,7 @@ def shake(
         ``engine``, ``plate``, ``shapes`` (one dict per part: counts, ``fraction``, ``ci95``,
         ``median_time_s``, ``pass_times_s``, ``geometry`` (incl. ``hausdorff``), ``fidelity``,
         ``warnings``), ``fidelity_ok`` (every shape's fidelity held), ``warnings`` (every
-        shape's), ``timings`` (seconds; the only part that changes between equal runs).
+        shape's; the clip's, not made), ``clip`` (where it was made), ``timings`` (seconds; the only part that changes between equal runs).
 
     Raises
     ------
@@ -164,10 +165,15 @@ def shake(
             run.timings[f"trials_{len(shapes) - 1}_s"] = seconds  # as the progress line said
     finally:
         bar.close()
-    extra = {}
+    extra, unmade = {}, []
     if clip is not None:
         with run.stage("clip"):
-            extra["clip"] = _clip(clip, inp, plate, parts, shapes, settings, unit_m)
+            why = _renderer_missing()
+            if why is None:
+                extra["clip"] = _clip(clip, inp, plate, parts, shapes, settings, unit_m)
+            else:  # the trials' results are written all the same
+                unmade.append(f"shake.gif not made: Mitsuba, which renders it, cannot be "
+                              f"loaded here ({why})")  # fmt: skip
     run.timings["total_s"] = run.elapsed()
     return {
         "format": FORMAT,
@@ -178,10 +184,26 @@ def shake(
         "engine": engine_doc(),
         "shapes": shapes,
         "fidelity_ok": all(s["fidelity"]["within_bound"] for s in shapes),
-        "warnings": list(plate.warnings) + [w for s in shapes for w in s["warnings"]],
+        "warnings": list(plate.warnings) + [w for s in shapes for w in s["warnings"]] + unmade,
         **extra,
         "timings": run.timings,
     }
+
+
+def _renderer_missing() -> str | None:
+    """Why ``shake.gif`` cannot be rendered here (Mitsuba or Dr.Jit not importable, as in a pack
+    of the engine alone such as ``tools/gpu_shake.sh``'s, or no backend for its variant:
+    :func:`sieve_mi.backend.use_variant`'s one line), else None."""
+    from sieve_mi.backend import use_variant
+
+    try:
+        use_variant(None)
+    except (ImportError, SieveError) as exc:
+        stop = interruption(exc)  # an import that swallowed a Ctrl-C is the Ctrl-C
+        if stop is not None:
+            raise stop from exc
+        return str(exc)
+    return None
 
 
 def _clip(path, inp, plate, parts, shapes, settings, unit_m) -> dict:

@@ -1,5 +1,6 @@
 """MuJoCo and CoACD are an optional extra (``sieve-mi[shake]``): without them everything but the
-shake trials works, and a command that shakes says so in one line before any work."""
+shake trials works, and a command that shakes says so in one line before any work. The other way
+round, shaking needs no Mitsuba: without it only shake.gif is not made (one line says so)."""
 
 from __future__ import annotations
 
@@ -107,3 +108,31 @@ print(len(names))
     )
     assert p.returncode == 0, p.stderr
     assert int(p.stdout) > 80  # every module was walked
+
+
+def test_without_mitsuba_the_trials_are_written_and_one_line_says_the_clip_was_not(
+    tmp_path, capsys, monkeypatch
+):
+    """A pack of the engine alone (``tools/gpu_shake.sh``: MuJoCo and CoACD, no Mitsuba nor
+    Dr.Jit) shakes as usual: shake.json and shake.png are written, and one warning line (in the
+    table and in shake.json's ``warnings``) says that shake.gif was not made, and why."""
+    import json
+
+    from shake_helpers import ball, plate_mesh, round_hole
+
+    plate, part, out = tmp_path / "plate.stl", tmp_path / "ball.stl", tmp_path / "out"
+    plate_mesh(round_hole(22.0), 8.0, 2.0).export(str(plate))
+    ball(20.0).export(str(part))
+    monkeypatch.setitem(sys.modules, "mitsuba", None)  # an import of either raises ImportError
+    monkeypatch.setitem(sys.modules, "drjit", None)
+    args = ["shake", "--sieve", str(plate), str(part), "--out", str(out), "--trials", "1",
+            "--duration", "0.1", "--workers", "1", "--quiet"]  # fmt: skip
+    assert main(args) == 0
+    std = capsys.readouterr()
+    lines = [s for s in (std.out + std.err).splitlines() if "shake.gif" in s]
+    assert len(lines) == 1 and "Traceback" not in std.err, std.err
+    assert lines[0].startswith("warning: shake.gif not made: Mitsuba, which renders it, cannot be")
+    assert sorted(os.listdir(out)) == [".sieve-mi", "report.json", "shake.json", "shake.png"]
+    report = json.loads((out / "shake.json").read_text())
+    assert "clip" not in report and report["shapes"][0]["trials"] == 1
+    assert lines[0] == "warning: " + report["warnings"][-1]
