@@ -269,13 +269,17 @@ def stale_additions(folder: str, files: Iterable[str]) -> list[str]:
     return out
 
 
-def add_files(folder: str, contents: dict[str, bytes], *, hint: str = "") -> None:
+def add_files(
+    folder: str, contents: dict[str, bytes], *, hint: str = "", drop: tuple[str, ...] = ()
+) -> None:
     """Add (or replace) files in sieve-mi's output ``folder`` and list them in its marker.
 
-    The folder is checked as by :func:`check_addition` (again, right before writing). The marker
-    is rewritten first (listing a file that is not there yet is harmless; a written file that it
-    does not list would make the folder refused), then each file is written to a temporary file
-    beside it and renamed over it, with SIGINT, SIGTERM and SIGHUP held back.
+    The folder is checked as by :func:`check_addition` (again, right before writing). The files
+    of ``drop`` that the marker lists and ``contents`` does not replace are removed first (an
+    earlier run's output that this run did not make must not stand beside this run's report),
+    then the marker is rewritten (listing a file that is not there yet is harmless; a written
+    file that it does not list would make the folder refused), then each file is written to a
+    temporary file beside it and renamed over it, with SIGINT, SIGTERM and SIGHUP held back.
 
     Parameters
     ----------
@@ -284,6 +288,9 @@ def add_files(folder: str, contents: dict[str, bytes], *, hint: str = "") -> Non
         File name in ``folder`` to its new content.
     hint : str
         As for :func:`check_addition`.
+    drop : tuple of str
+        Names of this command's outputs that this run did not make (a file the marker does not
+        list is the user's and is never removed).
 
     Raises
     ------
@@ -292,10 +299,11 @@ def add_files(folder: str, contents: dict[str, bytes], *, hint: str = "") -> Non
     """
     marker = check_addition(folder, contents, hint=hint)
     raise_if_signalled()  # a run told to stop adds nothing
-    marker["files"] = sorted(set(marker["files"]) | set(contents))
+    gone = [n for n in drop if n in marker["files"] and n not in contents]
+    marker["files"] = sorted((set(marker["files"]) - set(gone)) | set(contents))
     text = json.dumps(marker, indent=1).encode()
     with deferred_signals():
-        for name in stale_additions(folder, os.listdir(folder)):
+        for name in [*stale_additions(folder, os.listdir(folder)), *gone]:
             with contextlib.suppress(OSError):
                 os.remove(os.path.join(folder, name))
         for name, data in ((MARKER, text), *contents.items()):

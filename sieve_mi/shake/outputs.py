@@ -164,7 +164,8 @@ def check_folder(folder: str) -> str | None:
 
 def add_to_folder(report: dict, folder: str, clip: str | None = None) -> str | None:
     """Write ``shake.json`` and ``shake.png`` (and the rendered ``clip`` as ``shake.gif``) into a
-    solve's output folder, put the card into its ``report.html``, and list them in its marker.
+    solve's output folder, put the card into its ``report.html``, and list them in its marker;
+    without a clip, an earlier shake's ``shake.gif`` is removed (it showed other trials).
 
     Returns
     -------
@@ -180,7 +181,7 @@ def add_to_folder(report: dict, folder: str, clip: str | None = None) -> str | N
     page, note = insert_card(folder, CARD, html_section(report, contents["shake.png"]))
     if page is not None:
         contents["report.html"] = page.encode("utf-8")
-    add_files(folder, contents, hint=_HINT)
+    add_files(folder, contents, hint=_HINT, drop=FILES)  # no clip now: an earlier shake.gif goes
     return note
 
 

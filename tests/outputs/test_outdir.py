@@ -540,3 +540,23 @@ def test_a_leftover_of_a_killed_addition_is_removed_but_a_live_one_or_a_users_fi
     (folder / f"shake.json.sieve-mi-tmp-{dead}").write_text("mine: no leading dot")
     with pytest.raises(SieveError, match="marker does not list"):
         outdir.check_addition(str(folder), ["shake.json"])
+
+
+def test_an_output_this_run_did_not_make_is_dropped_but_a_users_file_stays(tmp_path):
+    # shake DIR without a clip after a shake with one: the earlier shake.gif showed other
+    # trials, so it goes (and leaves the marker); a file the marker does not list is the user's.
+    folder = tmp_path / "out"
+    folder.mkdir()
+    (folder / "report.json").write_text("{}")
+    outdir.write_marker(str(folder), "solve")
+    outdir.add_files(str(folder), {"shake.json": b"{}", "shake.gif": b"GIF89a"})
+    assert "shake.gif" in outdir.read_marker(str(folder))["files"]
+    outdir.add_files(str(folder), {"shake.json": b'{"n": 2}'}, drop=("shake.gif", "notes.txt"))
+    assert sorted(os.listdir(folder)) == [outdir.MARKER, "report.json", "shake.json"]
+    assert "shake.gif" not in outdir.read_marker(str(folder))["files"]
+    assert (folder / "shake.json").read_bytes() == b'{"n": 2}'
+    outdir.write_marker(str(folder), "solve")  # lists report.json and shake.json only
+    (folder / "shake.gif").write_bytes(b"the user's")
+    with pytest.raises(SieveError, match="marker does not list"):
+        outdir.add_files(str(folder), {"report.json": b"{}"}, drop=("shake.gif",))
+    assert (folder / "shake.gif").read_bytes() == b"the user's"
