@@ -4,8 +4,10 @@ One idea: the two Mitsuba pictures of a solve (:mod:`sieve_mi.outputs.figure`,
 :mod:`sieve_mi.outputs.animation`) need nothing that the images, the plots and the page make, and
 they cost most of a small solve's save (2.8 + 1.8 s of the default scene's 9.7 s on 2 cores,
 2026-12-04). :func:`start` forks one worker (:func:`sieve_mi.workers.worker_pool`) that switches
-Mitsuba to an RGB variant once, renders the figure, then the GIF, into the save's temporary
-folder; :meth:`Pictures.wait` collects what report.json records of them. Where a fork is unsafe
+Mitsuba to an RGB variant once, renders the GIF, then the figure, into the save's temporary
+folder (in that order: the GIF's one-thread parts, about a third of it, run beside the save's
+own work, and the figure's rendering, on every core, is what the save waits for last);
+:meth:`Pictures.wait` collects what report.json records of them. Where a fork is unsafe
 (a CUDA variant: its context does not survive a fork; a system without ``fork``) both are
 rendered in this process, one after the other, as before. The pictures are the same either way:
 the same scene, sampler seed and settings give the same pixels.
@@ -15,7 +17,7 @@ The command line forks that worker ahead of the save (:func:`ahead`: when the so
 about 0.4 s on 2 cores) overlaps the search instead of the save; :func:`start` then hands the
 pictures to it (matplotlib included, for the figure's title: :func:`_ready`). The command line
 also hands the solver :meth:`_Ahead.prerender`, which the solver calls before its ``margins``
-stage: the worker then renders the figure and the GIF while the margins are measured and the
+stage: the worker then renders the GIF and the figure while the margins are measured and the
 rest of the save is written, into a folder of its own, and :func:`start` takes them over (the
 same plate, so the same pictures). A solve from Python forks its worker in the save, as before.
 
@@ -41,7 +43,11 @@ _AHEAD = None
 
 
 def render(tmp: str, figure_args: tuple | None, passage) -> dict:
-    """Render ``figure.png`` (with ``figure_args``) and ``passage.gif`` (with ``passage``) into ``tmp``.
+    """Render ``passage.gif`` (with ``passage``), then ``figure.png`` (with ``figure_args``) into ``tmp``.
+
+    The GIF comes first: a third of its time is one thread's (the scene's tracing, the frames'
+    sRGB, palettes and file), which the save's own work fills beside it, while the figure's
+    rendering, last, keeps both cores busy up to its last rows (see the module docstring).
 
     Parameters
     ----------
@@ -56,14 +62,22 @@ def render(tmp: str, figure_args: tuple | None, passage) -> dict:
     Returns
     -------
     dict
-        ``figure_end`` (the ``time.perf_counter()`` at which the figure was written, None
-        without one), ``figure_s`` and ``animation_s`` (seconds each took), ``animation`` (what
-        :func:`~sieve_mi.outputs.animation.write_gif` returns, or None) and ``peak_gb`` (this
-        process's peak resident memory, GB).
+        ``figure_end`` and ``animation_end`` (the ``time.perf_counter()`` at which each file was
+        written, None without it), ``figure_s`` and ``animation_s`` (seconds each took),
+        ``animation`` (what :func:`~sieve_mi.outputs.animation.write_gif` returns, or None) and
+        ``peak_gb`` (this process's peak resident memory, GB).
     """
     from sieve_mi.backend import MemoryWatch
 
-    out = {"figure_end": None, "figure_s": 0.0, "animation_s": 0.0, "animation": None}
+    out = {"figure_end": None, "animation_end": None, "figure_s": 0.0, "animation_s": 0.0,
+           "animation": None}  # fmt: skip
+    if passage is not None:
+        from sieve_mi.outputs.animation import write_gif
+
+        t0 = time.perf_counter()
+        out["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
+        out["animation_end"] = time.perf_counter()
+        out["animation_s"] = out["animation_end"] - t0
     if figure_args is not None:
         from sieve_mi.outputs.figure import render_figure
 
@@ -72,12 +86,6 @@ def render(tmp: str, figure_args: tuple | None, passage) -> dict:
         render_figure(os.path.join(tmp, "figure.png"), plate, passes, blocks, blocked, title=title)
         out["figure_end"] = time.perf_counter()
         out["figure_s"] = out["figure_end"] - t0
-    if passage is not None:
-        from sieve_mi.outputs.animation import write_gif
-
-        t0 = time.perf_counter()
-        out["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
-        out["animation_s"] = time.perf_counter() - t0
     watch = MemoryWatch()
     out["peak_gb"] = watch.peak
     watch.stop()
@@ -145,8 +153,8 @@ class Pictures:
         Returns
         -------
         dict
-            ``figure_s`` and ``animation_s``: the caller's wall time from this call until the
-            figure, then the GIF, was written (in this process: the time each took), and
+            ``animation_s`` and ``figure_s``: the caller's wall time from this call until the
+            GIF, then the figure, was written (in this process: the time each took), and
             ``animation`` (:func:`~sieve_mi.outputs.animation.write_gif`'s record or None) and
             ``peak_gb`` (the rendering process's peak memory, GB).
         """
@@ -161,12 +169,15 @@ class Pictures:
             for name in ("figure.png", "passage.gif"):
                 if os.path.exists(os.path.join(self._folder, name)):
                     shutil.move(os.path.join(self._folder, name), os.path.join(self._job[0], name))
-        t_end = time.perf_counter()
-        end = self.rendered["figure_end"]
-        figure_s = 0.0 if end is None else min(max(end - t_wait, 0.0), t_end - t_wait)
+        waited = time.perf_counter() - t_wait
+        # the picture written first accounts for the wait up to its end, the other for the rest
+        first = "animation" if self.rendered.get("animation_end") is not None else "figure"
+        end = self.rendered.get(f"{first}_end")
+        first_s = 0.0 if end is None else min(max(end - t_wait, 0.0), waited)
+        second = {"animation": "figure", "figure": "animation"}[first]
         return {
-            "figure_s": figure_s,
-            "animation_s": t_end - t_wait - figure_s,
+            f"{first}_s": first_s,
+            f"{second}_s": waited - first_s,
             "animation": self.rendered["animation"],
             "peak_gb": self.rendered["peak_gb"],
         }
