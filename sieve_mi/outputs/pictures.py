@@ -36,7 +36,7 @@ import sys
 import tempfile
 import time
 
-__all__ = ["Pictures", "ahead", "built", "render", "start"]
+__all__ = ["Pictures", "ahead", "built", "first", "render", "start"]
 
 #: The worker forked ahead of the save (:func:`ahead`), while its block runs; else None.
 _AHEAD = None
@@ -112,6 +112,26 @@ def _rgb_once() -> None:
     if running < wanted:
         dr.set_thread_count(2 * wanted - running)
     select_rgb_variant(mi, mi.variant())
+
+
+def _rgb_fresh(variant: str, threads: int | None) -> None:
+    """The first step of a worker forked before this process imported Dr.Jit (:func:`first`):
+    Dr.Jit imported afresh (its own pool: every thread runs), on the command's thread count
+    (``--threads``, else ``$SIEVE_MI_THREADS``: the parent checks and applies them as well,
+    and says what is wrong with them), then Mitsuba in the RGB variant that :func:`_rgb_once`
+    picks after ``variant`` (the solve's)."""
+    from sieve_mi.backend import apply_threads, configure_llvm, select_rgb_variant, set_threads
+    from sieve_mi.errors import SieveError
+
+    configure_llvm()
+    import mitsuba as mi
+
+    with contextlib.suppress(SieveError):  # the parent stops with the same error
+        if threads is not None:
+            set_threads(threads)
+        else:
+            apply_threads()
+    select_rgb_variant(mi, variant)
 
 
 def _ready() -> None:
@@ -255,6 +275,28 @@ class _Ahead:
             return
         self._pool = pool
 
+    def fork_fresh(self, variant: str, threads: int | None) -> None:
+        """Fork the worker now, before this process imports Dr.Jit (:func:`first`): it imports
+        Dr.Jit, Mitsuba and the pictures' modules itself (:func:`_rgb_fresh`, :func:`_ready`).
+        Where the fork fails the save forks its own, as in :meth:`fork`."""
+        from sieve_mi.workers import worker_pool
+
+        self._stack.callback(self._forget)
+        try:
+            pool = self._stack.enter_context(
+                worker_pool(
+                    1,
+                    initializer=_rgb_fresh,
+                    initargs=(variant, threads),
+                    what="figure and GIF rendering",
+                )  # fmt: skip
+            )
+            pool.submit(_ready)
+        except OSError:
+            self._stack.close()
+            return
+        self._pool = pool
+
     def take(self):
         """The forked worker's pool (None where none was forked)."""
         return self._pool
@@ -324,6 +366,16 @@ class _Ahead:
         self._pool = None
         self._stack.__exit__(*sys.exc_info())
 
+    def drop(self) -> None:
+        """Stop the worker at once where it rendered nothing (the command ended before its
+        verdict: an error, an interrupt), rather than wait for its imports; else let it end."""
+        from sieve_mi.workers import stop_workers
+
+        if self._pool is not None and self._early is None:
+            stop_workers(self._pool)
+        self._pool = None
+        self._stack.close()
+
 
 @contextlib.contextmanager
 def ahead(run, stage: str = "screen"):
@@ -339,10 +391,51 @@ def ahead(run, stage: str = "screen"):
         worker switches to its RGB sibling) and the search, the longest stage, follows.
     """
     global _AHEAD
+    if _AHEAD is not None:  # forked at the command's start (:func:`first`), which stops it
+        yield _AHEAD
+        return
     with contextlib.ExitStack() as stack:
         _AHEAD = _Ahead(stack)
         run.after(stage, _AHEAD.fork)
         try:
             yield _AHEAD
         finally:
+            _AHEAD = None
+
+
+@contextlib.contextmanager
+def first(variant: str | None, threads: int | None = None):
+    """A context manager in which the pictures' worker is forked at once, for :func:`ahead`
+    (and the save) in the block to use: the command line's first step for a solve with
+    pictures, so the worker's imports (Dr.Jit, Mitsuba's RGB variant, matplotlib, PIL,
+    trimesh and the pictures' modules: about 1.5 CPU s on 2 cores) run beside the command's
+    own start, one thread's work (Python's imports, reading the scene), instead of beside the
+    search, which keeps both cores busy.
+
+    Nothing is forked where this process has imported Dr.Jit already (a fork would copy its
+    running pool: a solve run in a process that rendered before, such as a test's) or with a
+    CUDA ``variant`` (:func:`_forkable`): :func:`ahead` forks then, as before.
+
+    Parameters
+    ----------
+    variant : str or None
+        The solve's variant (``--variant``; None: :func:`sieve_mi.backend.default_variant`).
+    threads : int, optional
+        ``--threads``: Dr.Jit's thread count in the worker (default: ``$SIEVE_MI_THREADS``,
+        else one per core).
+    """
+    global _AHEAD
+    from sieve_mi.backend import default_variant
+
+    variant = variant or default_variant()
+    if _AHEAD is not None or "drjit" in sys.modules or not _forkable(variant):
+        yield None
+        return
+    with contextlib.ExitStack() as stack:
+        _AHEAD = _Ahead(stack)
+        _AHEAD.fork_fresh(variant, threads)
+        try:
+            yield _AHEAD
+        finally:
+            _AHEAD.drop()
             _AHEAD = None
