@@ -12,10 +12,14 @@ own work, and the figure's rendering, on every core, is what the save waits for 
 rendered in this process, one after the other, as before. The pictures are the same either way:
 the same scene, sampler seed and settings give the same pixels.
 
-The command line forks that worker ahead of the save (:func:`ahead`: when the solve's
-``screen`` stage ends), so its start (the fork, Mitsuba's RGB variant, the pictures' modules:
-about 0.4 s on 2 cores) overlaps the search instead of the save; :func:`start` then hands the
-pictures to it (matplotlib included, for the figure's title: :func:`_ready`). The command line
+The command line forks that worker once it has imported trimesh, before it imports Dr.Jit
+(:func:`first`), so the worker's start (Dr.Jit, Mitsuba's RGB variant, matplotlib for the
+figure's title, PIL and the pictures' modules: :func:`_rgb_fresh` and :func:`_ready`) runs
+beside the command's own one-thread start (its imports, reading the scene, Dr.Jit's variant,
+the screen) instead of beside the search, whose pace main's Python thread sets while Dr.Jit's
+threads keep the other core busy; :func:`start` then hands the pictures to it. Where the command has imported Dr.Jit
+before (a solve run in a process that rendered already) or uses a CUDA variant, :func:`ahead`
+forks it when the solve's ``screen`` stage ends, as before 2026-12-07. The command line
 also hands the solver :meth:`_Ahead.prerender`, which the solver calls before its ``margins``
 stage: the worker then renders the GIF and the figure while the margins are measured and the
 rest of the save is written, into a folder of its own, and :func:`start` takes them over (the
@@ -407,10 +411,9 @@ def ahead(run, stage: str = "screen"):
 def first(variant: str | None, threads: int | None = None):
     """A context manager in which the pictures' worker is forked at once, for :func:`ahead`
     (and the save) in the block to use: the command line's first step for a solve with
-    pictures, so the worker's imports (Dr.Jit, Mitsuba's RGB variant, matplotlib, PIL,
-    trimesh and the pictures' modules: about 1.5 CPU s on 2 cores) run beside the command's
-    own start, one thread's work (Python's imports, reading the scene), instead of beside the
-    search, which keeps both cores busy.
+    pictures, so the worker's imports (Dr.Jit, Mitsuba's RGB variant, matplotlib, PIL and the
+    pictures' modules) run beside the command's own start, one thread's work (its imports,
+    reading the scene), instead of beside the search, which keeps both cores busy.
 
     Nothing is forked where this process has imported Dr.Jit already (a fork would copy its
     running pool: a solve run in a process that rendered before, such as a test's) or with a
