@@ -371,14 +371,27 @@ class _Ahead:
         self._stack.__exit__(*sys.exc_info())
 
     def drop(self) -> None:
-        """Stop the worker at once where it rendered nothing (the command ended before its
-        verdict: an error, an interrupt), rather than wait for its imports; else let it end."""
+        """End the worker where the block it was forked for ends: at once where it rendered
+        nothing (the command ended before its verdict), rather than wait for its imports; else
+        once its jobs are done (the save waited for them)."""
         from sieve_mi.workers import stop_workers
 
         if self._pool is not None and self._early is None:
             stop_workers(self._pool)
         self._pool = None
         self._stack.close()
+
+
+@contextlib.contextmanager
+def _ending(early: _Ahead):
+    """Yield ``early``; then end its worker: at once on an exception (:meth:`_Ahead.stop`), else
+    by :meth:`_Ahead.drop`."""
+    try:
+        yield early
+    except BaseException:
+        early.stop()
+        raise
+    early.drop()
 
 
 @contextlib.contextmanager
@@ -395,8 +408,9 @@ def ahead(run, stage: str = "screen"):
         worker switches to its RGB sibling) and the search, the longest stage, follows.
     """
     global _AHEAD
-    if _AHEAD is not None:  # forked at the command's start (:func:`first`), which stops it
-        yield _AHEAD
+    if _AHEAD is not None:  # forked at the command's start (:func:`first`): ends with the block
+        with _ending(_AHEAD) as early:
+            yield early
         return
     with contextlib.ExitStack() as stack:
         _AHEAD = _Ahead(stack)
@@ -438,7 +452,7 @@ def first(variant: str | None, threads: int | None = None):
         _AHEAD = _Ahead(stack)
         _AHEAD.fork_fresh(variant, threads)
         try:
-            yield _AHEAD
+            with _ending(_AHEAD) as early:
+                yield early
         finally:
-            _AHEAD.drop()
             _AHEAD = None

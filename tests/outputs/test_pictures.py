@@ -134,7 +134,12 @@ with pictures.first("llvm_ad_mono", 3) as early:
     pool = early.take()
     with pictures.ahead(Run().start()) as again:  # the solve's: the worker forked first
         assert again is early and again.take() is pool
-    print(*pool.submit(worker).result(), "drjit" in sys.modules, os.getpid())
+        got = pool.submit(worker).result()
+    print(*got, "drjit" in sys.modules, os.getpid())
+    try:
+        os.kill(got[-1], 0)
+    except ProcessLookupError:  # the solve's block ended it (it rendered nothing: at once)
+        print("ended")
 print(pictures._AHEAD is None)
 """
 
@@ -152,10 +157,10 @@ def test_a_solve_forks_its_pictures_worker_first_with_its_own_dr_jit(mi):
     done = subprocess.run([sys.executable, "-c", _FIRST], env=env, capture_output=True,
                           text=True, timeout=120)  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
-    first, last = done.stdout.split("\n")[:2]
+    first, ended, last = done.stdout.split("\n")[:3]
     count, running, variant, pid, parent_drjit, parent = first.split()
     assert (int(count), variant, parent_drjit) == (3, "llvm_ad_rgb", "False")
     assert int(running) >= 3 and pid != parent
-    assert last == "True"
+    assert (ended, last) == ("ended", "True")
     with pictures.first("llvm_ad_mono") as early:  # Dr.Jit imported here: ahead() forks later
         assert early is None and pictures._AHEAD is None
