@@ -501,10 +501,27 @@ def _command(args) -> int:
     return code
 
 
+def _pictures_first(args):
+    """A solve with a picture forks the pictures' worker before Dr.Jit is imported
+    (:func:`sieve_mi.outputs.pictures.first`: its imports beside this process's start; NumPy
+    and trimesh it has from here); the block ends it."""
+    if args.command != "solve" or (args.no_figure and args.no_animation):
+        return contextlib.nullcontext()
+    from sieve_mi.outputs import pictures
+
+    return pictures.first(args.variant, args.threads)
+
+
 def main(argv: list[str] | None = None) -> int:
     clear_signals()
     args = _parser().parse_args(argv)
     _import_swallowers()
+    with _pictures_first(args):
+        return _main(args)
+
+
+def _main(args) -> int:
+    """:func:`main` after parsing: the command, its errors and interrupts as exit codes."""
     try:
         with _termination_as_interrupt():
             return _command(args)

@@ -94,7 +94,8 @@ class Run:
 
     def after(self, name: str, fn) -> None:
         """Call ``fn()`` (no arguments) once, when the stage ``name`` next ends (after its time
-        is recorded): e.g. the command line forks the pictures' worker after ``screen``."""
+        is recorded): e.g. the pictures' worker is forked after ``screen`` where the command
+        line did not fork it first."""
         self._after.setdefault(name, []).append(fn)
 
     def mark(self, name: str) -> None:

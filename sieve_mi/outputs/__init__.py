@@ -27,7 +27,7 @@ animation
     ``passage.gif``: the shapes moving through (or stopping at) the plate.
 pictures
     ``figure.png`` and ``passage.gif`` rendered in a worker process beside the rest of the save
-    (the command line forks it ahead, during the search).
+    (the command line forks it first thing, beside its own start).
 passage
     The 3D passage scene shared by the page and the GIF.
 fabrication

@@ -121,6 +121,13 @@ def render_frames(
         Linear radiance per frame (row 0 at the top): grey in a monochrome variant, RGB in an
         RGB one.
     """
+    film = _film(passage, phases, box, width, height, spp)
+    return _frames(film, width)
+
+
+def _film(passage: Passage, phases, box, width: int, height: int, spp: int) -> np.ndarray:
+    """:func:`render_frames`' rendering, its frames side by side: (height, K * width) or
+    (height, K * width, 3) float32 (the batch sensor's film, as Mitsuba develops it)."""
     import mitsuba as mi
 
     s = globals()["phases"](frame_count(passage)) if phases is None else np.asarray(phases, float)
@@ -133,8 +140,13 @@ def render_frames(
     image = np.asarray(mi.render(scene, sensor=sensor, spp=spp), dtype=np.float32)
     raise_if_signalled()  # Mitsuba may render on through an interrupt
     image = image.reshape(height, len(s) * width, -1)
-    image = image[..., :3] if colour else image.mean(axis=2)
-    return np.stack([image[:, k * width : (k + 1) * width] for k in range(len(s))])
+    return image[..., :3] if colour else image.mean(axis=2)
+
+
+def _frames(film: np.ndarray, width: int) -> np.ndarray:
+    """The film's frames, one after the other: (K, height, width[, 3]), a copy."""
+    count = film.shape[1] // width
+    return np.stack([film[:, k * width : (k + 1) * width] for k in range(count)])
 
 
 def _group(mi, vertices: np.ndarray, faces: np.ndarray, albedo):
@@ -244,8 +256,9 @@ def gif_frames(passage: Passage, phases: np.ndarray) -> tuple[list, str]:
     import mitsuba as mi
     from PIL import Image
 
-    with stage.rgb_variant(mi) as variant:
-        images = to_gray8(render_frames(passage, phases=phases))
+    with stage.rgb_variant(mi) as variant:  # sRGB on the film, then cut (the same bytes: a
+        # quarter of the memory that cutting the float frames first copies)
+        images = _frames(to_gray8(_film(passage, phases, None, WIDTH, HEIGHT, SPP)), WIDTH)
     mode = "RGB" if images.ndim == 4 else "L"
     pics = [Image.fromarray(im, mode=mode) for im in images]
     if mode == "RGB":  # one adaptive palette per frame (PIL's default GIF palette tints greys)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,9 +174,12 @@ def render_figure(
 
     with stage.rgb_variant(mi) as variant:
         scene, sensor = _scene(mi, plate, passes, blocks, blocked, picture, title is not None)
-        image = np.asarray(mi.render(scene, sensor=sensor, spp=spp), dtype=np.float32)
+        rendered = mi.render(scene, sensor=sensor, spp=spp)  # traced: it runs when read
+        with ThreadPoolExecutor(1) as pool:  # the title drawn while the kernel runs (no GIL)
+            text = pool.submit(_title_text, width, height, title) if title else None
+            image = np.asarray(rendered, dtype=np.float32)
     rgb = _to_srgb8(image, colour=variant.endswith("rgb"))
-    _write_png(path, rgb, title)
+    _write_png(path, rgb, title, text.result() if text is not None else None)
 
 
 def _triangles(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, int]:
@@ -406,26 +410,40 @@ def title_figure(width: int, height: int, title: str):
     return fig
 
 
-def _with_title(rgb: np.ndarray, title: str) -> np.ndarray:
-    """The picture with ``title`` drawn over it (:func:`title_figure`); every pixel that the
-    text does not cover keeps its value."""
-    h, w = rgb.shape[:2]
-    fig = title_figure(w, h, title)
+def _title_text(width: int, height: int, title: str) -> np.ndarray:
+    """The title of a picture of ``width`` x ``height`` pixels drawn alone
+    (:func:`title_figure`): (height, width, 4) uint8 RGBA, transparent where there is no text."""
+    fig = title_figure(width, height, title)
     fig.canvas.draw()
     drawn = np.asarray(fig.canvas.buffer_rgba())
-    text = np.zeros((h, w, 4), np.uint8)  # the figure's size may round by a pixel: keep (h, w)
-    text[: min(h, drawn.shape[0]), : min(w, drawn.shape[1])] = drawn[:h, :w]
-    alpha = text[..., 3:].astype(np.float32) / 255
-    out = rgb.astype(np.float32) * (1 - alpha) + text[..., :3].astype(np.float32) * alpha
-    return np.ascontiguousarray(np.round(out).astype(np.uint8))
+    text = np.zeros((height, width, 4), np.uint8)  # the figure may round by a pixel: keep the size
+    text[: min(height, drawn.shape[0]), : min(width, drawn.shape[1])] = drawn[:height, :width]
+    return text
 
 
-def _write_png(path: str, rgb: np.ndarray, title: str | None) -> None:
-    """Write the picture (with the title drawn on top) to a temporary file beside ``path``, then rename it."""
+def _with_title(rgb: np.ndarray, title: str, text: np.ndarray | None = None) -> np.ndarray:
+    """The picture with ``title`` drawn over it (``text``: :func:`_title_text`'s drawing of it,
+    made here where None); every pixel that the text does not cover keeps its value."""
+    h, w = rgb.shape[:2]
+    text = _title_text(w, h, title) if text is None else text
+    rows = np.flatnonzero(text[..., 3].any(axis=1))  # only the text's rows change
+    out = np.array(rgb, dtype=np.uint8, order="C")
+    if len(rows):
+        band = slice(rows[0], rows[-1] + 1)
+        alpha = text[band, :, 3:].astype(np.float32) / 255
+        mixed = rgb[band].astype(np.float32) * (1 - alpha)
+        mixed += text[band, :, :3].astype(np.float32) * alpha
+        out[band] = np.round(mixed).astype(np.uint8)
+    return out
+
+
+def _write_png(path: str, rgb: np.ndarray, title: str | None, text=None) -> None:
+    """Write the picture (with the title drawn on top: ``text``, :func:`_title_text`'s, where
+    given) to a temporary file beside ``path``, then rename it."""
     from PIL import Image
 
     if title:
-        rgb = _with_title(rgb, title)
+        rgb = _with_title(rgb, title, text)
     folder = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix=".figure-", suffix=".png", dir=folder)
     try:

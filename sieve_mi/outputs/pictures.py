@@ -4,18 +4,24 @@ One idea: the two Mitsuba pictures of a solve (:mod:`sieve_mi.outputs.figure`,
 :mod:`sieve_mi.outputs.animation`) need nothing that the images, the plots and the page make, and
 they cost most of a small solve's save (2.8 + 1.8 s of the default scene's 9.7 s on 2 cores,
 2026-12-04). :func:`start` forks one worker (:func:`sieve_mi.workers.worker_pool`) that switches
-Mitsuba to an RGB variant once, renders the figure, then the GIF, into the save's temporary
-folder; :meth:`Pictures.wait` collects what report.json records of them. Where a fork is unsafe
+Mitsuba to an RGB variant once, renders the GIF, then the figure, into the save's temporary
+folder (in that order: the GIF's one-thread parts, about a third of it, run beside the save's
+own work, and the figure's rendering, on every core, is what the save waits for last);
+:meth:`Pictures.wait` collects what report.json records of them. Where a fork is unsafe
 (a CUDA variant: its context does not survive a fork; a system without ``fork``) both are
 rendered in this process, one after the other, as before. The pictures are the same either way:
 the same scene, sampler seed and settings give the same pixels.
 
-The command line forks that worker ahead of the save (:func:`ahead`: when the solve's
-``screen`` stage ends), so its start (the fork, Mitsuba's RGB variant, the pictures' modules:
-about 0.4 s on 2 cores) overlaps the search instead of the save; :func:`start` then hands the
-pictures to it (matplotlib included, for the figure's title: :func:`_ready`). The command line
+The command line forks that worker once it has imported trimesh, before it imports Dr.Jit
+(:func:`first`), so the worker's start (Dr.Jit, Mitsuba's RGB variant, matplotlib for the
+figure's title, PIL and the pictures' modules: :func:`_rgb_fresh` and :func:`_ready`) runs
+beside the command's own one-thread start (its imports, reading the scene, Dr.Jit's variant,
+the screen) instead of beside the search, whose pace main's Python thread sets while Dr.Jit's
+threads keep the other core busy; :func:`start` then hands the pictures to it. Where the command has imported Dr.Jit
+before (a solve run in a process that rendered already) or uses a CUDA variant, :func:`ahead`
+forks it when the solve's ``screen`` stage ends, as before 2026-12-07. The command line
 also hands the solver :meth:`_Ahead.prerender`, which the solver calls before its ``margins``
-stage: the worker then renders the figure and the GIF while the margins are measured and the
+stage: the worker then renders the GIF and the figure while the margins are measured and the
 rest of the save is written, into a folder of its own, and :func:`start` takes them over (the
 same plate, so the same pictures). A solve from Python forks its worker in the save, as before.
 
@@ -35,14 +41,18 @@ import tempfile
 import time
 from typing import NamedTuple
 
-__all__ = ["Pictures", "ahead", "built", "render", "start"]
+__all__ = ["Pictures", "ahead", "built", "first", "render", "start"]
 
 #: The worker forked ahead of the save (:func:`ahead`), while its block runs; else None.
 _AHEAD = None
 
 
 def render(tmp: str, figure_args: tuple | None, passage) -> dict:
-    """Render ``figure.png`` (with ``figure_args``) and ``passage.gif`` (with ``passage``) into ``tmp``.
+    """Render ``passage.gif`` (with ``passage``), then ``figure.png`` (with ``figure_args``) into ``tmp``.
+
+    The GIF comes first: a third of its time is one thread's (the scene's tracing, the frames'
+    sRGB, palettes and file), which the save's own work fills beside it, while the figure's
+    rendering, last, keeps both cores busy up to its last rows (see the module docstring).
 
     Parameters
     ----------
@@ -57,14 +67,22 @@ def render(tmp: str, figure_args: tuple | None, passage) -> dict:
     Returns
     -------
     dict
-        ``figure_end`` (the ``time.perf_counter()`` at which the figure was written, None
-        without one), ``figure_s`` and ``animation_s`` (seconds each took), ``animation`` (what
-        :func:`~sieve_mi.outputs.animation.write_gif` returns, or None) and ``peak_gb`` (this
-        process's peak resident memory, GB).
+        ``figure_end`` and ``animation_end`` (the ``time.perf_counter()`` at which each file was
+        written, None without it), ``figure_s`` and ``animation_s`` (seconds each took),
+        ``animation`` (what :func:`~sieve_mi.outputs.animation.write_gif` returns, or None) and
+        ``peak_gb`` (this process's peak resident memory, GB).
     """
     from sieve_mi.backend import MemoryWatch
 
-    out = {"figure_end": None, "figure_s": 0.0, "animation_s": 0.0, "animation": None}
+    out = {"figure_end": None, "animation_end": None, "figure_s": 0.0, "animation_s": 0.0,
+           "animation": None}  # fmt: skip
+    if passage is not None:
+        from sieve_mi.outputs.animation import write_gif
+
+        t0 = time.perf_counter()
+        out["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
+        out["animation_end"] = time.perf_counter()
+        out["animation_s"] = out["animation_end"] - t0
     if figure_args is not None:
         from sieve_mi.outputs.figure import render_figure
 
@@ -73,12 +91,6 @@ def render(tmp: str, figure_args: tuple | None, passage) -> dict:
         render_figure(os.path.join(tmp, "figure.png"), plate, passes, blocks, blocked, title=title)
         out["figure_end"] = time.perf_counter()
         out["figure_s"] = out["figure_end"] - t0
-    if passage is not None:
-        from sieve_mi.outputs.animation import write_gif
-
-        t0 = time.perf_counter()
-        out["animation"] = write_gif(os.path.join(tmp, "passage.gif"), passage)
-        out["animation_s"] = time.perf_counter() - t0
     watch = MemoryWatch()
     out["peak_gb"] = watch.peak
     watch.stop()
@@ -105,6 +117,26 @@ def _rgb_once() -> None:
     if running < wanted:
         dr.set_thread_count(2 * wanted - running)
     select_rgb_variant(mi, mi.variant())
+
+
+def _rgb_fresh(variant: str, threads: int | None) -> None:
+    """The first step of a worker forked before this process imported Dr.Jit (:func:`first`):
+    Dr.Jit imported afresh (its own pool: every thread runs), on the command's thread count
+    (``--threads``, else ``$SIEVE_MI_THREADS``: the parent checks and applies them as well,
+    and says what is wrong with them), then Mitsuba in the RGB variant that :func:`_rgb_once`
+    picks after ``variant`` (the solve's)."""
+    from sieve_mi.backend import apply_threads, configure_llvm, select_rgb_variant, set_threads
+    from sieve_mi.errors import SieveError
+
+    configure_llvm()
+    import mitsuba as mi
+
+    with contextlib.suppress(SieveError):  # the parent stops with the same error
+        if threads is not None:
+            set_threads(threads)
+        else:
+            apply_threads()
+    select_rgb_variant(mi, variant)
 
 
 def _ready() -> None:
@@ -146,8 +178,8 @@ class Pictures:
         Returns
         -------
         dict
-            ``figure_s`` and ``animation_s``: the caller's wall time from this call until the
-            figure, then the GIF, was written (in this process: the time each took), and
+            ``animation_s`` and ``figure_s``: the caller's wall time from this call until the
+            GIF, then the figure, was written (in this process: the time each took), and
             ``animation`` (:func:`~sieve_mi.outputs.animation.write_gif`'s record or None) and
             ``peak_gb`` (the rendering process's peak memory, GB).
         """
@@ -162,12 +194,15 @@ class Pictures:
             for name in ("figure.png", "passage.gif"):
                 if os.path.exists(os.path.join(self._folder, name)):
                     shutil.move(os.path.join(self._folder, name), os.path.join(self._job[0], name))
-        t_end = time.perf_counter()
-        end = self.rendered["figure_end"]
-        figure_s = 0.0 if end is None else min(max(end - t_wait, 0.0), t_end - t_wait)
+        waited = time.perf_counter() - t_wait
+        # the picture written first accounts for the wait up to its end, the other for the rest
+        first = "animation" if self.rendered.get("animation_end") is not None else "figure"
+        end = self.rendered.get(f"{first}_end")
+        first_s = 0.0 if end is None else min(max(end - t_wait, 0.0), waited)
+        second = {"animation": "figure", "figure": "animation"}[first]
         return {
-            "figure_s": figure_s,
-            "animation_s": t_end - t_wait - figure_s,
+            f"{first}_s": first_s,
+            f"{second}_s": waited - first_s,
             "animation": self.rendered["animation"],
             "peak_gb": self.rendered["peak_gb"],
         }
@@ -265,6 +300,28 @@ class _Ahead:
             return
         self._pool = pool
 
+    def fork_fresh(self, variant: str, threads: int | None) -> None:
+        """Fork the worker now, before this process imports Dr.Jit (:func:`first`): it imports
+        Dr.Jit, Mitsuba and the pictures' modules itself (:func:`_rgb_fresh`, :func:`_ready`).
+        Where the fork fails the save forks its own, as in :meth:`fork`."""
+        from sieve_mi.workers import worker_pool
+
+        self._stack.callback(self._forget)
+        try:
+            pool = self._stack.enter_context(
+                worker_pool(
+                    1,
+                    initializer=_rgb_fresh,
+                    initargs=(variant, threads),
+                    what="figure and GIF rendering",
+                )  # fmt: skip
+            )
+            pool.submit(_ready)
+        except OSError:
+            self._stack.close()
+            return
+        self._pool = pool
+
     def take(self):
         """The forked worker's pool (None where none was forked)."""
         return self._pool
@@ -335,6 +392,29 @@ class _Ahead:
         self._pool = None
         self._stack.__exit__(*sys.exc_info())
 
+    def drop(self) -> None:
+        """End the worker where the block it was forked for ends: at once where it rendered
+        nothing (the command ended before its verdict), rather than wait for its imports; else
+        once its jobs are done (the save waited for them)."""
+        from sieve_mi.workers import stop_workers
+
+        if self._pool is not None and self._early is None:
+            stop_workers(self._pool)
+        self._pool = None
+        self._stack.close()
+
+
+@contextlib.contextmanager
+def _ending(early: _Ahead):
+    """Yield ``early``; then end its worker: at once on an exception (:meth:`_Ahead.stop`), else
+    by :meth:`_Ahead.drop`."""
+    try:
+        yield early
+    except BaseException:
+        early.stop()
+        raise
+    early.drop()
+
 
 @contextlib.contextmanager
 def ahead(run, stage: str = "screen"):
@@ -350,10 +430,51 @@ def ahead(run, stage: str = "screen"):
         worker switches to its RGB sibling) and the search, the longest stage, follows.
     """
     global _AHEAD
+    if _AHEAD is not None:  # forked at the command's start (:func:`first`): ends with the block
+        with _ending(_AHEAD) as early:
+            yield early
+        return
     with contextlib.ExitStack() as stack:
         _AHEAD = _Ahead(stack)
         run.after(stage, _AHEAD.fork)
         try:
             yield _AHEAD
+        finally:
+            _AHEAD = None
+
+
+@contextlib.contextmanager
+def first(variant: str | None, threads: int | None = None):
+    """A context manager in which the pictures' worker is forked at once, for :func:`ahead`
+    (and the save) in the block to use: the command line's first step for a solve with
+    pictures, so the worker's imports (Dr.Jit, Mitsuba's RGB variant, matplotlib, PIL and the
+    pictures' modules) run beside the command's own start, one thread's work (its imports,
+    reading the scene), instead of beside the search, which keeps both cores busy.
+
+    Nothing is forked where this process has imported Dr.Jit already (a fork would copy its
+    running pool: a solve run in a process that rendered before, such as a test's) or with a
+    CUDA ``variant`` (:func:`_forkable`): :func:`ahead` forks then, as before.
+
+    Parameters
+    ----------
+    variant : str or None
+        The solve's variant (``--variant``; None: :func:`sieve_mi.backend.default_variant`).
+    threads : int, optional
+        ``--threads``: Dr.Jit's thread count in the worker (default: ``$SIEVE_MI_THREADS``,
+        else one per core).
+    """
+    global _AHEAD
+    from sieve_mi.backend import default_variant
+
+    variant = variant or default_variant()
+    if _AHEAD is not None or "drjit" in sys.modules or not _forkable(variant):
+        yield None
+        return
+    with contextlib.ExitStack() as stack:
+        _AHEAD = _Ahead(stack)
+        _AHEAD.fork_fresh(variant, threads)
+        try:
+            with _ending(_AHEAD) as early:
+                yield early
         finally:
             _AHEAD = None

@@ -126,7 +126,7 @@ def test_title_lies_in_its_band_on_no_shape(tmp_path, scene, mi, colour, monkeyp
     w, h = 2 * W, 2 * H
     title = "a scene with a rather long name, longer than the picture is wide: winner A"
     args = (plate, passes, blocks, [True])
-    monkeypatch.setattr(figure, "_with_title", lambda rgb, title: rgb)
+    monkeypatch.setattr(figure, "_with_title", lambda rgb, title, text=None: rgb)
     render_figure(str(tmp_path / "raw.png"), *args, picture=FigureSettings(w, h, SPP), title=title)
     monkeypatch.undo()
     render_figure(

@@ -118,3 +118,49 @@ def test_pictures_started_before_the_margins_become_the_saves(mi, tmp_path, monk
         assert figure.startswith("figure-job ") and gif.startswith("gif-job-plate ")
         assert figure.split()[1] != str(os.getpid())  # the worker rendered them
     assert not os.path.exists(folder)
+
+
+_FIRST = """
+import os, sys
+from sieve_mi.outputs import pictures
+from sieve_mi.telemetry import Run
+
+def worker():
+    import drjit as dr
+    import mitsuba as mi
+    return dr.thread_count(), len(os.listdir("/proc/self/task")) - 1, mi.variant(), os.getpid()
+
+with pictures.first("llvm_ad_mono", 3) as early:
+    pool = early.take()
+    with pictures.ahead(Run().start()) as again:  # the solve's: the worker forked first
+        assert again is early and again.take() is pool
+        got = pool.submit(worker).result()
+    print(*got, "drjit" in sys.modules, os.getpid())
+    try:
+        os.kill(got[-1], 0)
+    except ProcessLookupError:  # the solve's block ended it (it rendered nothing: at once)
+        print("ended")
+print(pictures._AHEAD is None)
+"""
+
+
+def test_a_solve_forks_its_pictures_worker_first_with_its_own_dr_jit(mi):
+    # The command line forks the worker before anything imports Dr.Jit: the worker imports it
+    # itself (every pool thread runs) on the command's --threads, in an RGB variant, while this
+    # process has not imported Dr.Jit; ahead() then hands the same worker to the solve.
+    import subprocess
+
+    if mi.variant().startswith("cuda") or "llvm_ad_rgb" not in mi.variants():
+        pytest.skip("the early worker renders with llvm_ad_rgb")
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env = {**os.environ, "PYTHONPATH": root}
+    done = subprocess.run([sys.executable, "-c", _FIRST], env=env, capture_output=True,
+                          text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    first, ended, last = done.stdout.split("\n")[:3]
+    count, running, variant, pid, parent_drjit, parent = first.split()
+    assert (int(count), variant, parent_drjit) == (3, "llvm_ad_rgb", "False")
+    assert int(running) >= 3 and pid != parent
+    assert (ended, last) == ("ended", "True")
+    with pictures.first("llvm_ad_mono") as early:  # Dr.Jit imported here: ahead() forks later
+        assert early is None and pictures._AHEAD is None
