@@ -181,7 +181,11 @@ def cmd_solve(args) -> int:
     # imports and reading the scene are "startup"); sm.solve's checks of the arguments ran above.
     run = Run.from_process_start()
     figure, gif = not args.no_figure, not args.no_animation
-    with pictures.ahead(run) if figure or gif else nullcontext() as early:
+    # the pictures' worker is forked once the scene and --out are accepted (a refused run has
+    # imported no Dr.Jit: nothing of it, such as its kernel cache, is made) and before Dr.Jit is
+    # imported, so its imports run beside this process's one-thread start
+    first = pictures.first(args.variant, args.threads) if figure or gif else nullcontext()
+    with first, pictures.ahead(run) if figure or gif else nullcontext() as early:
         start = early and (lambda r: early.prerender(r, figure, gif))  # before the margins
         result = sm.Result.of(
             play(
@@ -501,27 +505,10 @@ def _command(args) -> int:
     return code
 
 
-def _pictures_first(args):
-    """A solve with a picture forks the pictures' worker before Dr.Jit is imported
-    (:func:`sieve_mi.outputs.pictures.first`: its imports beside this process's start; NumPy
-    and trimesh it has from here); the block ends it."""
-    if args.command != "solve" or (args.no_figure and args.no_animation):
-        return contextlib.nullcontext()
-    from sieve_mi.outputs import pictures
-
-    return pictures.first(args.variant, args.threads)
-
-
 def main(argv: list[str] | None = None) -> int:
     clear_signals()
     args = _parser().parse_args(argv)
     _import_swallowers()
-    with _pictures_first(args):
-        return _main(args)
-
-
-def _main(args) -> int:
-    """:func:`main` after parsing: the command, its errors and interrupts as exit codes."""
     try:
         with _termination_as_interrupt():
             return _command(args)

@@ -12,11 +12,11 @@ own work, and the figure's rendering, on every core, is what the save waits for 
 rendered in this process, one after the other, as before. The pictures are the same either way:
 the same scene, sampler seed and settings give the same pixels.
 
-The command line forks that worker once it has imported trimesh, before it imports Dr.Jit
-(:func:`first`), so the worker's start (Dr.Jit, Mitsuba's RGB variant, matplotlib for the
+The command line forks that worker once it has read the scene and accepted ``--out``, before
+it imports Dr.Jit (:func:`first`), so the worker's start (Dr.Jit, Mitsuba's RGB variant, matplotlib for the
 figure's title, PIL and the pictures' modules: :func:`_rgb_fresh` and :func:`_ready`) runs
-beside the command's own one-thread start (its imports, reading the scene, Dr.Jit's variant,
-the screen) instead of beside the search, whose pace main's Python thread sets while Dr.Jit's
+beside the command's own one-thread start (its remaining imports, Dr.Jit's variant, the
+screen) instead of beside the search, whose pace main's Python thread sets while Dr.Jit's
 threads keep the other core busy; :func:`start` then hands the pictures to it. Where the command has imported Dr.Jit
 before (a solve run in a process that rendered already) or uses a CUDA variant, :func:`ahead`
 forks it when the solve's ``screen`` stage ends, as before 2026-12-07. The command line
@@ -446,10 +446,12 @@ def ahead(run, stage: str = "screen"):
 @contextlib.contextmanager
 def first(variant: str | None, threads: int | None = None):
     """A context manager in which the pictures' worker is forked at once, for :func:`ahead`
-    (and the save) in the block to use: the command line's first step for a solve with
-    pictures, so the worker's imports (Dr.Jit, Mitsuba's RGB variant, matplotlib, PIL and the
-    pictures' modules) run beside the command's own start, one thread's work (its imports,
-    reading the scene), instead of beside the search, which keeps both cores busy.
+    (and the save) in the block to use: ``sieve-mi solve`` with pictures enters it once the
+    scene and ``--out`` are accepted (a refused run imports no Dr.Jit and makes none of its
+    files, such as its kernel cache in the home folder), so the worker's imports (Dr.Jit,
+    Mitsuba's RGB variant, matplotlib, PIL and the pictures' modules) run beside the command's
+    own start, one thread's work (its imports, Dr.Jit's variant, the screen), instead of beside
+    the search, which keeps both cores busy.
 
     Nothing is forked where this process has imported Dr.Jit already (a fork would copy its
     running pool: a solve run in a process that rendered before, such as a test's) or with a
