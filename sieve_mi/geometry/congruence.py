@@ -159,7 +159,8 @@ class Outline:
         x, y = hole.frame.centres()
         rows, cols = np.nonzero(mask)
         out.centroid = np.array([x[cols].mean(), y[rows].mean()])
-        inner = mask & ~ndimage.binary_erosion(mask, border_value=0)
+        box = _box(mask)
+        inner = mask[box] & ~ndimage.binary_erosion(mask[box], border_value=0)
         out.border = int(inner.sum())
         r = np.hypot(x[cols] - out.centroid[0], y[rows] - out.centroid[1]) / hole.frame.pixel_size
         out.radial = np.cumsum(np.bincount(r.astype(np.int64)))
@@ -173,7 +174,10 @@ class Outline:
         """(N, N) signed distance in pixels (negative inside), zero half way across the border."""
         if self._signed is None:
             mask, h = self.hole.mask, self.hole.frame.pixel_size
-            inside = ndimage.distance_transform_edt(mask) if mask.any() else np.zeros(mask.shape)
+            inside = np.zeros(mask.shape)
+            if mask.any():
+                box = _box(mask)
+                inside[box] = ndimage.distance_transform_edt(mask[box])
             outside = self.hole.outside / h
             self._signed = np.where(mask, 0.5 - inside, outside - 0.5).astype(np.float32)
         return self._signed
@@ -214,6 +218,20 @@ class Outline:
         )
 
 
+def _box(mask: np.ndarray) -> tuple[slice, slice]:
+    """The bounding box of a non-empty ``mask``'s pixels grown by one pixel (within the frame).
+
+    A distance transform or an erosion of the mask on this box equals the whole frame's there
+    (every pixel of the grown ring is outside the mask, and the nearest outside pixel to a pixel
+    of the box is never beyond the ring: moving it onto the ring brings it nearer), and the
+    mask is empty outside it; on a hole that covers a small part of the frame, a fraction of
+    the work."""
+    rows, cols = np.flatnonzero(mask.any(1)), np.flatnonzero(mask.any(0))
+    n_r, n_c = mask.shape
+    return (slice(max(rows[0] - 1, 0), min(rows[-1] + 2, n_r)),
+            slice(max(cols[0] - 1, 0), min(cols[-1] + 2, n_c)))  # fmt: skip
+
+
 def areas_plausible(area, border, b: Outline) -> np.ndarray:
     """The first of :func:`congruent`'s necessary conditions for many outlines at once (their
     ``area`` and ``border``, arrays, pixels) against ``b``: areas within the area tolerance
@@ -251,12 +269,11 @@ def _motion(a: Outline, b: Outline, angle: float, mirror: bool) -> Motion:
 
 
 def _mismatch(a: Outline, b: Outline, points: np.ndarray, angles, mirror: bool) -> np.ndarray:
-    """Mean |d_b(T p) - d_a(p)| over ``points`` of ``a``, for each angle (A,)."""
+    """Mean |d_b(T p) - d_a(p)| over ``points`` of ``a``, for each angle (A,); one bilinear
+    read of ``b`` for all the angles."""
     da = a.at(points)
-    out = np.empty(len(angles))
-    for k, angle in enumerate(angles):
-        out[k] = np.abs(b.at(_motion(a, b, angle, mirror).points(points)) - da).mean()
-    return out
+    moved = np.stack([_motion(a, b, angle, mirror).points(points) for angle in angles])
+    return np.abs(b.at(moved) - da).mean(axis=-1)
 
 
 def _fits(a: Outline, b: Outline, motion: Motion) -> bool:
