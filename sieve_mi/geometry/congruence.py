@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from sieve_mi.geometry.hole import Hole
+from sieve_mi.geometry.hole import Hole, bounding_box
 
 __all__ = ["FRACTION", "LOCAL", "Motion", "Outline", "areas_plausible", "congruent"]
 
@@ -159,7 +159,7 @@ class Outline:
         x, y = hole.frame.centres()
         rows, cols = np.nonzero(mask)
         out.centroid = np.array([x[cols].mean(), y[rows].mean()])
-        box = _box(mask)
+        box = bounding_box(mask)  # an erosion there is the whole frame's (its ring is empty)
         inner = mask[box] & ~ndimage.binary_erosion(mask[box], border_value=0)
         out.border = int(inner.sum())
         r = np.hypot(x[cols] - out.centroid[0], y[rows] - out.centroid[1]) / hole.frame.pixel_size
@@ -174,9 +174,8 @@ class Outline:
         """(N, N) signed distance in pixels (negative inside), zero half way across the border."""
         if self._signed is None:
             mask, h = self.hole.mask, self.hole.frame.pixel_size
-            inside = np.zeros(mask.shape)
-            if mask.any():
-                box = _box(mask)
+            inside, box = np.zeros(mask.shape), bounding_box(mask)
+            if box is not None:  # the box's ring is outside the hole: the whole frame's values
                 inside[box] = ndimage.distance_transform_edt(mask[box])
             outside = self.hole.outside / h
             self._signed = np.where(mask, 0.5 - inside, outside - 0.5).astype(np.float32)
@@ -216,20 +215,6 @@ class Outline:
             + d[r + 1, c] * (1 - f[..., 0]) * f[..., 1]
             + d[r + 1, c + 1] * f[..., 0] * f[..., 1]
         )
-
-
-def _box(mask: np.ndarray) -> tuple[slice, slice]:
-    """The bounding box of a non-empty ``mask``'s pixels grown by one pixel (within the frame).
-
-    A distance transform or an erosion of the mask on this box equals the whole frame's there
-    (every pixel of the grown ring is outside the mask, and the nearest outside pixel to a pixel
-    of the box is never beyond the ring: moving it onto the ring brings it nearer), and the
-    mask is empty outside it; on a hole that covers a small part of the frame, a fraction of
-    the work."""
-    rows, cols = np.flatnonzero(mask.any(1)), np.flatnonzero(mask.any(0))
-    n_r, n_c = mask.shape
-    return (slice(max(rows[0] - 1, 0), min(rows[-1] + 2, n_r)),
-            slice(max(cols[0] - 1, 0), min(cols[-1] + 2, n_c)))  # fmt: skip
 
 
 def areas_plausible(area, border, b: Outline) -> np.ndarray:
