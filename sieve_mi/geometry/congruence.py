@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from sieve_mi.geometry.hole import Hole
+from sieve_mi.geometry.hole import Hole, bounding_box
 
 __all__ = ["FRACTION", "LOCAL", "Motion", "Outline", "areas_plausible", "congruent"]
 
@@ -159,7 +159,8 @@ class Outline:
         x, y = hole.frame.centres()
         rows, cols = np.nonzero(mask)
         out.centroid = np.array([x[cols].mean(), y[rows].mean()])
-        inner = mask & ~ndimage.binary_erosion(mask, border_value=0)
+        box = bounding_box(mask)  # an erosion there is the whole frame's (its ring is empty)
+        inner = mask[box] & ~ndimage.binary_erosion(mask[box], border_value=0)
         out.border = int(inner.sum())
         r = np.hypot(x[cols] - out.centroid[0], y[rows] - out.centroid[1]) / hole.frame.pixel_size
         out.radial = np.cumsum(np.bincount(r.astype(np.int64)))
@@ -173,7 +174,9 @@ class Outline:
         """(N, N) signed distance in pixels (negative inside), zero half way across the border."""
         if self._signed is None:
             mask, h = self.hole.mask, self.hole.frame.pixel_size
-            inside = ndimage.distance_transform_edt(mask) if mask.any() else np.zeros(mask.shape)
+            inside, box = np.zeros(mask.shape), bounding_box(mask)
+            if box is not None:  # the box's ring is outside the hole: the whole frame's values
+                inside[box] = ndimage.distance_transform_edt(mask[box])
             outside = self.hole.outside / h
             self._signed = np.where(mask, 0.5 - inside, outside - 0.5).astype(np.float32)
         return self._signed
@@ -251,12 +254,11 @@ def _motion(a: Outline, b: Outline, angle: float, mirror: bool) -> Motion:
 
 
 def _mismatch(a: Outline, b: Outline, points: np.ndarray, angles, mirror: bool) -> np.ndarray:
-    """Mean |d_b(T p) - d_a(p)| over ``points`` of ``a``, for each angle (A,)."""
+    """Mean |d_b(T p) - d_a(p)| over ``points`` of ``a``, for each angle (A,); one bilinear
+    read of ``b`` for all the angles."""
     da = a.at(points)
-    out = np.empty(len(angles))
-    for k, angle in enumerate(angles):
-        out[k] = np.abs(b.at(_motion(a, b, angle, mirror).points(points)) - da).mean()
-    return out
+    moved = np.stack([_motion(a, b, angle, mirror).points(points) for angle in angles])
+    return np.abs(b.at(moved) - da).mean(axis=-1)
 
 
 def _fits(a: Outline, b: Outline, motion: Motion) -> bool:

@@ -99,3 +99,22 @@ def test_poses_move_with_the_plane():
         )
         assert congruence._fits(a, b, motion)
         assert not congruence._fits(a, b, Motion(motion.angle, not motion.mirror, motion.shift))
+
+
+def test_an_outlines_distances_are_the_whole_frames_wherever_the_hole_lies():
+    # computed on the hole's bounding box grown by a pixel: the same as on the whole frame,
+    # for a hole in the middle, one cut off by the frame's edge and one filling a corner
+    from scipy import ndimage
+
+    frame = Frame.covering(10.0, 64)
+    x, y = frame.centres()
+    xx, yy = np.meshgrid(x, y)
+    for cx, cy, r in ((0.0, 0.0, 4.0), (9.5, -3.0, 3.0), (-9.0, 9.0, 6.0)):
+        mask = np.hypot(xx - cx, yy - cy) <= r
+        mask &= ~((np.abs(xx - cx) < 0.6 * r) & (np.abs(yy - cy) < 0.2 * r))  # a slot
+        hole = Hole.from_mask(mask, frame)
+        out = Outline.of(hole)
+        inside = ndimage.distance_transform_edt(mask)
+        whole = np.where(mask, 0.5 - inside, hole.outside / frame.pixel_size - 0.5)
+        np.testing.assert_array_equal(out.signed, whole.astype(np.float32))
+        assert out.border == np.count_nonzero(mask & ~ndimage.binary_erosion(mask, border_value=0))

@@ -225,6 +225,13 @@ def test_filling_closes_what_a_4_connected_path_cannot_leave():
     for p in (0.3, 0.5, 0.7):
         m = rng.random((40, 40)) < p
         np.testing.assert_array_equal(fill_gaps(m), ndimage.binary_fill_holes(m))
+        # away from the frame's edges, at one edge, in a corner (filled on the mask's box)
+        for rows, cols in ((slice(8, 30), slice(5, 25)), (slice(0, 20), slice(12, 33)),
+                           (slice(25, 40), slice(28, 40))):  # fmt: skip
+            part = np.zeros_like(m)
+            part[rows, cols] = m[rows, cols]
+            np.testing.assert_array_equal(fill_gaps(part), ndimage.binary_fill_holes(part))
+    assert not fill_gaps(np.zeros((5, 5), dtype=bool)).any()
 
 
 def test_sensor_rays_are_the_pixel_centres():
