@@ -13,13 +13,14 @@ rendered in this process, one after the other, as before. The pictures are the s
 the same scene, sampler seed and settings give the same pixels.
 
 The command line forks that worker once it has read the scene and accepted ``--out``, before
-it imports Dr.Jit (:func:`first`), so the worker's start (Dr.Jit, Mitsuba's RGB variant, matplotlib for the
-figure's title, PIL and the pictures' modules: :func:`_rgb_fresh` and :func:`_ready`) runs
-beside the command's own one-thread start (its remaining imports, Dr.Jit's variant, the
-screen) instead of beside the search, whose pace main's Python thread sets while Dr.Jit's
-threads keep the other core busy; :func:`start` then hands the pictures to it. Where the command has imported Dr.Jit
-before (a solve run in a process that rendered already) or uses a CUDA variant, :func:`ahead`
-forks it when the solve's ``screen`` stage ends, as before 2026-12-07. The command line
+it imports Dr.Jit (:func:`first`), so the worker's start (Dr.Jit, Mitsuba's RGB variant,
+matplotlib for the figure's title, PIL and the pictures' modules: :func:`_rgb_fresh` and
+:func:`_ready`) runs beside the command's own one-thread start (its remaining imports, Dr.Jit's
+variant, the screen) instead of beside the search, whose pace main's Python thread sets while
+Dr.Jit's threads keep the other core busy; :func:`start` then hands the pictures to it. Where
+the command has imported Dr.Jit before (a solve run in a process that rendered already) or uses
+a CUDA variant, :func:`ahead` forks it when the solve's ``screen`` stage ends, as before
+2026-12-07. The command line
 also hands the solver :meth:`_Ahead.prerender`, which the solver calls before its ``margins``
 stage: the worker then renders the GIF and the figure while the margins are measured and the
 rest of the save is written, into a folder of its own, and :func:`start` takes them over (the
@@ -48,7 +49,8 @@ _AHEAD = None
 
 
 def render(tmp: str, figure_args: tuple | None, passage) -> dict:
-    """Render ``passage.gif`` (with ``passage``), then ``figure.png`` (with ``figure_args``) into ``tmp``.
+    """Render ``passage.gif`` (with ``passage``), then ``figure.png`` (with ``figure_args``),
+    into ``tmp``.
 
     The GIF comes first: a third of its time is one thread's (the scene's tracing, the frames'
     sRGB, palettes and file), which the save's own work fills beside it, while the figure's
