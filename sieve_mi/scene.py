@@ -250,6 +250,15 @@ class Solver:
         "rotations that block every B, prefers the one nearest a frequent resting pose (a "
         "shaken part already lies in it)",
     )
+    retries: int = setting(
+        1,
+        "when the verdict on the exact hole finds some B passing, search A again from another "
+        "seed (seed + 1, ...) and keep the better hole (more B blocked, then the higher least β); "
+        "stops at a hole that blocks every B; a single A and separate holes (merged: "
+        "[layout] restarts); 0: off",
+        minimum=0,
+        maximum=100,
+    )
     freeze: bool = setting(
         True,
         "record player B's Adam step once and replay it (drjit.freeze; same results)",

@@ -35,8 +35,9 @@ __all__ = [
 #: Stage names, as in ``cascade.json``'s games and the progress lines.
 FULL, SCREEN = "full", "screen"
 #: ``[solver]`` caps of a screening game: 4 particles, 2 iterations, 4 starts of 40 steps on a
-#: 96-pixel raster, 2 polish rounds.
+#: 96-pixel raster, 2 polish rounds, no retry of a lost search.
 SCREEN_SOLVER = {
+    "retries": 0,
     "particles": 4,
     "iterations": 2,
     "starts": 4,

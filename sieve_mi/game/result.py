@@ -229,6 +229,10 @@ class Result:
     #: Separate holes with ``[layout] mirrored``: each chiral A's mirrored hole (``of``, ``name``,
     #: ``translation``; :class:`sieve_mi.game.holes.SeparateHoles`).
     mirrored: list = field(default_factory=list)
+    #: With ``[solver] retries``, per search of A (the first included): its seed, the B that
+    #: passed its hole in the verdict, the least β and whether it was kept
+    #: (:func:`sieve_mi.game.retry.with_retries`); empty when the first search won.
+    retries: list = field(default_factory=list)
     #: :meth:`overlay_sections`' polygons, made on first use (a 500k-face B's projection takes
     #: minutes; the images and the page both draw it).
     _sections: tuple | None = field(default=None, repr=False, compare=False)

@@ -27,6 +27,7 @@ from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
 from sieve_mi.game.rest import likely_rests, prefer, rest_records
 from sieve_mi.game.result import Result, block_margins, is_blocked
+from sieve_mi.game.retry import Attempt, applies, with_retries
 from sieve_mi.game.scoring import mask_window
 from sieve_mi.game.screen import prove_proved, proved_by_size, with_proved
 from sieve_mi.game.sheet import plate_sheet
@@ -76,6 +77,9 @@ class SearchOutcome:
     rest_choice : dict of int to dict
         Per searched A, with ``[solver] rest_poses``: the record of
         :func:`sieve_mi.game.rest.prefer` (search's rotation or a rest pose, and why).
+    retries : list of dict
+        With ``[solver] retries``, per attempt: :func:`sieve_mi.game.retry.with_retries`' records
+        (empty when the first search's hole won).
     """
 
     quats: np.ndarray
@@ -90,6 +94,7 @@ class SearchOutcome:
     merged_blocks: bool = True
     feasibility: object = None
     rest_choice: dict = field(default_factory=dict)
+    retries: list = field(default_factory=list)
 
 
 def load_shapes(scene: Scene) -> tuple[list[Shape], list[Shape]]:
@@ -308,17 +313,28 @@ def solve(
     _announce(feasible, progress)
     skip = set(sure) | set(feasible.impossible)  # decided before the game: not searched
     open_blocks = [b for j, b in enumerate(blocks) if j not in skip]
-    with run.stage("search"):
-        searched = _searched(scene, passes, open_blocks)  # the verdict: the full meshes
-        found = (
-            search(scene, passes, searched, rng, seed, progress)
-            if open_blocks
-            else _unsearched(scene)
-        )
-        found.feasibility = feasible
-    play, window, rng = _window(scene, passes, [b for j, b in enumerate(blocks) if j not in skip],
-                                found, (seed, rng), progress, run)  # fmt: skip
-    v, certified = _verdict(play, passes, blocks, sure, found, rng, progress, run)
+    searched = []  # the B the search plays, made once (the verdict: the full meshes)
+
+    def attempt(rng, seed: int, run: Run) -> Attempt:  # a search, its window and its verdict
+        with run.stage("search"):
+            searched[:] = searched or _searched(scene, passes, open_blocks)
+            found = search(scene, passes, searched, rng, seed, progress) if open_blocks else (
+                _unsearched(scene))  # fmt: skip
+            found.feasibility = feasible
+        play, window, rng = _window(scene, passes, open_blocks, found, (seed, rng), progress, run)
+        return Attempt(found, play, window, *_verdict(play, passes, blocks, sure, found, rng,
+                                                     progress, run), seed)  # fmt: skip
+
+    kept, retries = attempt(rng, seed, run), []
+    if applies(scene, open_blocks):
+        with run.stage("retry"):  # its searches' and verdicts' times count here
+            kept, retries = with_retries(
+                kept, lambda k: attempt(np.random.default_rng([seed, k]), seed + k, Run()),
+                scene.solver.retries, [b.name for b in blocks], feasible.impossible, progress,
+            )  # fmt: skip
+        kept.found.retries = retries
+    found, play, window, v = kept.found, kept.play, kept.window, kept.judgement
+    certified = _certified(play, passes, blocks, kept.sure, found, v, kept.certified, progress, run)
     with run.stage("thin", mark=False):  # its memory stage ends after the margins'
         sheet = _sheet(play, passes, blocks, v, certified, seed, progress)
     certified = on_sheet(certified, sheet.thickness)  # a cell proof needs a plate >= B's diameter
@@ -367,6 +383,7 @@ def _outcome(game: tuple, **more) -> Result:
         window=window,
         feasibility=feasible,
         mirrored=v.mirrored,
+        retries=found.retries,
         **more,
     )
 
@@ -419,10 +436,10 @@ def _announce(feasible, progress: bool) -> None:
 
 
 def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng, progress,
-             run: Run):  # fmt: skip
-    """The verdict on the B not proved before the game, completed with those that were, and the
-    optional certification: (judgement, certifications or []); ``run`` gets the stages
-    "verdict" (and "certify")."""
+            run: Run):  # fmt: skip
+    """The verdict on the B not proved before the game, completed with those that were:
+    (judgement, per B the proof made before the game or None, the B whose proof held); ``run``
+    gets the stage "verdict"."""
     certified = [None] * len(blocks)
     unblockable = found.feasibility.impossible if found.feasibility is not None else []
     with run.stage("verdict"):
@@ -438,12 +455,19 @@ def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng
             sure = {j: r for j, r in sure.items() if j not in failed}  # play them after all
         if unblockable:  # their certificates' poses, where they pass
             with_certificates(scene, passes, blocks, rows, found.feasibility, found.quats, v)
+    return v, certified, sure
+
+
+def _certified(scene: Scene, passes, blocks, sure: dict, found, v, certified: list, progress,
+               run: Run) -> list:  # fmt: skip
+    """With ``[verdict] certify``, the verdict's blocked B certified (stage "certify"; those in
+    ``sure`` keep their proofs from before the game): per B its certification, or [] if none."""
     if scene.verdict.certify:
         with run.stage("certify"):
             proofs = _certify(scene, passes, blocks, found.quats, v, progress, sure)
             for j, c in enumerate(proofs):
                 certified[j] = certified[j] if j in sure else c
-    return v, (certified if any(c is not None for c in certified) else [])
+    return certified if any(c is not None for c in certified) else []
 
 
 def _sheet(scene: Scene, passes, blocks, v, certified, seed, progress):

@@ -132,6 +132,7 @@ def report_dict(result: Result) -> dict:
         "convergence": [float(x) for x in result.history.best],
         "stages": [{"stage": label, "iterations": n} for label, n in result.stages],
         "polish": list(result.polish),
+        "retries": list(result.retries),
         "warnings": list(result.warnings),
         "timings": {k: round(float(v), 4) for k, v in result.timings.items()},
         "memory": memory_dict(result.memory),

@@ -14,6 +14,7 @@ particles = 3
 iterations = 1
 starts = 4
 steps = 30
+retries = 0
 [layout]
 rounds = 1
 alternatives = 0
@@ -39,9 +40,9 @@ __all__ = [
 ]
 
 #: ``[solver]`` keys of a tiny search: a 64-pixel raster, 3 particles and 1 iteration,
-#: player B with 4 starts of 20 Adam steps.
+#: player B with 4 starts of 20 Adam steps, no retry of a lost search.
 TINY_SOLVER = MappingProxyType(
-    {"resolution": 64, "particles": 3, "iterations": 1, "starts": 4, "steps": 20}
+    {"resolution": 64, "particles": 3, "iterations": 1, "starts": 4, "steps": 20, "retries": 0}
 )
 #: ``[verdict]`` keys of a short verdict: 8 starts of 40 steps on a 96-pixel raster, and one
 #: second per proof of a block.
