@@ -39,6 +39,8 @@ layout
     Several A merged into one hole: the sequential scheme and its retries.
 verdict
     The long re-run of player B against the exact polygon that declares the winner.
+retry
+    A second chance for a lost search (``[solver] retries``): A searched again from another seed.
 sheet
     The plate's thickness and its verdict: safe by diameter, or a thin-plate motion search per B.
 solver
