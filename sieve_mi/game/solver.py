@@ -327,11 +327,13 @@ def solve(
 
     kept, retries = attempt(rng, seed, run), []
     if applies(scene, open_blocks):
-        with run.stage("retry"):  # its searches' and verdicts' times count here
+        with run.stage("retry", mark=False):  # its searches' and verdicts' times count here
             kept, retries = with_retries(
                 kept, lambda k: attempt(np.random.default_rng([seed, k]), seed + k, Run()),
                 scene.solver.retries, [b.name for b in blocks], feasible.impossible, progress,
             )  # fmt: skip
+        if retries:  # the memory line names the stage only where a retry ran
+            run.mark("retry")
         kept.found.retries = retries
     found, play, window, v = kept.found, kept.play, kept.window, kept.judgement
     certified = _certified(play, passes, blocks, kept.sure, found, v, kept.certified, progress, run)
