@@ -286,39 +286,30 @@ class _Ahead:
         import drjit as dr
         import mitsuba as mi
 
-        from sieve_mi.workers import worker_pool
-
         if self._pool is not None or not _forkable(mi.variant()):
             return
         dr.sync_thread()  # no kernel of this thread runs while the process is copied
-        self._stack.callback(self._forget)  # after the worker stops (callbacks run last first)
-        try:
-            pool = self._stack.enter_context(
-                worker_pool(1, initializer=_rgb_once, what="figure and GIF rendering")
-            )
-            pool.submit(_ready)  # the process starts now
-        except OSError:
-            self._stack.close()
-            return
-        self._pool = pool
+        self._start(_rgb_once)
 
     def fork_fresh(self, variant: str, threads: int | None) -> None:
         """Fork the worker now, before this process imports Dr.Jit (:func:`first`): it imports
         Dr.Jit, Mitsuba and the pictures' modules itself (:func:`_rgb_fresh`, :func:`_ready`).
         Where the fork fails the save forks its own, as in :meth:`fork`."""
+        self._start(_rgb_fresh, (variant, threads))
+
+    def _start(self, initializer, initargs: tuple = ()) -> None:
+        """The worker's pool, started now with ``initializer(*initargs)`` and :func:`_ready` as
+        its first job (the process starts at once); nothing where the fork fails."""
         from sieve_mi.workers import worker_pool
 
-        self._stack.callback(self._forget)
+        self._stack.callback(self._forget)  # after the worker stops (callbacks run last first)
         try:
             pool = self._stack.enter_context(
                 worker_pool(
-                    1,
-                    initializer=_rgb_fresh,
-                    initargs=(variant, threads),
-                    what="figure and GIF rendering",
-                )  # fmt: skip
+                    1, initializer=initializer, initargs=initargs, what="figure and GIF rendering"
+                )
             )
-            pool.submit(_ready)
+            pool.submit(_ready)  # the process starts now
         except OSError:
             self._stack.close()
             return
