@@ -65,8 +65,8 @@ def applies(scene, open_blocks: list) -> bool:
 def passing(attempt: Attempt, impossible=()) -> list[int]:
     """Indices of the B that pass the attempt's hole in its verdict (those in ``impossible``, which
     no hole can block, left out)."""
-    blocked = attempt.judgement.attack.blocked()[0]
-    return [j for j, b in enumerate(blocked) if not b and j not in set(impossible)]
+    blocked, skip = attempt.judgement.attack.blocked()[0], set(impossible)
+    return [j for j, b in enumerate(blocked) if not b and j not in skip]
 
 
 def _key(attempt: Attempt, impossible) -> tuple:
@@ -76,8 +76,8 @@ def _key(attempt: Attempt, impossible) -> tuple:
 
 def _least(attempt: Attempt, impossible) -> float:
     """The verdict's least β over the B that some hole can block."""
-    beta = attempt.judgement.attack.beta[0]
-    return float(min((b for j, b in enumerate(beta) if j not in set(impossible)), default=np.nan))
+    beta, skip = attempt.judgement.attack.beta[0], set(impossible)
+    return float(min((b for j, b in enumerate(beta) if j not in skip), default=np.nan))
 
 
 def _record(attempt: Attempt, names: list[str], impossible, retry: int) -> dict:

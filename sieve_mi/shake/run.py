@@ -136,7 +136,8 @@ def shake(
         ``engine``, ``plate``, ``shapes`` (one dict per part: counts, ``fraction``, ``ci95``,
         ``median_time_s``, ``pass_times_s``, ``geometry`` (incl. ``hausdorff``), ``fidelity``,
         ``warnings``), ``fidelity_ok`` (every shape's fidelity held), ``warnings`` (every
-        shape's; the clip's, not made), ``clip`` (where it was made), ``timings`` (seconds; the only part that changes between equal runs).
+        shape's; the clip's, not made), ``clip`` (where it was made), ``timings`` (seconds; the
+        only part that changes between equal runs).
 
     Raises
     ------
