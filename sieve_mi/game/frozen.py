@@ -20,14 +20,26 @@ size. The results are the same as unfrozen (a test holds them together); when th
 overflows, :meth:`~sieve_mi.game.player_b.PlayerB.descend` runs the descent again unfrozen.
 Freezing pays where the objective allows it and, on the CPU, up to :data:`CPU_FREEZE_PAIRS`
 (:func:`pays`).
+
+Python's cyclic garbage collector is held off while a frozen step runs (:func:`collector_held`).
+A collection that lands inside a recording and frees a Mitsuba scene that has traced rays (a
+renderer left in a reference cycle by an earlier solve or test) ends the process: the scene's
+Embree release queues a host function, which a recording refuses with a C++ exception thrown
+from a destructor, so ``std::terminate`` aborts the interpreter with nothing to catch (seen
+twice in the suite, 2026-12-08, as a crashed worker). Held off, the collection runs after the
+step instead.
 """
 
 from __future__ import annotations
 
+import contextlib
+import gc
+import threading
+
 from sieve_mi.game.descent import adam_step, pose_loss
 from sieve_mi.optim import QUAT_KEYS, live_poses
 
-__all__ = ["CPU_FREEZE_PAIRS", "frozen_step", "pays", "replay"]
+__all__ = ["CPU_FREEZE_PAIRS", "collector_held", "frozen_step", "pays", "replay"]
 
 #: On the CPU (LLVM variants) descents with more (pose, segment) pairs than this trace their steps
 #: even with ``freeze``: there a big step is bound by arithmetic and the frozen step's fixed-size
@@ -52,6 +64,49 @@ def _step(opt, best, best_loss, overflow, loss, holes, key, settle=None, alive=N
 
     best, best_loss, over = adam_step(opt, best, best_loss, evaluate)
     return best, best_loss, overflow | over
+
+
+class _Collector:
+    """Holds Python's cyclic garbage collector off while any thread is inside :meth:`held`,
+    and gives it back as it was (enabled or not) when the last one leaves."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._inside = 0
+        self._was_enabled = False
+
+    @contextlib.contextmanager
+    def held(self):
+        with self._lock:
+            if self._inside == 0:
+                self._was_enabled = gc.isenabled()
+                gc.disable()
+            self._inside += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._inside -= 1
+                if self._inside == 0 and self._was_enabled:
+                    gc.enable()
+
+
+_COLLECTOR = _Collector()
+
+
+def collector_held():
+    """A context manager in which Python's cyclic garbage collector does not run (see the module
+    docstring: a collection inside a :func:`drjit.freeze` recording may abort the process).
+    Objects freed by their reference counts are freed as always; cycles wait for the block's end.
+
+    Examples
+    --------
+    >>> import gc
+    >>> with collector_held():
+    ...     gc.isenabled()
+    False
+    """
+    return _COLLECTOR.held()
 
 
 def frozen_step():
@@ -131,10 +186,11 @@ def replay(step, descent):
         # Literals (Adam's step counter after the traced steps) become evaluated arrays, so
         # the first frozen step has the layout of the later ones (else it is recorded twice).
         dr.make_opaque(opt.state, best, best_loss)
-        best, best_loss, state["overflow"] = step(
-            opt, best, best_loss, state["overflow"], loss, holes, record, settling,
-            descent.alive_mask,
-        )  # fmt: skip
+        with collector_held():  # a collection inside a recording may abort (module docstring)
+            best, best_loss, state["overflow"] = step(
+                opt, best, best_loss, state["overflow"], loss, holes, record, settling,
+                descent.alive_mask,
+            )  # fmt: skip
         return best, best_loss
 
     steps.overflowed = lambda: bool(state["overflow"][0])

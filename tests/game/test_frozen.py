@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import gc
+import os
+import subprocess
+import sys
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -89,6 +94,74 @@ def test_a_failing_frozen_step_warns_and_traces(mi, shapes, monkeypatch):
     np.testing.assert_array_equal(out[0], traced[0])
     np.testing.assert_array_equal(out[1], traced[1])
     assert not player.freeze  # later descents trace without trying again
+
+
+def test_no_garbage_collection_runs_while_a_step_is_recorded(mi, shapes, monkeypatch):
+    """Dr.Jit runs the step's Python code only while it records it: the cyclic collector is off
+    there, and afterwards as it was before (on, or off where the caller had turned it off)."""
+    import sieve_mi.game.frozen
+
+    log, step = SimpleNamespace(seen=[]), sieve_mi.game.frozen._step
+
+    def spy(*args, **kw):  # (a list in its closure would be part of the recording's key)
+        log.seen.append(gc.isenabled())
+        return step(*args, **kw)
+
+    monkeypatch.setattr(sieve_mi.game.frozen, "_step", spy)
+    _descend(PlayerB(shapes, FRAME, freeze=True))
+    assert log.seen == [False] and gc.isenabled()  # one recording, replayed for the later steps
+    gc.disable()
+    try:
+        _descend(PlayerB(shapes, FRAME, freeze=True))
+        assert log.seen == [False, False] and not gc.isenabled()
+    finally:
+        gc.enable()
+
+
+# A Mitsuba scene that has traced rays, left in a reference cycle (an earlier solve's renderer),
+# and a collection that lands while a step is recorded: the scene's release queues a host function
+# that the recording refuses from a destructor, and the process aborts (exit -6, "this function
+# cannot be recorded!"). The collection is forced inside the recording by the step's spy.
+_COLLECTED_WHILE_RECORDING = """
+import gc, sys
+sys.path[:0] = [{tests!r}, {here!r}]
+import drjit as dr, mitsuba as mi
+import sieve_mi.game.frozen as frozen
+from sieve_mi.backend import default_variant, use_variant
+use_variant(default_variant())
+from test_frozen import FRAME, PlayerB, _descend, shape_from_trimesh, sphere, trimesh
+
+step = frozen._step
+def collecting(*args, **kw):
+    gc.set_threshold(1)
+    junk = [[i] for i in range(5000)]  # allocations: a collection would run here
+    gc.set_threshold(700)
+    return step(*args, **kw)
+frozen._step = collecting
+shapes = [sphere(0.35, 2), shape_from_trimesh(trimesh.creation.box((0.7, 0.4, 0.3)), name="box")]
+player = PlayerB(shapes, FRAME, freeze=True)
+gc.collect()
+gc.set_threshold(10**9)
+scene = mi.load_dict({{"type": "scene", "ball": {{"type": "sphere"}}}})
+dr.eval(scene.ray_intersect(mi.Ray3f(mi.Point3f(0, 0, -5), mi.Vector3f(0, 0, 1))).t)
+cycle = [scene]
+cycle.append(cycle)
+del scene, cycle
+_descend(player)
+print("descended")
+"""
+
+
+def test_a_scene_collected_during_a_recording_does_not_abort_the_process():
+    here = os.path.dirname(os.path.abspath(__file__))
+    code = _COLLECTED_WHILE_RECORDING.format(tests=os.path.dirname(here), here=here)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [REPO, os.environ.get("PYTHONPATH")])),
+    }
+    run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         timeout=300)  # fmt: skip
+    assert run.returncode == 0 and run.stdout.strip() == "descended", run.stderr[-2000:]
 
 
 def test_large_cpu_steps_are_traced(mi, shapes, monkeypatch):
