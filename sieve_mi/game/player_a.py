@@ -80,6 +80,8 @@ class PlayerA:
         self.on_step: Callable[[int], None] | None = None
         #: The last search's classes of congruent holes (:mod:`sieve_mi.game.reuse`), or None.
         self.classes = None
+        #: The last search's :class:`~sieve_mi.game.reuse.Incumbent` (with reuse), or None.
+        self.incumbent = None
 
     @classmethod
     def from_settings(
@@ -175,11 +177,7 @@ class PlayerA:
 
         s = solver
         seed = s.seed if seed is None else seed
-        self.classes = reuse.Classes() if reuse.REUSE else None
-
-        def evaluate(qs: np.ndarray, floor=None) -> np.ndarray:
-            return self.values(player_b, qs, s.starts, s.steps, s.learning_rate, rng, floor,
-                               classes=self.classes, halving=s.halving)  # fmt: skip
+        evaluate = self._evaluator(player_b, s, rng, seed)
 
         def say(name: str) -> None:
             if stage is not None:
@@ -199,6 +197,27 @@ class PlayerA:
             say("polish")
             q, f, history.polish = self.polish(player_b, q, s, seed=seed, classes=self.classes)
         return q, f, history
+
+    def _evaluator(self, player_b: PlayerB, s: Solver, rng, seed: int):
+        """The search's ``evaluate(quats, floor=None)``: :meth:`values` with the search's classes
+        of congruent holes (:mod:`sieve_mi.game.reuse`, made afresh here) and, with them, every
+        value that would become the search's best confirmed by a fresh attack
+        (:class:`~sieve_mi.game.reuse.Incumbent`)."""
+        self.classes = reuse.Classes() if reuse.REUSE else None
+
+        def fresh(qs: np.ndarray, k: int) -> np.ndarray:  # a new best's confirming attack
+            own = np.random.default_rng([int(seed), 0xC0F1, k])
+            return self.values(player_b, qs, s.starts, s.steps, s.learning_rate, own,
+                               halving=s.halving)  # fmt: skip
+
+        self.incumbent = None if self.classes is None else reuse.Incumbent(fresh)
+
+        def evaluate(qs: np.ndarray, floor=None) -> np.ndarray:
+            got = self.values(player_b, qs, s.starts, s.steps, s.learning_rate, rng, floor,
+                              classes=self.classes, halving=s.halving)  # fmt: skip
+            return got if self.incumbent is None else self.incumbent(qs, got)
+
+        return evaluate
 
     def values(
         self,
