@@ -82,6 +82,9 @@ class PlayerA:
         self.classes = None
         #: The last search's :class:`~sieve_mi.game.reuse.Incumbent` (with reuse), or None.
         self.incumbent = None
+        #: The classes (:class:`~sieve_mi.game.reuse.Member`) of the holes of the last
+        #: :meth:`values` with ``classes``.
+        self.placed = None
 
     @classmethod
     def from_settings(
@@ -200,8 +203,8 @@ class PlayerA:
 
     def _evaluator(self, player_b: PlayerB, s: Solver, rng, seed: int):
         """The search's ``evaluate(quats, floor=None)``: :meth:`values` with the search's classes
-        of congruent holes (:mod:`sieve_mi.game.reuse`, made afresh here) and, with them, every
-        value that would become the search's best confirmed by a fresh attack
+        of congruent holes (:mod:`sieve_mi.game.reuse`, made afresh here) and, with them, each
+        class whose hole would become the search's best confirmed by a fresh attack
         (:class:`~sieve_mi.game.reuse.Incumbent`)."""
         self.classes = reuse.Classes() if reuse.REUSE else None
 
@@ -215,7 +218,7 @@ class PlayerA:
         def evaluate(qs: np.ndarray, floor=None) -> np.ndarray:
             got = self.values(player_b, qs, s.starts, s.steps, s.learning_rate, rng, floor,
                               classes=self.classes, halving=s.halving)  # fmt: skip
-            return got if self.incumbent is None else self.incumbent(qs, got)
+            return got if self.incumbent is None else self.incumbent(qs, got, self.placed)
 
         return evaluate
 
@@ -257,6 +260,7 @@ class PlayerA:
         if prune or classes is not None:
             pruned = maximin.Pruned(player_b, holes, starts, steps, learning_rate, rng,
                                     self.settle, step, classes, halving)  # fmt: skip
+            self.placed = pruned.members
             if not prune:
                 return pruned.advance().copy()
             if isinstance(floor, maximin.Best):

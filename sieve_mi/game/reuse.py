@@ -12,8 +12,8 @@ attacks a reference as always, from its own random starts, and remembers each B'
 them instead of a full multi-start attack. The β of such a hole is still player B's real raster
 score on that hole (its own attack, from better starts, for fewer steps), never a copy; the
 verdict on the exact printed polygon decides the winner as before. A reference's attack that
-missed a passage leaves its whole class overestimated, so a value that would become the search's
-best is attacked again from fresh starts first (:class:`Incumbent`).
+missed a passage leaves its whole class overestimated, so a class whose hole would become the
+search's best is attacked again from fresh starts once, and that caps its holes (:class:`Incumbent`).
 
 Every β is a function of its hole, its B and its class alone, whatever else one descent holds:
 a reference's B is attacked from the starts drawn for the reference when it was first seen
@@ -132,18 +132,21 @@ class Classes:
 
 
 class Incumbent:
-    """The best value of one search with reuse, every new best confirmed by a fresh attack.
+    """The best value of one search with reuse, each class confirmed by a fresh attack once.
 
     With reuse every hole of a class gets its β from the reference's attack: where that attack
     missed a passage (10 random starts can), the whole class keeps the overestimate, and the swarm,
     which keeps the highest values it sees, settles on it. On the authors' mechanical parts
     (seed 0, 2026-12-08) the beetle's search claimed 0.066 from its first iteration where a fresh
     attack found 0.0008 on the same view, and the merged hole's beetle front ended at β 0.0005
-    (0.035 without reuse). So a value that would become the search's best is attacked again from
-    fresh starts, without reuse, and lowered to the lower of the two; the next highest is
-    confirmed in turn while the best is not a confirmed one. Values at or below the best change
-    nothing (the swarm keeps its best), and a search's new bests are few: a few more attacks a
-    search.
+    (0.035 without reuse). So when a value would become the search's best, its hole is attacked
+    again from fresh starts, without reuse, and the result *caps its class*: that hole and every
+    later hole of the class gets the lower of its own value and the cap (congruent holes have the
+    same β up to the raster's noise). The next highest is confirmed in turn while the best is not
+    in a confirmed class. Each class is confirmed once (the first confirmation per hole, tried on
+    2026-12-08, took 28 more attacks of 50 B on the ball of ``benchmarks.many_b``, whose every hole
+    is one class and whose noise kept making new bests), and values at or below the best change
+    nothing (the swarm keeps its best).
 
     Parameters
     ----------
@@ -154,29 +157,37 @@ class Incumbent:
     Attributes
     ----------
     best : float
-        The highest confirmed value so far (-inf before any).
+        The highest value so far, after the caps (-inf before any).
+    caps : dict
+        :class:`Entry` -> its confirmed value.
     confirmed, lowered : int
-        Values confirmed, and how many of them a fresh attack lowered.
+        Classes confirmed, and how many of those confirmations lowered the value they checked.
     """
 
     def __init__(self, fresh):
         self.fresh = fresh
         self.best = -np.inf
+        self.caps: dict[Entry, float] = {}
         self.confirmed, self.lowered = 0, 0
 
-    def __call__(self, quats: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """``values`` of rotations ``quats`` with each one that would be a new best confirmed."""
+    def __call__(self, quats: np.ndarray, values: np.ndarray, members: list[Member]) -> np.ndarray:
+        """``values`` of rotations ``quats`` (their holes' ``members``, :meth:`Classes.place`),
+        capped by their classes' confirmations, a class confirmed where it would be the best."""
         values = np.array(values, dtype=np.float64)
-        done = np.zeros(len(values), dtype=bool)
+        entries = [m.entry for m in members]
+        for i, entry in enumerate(entries):
+            values[i] = min(values[i], self.caps.get(entry, np.inf))
         while len(values):
             k = int(np.argmax(values))
-            if values[k] <= self.best or done[k]:
+            if values[k] <= self.best or entries[k] in self.caps:
                 break
-            again = float(self.fresh(np.asarray(quats)[k : k + 1], self.confirmed)[0])
+            cap = float(self.fresh(np.asarray(quats)[k : k + 1], self.confirmed)[0])
+            self.caps[entries[k]] = cap
             self.confirmed += 1
-            if again < values[k]:
-                values[k], self.lowered = again, self.lowered + 1
-            done[k] = True
+            self.lowered += cap < values[k]
+            for i, entry in enumerate(entries):
+                if entry is entries[k]:
+                    values[i] = min(values[i], cap)
         if len(values):
             self.best = max(self.best, float(values.max()))
         return values

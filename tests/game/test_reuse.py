@@ -14,7 +14,7 @@ from helpers import rng, sphere
 
 from sieve_mi.game.player_a import PlayerA
 from sieve_mi.game.player_b import PlayerB
-from sieve_mi.game.reuse import Incumbent
+from sieve_mi.game.reuse import Entry, Incumbent, Member
 from sieve_mi.geometry.meshes import shape_from_trimesh
 from sieve_mi.geometry.raster import Frame
 from sieve_mi.testing import shapes
@@ -37,34 +37,39 @@ def test_a_balls_holes_get_one_full_attack():
     _, value, _ = player_a.search(player_b, solver, rng=rng(1), seed=1)
     classes = player_a.classes
     assert len(classes.entries) == 1 and classes.reused == classes.placed - 1 > 5
-    confirmed = player_a.incumbent.confirmed  # new bests attacked again from fresh starts
-    assert confirmed >= 1
-    assert sum(full) == 2 * solver.starts * (1 + confirmed)  # the reference's, and those
+    assert player_a.incumbent.confirmed == 1  # the one class, confirmed by a fresh attack once
+    assert sum(full) == 2 * solver.starts * 2  # the reference's starts of both B, and those
     ref = classes.entries[0].beta
     assert abs(ref[0] - 0.131) < 0.02 and ref[1] > ref[0]  # the ball decides
     assert abs(value - ref[0]) < 0.01
 
 
-def test_a_new_best_is_confirmed_by_a_fresh_attack():
-    # Values 0.1, 0.5, 0.3 from reused attacks; fresh attacks find 0.05 on the second hole and
-    # 0.2 on the third. The 0.5 would be the best: lowered to 0.05; then the 0.3: lowered to 0.2,
-    # the best now, and confirmed. The first (0.1, never the best) is not attacked again.
-    found = {1: 0.05, 2: 0.2}
+def test_a_class_that_would_be_best_is_confirmed_once_by_a_fresh_attack():
+    # Holes 0 and 1 are one class (X), hole 2 another (Y); reused attacks gave 0.1, 0.5, 0.3,
+    # fresh attacks find 0.05 on X and 0.2 on Y. The 0.5 would be the best: X is confirmed and
+    # capped at 0.05, hole 0 with it; then the 0.3: Y capped at 0.2, the best now.
+    x, y, z = (Entry(None, None, None) for _ in range(3))
+    found = {1: 0.05, 2: 0.2, 3: 0.9}
     asked = []
 
     def fresh(quats, k):
         asked.append((int(quats[0, 0]), k))
         return np.array([found[int(quats[0, 0])]])
 
+    def members(*entries):
+        return [Member(e, None, False) for e in entries]
+
     incumbent = Incumbent(fresh)
     quats = np.array([[0.0, 0, 0, 1], [1.0, 0, 0, 0], [2.0, 0, 0, 0]])  # tagged in w
-    np.testing.assert_array_equal(incumbent(quats, [0.1, 0.5, 0.3]), [0.1, 0.05, 0.2])
+    got = incumbent(quats, [0.1, 0.5, 0.3], members(x, x, y))
+    np.testing.assert_array_equal(got, [0.05, 0.05, 0.2])
     assert asked == [(1, 0), (2, 1)] and incumbent.best == 0.2
     assert (incumbent.confirmed, incumbent.lowered) == (2, 2)
-    # at or below the best: nothing is attacked again, nothing changes
-    np.testing.assert_array_equal(incumbent(quats, [0.15, 0.1, 0.2]), [0.15, 0.1, 0.2])
+    # later holes of confirmed classes are capped, and no class is attacked again
+    got = incumbent(quats, [0.15, 0.4, 0.25], members(x, x, y))
+    np.testing.assert_array_equal(got, [0.05, 0.05, 0.2])
     assert incumbent.confirmed == 2 and incumbent.best == 0.2
-    # a fresh attack that finds no lower value leaves the value as it was
-    found[2] = 0.9
-    np.testing.assert_array_equal(incumbent(quats, [0.0, 0.0, 0.3]), [0.0, 0.0, 0.3])
+    # a new class's fresh attack that finds no lower value leaves its value as it was
+    got = incumbent(np.array([[3.0, 0, 0, 0]]), [0.3], members(z))
+    np.testing.assert_array_equal(got, [0.3])
     assert (incumbent.confirmed, incumbent.lowered, incumbent.best) == (3, 2, 0.3)
