@@ -157,4 +157,5 @@ def _message(records: list[dict], chosen: dict) -> str:
         return f"{said} did no better: the first hole kept"
     verdict = (f"lets {', '.join(chosen['passed'])} through" if chosen["passed"] else
                "blocks every B")  # fmt: skip
-    return f"{said}: the one from seed {chosen['seed']} {verdict} (least β {chosen['min_beta']:.4g}): kept"
+    least = f"least β {chosen['min_beta']:.4g}"
+    return f"{said}: the one from seed {chosen['seed']} {verdict} ({least}): kept"

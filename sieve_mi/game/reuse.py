@@ -13,7 +13,8 @@ them instead of a full multi-start attack. The β of such a hole is still player
 score on that hole (its own attack, from better starts, for fewer steps), never a copy; the
 verdict on the exact printed polygon decides the winner as before. A reference's attack that
 missed a passage leaves its whole class overestimated, so a class whose hole would become the
-search's best is attacked again from fresh starts once, and that caps its holes (:class:`Incumbent`).
+search's best is attacked again from fresh starts once, and that caps its holes
+(:class:`Incumbent`).
 
 Every β is a function of its hole, its B and its class alone, whatever else one descent holds:
 a reference's B is attacked from the starts drawn for the reference when it was first seen

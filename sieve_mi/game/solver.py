@@ -438,7 +438,7 @@ def _announce(feasible, progress: bool) -> None:
 
 
 def _verdict(scene: Scene, passes, blocks, sure: dict, found: SearchOutcome, rng, progress,
-            run: Run):  # fmt: skip
+             run: Run):  # fmt: skip
     """The verdict on the B not proved before the game, completed with those that were:
     (judgement, per B the proof made before the game or None, the B whose proof held); ``run``
     gets the stage "verdict"."""
